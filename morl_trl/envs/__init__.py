@@ -1,0 +1,37 @@
+"""Contextual multi-objective domains as batched TorchRL environments.
+
+Example:
+    >>> from morl_trl.envs import make_env, evaluation_suite, list_envs
+    >>> "MOLunarLanderDR-v0" in list_envs()
+    True
+    >>> evaluation_suite("MOHopperDR-v5")[:2]
+    ['MOHopperDefault-v5', 'MOHopperLight-v5']
+"""
+
+from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.registry import (
+    DomainSpec,
+    context_space,
+    domain_of,
+    evaluation_suite,
+    is_randomized,
+    list_domains,
+    list_envs,
+    make_env,
+    register_domain,
+)
+
+__all__ = [
+    "ContextSpace",
+    "ContextualMOEnv",
+    "DomainSpec",
+    "context_space",
+    "domain_of",
+    "evaluation_suite",
+    "is_randomized",
+    "list_domains",
+    "list_envs",
+    "make_env",
+    "register_domain",
+]

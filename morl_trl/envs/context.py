@@ -1,0 +1,183 @@
+"""Context spaces: the named, bounded parameter vectors that define a contextual MDP.
+
+A *context* is a float vector ``[c]`` whose entries are named physical parameters (gravity,
+masses, friction, ...). A :class:`ContextSpace` holds their order, defaults and the
+domain-randomization ranges, validates user input, and samples contexts reproducibly from a
+:class:`torch.Generator`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import torch
+
+__all__ = ["ContextSpace"]
+
+
+def _as_tuple(values: Sequence[float], name: str, n: int) -> tuple[float, ...]:
+    values = tuple(float(v) for v in values)
+    if len(values) != n:
+        raise ValueError(f"ContextSpace: {name} has {len(values)} entries, expected {n}")
+    return values
+
+
+@dataclass(frozen=True)
+class ContextSpace:
+    """Ordered named parameters with defaults and domain-randomization ranges.
+
+    Args:
+        names: parameter names, in the order of the context vector.
+        default: the default value of each parameter.
+        low, high: the domain-randomization range of each parameter (uniform sampling).
+        positive: names of parameters that the physics only accepts strictly positive
+            (masses, friction, engine power); ``validate`` rejects others.
+
+    Example:
+        >>> import torch
+        >>> space = ContextSpace(("gravity", "wind"), (-10.0, 15.0), (-13.0, 0.0), (-7.0, 20.0))
+        >>> space.make(gravity=-12.0)
+        tensor([-12.,  15.])
+        >>> space.sample(3, generator=torch.Generator().manual_seed(0)).shape
+        torch.Size([3, 2])
+    """
+
+    names: tuple[str, ...]
+    default: tuple[float, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+    positive: frozenset[str] = field(default_factory=frozenset)
+
+    def __post_init__(self) -> None:
+        names = tuple(self.names)
+        object.__setattr__(self, "names", names)
+        n = len(names)
+        if len(set(names)) != n:
+            raise ValueError(f"ContextSpace: duplicate parameter names in {names}")
+        object.__setattr__(self, "default", _as_tuple(self.default, "default", n))
+        object.__setattr__(self, "low", _as_tuple(self.low, "low", n))
+        object.__setattr__(self, "high", _as_tuple(self.high, "high", n))
+        object.__setattr__(self, "positive", frozenset(self.positive))
+        unknown = self.positive - set(names)
+        if unknown:
+            raise ValueError(f"ContextSpace: positive names {sorted(unknown)} are not parameters")
+        for name, lo, hi in zip(names, self.low, self.high):
+            if not lo <= hi:
+                raise ValueError(f"ContextSpace: range of {name!r} has low {lo} > high {hi}")
+
+    # ------------------------------------------------------------------ basic views
+    @property
+    def dim(self) -> int:
+        """Number of parameters ``c``."""
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Position of ``name`` in the context vector."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ValueError(
+                f"unknown context parameter {name!r}; valid names: {list(self.names)}"
+            ) from None
+
+    def default_tensor(self, device: torch.device | str | None = None) -> torch.Tensor:
+        """The default context as a ``[c]`` float32 tensor."""
+        return torch.tensor(self.default, dtype=torch.float32, device=device)
+
+    def bounds(self, device=None) -> tuple[torch.Tensor, torch.Tensor]:
+        """The domain-randomization ranges as two ``[c]`` tensors."""
+        lo = torch.tensor(self.low, dtype=torch.float32, device=device)
+        hi = torch.tensor(self.high, dtype=torch.float32, device=device)
+        return lo, hi
+
+    def as_dict(self, context: torch.Tensor) -> dict[str, float]:
+        """Name each entry of a single ``[c]`` context."""
+        context = self.validate(context)
+        if context.ndim != 1:
+            raise ValueError(f"as_dict takes a single context of shape [{self.dim}], got {tuple(context.shape)}")
+        return {n: float(v) for n, v in zip(self.names, context.tolist())}
+
+    def make(self, overrides: Mapping[str, float] | None = None, /, **kwargs: float) -> torch.Tensor:
+        """The default context with some parameters overridden by name."""
+        values = list(self.default)
+        for name, value in {**(overrides or {}), **kwargs}.items():
+            values[self.index(name)] = float(value)
+        return self.validate(torch.tensor(values, dtype=torch.float32))
+
+    # ------------------------------------------------------------------ sampling
+    def sample(
+        self,
+        n: int,
+        generator: torch.Generator | None = None,
+        device: torch.device | str | None = None,
+    ) -> torch.Tensor:
+        """Draw ``n`` contexts, each parameter independently uniform in ``[low, high]``."""
+        if generator is not None and device is None:
+            device = generator.device
+        lo, hi = self.bounds(device)
+        u = torch.rand((n, self.dim), generator=generator, device=device)
+        return lo + u * (hi - lo)
+
+    # ------------------------------------------------------------------ validation
+    def validate(self, context, *, check_range: bool = False) -> torch.Tensor:
+        """Check a ``[..., c]`` context and return it as a float tensor.
+
+        Raises ``ValueError`` naming the parameter when the last dimension is not ``c``,
+        an entry is NaN or infinite, a parameter that the physics needs positive is not,
+        or (with ``check_range``) an entry lies outside the randomization range.
+        """
+        context = torch.as_tensor(context)
+        if not context.is_floating_point():
+            context = context.float()
+        if context.ndim == 0 or context.shape[-1] != self.dim:
+            raise ValueError(
+                f"context has shape {tuple(context.shape)}; expected [..., {self.dim}] "
+                f"with parameters {list(self.names)}"
+            )
+        flat = context.reshape(-1, self.dim)
+        bad = ~torch.isfinite(flat)
+        if bad.any():
+            row, col = (int(i) for i in bad.nonzero()[0])
+            raise ValueError(
+                f"context parameter {self.names[col]!r} is {flat[row, col].item()} (row {row}); "
+                "it must be a finite number"
+            )
+        for name in self.positive:
+            col = self.names.index(name)
+            nonpos = flat[:, col] <= 0
+            if nonpos.any():
+                row = int(nonpos.nonzero()[0])
+                raise ValueError(
+                    f"context parameter {name!r} is {flat[row, col].item()} (row {row}); "
+                    "the physics needs it strictly positive"
+                )
+        if check_range:
+            lo, hi = self.bounds(flat.device)
+            # a float32 round-off tolerance: samples are computed as lo + u * (hi - lo)
+            tol = 1e-5 * (1.0 + torch.maximum(lo.abs(), hi.abs()))
+            out = (flat < lo - tol) | (flat > hi + tol)
+            if out.any():
+                row, col = (int(i) for i in out.nonzero()[0])
+                raise ValueError(
+                    f"context parameter {self.names[col]!r} is {flat[row, col].item()} (row {row}), "
+                    f"outside its range [{self.low[col]}, {self.high[col]}]"
+                )
+        return context
+
+    def contains(self, context) -> bool:
+        """Whether every context in ``[..., c]`` is valid and inside the ranges."""
+        try:
+            self.validate(context, check_range=True)
+        except ValueError:
+            return False
+        return True
+
+    def __repr__(self) -> str:
+        rows = ", ".join(
+            f"{n}={d:g}[{lo:g},{hi:g}]" for n, d, lo, hi in zip(self.names, self.default, self.low, self.high)
+        )
+        return f"ContextSpace({rows})"
+
+    def __len__(self) -> int:
+        return self.dim
