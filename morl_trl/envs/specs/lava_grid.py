@@ -1,0 +1,25 @@
+"""MO-LavaGrid (SPEC section 1.3): procedural maps for training, eight hand-drawn maps for evaluation."""
+
+from morl_trl.envs.lava_grid.context import LAVA_GRID_CONTEXT, evaluation_maps
+from morl_trl.envs.registry import DomainSpec, register_domain
+
+# the order of SPEC's id list
+_SUITE = ("CheckerBoard", "Smiley", "Snake", "Islands", "Labyrinth", "Maze", "Corridor", "Room")
+_MAPS = evaluation_maps()
+
+register_domain(
+    DomainSpec(
+        name="MO-LavaGrid",
+        train_id="MOLavaGridDR-v0",
+        env_class="morl_trl.envs.lava_grid:MOLavaGridEnv",
+        context_space=LAVA_GRID_CONTEXT,
+        contexts={
+            f"MOLavaGrid{name}-v0": LAVA_GRID_CONTEXT.as_dict(_MAPS[name]) for name in _SUITE
+        },
+        evaluation_ids=tuple(f"MOLavaGrid{name}-v0" for name in _SUITE),
+        objective_names=("lava", "time"),
+        gamma=0.995,
+        hv_ref_point=(-1000.0, -500.0),
+        max_episode_steps=256,
+    )
+)
