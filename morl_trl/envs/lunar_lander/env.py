@@ -1,0 +1,278 @@
+"""MO-LunarLander (discrete and continuous) as one batched TorchRL environment.
+
+``N`` Box2D worlds, one per sub-env, each with its own context (SPEC §1.1). Only the calls
+that must touch a world (apply forces, ``Step``, read the lander back) loop over sub-envs;
+wind, engine impulses, observations, shaping, rewards and termination are numpy operations
+over the batch, written in Gymnasium's operation order so that the results are the same
+floating-point numbers as ``LunarLander-v3`` / MO-Gymnasium's ``mo-lunar-lander-v3``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torchrl.data import Bounded, Categorical, Unbounded
+
+from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.lunar_lander import physics as P
+from morl_trl.envs.lunar_lander.random_streams import BlockUniformStreams
+from morl_trl.envs.specs.lunar_lander import LUNAR_LANDER_CONTEXT, OBJECTIVES
+
+__all__ = ["MOLunarLanderEnv"]
+
+_GRAVITY, _WIND, _TURBULENCE, _MAIN, _SIDE, _X, _Y = range(7)
+_HALF_W = P.VIEWPORT_W / P.SCALE / 2
+_HALF_H = P.VIEWPORT_H / P.SCALE / 2
+_PAD_Y = P.HELIPAD_Y + P.LEG_DOWN / P.SCALE
+
+
+def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
+    """float32 contexts -> the float64 of their shortest decimal (0.6f -> 0.6, not 0.6000000238).
+
+    Contexts travel as float32 while Gymnasium computes in float64 from decimal literals;
+    going through the shortest decimal gives the same physics as the float64 peer for the
+    values people type (all the paper's contexts).
+    """
+    return context.detach().cpu().numpy().astype(np.float32).astype(str).astype(np.float64)
+
+
+class MOLunarLanderEnv(ContextualMOEnv):
+    """Batched contextual MO-LunarLander with a 4-D reward.
+
+    Observation ``[*B, 8]`` as Gymnasium's; action ``Categorical(4)`` (noop, left, main,
+    right) or, with ``continuous=True``, ``Box(2)`` in ``[-1, 1]`` (main throttle, lateral).
+    Reward ``[*B, 4]`` = (landing: -100 crash or out of bounds / +100 at rest, on the
+    terminal step; shaping: the step's change of Gymnasium's shaping; main_fuel: -main
+    engine power; side_fuel: -side engine power). ``"original_reward"`` is Gymnasium's
+    scalar reward. Context (7 entries): gravity, wind_power, turbulence_power,
+    main_engine_power, side_engine_power, initial_x_coeff, initial_y_coeff; wind and
+    turbulence are always enabled (set their power to 0 to switch them off).
+
+    Sub-env ``i``'s random generator is seeded like Gymnasium's ``reset(seed=seed + i)``
+    and continues across its episodes, so with the same seed, context and actions a
+    sub-env reproduces ``LunarLander-v3(enable_wind=True)`` draw for draw.
+
+    Args:
+        num_envs: number of sub-environments.
+        context: ``[7]`` or ``[num_envs, 7]``; the default context if ``None``.
+        device: device of the output TensorDicts (the physics runs on the CPU).
+        seed: seed of the sub-envs' generators.
+        continuous: continuous actions (``MOLunarLanderContinuous*``).
+        max_episode_steps: truncation horizon (1000 in the paper).
+
+    Example:
+        >>> from morl_trl.envs import make_env
+        >>> env = make_env("MOLunarLanderHard-v0", num_envs=4, seed=0)
+        >>> td = env.rollout(5)
+        >>> td["next", "reward"].shape, td["next", "observation"].shape
+        (torch.Size([4, 5, 4]), torch.Size([4, 5, 8]))
+        >>> env.objective_names
+        ('landing', 'shaping', 'main_fuel', 'side_fuel')
+    """
+
+    objective_names = OBJECTIVES
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        context: torch.Tensor | None = None,
+        device: torch.device | str = "cpu",
+        seed: int | None = None,
+        continuous: bool = False,
+        max_episode_steps: int = 1000,
+    ) -> None:
+        self.continuous = bool(continuous)
+        self._streams: BlockUniformStreams | None = None
+        super().__init__(
+            context_space=LUNAR_LANDER_CONTEXT,
+            num_envs=num_envs,
+            context=context,
+            device=device,
+            seed=seed,
+            max_episode_steps=max_episode_steps,
+        )
+        n = num_envs
+        self._all = np.arange(n)
+        self._worlds: list[P.LanderWorld | None] = [None] * n
+        self._ctx = np.zeros((n, self.context_space.dim))
+        # written by the contact listeners during Box2D steps
+        self._game_over = np.zeros(n, dtype=bool)
+        self._legs = np.zeros((n, 2), dtype=bool)
+        self._listeners = [P.ContactFlags(self._game_over, self._legs, i) for i in range(n)]
+        self._wind_idx = np.zeros(n, dtype=np.int64)
+        self._torque_idx = np.zeros(n, dtype=np.int64)
+        self._body = np.zeros((n, 6))  # x, y, vx, vy, angle, angular velocity (last read back)
+        self._obs = np.zeros((n, 8), dtype=np.float32)
+        self._prev_shaping = np.zeros(n)
+
+    # ------------------------------------------------------------------ specs / seeding
+    def _domain_observation_spec(self):
+        return {"observation": Unbounded(shape=(8,), dtype=torch.float32)}
+
+    def _domain_action_spec(self):
+        if self.continuous:
+            return Bounded(low=-1.0, high=1.0, shape=(2,), dtype=torch.float32)
+        return Categorical(4, shape=(), dtype=torch.long)
+
+    def _seed_subenvs(self, seed: int) -> None:
+        if self._streams is None:
+            self._streams = BlockUniformStreams(self.num_envs, seed)
+        else:
+            self._streams.seed(seed)
+
+    # ------------------------------------------------------------------ reset
+    def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
+        idx = idx.cpu().numpy()
+        ctx = _as_decimal_float64(context)
+        self._ctx[idx] = ctx
+        self._game_over[idx] = False
+        self._legs[idx] = False
+        for i, (g, x, y) in zip(idx.tolist(), ctx[:, [_GRAVITY, _X, _Y]].tolist()):
+            old = self._worlds[i]
+            if old is not None:
+                old.world.contactListener = None
+            w = P.build_world(self._streams.generator(i), g, x, y, self._listeners[i])
+            self._worlds[i] = w
+            self._wind_idx[i] = w.wind_idx
+            self._torque_idx[i] = w.torque_idx
+        # Gymnasium's reset ends with one no-op step whose observation it returns
+        zeros = np.zeros(len(idx))
+        state, shaping, _ = self._advance(idx, zeros, zeros, zeros)
+        self._prev_shaping[idx] = shaping
+        self._obs[idx] = state
+
+    def _observe(self):
+        return {"observation": torch.tensor(self._obs, device=self.device)}
+
+    # ------------------------------------------------------------------ step
+    def _engine_powers(self, action: torch.Tensor):
+        """(main power, side power, side direction) per sub-env, as Gymnasium derives them."""
+        a = action.detach().cpu().numpy()
+        if self.continuous:
+            a = np.clip(a, -1, +1).astype(np.float64)
+            main = np.where(a[:, 0] > 0.0, (np.clip(a[:, 0], 0.0, 1.0) + 1.0) * 0.5, 0.0)
+            fire_side = np.abs(a[:, 1]) > 0.5
+            side = np.where(fire_side, np.clip(np.abs(a[:, 1]), 0.5, 1.0), 0.0)
+            direction = np.sign(a[:, 1])
+        else:
+            main = (a == 2).astype(np.float64)
+            side = ((a == 1) | (a == 3)).astype(np.float64)
+            direction = (a - 2).astype(np.float64)
+        return main, side, direction
+
+    def _step_subenvs(self, action: torch.Tensor):
+        if any(w is None for w in self._worlds):
+            raise RuntimeError("MOLunarLanderEnv: call reset() before step()")
+        main, side, direction = self._engine_powers(action)
+        state, shaping, awake = self._advance(self._all, main, side, direction)
+
+        shaping_delta = shaping - self._prev_shaping
+        self._prev_shaping = shaping
+        crashed = self._game_over | (np.abs(state[:, 0]) >= 1.0)
+        at_rest = ~awake
+        landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
+        original = shaping_delta - main * 0.30 - side * 0.03
+        original = np.where(crashed | at_rest, landing, original)
+        reward = np.stack([landing, shaping_delta, 0.0 - main, 0.0 - side], axis=-1).astype(np.float32)
+        terminated = crashed | at_rest
+
+        self._obs = state
+        dev = self.device
+        return (
+            {"observation": torch.from_numpy(state).to(dev)},
+            torch.from_numpy(reward).to(dev),
+            torch.from_numpy(original.astype(np.float32)).to(dev),
+            torch.from_numpy(terminated).to(dev),
+        )
+
+    def _advance(self, idx: np.ndarray, main: np.ndarray, side: np.ndarray, direction: np.ndarray):
+        """One Gymnasium step of the worlds ``idx`` with the given engine powers.
+
+        Returns the float32 observations ``[n, 8]``, the float64 shaping ``[n]`` and the
+        lander's ``awake`` flags ``[n]``.
+        """
+        ctx = self._ctx[idx]
+        # wind and turbulence act only while no leg touches the ground
+        airborne = ~(self._legs[idx, 0] | self._legs[idx, 1])
+        kw = self._wind_idx[idx].astype(np.float64)
+        kt = self._torque_idx[idx].astype(np.float64)
+        wind = np.tanh(np.sin(P.WIND_K1 * kw) + np.sin(P.WIND_K2 * kw)) * ctx[:, _WIND]
+        torque = np.tanh(np.sin(P.WIND_K1 * kt) + np.sin(P.WIND_K2 * kt)) * ctx[:, _TURBULENCE]
+        self._wind_idx[idx] += airborne
+        self._torque_idx[idx] += airborne
+
+        disp = self._streams.take(idx) / P.SCALE
+        d0, d1 = disp[:, 0], disp[:, 1]
+        body = self._body[idx]
+        px, py, angle = body[:, 0], body[:, 1], body[:, 4]
+        tip0, tip1 = np.sin(angle), np.cos(angle)
+        side0, side1 = -tip1, tip0
+
+        lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
+        ox = tip0 * lever + side0 * d1
+        oy = -tip1 * lever - side1 * d1
+        main_at = np.stack([px + ox, py + oy], -1)
+        main_imp = np.stack([-ox * ctx[:, _MAIN] * main, -oy * ctx[:, _MAIN] * main], -1)
+
+        arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
+        ox = tip0 * d0 + side0 * arm
+        oy = -tip1 * d0 - side1 * arm
+        side_at = np.stack(
+            [px + ox - tip0 * 17 / P.SCALE, py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE], -1
+        )
+        side_imp = np.stack([-ox * ctx[:, _SIDE] * side, -oy * ctx[:, _SIDE] * side], -1)
+
+        fire_main, fire_side = main > 0, side > 0
+        readback = []
+        worlds = self._worlds
+        for i, air, w_f, t_f, fm, m_imp, m_at, fs, s_imp, s_at in zip(
+            idx.tolist(), airborne.tolist(), wind.tolist(), torque.tolist(),
+            fire_main.tolist(), main_imp.tolist(), main_at.tolist(),
+            fire_side.tolist(), side_imp.tolist(), side_at.tolist(),
+        ):  # fmt: skip
+            w = worlds[i]
+            lander = w.lander
+            if air:
+                lander.ApplyForceToCenter((w_f, 0.0), True)
+                lander.ApplyTorque(t_f, True)
+            if fm:
+                lander.ApplyLinearImpulse(m_imp, m_at, True)
+            if fs:
+                lander.ApplyLinearImpulse(s_imp, s_at, True)
+            w.world.Step(P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS)
+            pos, vel = lander.position, lander.linearVelocity
+            readback.append((pos.x, pos.y, vel.x, vel.y, lander.angle, lander.angularVelocity, lander.awake))
+
+        back = np.array(readback, dtype=np.float64).reshape(len(idx), 7)
+        self._body[idx] = back[:, :6]
+        legs = self._legs[idx].astype(np.float64)
+        s = np.empty((len(idx), 8))
+        s[:, 0] = (back[:, 0] - _HALF_W) / _HALF_W
+        s[:, 1] = (back[:, 1] - _PAD_Y) / _HALF_H
+        s[:, 2] = back[:, 2] * _HALF_W / P.FPS
+        s[:, 3] = back[:, 3] * _HALF_H / P.FPS
+        s[:, 4] = back[:, 4]
+        s[:, 5] = 20.0 * back[:, 5] / P.FPS
+        s[:, 6:] = legs
+        shaping = (
+            -100 * np.sqrt(s[:, 0] * s[:, 0] + s[:, 1] * s[:, 1])
+            - 100 * np.sqrt(s[:, 2] * s[:, 2] + s[:, 3] * s[:, 3])
+            - 100 * np.abs(s[:, 4])
+            + 10 * s[:, 6]
+            + 10 * s[:, 7]
+        )
+        return s.astype(np.float32), shaping, back[:, 6] > 0
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, index: int | None = 0) -> np.ndarray:
+        """RGB image ``[400, 600, 3]`` (uint8) of sub-env ``index``; all of them
+        ``[num_envs, 400, 600, 3]`` with ``index=None``. Needs Pillow, opens no window."""
+        from morl_trl.envs.lunar_lander.render import render_world
+
+        if any(w is None for w in self._worlds):
+            raise RuntimeError("MOLunarLanderEnv: call reset() before render()")
+        if index is None:
+            return np.stack([render_world(w) for w in self._worlds])
+        if not -self.num_envs <= index < self.num_envs:
+            raise ValueError(f"index {index} is out of range for {self.num_envs} sub-envs")
+        return render_world(self._worlds[index])

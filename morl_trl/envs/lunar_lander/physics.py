@@ -1,0 +1,168 @@
+"""One MO-LunarLander Box2D world: Gymnasium's constants, terrain, lander and legs.
+
+The numbers and the order of the random draws follow Gymnasium's ``LunarLander-v3``
+(``gymnasium/envs/box2d/lunar_lander.py``), so that a world built from the same generator
+state is the same world. What the context changes (SPEC §1.1): the world's gravity and the
+spawn point ``(VIEWPORT_W / SCALE * x_coeff, VIEWPORT_H / SCALE * y_coeff)``. Exhaust
+particles are not modelled: they are rendering-only bodies that collide only with the
+ground, so they never touch the lander's island.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from Box2D import b2World
+from Box2D.b2 import contactListener, edgeShape, fixtureDef, polygonShape, revoluteJointDef
+
+FPS = 50
+SCALE = 30.0
+INITIAL_RANDOM = 1000.0
+LANDER_POLY = ((-14, +17), (-17, 0), (-17, -10), (+17, -10), (+17, 0), (+14, +17))
+LEG_AWAY = 20
+LEG_DOWN = 18
+LEG_W, LEG_H = 2, 8
+LEG_SPRING_TORQUE = 40
+SIDE_ENGINE_HEIGHT = 14
+SIDE_ENGINE_AWAY = 12
+MAIN_ENGINE_Y_LOCATION = 4
+VIEWPORT_W = 600
+VIEWPORT_H = 400
+W = VIEWPORT_W / SCALE
+H = VIEWPORT_H / SCALE
+CHUNKS = 11
+HELIPAD_Y = H / 4
+TIME_STEP = 1.0 / FPS
+VELOCITY_ITERATIONS = 6 * 30
+POSITION_ITERATIONS = 2 * 30
+WIND_K1 = 0.02  # wind/torque index -> tanh(sin(0.02 k) + sin(pi * 0.01 k))
+WIND_K2 = math.pi * 0.01
+
+LANDER = "lander"  # userData tags read by the contact listener; the legs are tagged 0 and 1
+
+
+class ContactFlags(contactListener):
+    """Writes Gymnasium's contact flags of sub-env ``index`` into shared numpy arrays.
+
+    ``game_over[index]`` latches when the lander body touches anything (the ground: it
+    collides with nothing else); ``legs[index, j]`` follows the begin/end contact events of
+    leg ``j``, exactly as Gymnasium's ``ContactDetector``.
+    """
+
+    def __init__(self, game_over: np.ndarray, legs: np.ndarray, index: int) -> None:
+        super().__init__()
+        self.game_over = game_over
+        self.legs = legs
+        self.index = index
+
+    def BeginContact(self, contact):  # noqa: N802 (Box2D's name)
+        a, b = contact.fixtureA.body.userData, contact.fixtureB.body.userData
+        if a == LANDER or b == LANDER:
+            self.game_over[self.index] = True
+        for j in (0, 1):
+            if a == j or b == j:
+                self.legs[self.index, j] = True
+
+    def EndContact(self, contact):  # noqa: N802
+        a, b = contact.fixtureA.body.userData, contact.fixtureB.body.userData
+        for j in (0, 1):
+            if a == j or b == j:
+                self.legs[self.index, j] = False
+
+
+@dataclass
+class LanderWorld:
+    """The Box2D objects of one sub-env (and what rendering needs)."""
+
+    world: b2World
+    lander: object
+    legs: tuple
+    sky_polys: list
+    wind_idx: int
+    torque_idx: int
+
+
+def build_world(
+    rng: np.random.Generator,
+    gravity: float,
+    x_coeff: float,
+    y_coeff: float,
+    listener: ContactFlags,
+) -> LanderWorld:
+    """Create a fresh world as Gymnasium's ``reset`` does (without its closing no-op step).
+
+    Draws from ``rng`` in Gymnasium's order: 12 terrain heights, the 2 components of the
+    initial push, then the wind and torque indices (``enable_wind`` is always on).
+    """
+    world = b2World(gravity=(0, gravity))
+    world.contactListener = listener
+
+    height = rng.uniform(0, H / 2, size=(CHUNKS + 1,))
+    chunk_x = [W / (CHUNKS - 1) * i for i in range(CHUNKS)]
+    height[CHUNKS // 2 - 2 : CHUNKS // 2 + 3] = HELIPAD_Y
+    i = np.arange(CHUNKS)
+    smooth_y = (0.33 * (height[i - 1] + height[i] + height[i + 1])).tolist()  # i-1 wraps at 0, as in Gymnasium
+
+    moon = world.CreateStaticBody(shapes=edgeShape(vertices=[(0, 0), (W, 0)]))
+    sky_polys = []
+    for k in range(CHUNKS - 1):
+        p1 = (chunk_x[k], smooth_y[k])
+        p2 = (chunk_x[k + 1], smooth_y[k + 1])
+        moon.CreateEdgeFixture(vertices=[p1, p2], density=0, friction=0.1)
+        sky_polys.append([p1, p2, (p2[0], H), (p1[0], H)])
+
+    initial_x = VIEWPORT_W / SCALE * x_coeff
+    initial_y = VIEWPORT_H / SCALE * y_coeff
+    lander = world.CreateDynamicBody(
+        position=(initial_x, initial_y),
+        angle=0.0,
+        fixtures=fixtureDef(
+            shape=polygonShape(vertices=[(x / SCALE, y / SCALE) for x, y in LANDER_POLY]),
+            density=5.0,
+            friction=0.1,
+            categoryBits=0x0010,
+            maskBits=0x001,
+            restitution=0.0,
+        ),
+    )
+    lander.userData = LANDER
+    push = (rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM), rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM))
+    lander.ApplyForceToCenter(push, True)
+    wind_idx = int(rng.integers(-9999, 9999))
+    torque_idx = int(rng.integers(-9999, 9999))
+
+    legs = []
+    for j, side in enumerate((-1, +1)):
+        leg = world.CreateDynamicBody(
+            position=(initial_x - side * LEG_AWAY / SCALE, initial_y),
+            angle=side * 0.05,
+            fixtures=fixtureDef(
+                shape=polygonShape(box=(LEG_W / SCALE, LEG_H / SCALE)),
+                density=1.0,
+                restitution=0.0,
+                categoryBits=0x0020,
+                maskBits=0x001,
+            ),
+        )
+        leg.userData = j
+        rjd = revoluteJointDef(
+            bodyA=lander,
+            bodyB=leg,
+            localAnchorA=(0, 0),
+            localAnchorB=(side * LEG_AWAY / SCALE, LEG_DOWN / SCALE),
+            enableMotor=True,
+            enableLimit=True,
+            maxMotorTorque=LEG_SPRING_TORQUE,
+            motorSpeed=+0.3 * side,
+        )
+        if side == -1:
+            rjd.lowerAngle = +0.9 - 0.5
+            rjd.upperAngle = +0.9
+        else:
+            rjd.lowerAngle = -0.9
+            rjd.upperAngle = -0.9 + 0.5
+        world.CreateJoint(rjd)
+        legs.append(leg)
+    return LanderWorld(world, lander, tuple(legs), sky_polys, wind_idx, torque_idx)
