@@ -226,6 +226,15 @@ def test_dr_env_is_seeded_and_randomizes_per_subenv_and_reset():
     assert torch.unique(a1, dim=0).shape[0] == 8
 
 
+def test_dr_transform_start_avoids_the_previous_goals():
+    # DomainRandomization passes the ending episodes' contexts as `previous` (the agreed interface)
+    env = make_env("MOLavaGridDR-v0", num_envs=4096, seed=4)
+    first = env.reset()["context"]
+    second = env.reset()["context"]
+    on_previous_goal = (first[:, 81:87].reshape(-1, 3, 2) == second[:, None, 90:92]).all(-1).any(1)
+    assert not on_previous_goal.any()  # ~100 of 4096 would be without the exclusion
+
+
 def test_in_env_randomization_partial_reset():
     env = MOLavaGridEnv(num_envs=4, randomize=True, seed=0)
     td = env.reset()
