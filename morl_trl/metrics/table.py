@@ -1,0 +1,306 @@
+"""The paper's NHGR table recomputed from published (or our own) fronts: ``morl-trl reference-table``.
+
+For every domain under a reference folder (layout in :mod:`morl_trl.metrics.reference`) and
+every algorithm with final fronts there, build the ``[seeds, contexts]`` matrix of NHGR
+(frozen bounds with clipping, origin reference, specialist combined front as denominator,
+capped at 1) and report its mean ± population std over all entries, IQM and optimality gap
+(rliable's definitions), optionally stratified-bootstrap CIs, and EUGR on the energy weights.
+
+Example:
+    $ morl-trl reference-table ../shared/reference
+    $ morl-trl reference-table ../shared/reference --domain MOHopperDR-v5 --ci --reps 50000
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from morl_trl.metrics.aggregate import interquartile_mean, optimality_gap, stratified_bootstrap_ci
+from morl_trl.metrics.reference import (
+    DomainReference,
+    list_reference_domains,
+    load_domain_reference,
+    load_generalist_fronts,
+)
+from morl_trl.metrics.weights import energy_weights
+
+__all__ = ["TableRow", "DOMAIN_NAMES", "PAPER_NHGR", "reference_table", "format_table", "main"]
+
+# paper order; display names
+DOMAIN_NAMES = {
+    "MOLunarLanderDR-v0": "MO-LunarLander",
+    "MOHopperDR-v5": "MO-Hopper",
+    "MOHalfCheetahDR-v5": "MO-HalfCheetah",
+    "MOHumanoidDR-v5": "MO-Humanoid",
+    "MOSuperMarioBrosZeroShot-v2": "MO-SuperMarioBros",
+    "MOLavaGridDR-v0": "MO-LavaGrid",
+}
+# evaluation weights per domain (SPEC §2): 100, Mario 32
+EVAL_WEIGHTS = {"MOSuperMarioBrosZeroShot-v2": 32}
+
+_ALGO_LABELS = {
+    "MORL-D(MOSACDiscrete)-SB": "MORL/D SB",
+    "MORL-D(MOSACDiscrete)-SB+PSA": "MORL/D SB+PSA",
+    "MORL-D(MOSAC)-SB": "MORL/D SB",
+    "MORL-D(MOSAC)-SB+PSA": "MORL/D SB+PSA",
+    "GPI-LS Continuous Action": "GPI-LS",
+    "GPI-PD Continuous Action": "GPI-PD",
+    "PCN continuous action": "PCN",
+    "SAC Discrete Action": "SAC",
+    "SAC Continuous Action": "SAC",
+}
+
+# SPEC §3 "All results" (the paper's Table 3 NHGR row and Fig. 3-4): mean, pooled std
+PAPER_NHGR: dict[str, dict[str, tuple[float, float]]] = {
+    "MOLunarLanderDR-v0": {
+        "Envelope": (0.18, 0.06), "GPI-LS": (0.66, 0.06), "GPI-PD": (0.45, 0.07), "MORL/D SB": (0.57, 0.07),
+        "MORL/D SB+PSA": (0.57, 0.05), "PCN": (0.28, 0.04), "SAC": (0.29, 0.06),
+    },
+    "MOHopperDR-v5": {
+        "CAPQL": (0.50, 0.16), "GPI-LS": (0.45, 0.15), "GPI-PD": (0.37, 0.11), "MORL/D SB": (0.46, 0.14),
+        "MORL/D SB+PSA": (0.54, 0.15), "PCN": (0.05, 0.03), "PGMORL": (0.20, 0.09), "SAC": (0.14, 0.06),
+    },
+    "MOHalfCheetahDR-v5": {
+        "CAPQL": (0.03, 0.03), "GPI-LS": (0.16, 0.12), "MORL/D SB": (0.21, 0.09), "MORL/D SB+PSA": (0.29, 0.13),
+        "PCN": (0.03, 0.02), "PGMORL": (0.07, 0.02), "SAC": (0.09, 0.07),
+    },
+    "MOHumanoidDR-v5": {
+        "CAPQL": (0.31, 0.10), "GPI-LS": (0.07, 0.04), "MORL/D SB": (0.44, 0.19), "MORL/D SB+PSA": (0.43, 0.20),
+        "PCN": (0.24, 0.07), "PGMORL": (0.03, 0.02), "SAC": (0.35, 0.20),
+    },
+    "MOLavaGridDR-v0": {
+        "Envelope": (0.02, 0.05), "GPI-LS": (0.02, 0.05), "MORL/D SB": (0.37, 0.21), "MORL/D SB+PSA": (0.27, 0.23),
+        "PCN": (0.03, 0.06), "SAC": (0.25, 0.19),
+    },
+    "MOSuperMarioBrosZeroShot-v2": {
+        "Envelope": (0.08, 0.08), "GPI-LS": (0.12, 0.14), "PCN": (0.04, 0.06), "SAC": (0.06, 0.07),
+    },
+}
+
+
+def algorithm_label(folder: str) -> str:
+    """The paper's short name of a published algorithm folder (``"MORL-D(MOSAC)-SB"`` -> ``"MORL/D SB"``)."""
+    return _ALGO_LABELS.get(folder, folder)
+
+
+@dataclass
+class TableRow:
+    """One (domain, algorithm) line of the table; ``nhgr``/``eugr`` are the ``[seeds, contexts]`` matrices."""
+
+    domain: str
+    algorithm: str
+    label: str
+    seeds: tuple[int, ...]
+    contexts: tuple[str, ...]
+    nhgr: np.ndarray
+    eugr: np.ndarray | None
+    iqm_ci: tuple[float, float] | None = None
+    og_ci: tuple[float, float] | None = None
+
+    @property
+    def mean(self) -> float:
+        return float(self.nhgr.mean())
+
+    @property
+    def std(self) -> float:
+        """Population std (ddof=0) over all seed × context entries, as the paper reports."""
+        return float(self.nhgr.std())
+
+    @property
+    def iqm(self) -> float:
+        return interquartile_mean(self.nhgr)
+
+    @property
+    def optimality_gap(self) -> float:
+        return optimality_gap(self.nhgr)
+
+    @property
+    def paper(self) -> tuple[float, float] | None:
+        return PAPER_NHGR.get(self.domain, {}).get(self.label)
+
+    @property
+    def matches_paper(self) -> bool | None:
+        p = self.paper
+        if p is None:
+            return None
+        return f"{self.mean:.2f} ± {self.std:.2f}" == f"{p[0]:.2f} ± {p[1]:.2f}"
+
+    def as_dict(self) -> dict[str, object]:
+        d = {
+            "domain": self.domain,
+            "algorithm": self.algorithm,
+            "label": self.label,
+            "entries": int(self.nhgr.size),
+            "nhgr_mean": self.mean,
+            "nhgr_std": self.std,
+            "nhgr_iqm": self.iqm,
+            "nhgr_optimality_gap": self.optimality_gap,
+            "eugr_mean": None if self.eugr is None else float(self.eugr.mean()),
+            "eugr_std": None if self.eugr is None else float(self.eugr.std()),
+            "paper_nhgr_mean": None if self.paper is None else self.paper[0],
+            "paper_nhgr_std": None if self.paper is None else self.paper[1],
+        }
+        if self.iqm_ci is not None:
+            d.update(iqm_ci_low=self.iqm_ci[0], iqm_ci_high=self.iqm_ci[1])
+        if self.og_ci is not None:
+            d.update(og_ci_low=self.og_ci[0], og_ci_high=self.og_ci[1])
+        return d
+
+
+def _ordered(domains: list[str]) -> list[str]:
+    known = [d for d in DOMAIN_NAMES if d in domains]
+    return known + sorted(d for d in domains if d not in DOMAIN_NAMES)
+
+
+def domain_rows(
+    ref: DomainReference,
+    runs: dict[str, dict[int, dict[str, np.ndarray]]],
+    *,
+    num_weights: int | None = None,
+    eugr: bool = True,
+    ci_reps: int = 0,
+    seed: int = 0,
+) -> list[TableRow]:
+    """The table rows of one domain from its reference and ``{algo: {seed: {context: front}}}``."""
+    n_w = num_weights or EVAL_WEIGHTS.get(ref.domain, 100)
+    weights = energy_weights(ref.num_objectives, n_w).numpy() if eugr else None
+    ctxs = ref.contexts
+    denom_nhv = {c: ref.specialist_normalized_hypervolume(c) for c in ctxs}
+    rows = []
+    for algo, by_seed in runs.items():
+        seeds = tuple(by_seed)
+        nh = np.empty((len(seeds), len(ctxs)))
+        eu = np.empty_like(nh) if eugr else None
+        for i, s in enumerate(seeds):
+            for j, c in enumerate(ctxs):
+                if c not in by_seed[s]:
+                    raise ValueError(f"{ref.domain}/{algo}/seed_{s}: no front for context {c!r}")
+                front = by_seed[s][c]
+                if denom_nhv[c] <= 0:
+                    raise ValueError(f"{ref.domain}: the specialist front of {c} has zero normalized hypervolume")
+                nh[i, j] = min(ref.normalized_hypervolume(c, front) / denom_nhv[c], 1.0)
+                if eugr:
+                    eu[i, j] = ref.eugr(c, front, weights)
+        row = TableRow(ref.domain, algo, algorithm_label(algo), seeds, ctxs, nh, eu)
+        if ci_reps:
+            _, lo, hi = stratified_bootstrap_ci(nh, "iqm", reps=ci_reps, seed=seed)
+            row.iqm_ci = (lo, hi)
+            _, lo, hi = stratified_bootstrap_ci(nh, "optimality_gap", reps=ci_reps, seed=seed)
+            row.og_ci = (lo, hi)
+        rows.append(row)
+    return rows
+
+
+def reference_table(
+    root: str | Path,
+    domains: list[str] | None = None,
+    *,
+    eugr: bool = True,
+    ci_reps: int = 0,
+    seed: int = 0,
+) -> list[TableRow]:
+    """Recompute the NHGR table from the reference folder ``root`` (see the module docstring).
+
+    Example:
+        >>> rows = reference_table("../shared/reference", ["MOLunarLanderDR-v0"])   # doctest: +SKIP
+        >>> [f"{r.mean:.2f} ± {r.std:.2f}" for r in rows if r.label == "GPI-LS"]     # doctest: +SKIP
+        ['0.66 ± 0.06']
+    """
+    available = list_reference_domains(root)
+    if domains:
+        unknown = [d for d in domains if d not in available]
+        if unknown:
+            raise ValueError(f"unknown domain(s) {unknown}; {root} has {available}")
+    else:
+        gen = Path(root) / "generalist_fronts"
+        available = [d for d in available if (gen / d).is_dir()]
+    rows = []
+    for d in _ordered(list(domains or available)):
+        ref = load_domain_reference(root, d)
+        runs = load_generalist_fronts(root, d, ref.contexts)
+        rows += domain_rows(ref, runs, eugr=eugr, ci_reps=ci_reps, seed=seed)
+    return rows
+
+
+def format_table(rows: list[TableRow]) -> str:
+    """Plain-text table, one block per domain."""
+    out = []
+    has_ci = any(r.iqm_ci is not None for r in rows)
+    has_eugr = any(r.eugr is not None for r in rows)
+    domain = None
+    for r in rows:
+        if r.domain != domain:
+            domain = r.domain
+            n_ctx = len(r.contexts)
+            out.append("")
+            out.append(f"{DOMAIN_NAMES.get(domain, domain)} ({domain}): {n_ctx} contexts, NHGR over seeds x contexts")
+            head = f"  {'algorithm':<15} {'NHGR mean ± std':<16} {'IQM':>6} {'OG':>6}"
+            if has_ci:
+                head += f"  {'IQM 95% CI':<15} {'OG 95% CI':<15}"
+            if has_eugr:
+                head += f"  {'EUGR mean ± std':<16}"
+            head += "  paper"
+            out.append(head)
+        line = f"  {r.label:<15} {f'{r.mean:.2f} ± {r.std:.2f}':<16} {r.iqm:6.3f} {r.optimality_gap:6.3f}"
+        if has_ci:
+            ci = "" if r.iqm_ci is None else f"[{r.iqm_ci[0]:.3f}, {r.iqm_ci[1]:.3f}]"
+            og = "" if r.og_ci is None else f"[{r.og_ci[0]:.3f}, {r.og_ci[1]:.3f}]"
+            line += f"  {ci:<15} {og:<15}"
+        if has_eugr:
+            eu = "" if r.eugr is None else f"{r.eugr.mean():.2f} ± {r.eugr.std():.2f}"
+            line += f"  {eu:<16}"
+        p = r.paper
+        if p is None:
+            line += "  (not in the paper)"
+        else:
+            line += f"  {p[0]:.2f} ± {p[1]:.2f} " + ("(match)" if r.matches_paper else "(DIFFERS)")
+        out.append(line)
+    if has_eugr:
+        out.append("")
+        out.append(
+            "EUGR uses the energy weights (100; Mario 32), unnormalized fronts, clipped to [0, 1]; the paper's EUGR "
+            "used other (random) weights, so it can differ by a few hundredths."
+        )
+    return "\n".join(out).lstrip("\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="morl-trl reference-table",
+        description="Recompute the paper's NHGR table (mean ± pooled std, IQM, optimality gap) from published fronts.",
+    )
+    parser.add_argument("data_dir", help="reference folder with minmax_values/, specialist_fronts/, generalist_fronts/")
+    parser.add_argument("--domain", action="append", help="restrict to this domain id (repeatable)")
+    parser.add_argument("--ci", action="store_true", help="add stratified-bootstrap 95%% CIs of IQM and optimality gap")
+    parser.add_argument("--reps", type=int, default=50_000, help="bootstrap replicates for --ci (default 50000)")
+    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
+    parser.add_argument("--no-eugr", action="store_true", help="skip EUGR")
+    parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
+    args = parser.parse_args(argv)
+    try:
+        rows = reference_table(
+            args.data_dir, args.domain, eugr=not args.no_eugr, ci_reps=args.reps if args.ci else 0, seed=args.seed
+        )
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(format_table(rows))
+    if args.csv:
+        dicts = [r.as_dict() for r in rows]
+        keys = list(dict.fromkeys(k for d in dicts for k in d))
+        args.csv.parent.mkdir(parents=True, exist_ok=True)
+        with args.csv.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=keys)
+            w.writeheader()
+            w.writerows(dicts)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
