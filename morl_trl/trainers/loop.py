@@ -1,0 +1,155 @@
+"""The paper's experimental loop (§6): train a generalist under domain randomization, evaluate
+it periodically on the evaluation suite, checkpoint, report.
+
+One screen, top to bottom: environment -> agent -> collector + replay buffer -> updates ->
+evaluation / logging / checkpoints. Everything algorithm-specific lives in
+:mod:`morl_trl.trainers.agents`.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from morl_trl.envs import domain_of
+from morl_trl.trainers.agents import NonFiniteLossError, build_agent
+from morl_trl.trainers.checkpoint import latest_checkpoint, load_checkpoint, rng_state, save_checkpoint, set_rng_state
+from morl_trl.trainers.config import TrainConfig
+from morl_trl.trainers.env_factory import make_eval_transform, make_train_env
+from morl_trl.trainers.run_log import RunLog
+
+__all__ = ["train", "evaluate_run"]
+
+
+def _seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def _default_run_dir(cfg: TrainConfig) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+
+
+def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
+    """Run (or resume) a training run; returns the last evaluation summary.
+
+    Example:
+        >>> from morl_trl.trainers import resolve_config, train
+        >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
+        >>> summary = train(cfg)                                                            # doctest: +SKIP
+    """
+    if resume is not None:
+        run_dir = Path(resume)
+        saved = run_dir / "config.json"
+        if not saved.is_file():
+            raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
+        cfg = TrainConfig.load(saved)
+    else:
+        run_dir = Path(cfg.run_dir) if cfg.run_dir else _default_run_dir(cfg)
+        run_dir.mkdir(parents=True, exist_ok=True)
+        cfg.run_dir = str(run_dir)
+        cfg.save(run_dir / "config.json")
+    _seed_everything(cfg.seed)
+    device = torch.device(cfg.device)
+    spec = domain_of(cfg.env_id)
+    gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
+
+    env = make_train_env(cfg, device)
+    agent = build_agent(cfg, env, gamma=gamma, device=device)
+    buffer = agent.make_replay_buffer()
+    log = RunLog(run_dir, cfg, spec)
+    evaluator = agent.make_evaluator(make_eval_transform(cfg), spec)
+
+    frames, updates, next_eval, next_ckpt = 0, 0, 0, cfg.checkpoint_interval
+    ckpt = latest_checkpoint(run_dir) if resume is not None else None
+    if ckpt is not None:
+        state = load_checkpoint(ckpt, buffer)
+        agent.load_state_dict(state["agent"])
+        env.load_state_dict(state["env_transforms"])
+        frames, updates = state["frames"], state["updates"]
+        next_eval, next_ckpt = state["next_eval"], state["next_ckpt"]
+        set_rng_state(state["rng"])
+        log.note(f"resumed from {ckpt.name} at {frames} frames")
+
+    def checkpoint(tag_frames: int) -> None:
+        state = dict(
+            agent=agent.state_dict(), env_transforms=env.state_dict(), frames=frames, updates=updates,
+            next_eval=next_eval, next_ckpt=next_ckpt, rng=rng_state(), config=cfg.to_dict(),
+        )
+        save_checkpoint(run_dir, tag_frames, state, buffer)
+
+    collector = agent.make_collector(env, total_frames=max(cfg.frames - frames, 0), frames_done=frames)
+    updates_per_batch = cfg.updates_per_batch or cfg.frames_per_batch
+    bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
+    t_start, frames_start, last_nhgr = time.perf_counter(), frames, float("nan")
+    summary: dict = {}
+    try:
+        for batch in collector:
+            if frames >= next_eval:  # evaluate the policy the batch was collected with (frame 0 included)
+                summary = log.evaluation(frames, evaluator(agent.eval_policy))
+                last_nhgr = summary.get("nhgr_mean", float("nan"))
+                next_eval += cfg.eval_interval
+            buffer.extend(batch.reshape(-1))
+            frames += batch.numel()
+            log.training_episodes(frames, batch)
+            if frames >= cfg.init_random_frames:
+                for _ in range(updates_per_batch):
+                    try:
+                        losses = agent.update(buffer)
+                    except NonFiniteLossError as err:
+                        log.note(f"stopped: {err}")
+                        raise
+                    updates += 1
+                if updates % 50 == 0 or updates_per_batch > 1:
+                    log.losses(frames, losses)
+            agent.on_frames(frames)
+            collector.update_policy_weights_()
+            fps = (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
+            bar.update(batch.numel())
+            bar.set_postfix(fps=f"{fps:,.0f}", nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
+            if frames >= next_ckpt:
+                next_ckpt += cfg.checkpoint_interval
+                checkpoint(frames)
+        summary = log.evaluation(frames, evaluator(agent.eval_policy))
+        checkpoint(frames)
+        log.report(summary, fps=(frames - frames_start) / max(time.perf_counter() - t_start, 1e-9))
+    finally:
+        bar.close()
+        collector.shutdown()
+        log.close()
+    return summary
+
+
+def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None) -> dict:
+    """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite."""
+    run_dir = Path(run_dir)
+    if not (run_dir / "config.json").is_file():
+        raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
+    cfg = TrainConfig.load(run_dir / "config.json")
+    if reference_dir is not None:
+        cfg.reference_dir = reference_dir
+    if weights is not None:
+        cfg.eval_weights = weights
+    ckpt = latest_checkpoint(run_dir)
+    if ckpt is None:
+        raise ValueError(f"{str(run_dir)!r} has no checkpoint to evaluate")
+    _seed_everything(cfg.seed)
+    device = torch.device(cfg.device)
+    spec = domain_of(cfg.env_id)
+    env = make_train_env(cfg, device)
+    agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
+    agent.load_state_dict(load_checkpoint(ckpt)["agent"])
+    log = RunLog(run_dir, cfg, spec, tag="reevaluation")
+    frames = int(ckpt.name.split("_")[-1])
+    summary = log.evaluation(frames, agent.make_evaluator(make_eval_transform(cfg), spec)(agent.eval_policy))
+    log.report(summary, fps=None)
+    log.close()
+    return summary

@@ -1,0 +1,143 @@
+"""The end-of-run report: NHGR per evaluation context, against the specialists, a random policy
+and (with the published data) the paper's baselines; Pareto-front and NHGR plots."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_report", "published_baselines"]
+
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    if isinstance(v, int):
+        return str(v)
+    return f"{v:.3f}" if abs(v) < 1e4 else f"{v:.4g}"
+
+
+def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dict[str, float]]:
+    """``{algorithm label: {context: mean NHGR over seeds}}`` recomputed from the published fronts."""
+    from morl_trl.metrics.reference import load_domain_reference, load_generalist_fronts
+    from morl_trl.metrics.table import domain_rows
+
+    ref = load_domain_reference(reference_dir, domain)
+    rows = domain_rows(ref, load_generalist_fronts(reference_dir, domain, ref.contexts), eugr=False)
+    return {r.label: dict(zip(r.contexts, r.nhgr.mean(0).tolist())) for r in rows}
+
+
+def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> Path | None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(result.context_names)
+    cols = min(4, len(names))
+    rows = math.ceil(len(names) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.2 * rows), squeeze=False)
+    i, j = 0, 1  # first two objectives; the CSVs hold every objective
+    for ax, name in zip(axes.flat, names):
+        front = result.front(name)
+        if reference is not None and name in reference.specialist_fronts:
+            spec = reference.specialist_fronts[name]
+            ax.scatter(spec[:, i], spec[:, j], s=10, c="0.6", label="specialist")
+        ax.scatter(front[:, i], front[:, j], s=16, c="C3", label="ours")
+        ax.set_title(name.replace("-v0", "").replace("-v5", "").replace("-v2", ""), fontsize=9)
+        ax.set_xlabel(objectives[i], fontsize=8)
+        ax.set_ylabel(objectives[j], fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    series = list(table)
+    width = 0.8 / max(len(series), 1)
+    fig, ax = plt.subplots(figsize=(max(6, 1.1 * len(contexts)), 3.4))
+    x = np.arange(len(contexts))
+    for s, name in enumerate(series):
+        vals = [table[name].get(c, np.nan) for c in contexts]
+        ax.bar(x + s * width - 0.4 + width / 2, vals, width, label=name)
+    ax.set_xticks(x, [c.replace("-v0", "").replace("-v5", "").replace("-v2", "") for c in contexts],
+                  rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("NHGR")
+    ax.set_ylim(0, 1.05)
+    ax.legend(fontsize=7, ncol=min(4, len(series)))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(log, summary: dict, fps: float | None) -> Path:
+    """Write ``report.md`` (+ PNGs) into the run directory and print its table."""
+    result = log.last_result
+    cfg, spec, run_dir = log.cfg, log.spec, log.run_dir
+    contexts = list(result.context_names)
+    reference = getattr(log, "reference", None)
+    nhgr_cols: dict[str, dict[str, float]] = {}
+    ours = result.metric("nhgr")
+    if any(v is not None for v in ours.values()):
+        nhgr_cols[f"{cfg.algo} (ours)"] = {c: v for c, v in ours.items() if v is not None}
+    random_result = getattr(log, "random_result", None)
+    if random_result is not None:
+        rn = random_result.metric("nhgr")
+        if any(v is not None for v in rn.values()):
+            nhgr_cols["random policy"] = {c: v for c, v in rn.items() if v is not None}
+    baselines = {}
+    if cfg.reference_dir:
+        try:
+            baselines = published_baselines(cfg.reference_dir, spec.train_id)
+        except ValueError as err:  # no published runs for this domain
+            log.note(f"no published baselines: {err}")
+    nhgr_cols.update({f"{k} (paper)": v for k, v in baselines.items()})
+
+    lines = [f"# {cfg.algo} on {cfg.env_id} (seed {cfg.seed})", ""]
+    lines.append(f"Frames: {summary.get('frames')}" + (f" · frames/s: {fps:,.0f}" if fps else ""))
+    lines.append("")
+    metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "eum", "eugr", "cardinality", "sparsity"]
+    present = [m for m in metric_names if any(v is not None for v in result.metric(m).values())]
+    lines.append("| context | " + " | ".join(present) + " |")
+    lines.append("|---|" + "---|" * len(present))
+    for c in contexts:
+        lines.append(f"| {c} | " + " | ".join(_fmt(result.per_context[c].metrics.get(m)) for m in present) + " |")
+    lines.append("| **mean** | " + " | ".join(_fmt(result.aggregate.get(m)) for m in present) + " |")
+    lines.append("")
+    if nhgr_cols:
+        lines.append("## NHGR per context")
+        lines.append("")
+        lines.append("| context | " + " | ".join(nhgr_cols) + " |")
+        lines.append("|---|" + "---|" * len(nhgr_cols))
+        for c in contexts:
+            lines.append(f"| {c} | " + " | ".join(_fmt(col.get(c)) for col in nhgr_cols.values()) + " |")
+        means = [np.mean([col[c] for c in contexts if c in col]) if col else float("nan") for col in nhgr_cols.values()]
+        lines.append("| **mean** | " + " | ".join(_fmt(float(m)) for m in means) + " |")
+        lines.append("")
+        png = _plot_nhgr(nhgr_cols, contexts, run_dir / "report_nhgr.png")
+        lines.append(f"![NHGR per context]({png.name})")
+        lines.append("")
+    png = _plot_fronts(result, reference, run_dir / "report_fronts.png", tuple(spec.objective_names))
+    if png is not None:
+        lines.append(f"![Pareto fronts per context]({png.name})")
+    path = run_dir / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines[: lines.index("") + 1 + len(contexts) + 4]))
+    if nhgr_cols:
+        start = lines.index("## NHGR per context")
+        print("\n".join(lines[start : start + 4 + len(contexts) + 1]))
+    print(f"report: {path}")
+    return path

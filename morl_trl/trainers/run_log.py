@@ -1,0 +1,158 @@
+"""What a run writes: TorchRL logger scalars, tidy CSVs, fronts, a report with plots.
+
+Layout of a run directory::
+
+    config.json                  resolved configuration
+    log.txt                      notes (start, resume, stop reasons)
+    logs/<tag>/...               TorchRL logger output (CSV by default; TensorBoard / W&B on request)
+    eval/metrics.csv             one row per (evaluation, context): every metric
+    eval/episodes.csv            one row per (evaluation, context, weight, episode): returns by objective
+    fronts/frames_<N>.csv        the Pareto front of every context at that evaluation
+    train/episodes.csv           one row per finished training episode: context, preference, returns
+    report.md, report_*.png      the last evaluation against the specialists (and published baselines)
+
+Nothing is averaged over objectives: every column names its objective.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+__all__ = ["RunLog"]
+
+
+def _append_rows(path: Path, rows: list[dict]) -> None:
+    if not rows:
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    new = not path.exists()
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    if not new:
+        with path.open() as fh:
+            header = next(csv.reader(fh), [])
+        keys = header + [k for k in keys if k not in header]
+        if len(keys) > len(header):  # new columns (e.g. a metric that appeared): rewrite with the wider header
+            with path.open() as fh:
+                old = list(csv.DictReader(fh))
+            rows = old + rows
+            new = True
+    with path.open("w" if new else "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        if new:
+            w.writeheader()
+        w.writerows(rows)
+
+
+def _make_logger(kind: str, run_dir: Path, tag: str):
+    from torchrl.record.loggers import get_logger
+
+    if kind in ("", "none", None):
+        return None
+    needs = {"tensorboard": "tensorboard", "wandb": "wandb"}
+    if kind in needs:
+        import importlib.util
+
+        if importlib.util.find_spec(needs[kind]) is None:
+            raise ValueError(f"logger {kind!r} needs the {needs[kind]!r} package; install it or use logger='csv'")
+    elif kind != "csv":
+        raise ValueError(f"unknown logger {kind!r}; valid: csv, tensorboard, wandb, none")
+    return get_logger(kind, logger_name=str(run_dir / "logs"), experiment_name=tag)
+
+
+class RunLog:
+    """Writes a run's metrics, fronts, training episodes and final report (see the module docstring)."""
+
+    def __init__(self, run_dir, cfg, spec, tag: str = "train") -> None:
+        self.run_dir = Path(run_dir)
+        self.cfg = cfg
+        self.spec = spec
+        self.tag = tag
+        self.objectives = tuple(spec.objective_names)
+        self.logger = _make_logger(cfg.logger, self.run_dir, tag)
+        self._pending_episodes: list[dict] = []
+        self.last_result = None
+
+    # ------------------------------------------------------------------ notes
+    def note(self, message: str) -> None:
+        line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {message}"
+        with (self.run_dir / "log.txt").open("a") as fh:
+            fh.write(line + "\n")
+        print(message, flush=True)
+
+    def _scalar(self, name: str, value: float, step: int) -> None:
+        if self.logger is not None and value is not None and math.isfinite(value):
+            self.logger.log_scalar(name, float(value), step=step)
+
+    # ------------------------------------------------------------------ training
+    def losses(self, frames: int, losses) -> None:
+        for key, value in losses.items():
+            if value.numel() == 1:
+                self._scalar(f"train/{key}", value.item(), frames)
+
+    def training_episodes(self, frames: int, batch) -> None:
+        """Record the returns of the episodes that ended in this batch (needs DiscountedVectorReturn)."""
+        nxt = batch.get("next")
+        done = nxt.get("done").squeeze(-1)
+        if not done.any() or "episode_return" not in nxt.keys():
+            return
+        ret = nxt["episode_return"][done].cpu()
+        disc = nxt["episode_discounted_return"][done].cpu()
+        pref = batch.get("preference")[done].cpu() if "preference" in batch.keys() else None
+        ctx = batch.get("context")[done].cpu() if "context" in batch.keys() else None
+        rows = []
+        for i in range(ret.shape[0]):
+            row = {"frames": frames}
+            if ctx is not None:
+                row.update({f"context_{n}": float(v) for n, v in zip(self.spec.context_space.names, ctx[i].tolist())})
+            if pref is not None:
+                row.update({f"preference_{o}": float(v) for o, v in zip(self.objectives, pref[i].tolist())})
+            row.update({f"return_{o}": float(v) for o, v in zip(self.objectives, ret[i].tolist())})
+            row.update({f"discounted_return_{o}": float(v) for o, v in zip(self.objectives, disc[i].tolist())})
+            rows.append(row)
+        _append_rows(self.run_dir / "train" / "episodes.csv", rows)
+        for j, o in enumerate(self.objectives):
+            self._scalar(f"train/episode_return/{o}", float(ret[:, j].mean()), frames)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluation(self, frames: int, result) -> dict:
+        """Log one :class:`~morl_trl.collectors.EvaluationResult`; returns a small summary."""
+        self.last_result = result
+        rows = [{"frames": frames, **r} for r in result.metric_rows()]
+        _append_rows(self.run_dir / "eval" / "metrics.csv", rows)
+        _append_rows(self.run_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()])
+        result.write_csv(self.run_dir / "fronts" / f"frames_{frames:012d}.csv", kind="fronts")
+        for name, value in result.summary(prefix=f"{self.tag}_eval").items():
+            self._scalar(name, value, frames)
+        nhgr = result.aggregate.get("nhgr")
+        return {
+            "frames": frames,
+            "nhgr_mean": float(nhgr) if nhgr is not None else float("nan"),
+            "aggregate": dict(result.aggregate),
+            "per_context": {c: dict(r.metrics) for c, r in result.per_context.items()},
+        }
+
+    # ------------------------------------------------------------------ report
+    def report(self, summary: dict, fps: float | None) -> Path:
+        """Write ``report.md`` and plots for the last evaluation; print the NHGR table."""
+        from morl_trl.trainers.report import write_report
+
+        return write_report(self, summary, fps)
+
+    def close(self) -> None:
+        if self.logger is not None and hasattr(self.logger, "experiment"):
+            exp = self.logger.experiment
+            if hasattr(exp, "close"):
+                try:
+                    exp.close()
+                except Exception:  # noqa: BLE001 - closing a logger must not hide the run's own error
+                    pass
+
+
+def as_numpy(x) -> np.ndarray:
+    return x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
