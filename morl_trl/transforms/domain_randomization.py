@@ -2,41 +2,64 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Mapping
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.envs.transforms import Transform
 
+from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.context import ContextSpace
+from morl_trl.transforms._utils import SeededTransform, innermost_env, reset_mask
 
 __all__ = ["DomainRandomization"]
 
-Sampler = Callable[[int, torch.Generator], torch.Tensor]
+Sampler = Callable[..., torch.Tensor]
 
 
-class DomainRandomization(Transform):
+def _accepts_previous(fn: Callable) -> bool:
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == "previous" or p.kind is p.VAR_KEYWORD for p in params)
+
+
+class DomainRandomization(SeededTransform):
     """Draws a fresh context for every sub-env being reset, before the base env resets.
 
-    The context is written to the reset TensorDict under ``context_key``; the base env reads
-    it (see :class:`~morl_trl.envs.base.ContextualMOEnv`). Sub-envs that are not being reset
-    (``"_reset"`` false) keep theirs.
+    The context is written to the reset TensorDict under ``context_key``, which the base env
+    reads (see :class:`~morl_trl.envs.base.ContextualMOEnv`); sub-envs that are not being reset
+    (``"_reset"`` false) keep theirs. ``make_env`` of a ``*DR-*`` id returns the fixed env
+    wrapped in this transform. It works inside and outside ``SerialEnv``/``ParallelEnv``.
+
+    Contexts come from ``context_space.sample`` (independent uniform in the ranges; domains
+    with procedural contexts override it), or from ``sampler``. When the sampling function
+    takes a ``previous`` keyword, it receives the current contexts ``[n, c]`` of the sub-envs
+    being reset. Every draw is checked with ``context_space.validate(..., check_range=True)``
+    before ``fixed`` parameters are written over it, so a sampler returning values outside the
+    space raises a ``ValueError`` (naming the parameter and value) and nothing is reset.
+
+    Seeding: ``seed`` seeds the transform's own generator; without it, the generator follows
+    the env's seed (see :class:`~morl_trl.transforms._utils.SeededTransform`), so
+    ``ParallelEnv.set_seed`` gives every worker its own context stream.
 
     Args:
-        context_space: the space to sample from (uniform in its ranges by default).
-        sampler: optional ``sampler(n, generator) -> [n, c]``; its output is checked against
-            the space's ranges.
-        seed: seed of the transform's own :class:`torch.Generator`.
-        fixed: parameters held at a given value instead of sampled, e.g. ``{"wind_power": 0.0}``.
+        context_space: the space to sample from.
+        sampler: optional ``sampler(n, generator[, previous=...]) -> [n, c]`` drawing full
+            contexts inside ``context_space``.
+        seed: seed of the transform's :class:`torch.Generator`.
+        fixed: parameters held at a given value instead of sampled, e.g. ``{"wind_power": 0.0}``
+            (these may lie outside the randomization range).
         context_key: the key the base env reads contexts from.
 
     Example:
         >>> from torchrl.envs import TransformedEnv
-        >>> from morl_trl.envs import make_env, context_space
-        >>> env = TransformedEnv(make_env("MOLunarLanderDefault-v0", num_envs=2),
-        ...                      DomainRandomization(context_space("MOLunarLanderDR-v0"), seed=0))  # doctest: +SKIP
-        >>> env.reset()["context"].shape                                                 # doctest: +SKIP
-        torch.Size([2, 7])
+        >>> from tests.mocks import ToyContextEnv, TOY_CONTEXT
+        >>> env = TransformedEnv(ToyContextEnv(num_envs=3), DomainRandomization(TOY_CONTEXT, seed=0))
+        >>> ctx = env.reset()["context"]
+        >>> ctx.shape, TOY_CONTEXT.contains(ctx)
+        (torch.Size([3, 2]), True)
     """
 
     def __init__(
@@ -49,64 +72,91 @@ class DomainRandomization(Transform):
         context_key: str = "context",
     ) -> None:
         super().__init__(in_keys=[], out_keys=[])
+        if not isinstance(context_space, ContextSpace):
+            raise ValueError(f"context_space must be a ContextSpace, got {type(context_space).__name__}")
+        if sampler is not None and not callable(sampler):
+            raise ValueError(f"sampler must be callable sampler(n, generator) -> [n, c], got {sampler!r}")
         self.context_space = context_space
         self.sampler = sampler
         self.context_key = context_key
         self.fixed = {context_space.names[context_space.index(k)]: float(v) for k, v in (fixed or {}).items()}
-        self.generator = torch.Generator()
-        self.set_seed(seed)
+        context_space.make(self.fixed)  # NaN / non-positive fixed values fail here, not at the first reset
+        self._fixed_idx = torch.tensor([context_space.index(k) for k in self.fixed], dtype=torch.long)
+        self._fixed_val = torch.tensor(list(self.fixed.values()), dtype=torch.float32)
+        fn = sampler if sampler is not None else context_space.sample
+        self._pass_previous = _accepts_previous(fn)
+        self._checked_parent = False
+        self._init_seed(seed)
 
-    def set_seed(self, seed: int | None) -> None:
-        """Re-seed the context sampler (``None``: from torch's global generator)."""
-        if seed is None:
-            seed = int(torch.randint(0, 2**31 - 1, (1,)).item())
-        self.generator.manual_seed(int(seed))
-
-    def sample(self, n: int) -> torch.Tensor:
-        """Draw ``n`` validated contexts ``[n, c]`` on the CPU."""
+    # ------------------------------------------------------------------ sampling
+    def sample(self, n: int, previous: torch.Tensor | None = None) -> torch.Tensor:
+        """Draw ``n`` validated contexts ``[n, c]`` (CPU); ``previous`` is passed on if the sampler takes it."""
+        space = self.context_space
+        kwargs = {}
+        if self._pass_previous:
+            if previous is None:
+                previous = space.default_tensor().expand(n, space.dim)
+            kwargs["previous"] = previous.detach().to("cpu", torch.float32)
         if self.sampler is None:
-            ctx = self.context_space.sample(n, generator=self.generator)
+            ctx = space.sample(n, generator=self.generator, **kwargs)
         else:
-            ctx = torch.as_tensor(self.sampler(n, self.generator), dtype=torch.float32)
-            if ctx.shape != (n, self.context_space.dim):
-                raise ValueError(
-                    f"context sampler returned shape {tuple(ctx.shape)}; expected ({n}, {self.context_space.dim})"
-                )
-        for name, value in self.fixed.items():
-            ctx[:, self.context_space.index(name)] = value
-        # fixed values may legitimately sit outside the DR range; the sampled ones may not
-        free = [i for i, nm in enumerate(self.context_space.names) if nm not in self.fixed]
-        if self.sampler is not None and free:
-            sub = ContextSpace(
-                tuple(self.context_space.names[i] for i in free),
-                tuple(self.context_space.default[i] for i in free),
-                tuple(self.context_space.low[i] for i in free),
-                tuple(self.context_space.high[i] for i in free),
+            ctx = self.sampler(n, self.generator, **kwargs)
+        ctx = torch.as_tensor(ctx)
+        if ctx.shape != (n, space.dim):
+            raise ValueError(
+                f"the context sampler returned shape {tuple(ctx.shape)}; expected ({n}, {space.dim}) "
+                f"with parameters {list(space.names)}"
             )
-            sub.validate(ctx[:, free], check_range=True)
-        return self.context_space.validate(ctx)
+        ctx = ctx.to("cpu", torch.float32)
+        try:
+            space.validate(ctx, check_range=True)
+        except ValueError as err:
+            raise ValueError(f"the context sampler returned an invalid context: {err}") from None
+        if self.fixed:
+            ctx = ctx.clone()
+            ctx[:, self._fixed_idx] = self._fixed_val
+            space.validate(ctx)
+        return ctx
+
+    # ------------------------------------------------------------------ env hooks
+    def _check_parent(self, parent) -> None:
+        spec = parent.full_state_spec.get(self.context_key, None) if parent.full_state_spec is not None else None
+        if spec is None:
+            raise ValueError(
+                f"DomainRandomization writes contexts under {self.context_key!r}, but the env does not "
+                f"read that key at reset (its state spec has {list(parent.full_state_spec.keys(True, True))})"
+            )
+        if spec.shape[-1] != self.context_space.dim:
+            raise ValueError(
+                f"the env's {self.context_key!r} has {spec.shape[-1]} entries; the context space has "
+                f"{self.context_space.dim} ({list(self.context_space.names)})"
+            )
+        self._checked_parent = True
+
+    def _current_contexts(self, tensordict: TensorDictBase, batch_size, device) -> torch.Tensor:
+        shape = (*batch_size, self.context_space.dim)
+        current = tensordict.get(self.context_key, None)
+        if current is not None and current.shape == shape:
+            return current.to(device=device, dtype=torch.float32)
+        base = innermost_env(self.parent)
+        if isinstance(base, ContextualMOEnv) and base.batch_size == batch_size:
+            return base.context.to(device)
+        return self.context_space.default_tensor(device).expand(shape)
 
     def _reset_env_preprocess(self, tensordict: TensorDictBase | None) -> TensorDictBase:
         parent = self.parent
-        batch_size = parent.batch_size
-        device = parent.device
+        if not self._checked_parent:
+            self._check_parent(parent)
+        self._sync_seed()
+        batch_size, device = parent.batch_size, parent.device
         if tensordict is None:
             tensordict = TensorDict(batch_size=batch_size, device=device)
-        reset = tensordict.get("_reset", None)
-        if reset is None:
-            mask = torch.ones(batch_size, dtype=torch.bool, device=device)
-        else:
-            mask = reset.reshape(batch_size).to(torch.bool)
+        mask = reset_mask(tensordict, batch_size, device)
+        current = self._current_contexts(tensordict, batch_size, device)
         n = int(mask.sum())
-        current = tensordict.get(self.context_key, None)
-        if current is None:
-            base = parent.base_env
-            current = getattr(base, "_context", None)
-            if current is None:
-                current = self.context_space.default_tensor().expand(*batch_size, self.context_space.dim)
-        context = current.to(device=device, dtype=torch.float32).clone()
+        context = current.clone()
         if n:
-            context[mask] = self.sample(n).to(device)
+            context[mask] = self.sample(n, previous=current[mask]).to(device)
         return tensordict.set(self.context_key, context)
 
     def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
@@ -114,3 +164,8 @@ class DomainRandomization(Transform):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         return tensordict
+
+    def __repr__(self) -> str:
+        extra = f", fixed={self.fixed}" if self.fixed else ""
+        sampler = f", sampler={getattr(self.sampler, '__name__', self.sampler)}" if self.sampler else ""
+        return f"{type(self).__name__}({self.context_space!r}{sampler}{extra}, seed={self._seed})"

@@ -1,0 +1,252 @@
+"""Preference conditioning: a weight vector per sub-env and episode, carried in the TensorDict."""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.data import Bounded, Composite
+
+from morl_trl.transforms._utils import SeededTransform, check_simplex, reset_mask
+
+__all__ = ["PreferenceConditioning", "sample_dirichlet"]
+
+_MODES = ("dirichlet", "cycle", "random", "given")
+
+
+def _standard_gamma(alpha: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """Gamma(alpha, 1) draws from ``generator`` (Marsaglia & Tsang, 2000; boosted for alpha < 1)."""
+    boost = alpha < 1
+    a = torch.where(boost, alpha + 1, alpha)
+    d = a - 1.0 / 3.0
+    c = 1.0 / torch.sqrt(9.0 * d)
+    out = torch.empty_like(a)
+    todo = torch.ones_like(a, dtype=torch.bool)
+    while todo.any():
+        x = torch.randn(a.shape, generator=generator, dtype=a.dtype)
+        u = torch.rand(a.shape, generator=generator, dtype=a.dtype)
+        v = (1 + c * x) ** 3
+        ok = (v > 0) & (torch.log(u) < 0.5 * x * x + d - d * v + d * torch.log(v.clamp(min=1e-30)))
+        accept = todo & ok
+        out = torch.where(accept, d * v, out)
+        todo &= ~ok
+    if boost.any():
+        u = torch.rand(a.shape, generator=generator, dtype=a.dtype)
+        out = torch.where(boost, out * u.pow(1.0 / alpha), out)
+    return out
+
+
+def sample_dirichlet(n: int, alpha: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """``n`` draws ``[n, k]`` from Dirichlet(``alpha``) using ``generator`` (uniform on the simplex for ones)."""
+    alpha = alpha.to(torch.float64)
+    k = alpha.numel()
+    if torch.all(alpha == 1):
+        g = torch.empty(n, k, dtype=torch.float64).exponential_(generator=generator)
+    else:
+        g = _standard_gamma(alpha.expand(n, k).clone(), generator)
+    w = g / g.sum(-1, keepdim=True)
+    return w.to(torch.float32)
+
+
+class PreferenceConditioning(SeededTransform):
+    """Gives every sub-env a weight vector ``w`` on the simplex at each of its resets.
+
+    ``w`` is written under ``preference_key`` (``[*B, k]``) at reset and copied to every step
+    of the episode, so the policy, the loss (through the replay buffer) and
+    :class:`LinearScalarization` all see it. The key is also in the env's state spec, so it
+    reaches the reset and travels through ``SerialEnv``/``ParallelEnv`` like the context.
+
+    Modes (how a sub-env being reset gets its ``w``):
+
+    * ``"dirichlet"`` (default without ``weights``): ``w ~ Dirichlet(alpha)``; ``alpha=1`` is
+      uniform on the simplex.
+    * ``"cycle"`` (default with ``weights``): the rows of ``weights`` ``[m, k]`` in turn, in
+      sub-env order, continuing from one reset to the next (``m`` sub-envs reset together
+      get the ``m`` rows: the evaluation weights).
+    * ``"random"``: a row of ``weights`` drawn uniformly.
+    * ``"given"``: the preference in the reset TensorDict, e.g.
+      ``env.reset(TensorDict(preference=w, batch_size=env.batch_size))``; ``w`` ``[k]`` or
+      ``[*B, k]`` must be on the simplex (``ValueError`` naming the value otherwise, before
+      anything is reset). A sub-env keeps its ``w`` over later resets (the TensorDict carries
+      it); before any is given, sub-envs get equal weights ``1/k``.
+
+    In the sampling modes a preference in the reset TensorDict is ignored (TorchRL's
+    auto-resets carry the previous one there). Seeding follows
+    :class:`~morl_trl.transforms._utils.SeededTransform`; the preference stream is independent
+    of the context stream of :class:`DomainRandomization` seeded with the same value.
+
+    Args:
+        num_objectives: ``k``; inferred from ``weights`` or the env's reward when omitted.
+        weights: a fixed weight set ``[m, k]`` for ``"cycle"``/``"random"``.
+        mode: one of the modes above.
+        alpha: Dirichlet concentration, a float or ``[k]``.
+        seed: seed of the transform's generator.
+        preference_key: where ``w`` goes.
+
+    Example:
+        >>> from torchrl.envs import TransformedEnv
+        >>> from tests.mocks import ToyContextEnv
+        >>> env = TransformedEnv(ToyContextEnv(num_envs=3), PreferenceConditioning(weights=[[1.0, 0.0], [0.5, 0.5]]))
+        >>> env.reset()["preference"]
+        tensor([[1.0000, 0.0000],
+                [0.5000, 0.5000],
+                [1.0000, 0.0000]])
+    """
+
+    _salt = 0x5EED_0001
+
+    def __init__(
+        self,
+        num_objectives: int | None = None,
+        *,
+        weights=None,
+        mode: str | None = None,
+        alpha: float | torch.Tensor = 1.0,
+        seed: int | None = None,
+        preference_key: str = "preference",
+    ) -> None:
+        super().__init__(in_keys=[], out_keys=[preference_key])
+        if mode is None:
+            mode = "dirichlet" if weights is None else "cycle"
+        if mode not in _MODES:
+            raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
+        if num_objectives is not None and (isinstance(num_objectives, bool) or not isinstance(num_objectives, int)
+                                           or num_objectives < 1):
+            raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
+        if weights is not None:
+            weights = torch.as_tensor(weights, dtype=torch.float32)
+            if weights.ndim != 2 or weights.shape[0] == 0:
+                raise ValueError(f"weights must be a non-empty [m, k] weight set, got shape {tuple(weights.shape)}")
+            if num_objectives is None:
+                num_objectives = weights.shape[1]
+            weights = check_simplex(weights, num_objectives, what="weight set row")
+        elif mode in ("cycle", "random"):
+            raise ValueError(f"mode={mode!r} draws from a weight set: pass weights=[[...], ...]")
+        self.weights = weights
+        self.mode = mode
+        self.preference_key = preference_key
+        self._k = num_objectives
+        alpha_t = torch.as_tensor(alpha, dtype=torch.float64)
+        if not torch.isfinite(alpha_t).all() or (alpha_t <= 0).any() or alpha_t.ndim > 1:
+            raise ValueError(f"alpha must be a positive float or [k] vector, got {alpha}")
+        if alpha_t.ndim == 1 and num_objectives is not None and alpha_t.numel() != num_objectives:
+            raise ValueError(f"alpha has {alpha_t.numel()} entries; expected {num_objectives} (one per objective)")
+        self.alpha = alpha_t
+        self._cursor = 0
+        self._current: torch.Tensor | None = None
+        self._init_seed(seed)
+
+    # ------------------------------------------------------------------ sizes and specs
+    @property
+    def num_objectives(self) -> int:
+        if self._k is None:
+            parent = self.parent
+            if parent is None:
+                raise RuntimeError("PreferenceConditioning: num_objectives unknown (no parent env to infer it)")
+            self._k = int(parent.full_reward_spec[parent.reward_key].shape[-1])
+        return self._k
+
+    def _spec(self, batch, device) -> Bounded:
+        return Bounded(0.0, 1.0, shape=(*batch, self.num_objectives), dtype=torch.float32, device=device)
+
+    def transform_observation_spec(self, observation_spec: Composite) -> Composite:
+        observation_spec[self.preference_key] = self._spec(observation_spec.shape, observation_spec.device)
+        return observation_spec
+
+    def transform_input_spec(self, input_spec: Composite) -> Composite:
+        state = input_spec["full_state_spec"]
+        if state is None:
+            state = Composite(shape=input_spec.shape, device=input_spec.device)
+        state[self.preference_key] = self._spec(input_spec.shape, input_spec.device)
+        input_spec["full_state_spec"] = state
+        return input_spec
+
+    # ------------------------------------------------------------------ drawing
+    def equal_weights(self, device=None) -> torch.Tensor:
+        k = self.num_objectives
+        return torch.full((k,), 1.0 / k, device=device)
+
+    def sample(self, n: int) -> torch.Tensor:
+        """Draw ``n`` preferences ``[n, k]`` (CPU) in the ``"dirichlet"``, ``"cycle"`` or ``"random"`` mode."""
+        k = self.num_objectives
+        if self.mode == "dirichlet":
+            alpha = self.alpha.expand(k) if self.alpha.ndim == 0 else self.alpha
+            return sample_dirichlet(n, alpha, self.generator)
+        if self.weights.shape[1] != k:
+            raise ValueError(f"the weight set has {self.weights.shape[1]} objectives; the env has {k}")
+        m = self.weights.shape[0]
+        if self.mode == "cycle":
+            rows = (self._cursor + torch.arange(n)) % m
+            self._cursor = int((self._cursor + n) % m)
+        elif self.mode == "random":
+            rows = torch.randint(m, (n,), generator=self.generator)
+        else:
+            raise RuntimeError(f"sample() does not apply to mode {self.mode!r}")
+        return self.weights[rows]
+
+    def _given(self, tensordict: TensorDictBase | None, batch, device) -> torch.Tensor | None:
+        w = None if tensordict is None else tensordict.get(self.preference_key, None)
+        if w is None:
+            return None
+        k = self.num_objectives
+        w = torch.as_tensor(w, device=device)
+        w = check_simplex(w, k)
+        if w.shape != (*batch, k):
+            try:
+                w = w.expand(*batch, k)
+            except RuntimeError:
+                raise ValueError(
+                    f"preference has shape {tuple(w.shape)}; expected [{k}] or {[*batch, k]}"
+                ) from None
+        return w
+
+    # ------------------------------------------------------------------ env hooks
+    def _reset_env_preprocess(self, tensordict: TensorDictBase | None) -> TensorDictBase | None:
+        if self.mode == "given":  # validate before the env underneath resets: bad input changes nothing
+            parent = self.parent
+            mask = reset_mask(tensordict, parent.batch_size, parent.device)
+            w = self._given(tensordict, parent.batch_size, parent.device)
+            if w is not None and mask.any():
+                check_simplex(w[mask], self.num_objectives)
+        return tensordict
+
+    def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+        self._sync_seed()
+        batch, device = tensordict_reset.batch_size, tensordict_reset.device
+        k = self.num_objectives
+        mask = reset_mask(tensordict, batch, device)
+        given = self._given(tensordict, batch, device) if self.mode == "given" else None
+        current = tensordict.get(self.preference_key, None)
+        if current is None or current.shape != (*batch, k):
+            current = self._current
+        if current is None or current.shape != (*batch, k):
+            current = self.equal_weights(device).expand(*batch, k)
+        new = current.to(device=device, dtype=torch.float32).clone()
+        n = int(mask.sum())
+        if n:
+            if self.mode == "given":
+                if given is not None:  # otherwise the sub-envs keep what they had
+                    new[mask] = given[mask]
+            else:
+                new[mask] = self.sample(n).to(device)
+        self._current = new
+        tensordict_reset.set(self.preference_key, new)
+        return tensordict_reset
+
+    def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
+        w = tensordict.get(self.preference_key, None)
+        if w is None:
+            w = self._current
+            if w is None:
+                raise RuntimeError("PreferenceConditioning: the env was stepped before it was reset")
+        self._current = w
+        next_tensordict.set(self.preference_key, w.clone())
+        return next_tensordict
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return tensordict
+
+    def __repr__(self) -> str:
+        extra = f", weights={tuple(self.weights.shape)}" if self.weights is not None else ""
+        if self.mode == "dirichlet":
+            extra = f", alpha={self.alpha.tolist()}"
+        return f"{type(self).__name__}(mode={self.mode!r}{extra}, key={self.preference_key!r}, seed={self._seed})"
