@@ -22,10 +22,14 @@ OPEN = [[0] * 9 for _ in range(9)]
 
 # SPEC 1.3, written out independently of the package's data file
 SPEC_MAPS = {
-    "Room": dict(goals=[(9, 9), (3, 3), (9, 3)], w=[0.5, 0.3, 0.2], agent=(6, 6, 3), n_lava=23,
-                 rows=".....L... .1.L.L.2. ...L.L... .LLL.LLL. ....^L... L.LL.L.LL ...L..... ...L.L.0. ...L.L..."),
-    "CheckerBoard": dict(goals=[(9, 3), (9, 9), (3, 9)], w=[0.3, 0.1, 0.6], agent=(6, 4, 1), n_lava=40,
-                         rows=".L.L.L.L. L.L.L.L0L .L.LvL.L. L.L.L.L.L .L.L.L.L. L.L.L.L.L .L.L.L.L. L2L.L.L1L .L.L.L.L."),
+    "Room": dict(
+        goals=[(9, 9), (3, 3), (9, 3)], w=[0.5, 0.3, 0.2], agent=(6, 6, 3), n_lava=23,
+        rows=".....L... .1.L.L.2. ...L.L... .LLL.LLL. ....^L... L.LL.L.LL ...L..... ...L.L.0. ...L.L...",
+    ),
+    "CheckerBoard": dict(
+        goals=[(9, 3), (9, 9), (3, 9)], w=[0.3, 0.1, 0.6], agent=(6, 4, 1), n_lava=40,
+        rows=".L.L.L.L. L.L.L.L0L .L.LvL.L. L.L.L.L.L .L.L.L.L. L.L.L.L.L .L.L.L.L. L2L.L.L1L .L.L.L.L.",
+    ),
     "Corridor": dict(goals=[(6, 7), (4, 5), (8, 5)], w=[0.6, 0.1, 0.3], agent=(2, 6, 0), n_lava=31, rows=None),
     "Islands": dict(goals=[(9, 3), (10, 10), (3, 9)], w=[1 / 3] * 3, agent=(2, 3, 0), n_lava=39, rows=None),
     "Maze": dict(goals=[(10, 2), (2, 10), (10, 10)], w=[0.05, 0.05, 0.9], agent=(2, 2, 0), n_lava=32, rows=None),

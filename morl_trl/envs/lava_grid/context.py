@@ -159,12 +159,13 @@ class LavaGridContextSpace(ContextSpace):
         checks = [
             (((lava == 0) | (lava == 1)).all(1), "lava bits must be 0 or 1"),
             (on_grid.all(-1).all(-1), f"goal and agent cells must be integers in 1..{INNER}"),
-            (((direction >= 0) & (direction <= 3) & (direction == direction.round())), "agent_dir must be 0, 1, 2 or 3"),
+            ((direction >= 0) & (direction <= 3) & (direction == direction.round()), "agent_dir must be 0, 1, 2 or 3"),
             ((weights >= 0).all(1), "goal weights must be non-negative"),
             (((weights.sum(1) - 1).abs() <= 1e-4), "goal weights must sum to 1"),
         ]
         g = goals.long().clamp(1, INNER)  # clamped only for indexing; off-grid cells fail above
-        distinct = (g[:, :, None, :] != g[:, None, :, :]).any(-1) | torch.eye(NUM_GOALS, dtype=torch.bool, device=g.device)
+        same_cell = (g[:, :, None, :] == g[:, None, :, :]).all(-1)
+        distinct = ~same_cell | torch.eye(NUM_GOALS, dtype=torch.bool, device=g.device)
         on_layout = ((g >= 2) & (g <= 10)).all(-1)
         lava_idx = ((g[..., 1] - 2) * LAYOUT + (g[..., 0] - 2)).clamp(0, LAYOUT * LAYOUT - 1)
         goal_on_lava = on_layout & (lava.gather(1, lava_idx) == 1)
@@ -179,7 +180,9 @@ class LavaGridContextSpace(ContextSpace):
             for valid, message in checks:
                 if not bool(valid.all()):
                     row = int((~valid).nonzero()[0])
-                    raise ValueError(f"invalid MO-LavaGrid context (row {row}): {message}; got {_describe_row(flat[row])}")
+                    raise ValueError(
+                        f"invalid MO-LavaGrid context (row {row}): {message}; got {_describe_row(flat[row])}"
+                    )
         return context
 
 
@@ -296,7 +299,9 @@ def parse_lava_map(rows: Sequence[str] | str, weights: Sequence[float]) -> torch
             elif ch in DIR_GLYPHS:
                 agents.append((x, y, DIR_GLYPHS.index(ch)))
             elif ch != ".":
-                raise ValueError(f"unknown map cell {ch!r} at (x={x}, y={y}); valid: 'L', '.', '0'-'2', {list(DIR_GLYPHS)}")
+                raise ValueError(
+                    f"unknown map cell {ch!r} at (x={x}, y={y}); valid: 'L', '.', '0'-'2', {list(DIR_GLYPHS)}"
+                )
     if sorted(goals) != [0, 1, 2]:
         raise ValueError(f"a map needs goals 0, 1 and 2; found {sorted(goals)}")
     if len(agents) != 1:

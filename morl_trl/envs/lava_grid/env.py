@@ -22,7 +22,6 @@ from morl_trl.envs.lava_grid.context import (
     INNER,
     LAVA_GRID_CONTEXT,
     LAVA_SLICE,
-    LAYOUT,
     NUM_GOALS,
     WEIGHTS_SLICE,
     LavaGridContextSpace,
