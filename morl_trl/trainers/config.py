@@ -62,6 +62,7 @@ class TrainConfig:
     eval_episodes: int = 1
     eval_contexts: tuple[str, ...] | None = None  # None: the domain's evaluation suite
     reference_dir: str | None = None    # the published data, for NHGR/EUGR against the paper's specialists
+    eval_random_baseline: bool = True   # also evaluate a uniformly random policy at the end, for the report
     # bookkeeping
     run_dir: str | None = None
     checkpoint_interval: int = 50_000
@@ -161,6 +162,10 @@ def resolve_config(
         >>> cfg.history_len, cfg.batch_size, cfg.frames
         (2, 128, 3000000)
     """
+    from_file = load_config_file(config_file) if config_file is not None else {}
+    if "algo" in from_file and from_file["algo"] != algo:
+        raise ValueError(f"config file {str(config_file)!r} is for algo {from_file['algo']!r}, not {algo!r}")
+    env_id = from_file.get("env_id", env_id)  # a recipe file may name its domain
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {list(ALGORITHMS)}")
     from morl_trl.envs import domain_of
@@ -172,7 +177,6 @@ def resolve_config(
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if quick:
         values.update(_QUICK)
-    if config_file is not None:
-        values.update(load_config_file(config_file))
+    values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
     return TrainConfig(**_coerce(values))

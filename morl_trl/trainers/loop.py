@@ -67,6 +67,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
     buffer = agent.make_replay_buffer()
     log = RunLog(run_dir, cfg, spec)
     evaluator = agent.make_evaluator(make_eval_transform(cfg), spec)
+    log.reference = agent.reference
 
     frames, updates, next_eval, next_ckpt = 0, 0, 0, cfg.checkpoint_interval
     ckpt = latest_checkpoint(run_dir) if resume is not None else None
@@ -120,6 +121,8 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
                 checkpoint(frames)
         summary = log.evaluation(frames, evaluator(agent.eval_policy))
         checkpoint(frames)
+        if cfg.eval_random_baseline:
+            log.random_result = evaluator("random")
         log.report(summary, fps=(frames - frames_start) / max(time.perf_counter() - t_start, 1e-9))
     finally:
         bar.close()

@@ -1,0 +1,154 @@
+"""The main job: config resolution, a short real run, a real kill + resume, NaN guard."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from morl_trl.trainers import TrainConfig, resolve_config, train
+from morl_trl.trainers.checkpoint import latest_checkpoint
+
+TINY = dict(
+    frames=512, num_envs=8, frames_per_batch=64, init_random_frames=128, updates_per_batch=2, batch_size=32,
+    hidden=(32, 32), eval_interval=256, eval_weights=3, checkpoint_interval=256, buffer_size=4096,
+    eval_contexts=("MOLavaGridRoom-v0", "MOLavaGridSnake-v0"), progress=False, eval_random_baseline=False,
+)
+
+
+# ---------------------------------------------------------------- config
+def test_config_has_the_papers_defaults_and_names_bad_keys(tmp_path):
+    cfg = resolve_config("envelope", "MOLunarLanderDR-v0")
+    assert (cfg.history_len, cfg.batch_size, cfg.num_sampled_prefs, cfg.homotopy_lambda0) == (2, 128, 8, 0.95)
+    assert (cfg.frames, cfg.eval_interval, cfg.eval_weights, cfg.target_update_period) == (3_000_000, 50_000, 100, 1000)
+    lava = resolve_config("envelope", "MOLavaGridDR-v0")
+    assert (lava.history_len, lava.eps_frames, lava.target_update_period) == (0, 5_000_000, 200)
+    capql = resolve_config("capql", "MOHopperDR-v5")
+    assert (capql.batch_size, capql.alpha, capql.tau, capql.eval_interval) == (256, 0.2, 0.005, 100_000)
+    with pytest.raises(ValueError, match=r"unknown algorithm 'dqn'; valid: \['envelope'"):
+        resolve_config("dqn", "MOLavaGridDR-v0")
+    with pytest.raises(ValueError, match=r"unknown config key\(s\) \['learning_rate'\]; valid keys: .*'lr'"):
+        resolve_config("envelope", "MOLavaGridDR-v0", learning_rate=1e-3)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("batchsize = 3\n")
+    with pytest.raises(ValueError, match=r"unknown config key\(s\) \['batchsize'\]"):
+        resolve_config("envelope", "MOLavaGridDR-v0", config_file=bad)
+    good = tmp_path / "good.toml"
+    good.write_text("batch_size = 3\nhidden = [8, 8]\n")
+    assert resolve_config("envelope", "MOLavaGridDR-v0", config_file=good, seed=4).hidden == (8, 8)
+    with pytest.raises(ValueError, match="unknown env id 'MOLavaGrid-v0'"):
+        resolve_config("envelope", "MOLavaGrid-v0")
+
+
+def test_config_round_trips(tmp_path):
+    cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, seed=7)
+    cfg.save(tmp_path / "c.json")
+    assert TrainConfig.load(tmp_path / "c.json") == cfg
+
+
+def test_cli_errors_name_the_valid_choices():
+    out = subprocess.run([sys.executable, "-m", "morl_trl.cli", "train", "envelope", "MOLavaGridDRR-v0"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "unknown env id 'MOLavaGridDRR-v0'; did you mean ['MOLavaGridDR-v0'" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+# ---------------------------------------------------------------- a short real run
+def _rows(path: Path) -> list[dict]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_short_run_writes_everything(tmp_path, reference_dir):
+    cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, run_dir=str(tmp_path / "run"),
+                         reference_dir=str(reference_dir), **TINY)
+    summary = train(cfg)
+    run = tmp_path / "run"
+    assert json.loads((run / "config.json").read_text())["frames"] == 512
+    metrics = _rows(run / "eval" / "metrics.csv")
+    # evaluations at 0, 256 and the end (512), one row per context each
+    assert [(r["frames"], r["context"]) for r in metrics] == [
+        (f, c) for f in ("0", "256", "512") for c in ("MOLavaGridRoom-v0", "MOLavaGridSnake-v0")
+    ]
+    assert {"nhgr", "eugr", "hypervolume", "normalized_hypervolume", "eum", "cardinality", "sparsity"} <= set(metrics[0])
+    assert all(0.0 <= float(r["nhgr"]) <= 1.0 for r in metrics)
+    episodes = _rows(run / "eval" / "episodes.csv")
+    assert len(episodes) == 3 * 2 * 3  # evaluations x contexts x weights
+    assert {"return_lava", "return_time", "weight_lava", "weight_time"} <= set(episodes[0])
+    fronts = _rows(run / "fronts" / "frames_000000000512.csv")
+    assert set(fronts[0]) == {"context", "lava", "time"}
+    assert (run / "train" / "episodes.csv").exists()
+    assert latest_checkpoint(run).name == "frames_000000000512"
+    report = (run / "report.md").read_text()
+    assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper)" in report
+    assert (run / "report_fronts.png").stat().st_size > 1000
+    assert 0.0 <= summary["nhgr_mean"] <= 1.0
+
+
+def test_non_finite_loss_stops_with_a_clear_message_and_a_good_checkpoint(tmp_path, monkeypatch):
+    from morl_trl.objectives import EnvelopeQLoss
+    from morl_trl.trainers.agents import NonFiniteLossError
+
+    forward = EnvelopeQLoss.forward
+    calls = {"n": 0}
+
+    def poisoned(self, td):
+        out = forward(self, td)
+        calls["n"] += 1
+        if calls["n"] > 20:
+            out["loss_qvalue"] = out["loss_qvalue"] * float("nan")
+        return out
+
+    monkeypatch.setattr(EnvelopeQLoss, "forward", poisoned)
+    cfg = resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(tmp_path / "run"), **{**TINY, "frames": 2048})
+    with pytest.raises(NonFiniteLossError, match="non-finite loss"):
+        train(cfg)
+    run = tmp_path / "run"
+    assert "stopped: non-finite loss" in (run / "log.txt").read_text()
+    ckpt = latest_checkpoint(run)
+    assert ckpt is not None
+    state = torch.load(ckpt / "state.pt", weights_only=False)
+    params = state["agent"]["loss"]
+    assert all(torch.isfinite(v).all() for v in params.values() if torch.is_tensor(v) and v.is_floating_point())
+
+
+# ---------------------------------------------------------------- kill and resume
+def test_kill_and_resume(tmp_path):
+    run = tmp_path / "run"
+    cfg = tmp_path / "cfg.toml"
+    tiny = {**TINY, "frames": 6144, "checkpoint_interval": 512, "eval_interval": 100_000}
+    cfg.write_text("\n".join(f"{k} = {json.dumps(list(v) if isinstance(v, tuple) else v)}" for k, v in tiny.items()))
+    cmd = [sys.executable, "-m", "morl_trl.cli", "train", "envelope", "MOLavaGridDR-v0", "--config", str(cfg),
+           "--run-dir", str(run), "--logger", "csv"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 240
+    try:
+        while time.time() < deadline:
+            ckpt = latest_checkpoint(run)
+            if ckpt is not None and int(ckpt.name.split("_")[-1]) >= 1024:
+                break
+            assert proc.poll() is None, "the run ended before it could be killed"
+            time.sleep(0.2)
+        else:
+            pytest.fail("no checkpoint within the deadline")
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # a real kill: no chance to clean up
+        proc.wait()
+    killed_at = int(latest_checkpoint(run).name.split("_")[-1])
+    assert killed_at < 6144
+    out = subprocess.run([sys.executable, "-m", "morl_trl.cli", "train", "envelope", "MOLavaGridDR-v0",
+                          "--resume", str(run)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    log = (run / "log.txt").read_text()
+    assert f"resumed from frames_{killed_at:012d} at {killed_at} frames" in log
+    assert latest_checkpoint(run).name == "frames_000000006144"
+    state = torch.load(latest_checkpoint(run) / "state.pt", weights_only=False)
+    assert state["frames"] == 6144
+    assert state["updates"] >= (6144 - 128) // 64 * 2 - 2
