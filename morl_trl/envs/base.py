@@ -152,7 +152,10 @@ class ContextualMOEnv(EnvBase):
             chosen = self._context[idx]
         if idx.numel():
             self._reset_subenvs(idx, chosen)
-            self._context[idx] = chosen
+            # out of place: step outputs share self._context without copying it every step
+            context = self._context.clone()
+            context[idx] = chosen
+            self._context = context
             self._step_count[idx] = 0
         return self._make_output(self._observe(), reward=None, original=None,
                                  terminated=torch.zeros(self.num_envs, dtype=torch.bool, device=self.device),
@@ -168,7 +171,7 @@ class ContextualMOEnv(EnvBase):
 
     def _make_output(self, obs, reward, original, terminated, truncated) -> TensorDictBase:
         out = dict(obs)
-        out["context"] = self._context.clone()
+        out["context"] = self._context
         if self.has_original_reward:
             out["original_reward"] = (
                 original.reshape(self.num_envs, 1).to(self.device, torch.float32)
