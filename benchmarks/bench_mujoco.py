@@ -1,0 +1,103 @@
+"""Sub-env steps per second of the batched MuJoCo domains against a single Gymnasium env.
+
+For each domain, in one run: ``make_env("MO<Domain>DR-v5", num_envs=N)`` stepped through
+TorchRL's ``step_and_maybe_reset`` (what collectors call: partial resets included) for N in
+1, 16, 64, and the raw Gymnasium env doing the same physics (``gym.make("<Domain>-v5")``
+with its default wrappers, reset when an episode ends), both with uniform random actions
+drawn beforehand. Each figure is the best of a few alternating repeats, which keeps the
+ratio meaningful on a shared machine. Target: ratio >= 1.0 at N=16 for every domain.
+
+    python benchmarks/bench_mujoco.py            # ~1 minute
+    python benchmarks/bench_mujoco.py --quick    # ~15 s, noisier
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from morl_trl.envs import make_env  # noqa: E402
+
+DOMAINS = {
+    # domain: (our DR id, Gymnasium id, Gymnasium kwargs giving the same reward as ours)
+    "Hopper": ("MOHopperDR-v5", "Hopper-v5", {}),
+    "HalfCheetah": ("MOHalfCheetahDR-v5", "HalfCheetah-v5", {}),
+    "Humanoid": ("MOHumanoidDR-v5", "Humanoid-v5", {"healthy_reward": 2.0, "contact_cost_weight": 0.0}),
+}
+
+
+def gym_steps_per_second(env_id: str, kwargs: dict, seconds: float, seed: int = 0) -> float:
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=seed)
+    space = env.action_space
+    actions = np.random.default_rng(seed).uniform(space.low, space.high, size=(4096, *space.shape)).astype(np.float32)
+    steps, start = 0, time.perf_counter()
+    while True:
+        for a in actions[steps % len(actions):][:256]:
+            _, _, terminated, truncated, _ = env.step(a)
+            if terminated or truncated:
+                env.reset()
+        steps += 256
+        if time.perf_counter() - start >= seconds:
+            break
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def ours_steps_per_second(env_id: str, num_envs: int, seconds: float, seed: int = 0) -> float:
+    env = make_env(env_id, num_envs=num_envs, seed=seed)
+    td = env.reset()
+    spec = env.action_spec
+    low, high = spec.space.low, spec.space.high
+    gen = torch.Generator().manual_seed(seed)
+    actions = low + (high - low) * torch.rand((64, *spec.shape), generator=gen)
+    for t in range(5):  # warm-up
+        td["action"] = actions[t]
+        _, td = env.step_and_maybe_reset(td)
+    calls, start = 0, time.perf_counter()
+    while True:
+        for a in actions:
+            td["action"] = a
+            _, td = env.step_and_maybe_reset(td)
+        calls += len(actions)
+        if time.perf_counter() - start >= seconds:
+            break
+    rate = calls * num_envs / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter runs, fewer repeats")
+    parser.add_argument("--domains", nargs="*", default=list(DOMAINS), choices=list(DOMAINS))
+    parser.add_argument("--num-envs", nargs="*", type=int, default=[1, 16, 64])
+    args = parser.parse_args(argv)
+    seconds, repeats = (0.4, 2) if args.quick else (1.5, 3)
+    torch.set_num_threads(1)
+
+    print(f"sub-env steps/s, best of {repeats} alternating repeats of {seconds}s each "
+          f"(torch {torch.__version__}, gymnasium {gym.__version__}, {os.cpu_count()} CPUs)")
+    print(f"{'domain':<12} {'peer (Gymnasium, 1 env)':>24} " + " ".join(f"{f'N={n}':>10} {'ratio':>6}" for n in args.num_envs))
+    for domain in args.domains:
+        ours_id, gym_id, gym_kwargs = DOMAINS[domain]
+        peer, ours = 0.0, dict.fromkeys(args.num_envs, 0.0)
+        for _ in range(repeats):
+            peer = max(peer, gym_steps_per_second(gym_id, gym_kwargs, seconds))
+            for n in args.num_envs:
+                ours[n] = max(ours[n], ours_steps_per_second(ours_id, n, seconds))
+        cells = " ".join(f"{ours[n]:>10.0f} {ours[n] / peer:>6.2f}" for n in args.num_envs)
+        print(f"{domain:<12} {peer:>24.0f} {cells}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
