@@ -64,8 +64,8 @@ class PreferenceConditioning(SeededTransform):
       get the ``m`` rows: the evaluation weights).
     * ``"random"``: a row of ``weights`` drawn uniformly.
     * ``"given"``: the preference in the reset TensorDict, e.g.
-      ``env.reset(TensorDict(preference=w, batch_size=env.batch_size))``; ``w`` ``[k]`` or
-      ``[*B, k]`` must be on the simplex (``ValueError`` naming the value otherwise, before
+      ``env.reset(TensorDict(preference=w, batch_size=env.batch_size))``; every row of
+      ``w`` ``[*B, k]`` must be on the simplex (``ValueError`` naming the value otherwise, before
       anything is reset). A sub-env keeps its ``w`` over later resets (the TensorDict carries
       it); before any is given, sub-envs get equal weights ``1/k``.
 
@@ -148,7 +148,16 @@ class PreferenceConditioning(SeededTransform):
     def _spec(self, batch, device) -> Bounded:
         return Bounded(0.0, 1.0, shape=(*batch, self.num_objectives), dtype=torch.float32, device=device)
 
+    def _check_width(self) -> None:
+        parent = self.parent
+        if parent is not None and self._k is not None:
+            width = int(parent.full_reward_spec[parent.reward_key].shape[-1])
+            if width != self._k:
+                what = "the weight set has" if self.weights is not None else "num_objectives gives"
+                raise ValueError(f"{what} {self._k} objectives; the env has {width}")
+
     def transform_observation_spec(self, observation_spec: Composite) -> Composite:
+        self._check_width()
         observation_spec[self.preference_key] = self._spec(observation_spec.shape, observation_spec.device)
         return observation_spec
 

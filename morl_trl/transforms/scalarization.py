@@ -7,6 +7,8 @@ from tensordict import TensorDictBase
 from torchrl.data import Bounded, Composite, Unbounded
 from torchrl.envs.transforms import Transform
 
+from morl_trl.transforms._utils import fmt
+
 __all__ = ["LinearScalarization"]
 
 
@@ -53,7 +55,7 @@ class LinearScalarization(Transform):
         if weights is not None:
             weights = torch.as_tensor(weights, dtype=torch.float32)
             if weights.ndim != 1 or weights.numel() == 0 or not torch.isfinite(weights).all():
-                raise ValueError(f"weights must be a finite [k] vector, got {weights.tolist()}")
+                raise ValueError(f"weights must be a finite [k] vector, got {fmt(weights)}")
         self.weights = weights
         self.preference_key = preference_key
 
@@ -73,7 +75,7 @@ class LinearScalarization(Transform):
             )
         if w.shape[-1] != reward.shape[-1]:
             raise ValueError(
-                f"{reward.shape[-1]} objectives in {self.in_key!r} but {w.shape[-1]} weights: {w.tolist()}"
+                f"{reward.shape[-1]} objectives in {self.in_key!r} but {w.shape[-1]} weights"
             )
         return (w.to(reward.dtype) * reward).sum(-1, keepdim=True)
 
@@ -110,7 +112,7 @@ class LinearScalarization(Transform):
         batch, k = spec.shape[:-1], spec.shape[-1]
         if self.weights is not None and self.weights.numel() != k:
             raise ValueError(f"{k} objectives in {self.in_key!r} but {self.weights.numel()} weights: "
-                             f"{self.weights.tolist()}")
+                             f"{fmt(self.weights)}")
         if isinstance(spec, Bounded):
             low, high = spec.space.low.expand(spec.shape), spec.space.high.expand(spec.shape)
             if self.weights is not None:

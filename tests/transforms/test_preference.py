@@ -1,0 +1,170 @@
+import pickle
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.envs import TransformedEnv
+from torchrl.envs.utils import check_env_specs
+
+from morl_trl.transforms import DomainRandomization, PreferenceConditioning
+from morl_trl.transforms.preference import sample_dirichlet
+from tests.mocks import TOY_CONTEXT, ToyContextEnv
+from tests.transforms.helpers import ScriptedPolicy, episode_starts
+
+W2 = [[1.0, 0.0], [0.5, 0.5]]
+
+
+def make(n=3, **kwargs):
+    return TransformedEnv(ToyContextEnv(num_envs=n), PreferenceConditioning(**kwargs))
+
+
+def test_dirichlet_default_on_simplex_per_subenv_constant_per_episode():
+    n, steps = 4, 20
+    env = make(n, seed=0)
+    assert env.transform.num_objectives == 2  # inferred from the reward spec
+    td = env.rollout(steps, ScriptedPolicy((n,), steps, seed=1), break_when_any_done=False)
+    w = td["preference"]
+    assert torch.equal(td["next", "preference"], w)
+    assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(n, steps))
+    assert w[:, 0].unique(dim=0).shape[0] == n
+    starts = episode_starts(td)
+    same = (w[:, 1:] == w[:, :-1]).all(-1)
+    assert torch.equal(same, ~starts[:, 1:])
+
+
+def test_partial_reset_only_redraws_reset_subenvs():
+    env = make(3, seed=0)
+    td = env.reset()
+    before = td["preference"].clone()
+    after = env.reset(td.set("_reset", torch.tensor([[False], [True], [False]])))["preference"]
+    assert torch.equal(after[[0, 2]], before[[0, 2]]) and not torch.equal(after[1], before[1])
+
+
+def test_seeded_and_follows_env_seed_and_independent_of_contexts():
+    a = make(3, seed=7).reset()["preference"]
+    b = make(3, seed=7).reset()["preference"]
+    assert torch.equal(a, b)
+    env = TransformedEnv(ToyContextEnv(num_envs=3, seed=7), PreferenceConditioning())
+    assert torch.equal(env.reset()["preference"], a)  # no seed: the env's
+    env.set_seed(8)
+    assert torch.equal(env.reset()["preference"], make(3, seed=8).reset()["preference"])
+    # same seed for contexts and preferences: the two streams are not the same uniforms
+    g = torch.Generator().manual_seed(7)
+    plain = sample_dirichlet(3, torch.ones(2), g)
+    assert not torch.allclose(plain, a)
+
+
+def test_dirichlet_statistics():
+    g = torch.Generator().manual_seed(0)
+    uniform = sample_dirichlet(40000, torch.ones(3), g)
+    # Dir(1,1,1): each marginal is Beta(1, 2): mean 1/3, P(w < 1/2) = 3/4
+    assert torch.allclose(uniform.mean(0), torch.full((3,), 1 / 3), atol=0.01)
+    assert abs((uniform[:, 0] < 0.5).float().mean().item() - 0.75) < 0.01
+    skewed = sample_dirichlet(40000, torch.tensor([1.0, 2.0, 3.0]), g)
+    assert torch.allclose(skewed.mean(0), torch.tensor([1 / 6, 2 / 6, 3 / 6]), atol=0.01)
+    sparse = sample_dirichlet(40000, torch.full((2,), 0.2), g)  # alpha < 1: mass near the corners
+    assert torch.allclose(sparse.mean(0), torch.full((2,), 0.5), atol=0.01)
+    assert (sparse.max(-1).values > 0.95).float().mean() > 0.5
+    assert torch.allclose(sparse.sum(-1), torch.ones(40000))
+
+
+def test_alpha_option_changes_the_spread():
+    env = make(1, seed=0, alpha=50.0)
+    draws = torch.stack([env.reset()["preference"][0] for _ in range(200)])
+    assert (draws - 0.5).abs().max() < 0.25  # concentrated at the centre
+
+
+def test_cycle_mode_walks_the_weight_set_across_resets():
+    env = make(3, weights=W2)
+    td = env.reset()
+    assert td["preference"].tolist() == [[1.0, 0.0], [0.5, 0.5], [1.0, 0.0]]
+    td = env.reset(td.set("_reset", torch.tensor([[False], [True], [True]])))
+    assert td["preference"].tolist() == [[1.0, 0.0], [0.5, 0.5], [1.0, 0.0]]  # rows 1, 0 continue the cycle
+    td = env.reset(td.set("_reset", torch.tensor([[True], [False], [False]])))
+    assert td["preference"].tolist() == [[0.5, 0.5], [0.5, 0.5], [1.0, 0.0]]
+
+
+def test_random_mode_draws_rows_of_the_set():
+    weights = [[1.0, 0.0], [0.0, 1.0], [0.25, 0.75]]
+    env = make(64, weights=weights, mode="random", seed=3)
+    w = env.reset()["preference"]
+    rows = [weights.index(r) for r in w.tolist()]
+    assert set(rows) == {0, 1, 2}
+    assert torch.equal(make(64, weights=weights, mode="random", seed=3).reset()["preference"], w)
+
+
+def test_given_mode_uses_the_reset_tensordict_and_keeps_it_over_auto_resets():
+    n, steps = 3, 16
+    env = make(n, mode="given")
+    assert env.reset()["preference"].tolist() == [[0.5, 0.5]] * n  # nothing given yet: equal weights
+    w = torch.tensor([[1.0, 0.0], [0.2, 0.8], [0.0, 1.0]])
+    td = env.reset(TensorDict(preference=w, batch_size=[n]))
+    assert torch.equal(td["preference"], w)
+    td = env.rollout(steps, ScriptedPolicy((n,), steps, seed=1), auto_reset=False, tensordict=td,
+                     break_when_any_done=False)
+    assert episode_starts(td)[:, 1:].any()
+    assert torch.equal(td["preference"], w.unsqueeze(1).expand(n, steps, 2))
+    # a partial reset takes the given preference of the sub-envs being reset only
+    td = td[:, -1]["next"].clone()
+    td["preference"][0] = torch.tensor([0.3, 0.7])
+    td = env.reset(td.set("_reset", torch.tensor([[True], [False], [False]])))
+    assert torch.allclose(td["preference"], torch.tensor([[0.3, 0.7], [0.2, 0.8], [0.0, 1.0]]))
+
+
+@pytest.mark.parametrize(
+    "w, match",
+    [
+        (torch.tensor([[0.2, 0.3, 0.5]] * 2), r"shape \(2, 3\); expected \[\.\.\., 2\]"),
+        (torch.tensor([[0.5, 0.5], [1.5, -0.5]]), r"preference \[1.5, -0.5\] has a negative weight"),
+        (torch.tensor([[0.5, 0.6], [0.5, 0.5]]), r"preference \[0.5, 0.6\] sums to 1.1"),
+        (torch.tensor([[float("nan"), 1.0]] * 2), r"preference \[nan, 1.0\] is not finite"),
+    ],
+)
+def test_given_mode_rejects_off_simplex_preferences_and_changes_nothing(w, match):
+    env = make(2, mode="given")
+    td = env.reset(TensorDict(preference=torch.tensor([[0.25, 0.75]] * 2), batch_size=[2]))
+    td = env.step(td.set("action", torch.tensor([1, 1])))["next"]
+    with pytest.raises(ValueError, match=match):
+        env.reset(TensorDict(preference=w, batch_size=[2]))
+    assert env.base_env._step_count.tolist() == [1, 1]  # the env underneath was not reset
+    td = env.step(td.set("action", torch.tensor([1, 1])))
+    assert td["next", "preference"].tolist() == [[0.25, 0.75]] * 2 and td["next", "observation"][:, 0].tolist() == [2, 2]
+
+
+def test_bad_constructor_arguments():
+    with pytest.raises(ValueError, match=r"weight set row \[0.5, 0.6\] sums to 1.1"):
+        PreferenceConditioning(weights=[[1.0, 0.0], [0.5, 0.6]])
+    with pytest.raises(ValueError, match=r"weight set row \[-0.5, 1.5\] has a negative weight"):
+        PreferenceConditioning(weights=[[-0.5, 1.5]])
+    with pytest.raises(ValueError, match="pass weights="):
+        PreferenceConditioning(2, mode="cycle")
+    with pytest.raises(ValueError, match="mode must be one of"):
+        PreferenceConditioning(2, mode="uniform")
+    with pytest.raises(ValueError, match="alpha must be a positive"):
+        PreferenceConditioning(2, alpha=0.0)
+    with pytest.raises(ValueError, match="num_objectives must be a positive int"):
+        PreferenceConditioning(0)
+    with pytest.raises(ValueError, match="the weight set has 3 objectives; the env has 2"):
+        make(2, weights=[[0.2, 0.3, 0.5]]).reset()
+    with pytest.raises(ValueError, match="num_objectives gives 3 objectives; the env has 2"):
+        make(2, num_objectives=3).reset()
+
+
+def test_specs_and_check_env_specs():
+    env = make(3, seed=0)
+    spec = env.observation_spec["preference"]
+    assert spec.shape == (3, 2) and spec.space.low.min() == 0 and spec.space.high.max() == 1
+    assert "preference" in env.state_spec.keys()
+    check_env_specs(env)
+    check_env_specs(make(3, mode="given"))
+
+
+def test_works_with_domain_randomization_and_pickles():
+    env = TransformedEnv(ToyContextEnv(num_envs=2), DomainRandomization(TOY_CONTEXT, seed=0))
+    env.append_transform(PreferenceConditioning(seed=0))
+    td = env.reset()
+    assert td["preference"].shape == (2, 2) and td["context"].shape == (2, 2)
+    t = PreferenceConditioning(2, seed=4)
+    t.sample(2)
+    clone = pickle.loads(pickle.dumps(t))
+    torch.testing.assert_close(clone.sample(3), t.sample(3))
