@@ -1,1 +1,42 @@
-"""morl_trl.objectives."""
+"""morl_trl.objectives: multi-objective TorchRL losses, their value estimator and networks.
+
+Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`` rewards):
+
+* :class:`EnvelopeQLoss` -- Envelope Q-learning (discrete actions, PER-ready).
+* :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
+* :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
+
+Networks: :mod:`morl_trl.objectives.networks`.
+"""
+
+from morl_trl.objectives.capql import CAPQLLoss
+from morl_trl.objectives.common import MultiObjectiveLossModule
+from morl_trl.objectives.envelope import EnvelopeQLoss
+from morl_trl.objectives.mosac import DiscreteMOSACLoss, MOSACLoss
+from morl_trl.objectives.networks import (
+    NatureCNN,
+    PreferenceConditionedMLP,
+    make_categorical_actor,
+    make_gaussian_actor,
+    make_vector_critic,
+    make_vector_q_network,
+)
+from morl_trl.objectives.preferences import sample_preferences
+from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
+
+__all__ = [
+    "CAPQLLoss",
+    "DiscreteMOSACLoss",
+    "EnvelopeQLoss",
+    "MOSACLoss",
+    "MultiObjectiveLossModule",
+    "NatureCNN",
+    "PreferenceConditionedMLP",
+    "VectorTD0Estimator",
+    "make_categorical_actor",
+    "make_gaussian_actor",
+    "make_vector_critic",
+    "make_vector_q_network",
+    "sample_preferences",
+    "vector_td0_return_estimate",
+]

@@ -1,0 +1,21 @@
+"""morl_trl.data: replay-buffer components TorchRL lacks on some builds.
+
+* :class:`TorchPrioritizedSampler` -- prioritized replay on pure-torch segment trees,
+  a drop-in :class:`torchrl.data.PrioritizedSampler` that needs no C++ extension.
+* :func:`prioritized_sampler` -- TorchRL's native sampler when it loads, else the above.
+"""
+
+from morl_trl.data.prioritized import (
+    TorchPrioritizedSampler,
+    native_prioritized_sampler_available,
+    prioritized_sampler,
+)
+from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
+
+__all__ = [
+    "MinSegmentTree",
+    "SumSegmentTree",
+    "TorchPrioritizedSampler",
+    "native_prioritized_sampler_available",
+    "prioritized_sampler",
+]

@@ -1,0 +1,253 @@
+"""Prioritized experience replay without TorchRL's C++ extension.
+
+TorchRL's :class:`~torchrl.data.PrioritizedSampler` stores priorities in C++
+segment trees; where the extension does not load (``SumSegmentTreeFp32 is not
+available``) the sampler cannot be built. :class:`TorchPrioritizedSampler` is
+the same sampler on the pure-torch trees of :mod:`morl_trl.data.segment_tree`:
+it subclasses TorchRL's class, so replay buffers treat it as prioritized
+(``update_tensordict_priority``, ``mark_update`` on writes, ``"priority_weight"``
+in samples), and it runs on any device. :func:`prioritized_sampler` returns the
+native sampler when it loads and this one otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import torch
+from torchrl.data.replay_buffers.samplers import prioritized as _native
+from torchrl.data.replay_buffers.samplers.prioritized import PrioritizedSampler
+from torchrl.data.replay_buffers.storages import Storage
+from torchrl.data.replay_buffers.utils import unravel_index
+
+from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
+
+__all__ = ["TorchPrioritizedSampler", "native_prioritized_sampler_available", "prioritized_sampler"]
+
+_EMPTY_STORAGE_ERROR = "Cannot sample from an empty storage."
+
+
+def native_prioritized_sampler_available(device: torch.device | str | None = None) -> bool:
+    """Whether TorchRL's C++ segment trees (for ``device``) are importable."""
+    cpu = _native.SumSegmentTreeFp32 is not None and _native.MinSegmentTreeFp32 is not None
+    if device is not None and torch.device(device).type == "cuda":
+        return cpu and _native.CudaSumSegmentTreeFp32 is not None
+    return cpu
+
+
+class TorchPrioritizedSampler(PrioritizedSampler):
+    r"""Proportional prioritized sampler (Schaul et al., 2016) on pure-torch segment trees.
+
+    Same arguments and behaviour as :class:`torchrl.data.PrioritizedSampler`:
+    an item with priority :math:`p_i` is drawn with probability
+    :math:`(p_i + \epsilon)^\alpha / \sum_j (p_j + \epsilon)^\alpha` and carries
+    the importance weight :math:`(P_i / \min_j P_j)^{-\beta}` under
+    ``"priority_weight"``; new items get the largest priority seen so far.
+    Sampling uses the torch RNG (the buffer's generator if it has one), so
+    ``torch.manual_seed`` makes it reproducible.
+
+    Args:
+        max_capacity (int): capacity of the buffer.
+        alpha (float): priority exponent (0: uniform).
+        beta (float): importance-sampling exponent.
+        eps (float): added to priorities. Defaults to 1e-8.
+        dtype (torch.dtype): tree dtype. Defaults to ``torch.float32``.
+        reduction (str): how a multi-element priority entry is reduced by the
+            buffer (``"max"``, ``"min"``, ``"mean"``, ``"median"``). Defaults to ``"max"``.
+        max_priority_within_buffer (bool): track the largest priority among the
+            stored items rather than since construction. Defaults to ``False``.
+        device (torch.device, optional): device of the trees; by default a CUDA
+            storage moves them to its device.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+        >>> rb = TensorDictReplayBuffer(
+        ...     storage=LazyTensorStorage(100),
+        ...     sampler=TorchPrioritizedSampler(100, alpha=1.0, beta=0.4),
+        ...     batch_size=8,
+        ... )
+        >>> _ = rb.extend(TensorDict({"obs": torch.arange(10.0)}, [10]))
+        >>> sample = rb.sample()
+        >>> sample["td_error"] = torch.rand(8)
+        >>> rb.update_tensordict_priority(sample)
+        >>> sorted(sample.keys())
+        ['index', 'obs', 'priority_weight', 'td_error']
+    """
+
+    def __init__(
+        self,
+        max_capacity: int,
+        alpha: float,
+        beta: float,
+        eps: float = 1e-8,
+        dtype: torch.dtype = torch.float,
+        reduction: str = "max",
+        max_priority_within_buffer: bool = False,
+        device: torch.device | str | None = None,
+    ) -> None:
+        # TorchRL's __init__ builds C++ trees (and warns without them): set its state here instead.
+        if alpha < 0:
+            raise ValueError(f"alpha must be greater or equal than 0, got alpha={alpha}")
+        if beta < 0:
+            raise ValueError(f"beta must be greater or equal to 0, got beta={beta}")
+        if int(max_capacity) < 1:
+            raise ValueError(f"max_capacity must be >= 1, got {max_capacity}.")
+        if dtype not in (torch.float32, torch.float64):
+            raise ValueError(f"dtype must be torch.float32 or torch.float64, got {dtype}.")
+        self._max_capacity = int(max_capacity)
+        self._alpha = alpha
+        self._beta = beta
+        self._eps = eps
+        self.reduction = reduction
+        self.dtype = dtype
+        self._max_priority_within_buffer = max_priority_within_buffer
+        self._device = torch.device(device) if device is not None else None
+        self._init()
+
+    def _init(self) -> None:
+        device = self._device if self._device is not None else torch.device("cpu")
+        self._sum_tree = SumSegmentTree(self._max_capacity, device=device, dtype=self.dtype)
+        self._min_tree = MinSegmentTree(self._max_capacity, device=device, dtype=self.dtype)
+        self._max_priority = None
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}(max_capacity={self._max_capacity}, alpha={self._alpha}, "
+            f"beta={self._beta}, eps={self._eps}, reduction={self.reduction}, device={self.device})"
+        )
+
+    def _tree_device_from_storage(self, storage: Storage | None) -> torch.device | None:
+        # Follow a CUDA storage only until priorities exist: moving later would drop them.
+        if self._device is not None or self._sum_tree._written:
+            return self._device
+        return super()._tree_device_from_storage(storage)
+
+    def sample(self, storage: Storage, batch_size: int) -> tuple[torch.Tensor, dict]:
+        self._maybe_init_from_storage(storage)
+        n = len(storage)
+        if n == 0:
+            raise RuntimeError(_EMPTY_STORAGE_ERROR)
+        p_sum = self._sum_tree.query(0, n)
+        p_min = self._min_tree.query(0, n)
+        if self.device.type == "cpu" and (p_sum <= 0 or not torch.isfinite(p_min) or p_min <= 0):
+            raise RuntimeError(
+                f"non-positive priorities: sum {float(p_sum)}, min {float(p_min)} over {n} stored items "
+                "(were priorities set for the stored items?)."
+            )
+        rng = self._rng
+        u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
+        mass = u.to(device=self.device, dtype=self.dtype) * p_sum
+        index = self._sum_tree.scan_lower_bound(mass).clamp_max_(n - 1)
+        weight = torch.pow(self._sum_tree[index] / p_min, -self._beta)
+        if storage.ndim > 1:
+            index = unravel_index(index, storage.shape)
+        return index, {"priority_weight": weight}
+
+    def _tree_argmax(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return self._sum_tree.leaves().max(0)
+
+    def _retransform_priority_trees(self, old_alpha: float, new_alpha: float) -> None:
+        values = self._sum_tree.leaves()
+        written = values > 0
+        if not written.any():
+            return
+        if old_alpha == 0:
+            return super()._retransform_priority_trees(old_alpha, new_alpha)
+        raw = (values.double() ** (1.0 / old_alpha) - self._eps).clamp_min(0)
+        new_values = torch.where(written, (raw + self._eps) ** new_alpha, 0.0).to(self.dtype)
+        self._sum_tree.set_leaves(new_values)
+        self._min_tree.set_leaves(torch.where(written, new_values, torch.inf))
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "_schema_version": self._STATE_SCHEMA_VERSION,
+            "_alpha": self._alpha,
+            "_beta": self._beta,
+            "_eps": self._eps,
+            "_max_priority": _clone_max_priority(self._max_priority),
+            "_sum_tree": self._sum_tree.state_dict(),
+            "_min_tree": self._min_tree.state_dict(),
+        }
+
+    def load_state_dict(self, state_dict: dict[str, Any]) -> None:
+        self._alpha = state_dict["_alpha"]
+        self._beta = state_dict["_beta"]
+        self._eps = state_dict["_eps"]
+        self._max_priority = _clone_max_priority(state_dict["_max_priority"])
+        self._sum_tree.load_state_dict(state_dict["_sum_tree"])
+        self._min_tree.load_state_dict(state_dict["_min_tree"])
+
+    def dumps(self, path) -> None:
+        path = Path(path).absolute()
+        path.mkdir(parents=True, exist_ok=True)
+        torch.save({"sum": self._sum_tree.state_dict(), "min": self._min_tree.state_dict()}, path / "trees.pt")
+        max_p, max_i = self._max_priority
+        metadata = {
+            "_schema_version": self._STATE_SCHEMA_VERSION,
+            "_alpha": self._alpha,
+            "_beta": self._beta,
+            "_eps": self._eps,
+            "_max_capacity": self._max_capacity,
+            "_max_priority": [None if max_p is None else float(max_p), None if max_i is None else _to_py(max_i)],
+        }
+        with open(path / "sampler_metadata.json", "w") as file:
+            json.dump(metadata, file)
+
+    def loads(self, path) -> None:
+        path = Path(path).absolute()
+        with open(path / "sampler_metadata.json") as file:
+            metadata = json.load(file)
+        if metadata["_max_capacity"] != self._max_capacity:
+            raise RuntimeError(
+                f"max capacity of loaded metadata ({metadata['_max_capacity']}) differs from "
+                f"self._max_capacity ({self._max_capacity})."
+            )
+        self._alpha = metadata["_alpha"]
+        self._beta = metadata["_beta"]
+        self._eps = metadata["_eps"]
+        max_p, max_i = metadata["_max_priority"]
+        self._max_priority = None if max_p is None else (torch.tensor(max_p), None if max_i is None else torch.tensor(max_i))
+        trees = torch.load(path / "trees.pt", map_location=self.device, weights_only=True)
+        self._sum_tree.load_state_dict(trees["sum"])
+        self._min_tree.load_state_dict(trees["min"])
+
+
+def _to_py(x):
+    return x.tolist() if isinstance(x, torch.Tensor) else x
+
+
+def _clone_max_priority(value):
+    if value is None:
+        return None
+    return tuple(v.clone() if isinstance(v, torch.Tensor) else v for v in value)
+
+
+def prioritized_sampler(
+    max_capacity: int,
+    alpha: float,
+    beta: float,
+    *,
+    backend: str = "auto",
+    **kwargs,
+) -> PrioritizedSampler:
+    """A prioritized sampler: TorchRL's native one when its extension loads, else :class:`TorchPrioritizedSampler`.
+
+    Args:
+        max_capacity, alpha, beta: as :class:`torchrl.data.PrioritizedSampler`.
+        backend: ``"auto"`` (default), ``"native"`` (TorchRL's, raising if it cannot
+            load) or ``"torch"`` (always the pure-torch sampler).
+        **kwargs: ``eps``, ``dtype``, ``reduction``, ``max_priority_within_buffer``, ``device``.
+
+    Examples:
+        >>> sampler = prioritized_sampler(1000, alpha=0.6, beta=0.4)
+        >>> isinstance(sampler, PrioritizedSampler)
+        True
+    """
+    if backend not in ("auto", "native", "torch"):
+        raise ValueError(f"backend={backend!r}; valid values are 'auto', 'native', 'torch'.")
+    if backend == "native" or (backend == "auto" and native_prioritized_sampler_available(kwargs.get("device"))):
+        return PrioritizedSampler(max_capacity, alpha, beta, **kwargs)
+    return TorchPrioritizedSampler(max_capacity, alpha, beta, **kwargs)

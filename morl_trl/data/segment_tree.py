@@ -1,0 +1,181 @@
+"""Vectorised sum and min segment trees in pure torch (any device).
+
+They mirror the interface of TorchRL's C++ ``SumSegmentTreeFp32`` /
+``MinSegmentTreeFp32`` (``tree[index]``, ``tree[index] = value``,
+``query(l, r)``, ``scan_lower_bound(mass)``) so that TorchRL's
+:class:`~torchrl.data.PrioritizedSampler` logic can run on them unchanged.
+Updates and searches are batched: one call touches ``log2(capacity)`` levels
+with a few tensor ops each, whatever the number of indices.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+__all__ = ["MinSegmentTree", "SumSegmentTree"]
+
+
+class _SegmentTree:
+    """A complete binary tree over ``capacity`` leaves stored in one ``[2 * size]`` tensor."""
+
+    neutral: float
+
+    def __init__(self, capacity: int, device: torch.device | str | None = None, dtype: torch.dtype = torch.float32) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}.")
+        self.capacity = int(capacity)
+        self._size = 1 << max(0, (self.capacity - 1).bit_length())
+        self._levels = int(math.log2(self._size))
+        self._tree = torch.full((2 * self._size,), self.neutral, dtype=dtype, device=device)
+        # One past the largest leaf ever written: leaves beyond it hold the neutral
+        # value, so a query over [0, r) with r >= _written is the root.
+        self._written = 0
+
+    @property
+    def device(self) -> torch.device:
+        return self._tree.device
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return self._tree.dtype
+
+    def __len__(self) -> int:
+        return self.capacity
+
+    def size(self) -> int:
+        return self.capacity
+
+    def _combine(self, left: torch.Tensor, right: torch.Tensor) -> torch.Tensor:
+        raise NotImplementedError
+
+    def _as_index(self, index) -> torch.Tensor:
+        index = torch.as_tensor(index, dtype=torch.long, device=self.device).reshape(-1)
+        if index.numel() and (int(index.min()) < 0 or int(index.max()) >= self.capacity):
+            raise IndexError(
+                f"segment tree index out of range [0, {self.capacity}): min {int(index.min())}, max {int(index.max())}."
+            )
+        return index
+
+    def __getitem__(self, index) -> torch.Tensor:
+        scalar = isinstance(index, int)
+        values = self._tree[self._as_index(index) + self._size]
+        return values[0] if scalar else values
+
+    def __setitem__(self, index, value) -> None:
+        index = self._as_index(index)
+        if index.numel() == 0:
+            return
+        value = torch.as_tensor(value, dtype=self.dtype, device=self.device).reshape(-1).expand(index.shape)
+        if index.numel() > 1:
+            # Keep the last write of a repeated index (what a sequential update does).
+            unique, inverse = torch.unique(index, return_inverse=True)
+            if unique.numel() != index.numel():
+                position = torch.arange(index.numel(), device=self.device)
+                last = torch.full_like(unique, -1).scatter_reduce(0, inverse, position, reduce="amax")
+                index, value = unique, value[last]
+        node = index + self._size
+        self._tree[node] = value
+        self._written = max(self._written, int(index.max()) + 1)
+        for _ in range(self._levels):
+            # Repeated parents receive identical values, so duplicates are harmless.
+            node = node // 2
+            self._tree[node] = self._combine(self._tree[2 * node], self._tree[2 * node + 1])
+
+    def query(self, start=0, end=None) -> torch.Tensor:
+        """Reduction over the leaves ``[start, end)`` (a 0-d tensor)."""
+        start = int(start)
+        end = self.capacity if end is None else int(end)
+        if start == 0 and end >= self._written:
+            return self._tree[1]
+        acc = torch.tensor(self.neutral, dtype=self.dtype, device=self.device)
+        lo, hi = start + self._size, end + self._size
+        while lo < hi:
+            if lo & 1:
+                acc = self._combine(acc, self._tree[lo])
+                lo += 1
+            if hi & 1:
+                hi -= 1
+                acc = self._combine(acc, self._tree[hi])
+            lo //= 2
+            hi //= 2
+        return acc
+
+    def state_dict(self) -> dict:
+        return {"capacity": self.capacity, "tree": self._tree.clone(), "written": self._written}
+
+    def load_state_dict(self, state: dict) -> None:
+        if state["capacity"] != self.capacity:
+            raise ValueError(f"capacity mismatch: saved {state['capacity']}, this tree {self.capacity}.")
+        self._tree.copy_(state["tree"])
+        self._written = int(state["written"])
+
+    def leaves(self) -> torch.Tensor:
+        """A view of the ``capacity`` leaf values."""
+        return self._tree[self._size : self._size + self.capacity]
+
+    def set_leaves(self, values: torch.Tensor) -> None:
+        """Overwrites every leaf and rebuilds the tree bottom-up (one op per level)."""
+        values = torch.as_tensor(values, dtype=self.dtype, device=self.device).reshape(-1)
+        if values.numel() != self.capacity:
+            raise ValueError(f"expected {self.capacity} leaf values, got {values.numel()}.")
+        self._tree.fill_(self.neutral)
+        self._tree[self._size : self._size + self.capacity] = values
+        written = (values != self.neutral).nonzero()
+        self._written = int(written.max()) + 1 if written.numel() else 0
+        for level in range(self._levels - 1, -1, -1):
+            lo, hi = 1 << level, 1 << (level + 1)
+            self._tree[lo:hi] = self._combine(self._tree[2 * lo : 2 * hi : 2], self._tree[2 * lo + 1 : 2 * hi : 2])
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(capacity={self.capacity}, device={self.device}, dtype={self.dtype})"
+
+
+class SumSegmentTree(_SegmentTree):
+    """Sum tree: ``query`` sums and ``scan_lower_bound`` inverts the cumulative sum.
+
+    Examples:
+        >>> tree = SumSegmentTree(5)
+        >>> tree[torch.arange(5)] = torch.tensor([1.0, 0.0, 2.0, 0.0, 1.0])
+        >>> float(tree.query(0, 5)), float(tree.query(1, 3))
+        (4.0, 2.0)
+        >>> tree.scan_lower_bound(torch.tensor([0.5, 1.0, 2.9, 3.5]))
+        tensor([0, 2, 2, 4])
+    """
+
+    neutral = 0.0
+
+    def _combine(self, left, right):
+        return left + right
+
+    def scan_lower_bound(self, mass) -> torch.Tensor:
+        """For each ``mass`` in ``[0, total)``, the leaf whose cumulative-sum interval holds it.
+
+        Leaves with zero value are never returned while the total is positive.
+        """
+        mass = torch.as_tensor(mass, dtype=self.dtype, device=self.device).reshape(-1).clone()
+        node = torch.ones(mass.shape, dtype=torch.long, device=self.device)
+        for _ in range(self._levels):
+            left = 2 * node
+            left_sum = self._tree[left]
+            go_right = (mass >= left_sum) & (self._tree[left + 1] > 0)
+            mass = torch.where(go_right, mass - left_sum, mass)
+            node = torch.where(go_right, left + 1, left)
+        return node - self._size
+
+
+class MinSegmentTree(_SegmentTree):
+    """Min tree (``query`` is the minimum; unwritten leaves are ``+inf``).
+
+    Examples:
+        >>> tree = MinSegmentTree(4)
+        >>> tree[torch.tensor([0, 1, 2])] = torch.tensor([3.0, 1.0, 2.0])
+        >>> float(tree.query(0, 3)), float(tree.query(2, 3))
+        (1.0, 2.0)
+    """
+
+    neutral = math.inf
+
+    def _combine(self, left, right):
+        return torch.minimum(left, right)

@@ -1,0 +1,328 @@
+"""Envelope Q-learning (Yang, Sun & Narasimhan, NeurIPS 2019) as a TorchRL loss."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict, TensorDictBase, TensorDictParams
+from tensordict.nn import TensorDictModule, dispatch
+from tensordict.utils import NestedKey
+from torch import nn
+from torchrl.objectives.utils import distance_loss
+
+from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+
+__all__ = ["EnvelopeQLoss"]
+
+
+def action_index(action: torch.Tensor, batch: int, num_actions: int) -> torch.Tensor:
+    """``[B]`` integer indices from integer (``[B]``/``[B, 1]``) or one-hot (``[B, A]``) actions."""
+    if not (torch.is_floating_point(action) or action.dtype == torch.bool) and action.numel() == batch:
+        return action.reshape(batch).long()
+    if action.shape == (batch, num_actions):
+        return action.argmax(-1)
+    raise ValueError(
+        f"action has shape {tuple(action.shape)} and dtype {action.dtype}; expected integer indices "
+        f"of shape [{batch}] or [{batch}, 1], or one-hot actions of shape [{batch}, {num_actions}]."
+    )
+
+
+class EnvelopeQLoss(MultiObjectiveLossModule):
+    r"""Envelope multi-objective Q-learning loss.
+
+    A vector Q-network :math:`Q(s, \cdot, w) \in \mathbb{R}^{|A| \times k}`
+    conditioned on the preference :math:`w` is regressed onto the envelope
+    target, for each transition :math:`j` and each of ``N`` sampled preferences
+    :math:`w_i`:
+
+    .. math::
+
+        y_{ij} = r_j + \gamma (1 - d_j)\, Q^{-}(s'_j, a^*, w^*), \quad
+        (a^*, w^*) = \arg\max_{a',\, w' \in W_j} w_i^\top Q(s'_j, a', w')
+
+    where :math:`W_j` is the set of sampled preferences, the argmax uses the
+    online network and the value the target network :math:`Q^-` (double Q).
+    The loss is the homotopy :math:`(1-\lambda) L_A + \lambda L_B` of the vector
+    regression :math:`L_A = \|Q(s, a, w) - y\|^2` and its scalarisation
+    :math:`L_B = (w^\top Q(s, a, w) - w^\top y)^2`.
+
+    Every (transition, preference) pair goes through each network once: the
+    preference dimension is folded into the batch, so the target costs one
+    forward of the online and one of the target network over ``B * N`` rows
+    (MORL-Baselines evaluates ``B * N * N`` rows per network).
+
+    Args:
+        value_network (TensorDictModule or nn.Module): reads the observation keys and
+            the preference and writes ``"action_value"`` of shape ``[*B, |A|, k]``; an
+            ``nn.Module`` is wrapped with ``in_keys=["observation", "preference"]``.
+            :func:`~morl_trl.objectives.networks.make_vector_q_network` builds one.
+
+    Keyword Args:
+        num_objectives (int, optional): ``k``; read from networks made by the builders.
+        num_preference_samples (int): ``N``, preferences sampled per transition. Defaults to 8.
+        shared_preferences (bool): one set of ``N`` preferences for the whole batch (as in
+            the paper and MORL-Baselines) rather than one set per transition. Defaults to ``True``.
+        include_batch_preference (bool): replace the first sampled preference of each
+            transition by the one stored in the batch under ``"preference"``. Defaults to ``False``.
+        preference_distribution (str): ``"gaussian"`` (MORL-Baselines' ``|N(0, I)|``
+            normalised; the default) or ``"dirichlet"`` (uniform on the simplex).
+        envelope (bool): envelope target; ``False`` gives the scalarised double-DQN
+            target per preference. Defaults to ``True``.
+        double_dqn (bool): pick the target's argmax with the online network. Defaults to ``True``.
+        homotopy_lambda (float): initial :math:`\lambda`. Defaults to 0.
+        final_homotopy_lambda (float): :math:`\lambda` after ``homotopy_steps`` calls' worth
+            of :meth:`update_homotopy`. Defaults to 1.
+        homotopy_steps (int, optional): length of the linear schedule; ``None`` keeps
+            :math:`\lambda` fixed. :math:`\lambda` can also be set directly:
+            ``loss.homotopy_lambda = 0.5``.
+        loss_function (str): ``"l2"`` (default), ``"l1"`` or ``"smooth_l1"``.
+        delay_value (bool): keep target parameters (update them with
+            :class:`~torchrl.objectives.HardUpdate` or ``SoftUpdate``). Defaults to ``True``.
+        reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
+        use_prioritized_weights (bool or "auto"): weight samples by the importance
+            weights a prioritized sampler writes under ``"priority_weight"``.
+
+    The per-transition TD error :math:`\frac1N\sum_i |w_i^\top (Q(s_j, a_j, w_i) - y_{ij})|`
+    is written into the input under the ``priority`` key (``"td_error"``) for
+    :meth:`TensorDictReplayBuffer.update_tensordict_priority`.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> from morl_trl.objectives.networks import make_vector_q_network
+        >>> q = make_vector_q_network(6, 3, 2, num_cells=(32, 32))
+        >>> loss = EnvelopeQLoss(q, num_preference_samples=4, homotopy_lambda=0.95)
+        >>> loss.make_value_estimator(gamma=0.99)  # doctest: +ELLIPSIS
+        EnvelopeQLoss(...)
+        >>> B = 16
+        >>> data = TensorDict({
+        ...     "observation": torch.randn(B, 6),
+        ...     "action": torch.randint(3, (B,)),
+        ...     ("next", "observation"): torch.randn(B, 6),
+        ...     ("next", "reward"): torch.randn(B, 2),
+        ...     ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
+        ...     ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool),
+        ... }, [B])
+        >>> out = loss(data)
+        >>> sorted(out.keys())
+        ['homotopy_lambda', 'loss_qvalue', 'scalarized_loss', 'scalarized_q', 'vector_loss']
+        >>> out["loss_qvalue"].backward()
+        >>> data["td_error"].shape
+        torch.Size([16])
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``).
+
+        Attributes:
+            action_value: network output ``[*B, |A|, k]``. Defaults to ``"action_value"``.
+            action: the action taken (integer or one-hot). Defaults to ``"action"``.
+            preference: preference input of the network, ``[*B, k]``. Defaults to ``"preference"``.
+            value_target: key of the estimator's target. Defaults to ``"value_target"``.
+            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
+            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
+            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
+            done: done flag under ``"next"``. Defaults to ``"done"``.
+            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
+        """
+
+        action_value: NestedKey = "action_value"
+        action: NestedKey = "action"
+        preference: NestedKey = "preference"
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+    _schedulable_buffers = frozenset({"homotopy_lambda"})
+
+    value_network: TensorDictModule
+    value_network_params: TensorDictParams
+    target_value_network_params: TensorDictParams
+
+    def __init__(
+        self,
+        value_network: TensorDictModule | nn.Module,
+        *,
+        num_objectives: int | None = None,
+        num_preference_samples: int = 8,
+        shared_preferences: bool = True,
+        include_batch_preference: bool = False,
+        preference_distribution: str = "gaussian",
+        envelope: bool = True,
+        double_dqn: bool = True,
+        homotopy_lambda: float = 0.0,
+        final_homotopy_lambda: float = 1.0,
+        homotopy_steps: int | None = None,
+        loss_function: str = "l2",
+        delay_value: bool = True,
+        reduction: str = "mean",
+        use_prioritized_weights: str | bool = "auto",
+    ) -> None:
+        self._in_keys = None
+        super().__init__()
+        if not isinstance(value_network, TensorDictModule):
+            value_network = TensorDictModule(value_network, in_keys=["observation", "preference"], out_keys=["action_value"])
+        if double_dqn and not delay_value:
+            raise ValueError("double_dqn=True requires delay_value=True.")
+        if num_preference_samples < 1:
+            raise ValueError(f"num_preference_samples must be >= 1, got {num_preference_samples}.")
+        for name, lam in (("homotopy_lambda", homotopy_lambda), ("final_homotopy_lambda", final_homotopy_lambda)):
+            if not 0.0 <= lam <= 1.0:
+                raise ValueError(f"{name} must lie in [0, 1], got {lam}.")
+        if reduction not in ("mean", "sum", "none"):
+            raise ValueError(f"reduction={reduction!r}; valid values are 'mean', 'sum', 'none'.")
+        self.num_objectives = self._resolve_num_objectives(num_objectives, value_network)
+        self.num_actions = getattr(value_network, "num_actions", None)
+        self.num_preference_samples = int(num_preference_samples)
+        self.shared_preferences = shared_preferences
+        self.include_batch_preference = include_batch_preference
+        self.preference_distribution = self._check_distribution(preference_distribution)
+        self.envelope = envelope
+        self.double_dqn = double_dqn
+        self.delay_value = delay_value
+        self.loss_function = loss_function
+        self.reduction = reduction
+        self.use_prioritized_weights = use_prioritized_weights
+        self.convert_to_functional(value_network, "value_network", create_target_params=delay_value)
+        device = next(iter(self.value_network_params.values(True, True))).device
+        self.register_buffer("homotopy_lambda", torch.tensor(float(homotopy_lambda), device=device))
+        self.initial_homotopy_lambda = float(homotopy_lambda)
+        self.final_homotopy_lambda = float(final_homotopy_lambda)
+        self.homotopy_steps = homotopy_steps
+
+    # -------------------------------------------------------------- schedule
+    def update_homotopy(self, step: int) -> float:
+        r"""Sets :math:`\lambda` on its linear schedule at ``step`` and returns it.
+
+        :math:`\lambda = \lambda_0 + (\lambda_1 - \lambda_0)\min(1, \text{step} / \text{homotopy\_steps})`;
+        without ``homotopy_steps`` :math:`\lambda` stays at its current value.
+        """
+        if self.homotopy_steps is None:
+            return float(self.homotopy_lambda)
+        frac = min(1.0, max(0.0, step / max(1, self.homotopy_steps)))
+        lam = self.initial_homotopy_lambda + frac * (self.final_homotopy_lambda - self.initial_homotopy_lambda)
+        self.homotopy_lambda = lam
+        return lam
+
+    # ------------------------------------------------------------------ keys
+    @property
+    def _network_input_keys(self) -> list[NestedKey]:
+        return [key for key in self.value_network.in_keys if key != self.tensor_keys.preference]
+
+    def _set_in_keys(self) -> None:
+        keys = [
+            self.tensor_keys.action,
+            ("next", self.tensor_keys.reward),
+            ("next", self.tensor_keys.done),
+            ("next", self.tensor_keys.terminated),
+            *self._network_input_keys,
+            *[("next", key) for key in self._network_input_keys],
+        ]
+        if self.include_batch_preference:
+            keys.append(self.tensor_keys.preference)
+        self._in_keys = list(dict.fromkeys(keys))
+
+    @property
+    def out_keys(self) -> list[str]:
+        return ["loss_qvalue", "vector_loss", "scalarized_loss", "homotopy_lambda", "scalarized_q"]
+
+    # --------------------------------------------------------------- forward
+    def _preferences(self, data: TensorDictBase) -> torch.Tensor:
+        """``[B, N, k]``: the preferences each transition is trained on."""
+        batch, n, k = data.shape[0], self.num_preference_samples, self.num_objectives
+        device = data.get(("next", self.tensor_keys.reward)).device
+        if self.shared_preferences and not self.include_batch_preference:
+            return self._sample_preferences((n,), device).expand(batch, n, k)
+        w = self._sample_preferences((batch, n), device)
+        if self.include_batch_preference:
+            w = torch.cat([data.get(self.tensor_keys.preference).unsqueeze(1).to(w.dtype), w[:, 1:]], 1)
+        return w
+
+    def _q_values(self, data: TensorDictBase, w: torch.Tensor, params: TensorDictBase) -> torch.Tensor:
+        """Runs the network once on every (transition, preference) pair: ``[B, N, |A|, k]``."""
+        batch, n = w.shape[:2]
+        pairs = data.select(*self._network_input_keys).unsqueeze(1).expand(batch, n)
+        pairs.set(self.tensor_keys.preference, w)
+        with params.to_module(self.value_network, preserve_module_state=False):
+            return self.value_network(pairs).get(self.tensor_keys.action_value)
+
+    @torch.no_grad()
+    def _envelope_next_value(self, next_data: TensorDictBase, w: torch.Tensor) -> torch.Tensor:
+        """``[B, N, k]`` target-network value of the envelope-maximising (action, preference)."""
+        batch, n, k = w.shape
+        q_target = self._q_values(next_data, w, self.target_value_network_params)
+        q_select = self._q_values(next_data, w, self.value_network_params.data) if self.double_dqn else q_target
+        num_actions = q_target.shape[-2]
+        if self.envelope:
+            # scores[b, i, m, a] = w_i . Q(s'_b, a, w_m): every candidate (w_m, a) under every w_i.
+            scores = torch.einsum("bik,bmak->bima", w, q_select).reshape(batch, n, n * num_actions)
+            best = scores.argmax(-1)
+            return q_target.reshape(batch, n * num_actions, k).gather(1, best.unsqueeze(-1).expand(batch, n, k))
+        scores = (w.unsqueeze(2) * q_select).sum(-1)
+        best = scores.argmax(-1)
+        return q_target.gather(2, best[..., None, None].expand(batch, n, 1, k)).squeeze(2)
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes the Envelope loss on a batch of transitions with ``[*B, k]`` rewards.
+
+        Writes the per-transition TD error under ``tensor_keys.priority``.
+        """
+        self._check_inputs(tensordict, needs_preference=self.include_batch_preference)
+        if self.include_batch_preference and self.validate_inputs:
+            check_preference(tensordict.get(self.tensor_keys.preference), self.num_objectives)
+        data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
+        batch, n = data.shape[0], self.num_preference_samples
+        w = self._preferences(data)
+
+        q = self._q_values(data, w, self.value_network_params)
+        num_actions = q.shape[-2]
+        index = action_index(data.get(self.tensor_keys.action), batch, num_actions)
+        q_taken = q.gather(2, index.view(batch, 1, 1, 1).expand(batch, n, 1, self.num_objectives)).squeeze(2)
+
+        next_value = self._envelope_next_value(data.get("next"), w)
+        target_keys = [("next", key) for key in (self.tensor_keys.reward, self.tensor_keys.done, self.tensor_keys.terminated)]
+        target_data = data.select(*target_keys, strict=False).unsqueeze(1).expand(batch, n)
+        target = self.value_estimator.value_estimate(target_data, next_value=next_value).detach()
+
+        vector_loss = distance_loss(q_taken, target, self.loss_function).mean(-1)
+        scalar_q, scalar_target = (w * q_taken).sum(-1), (w * target).sum(-1)
+        scalarized_loss = distance_loss(scalar_q, scalar_target, self.loss_function)
+        lam = self.homotopy_lambda
+        per_sample = ((1 - lam) * vector_loss + lam * scalarized_loss).mean(-1)
+
+        td_error = (scalar_q - scalar_target).detach().abs().mean(-1)
+        tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
+
+        weights = self._maybe_get_priority_weight(data)
+        if weights is not None:
+            weights = weights.reshape(batch)
+        loss = self._reduce_loss(per_sample, tensordict=data, weights=weights)
+        if self.reduction == "none":
+            out = TensorDict(
+                {
+                    "loss_qvalue": loss.reshape(tensordict.shape),
+                    "vector_loss": vector_loss.mean(-1).detach().reshape(tensordict.shape),
+                    "scalarized_loss": scalarized_loss.mean(-1).detach().reshape(tensordict.shape),
+                },
+                batch_size=tensordict.shape,
+            )
+        else:
+            out = TensorDict(
+                {
+                    "loss_qvalue": loss,
+                    "vector_loss": vector_loss.detach().mean(),
+                    "scalarized_loss": scalarized_loss.detach().mean(),
+                    "homotopy_lambda": lam.detach().clone(),
+                    "scalarized_q": scalar_q.detach().mean(),
+                },
+                batch_size=[],
+            )
+        self._clear_weakrefs(tensordict, out, "value_network_params", "target_value_network_params")
+        return out

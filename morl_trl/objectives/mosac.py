@@ -1,0 +1,622 @@
+"""Multi-objective soft actor-critic losses (continuous and discrete actions).
+
+Vector critics ``Q(s, a[, w]) -> [*B, k]``, an actor and a temperature trained
+on the preference-scalarised objective. With a fixed preference per policy this
+is MORL/D's MOSAC building block; with ``k = 1`` it is plain SAC; with
+preference-conditioned networks and fresh preferences it is CAPQL
+(:class:`~morl_trl.objectives.capql.CAPQLLoss`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict, TensorDictBase, TensorDictParams
+from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, composite_lp_aggregate, dispatch
+from tensordict.utils import NestedKey
+from torch import Tensor
+from torchrl.data import Composite, TensorSpec
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.objectives.sac import compute_rsample_log_prob
+from torchrl.objectives.utils import _cache_values, _vmap_func, distance_loss
+
+from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+from morl_trl.objectives.envelope import action_index
+
+__all__ = ["DiscreteMOSACLoss", "MOSACLoss"]
+
+CRITIC_MIN_MODES = ("scalarized", "elementwise")
+CRITIC_LOSS_MODES = ("scalarized", "vector")
+
+
+class _MOSACBase(MultiObjectiveLossModule):
+    """Preferences, temperature and the critic ensemble shared by both MOSAC losses."""
+
+    actor_network: ProbabilisticTensorDictSequential
+    qvalue_network: TensorDictModule
+    actor_network_params: TensorDictParams
+    qvalue_network_params: TensorDictParams
+    target_actor_network_params: TensorDictParams
+    target_qvalue_network_params: TensorDictParams
+
+    _schedulable_buffers = frozenset({"log_alpha"})
+
+    def _setup(
+        self,
+        actor_network,
+        qvalue_network,
+        *,
+        num_objectives,
+        num_qvalue_nets,
+        preference,
+        resample_preferences,
+        preference_distribution,
+        critic_min,
+        critic_loss,
+        loss_function,
+        alpha_init,
+        min_alpha,
+        max_alpha,
+        fixed_alpha,
+        delay_qvalue,
+        reduction,
+        use_prioritized_weights,
+        deactivate_vmap,
+    ) -> None:
+        if critic_min not in CRITIC_MIN_MODES:
+            raise ValueError(f"critic_min={critic_min!r}; valid values are {CRITIC_MIN_MODES}.")
+        if critic_loss not in CRITIC_LOSS_MODES:
+            raise ValueError(f"critic_loss={critic_loss!r}; valid values are {CRITIC_LOSS_MODES}.")
+        if reduction not in ("mean", "sum", "none"):
+            raise ValueError(f"reduction={reduction!r}; valid values are 'mean', 'sum', 'none'.")
+        if preference is not None and resample_preferences:
+            raise ValueError("Pass either a fixed preference or resample_preferences=True, not both.")
+        self.num_objectives = self._resolve_num_objectives(num_objectives, qvalue_network, actor_network)
+        self.num_qvalue_nets = int(num_qvalue_nets)
+        self.resample_preferences = resample_preferences
+        self.preference_distribution = self._check_distribution(preference_distribution)
+        self.critic_min = critic_min
+        self.critic_loss = critic_loss
+        self.loss_function = loss_function
+        self.reduction = reduction
+        self.use_prioritized_weights = use_prioritized_weights
+        self.deactivate_vmap = deactivate_vmap
+        self.fixed_alpha = fixed_alpha
+        self.delay_qvalue = delay_qvalue
+
+        self.convert_to_functional(actor_network, "actor_network", create_target_params=False)
+        self.convert_to_functional(
+            qvalue_network,
+            "qvalue_network",
+            self.num_qvalue_nets,
+            create_target_params=delay_qvalue,
+            compare_against=list(actor_network.parameters()),
+        )
+        device = next(iter(self.qvalue_network_params.values(True, True))).device
+
+        if preference is not None:
+            preference = torch.as_tensor(preference, dtype=torch.float32, device=device)
+            check_preference(preference, self.num_objectives, name="preference")
+            if preference.ndim != 1:
+                raise ValueError(f"a fixed preference must have shape [{self.num_objectives}], got {tuple(preference.shape)}.")
+            self.register_buffer("fixed_preference", preference.clone())
+        else:
+            self.fixed_preference = None
+
+        if min_alpha is not None and max_alpha is not None and min_alpha > max_alpha:
+            raise ValueError(f"min_alpha={min_alpha} exceeds max_alpha={max_alpha}.")
+        self.min_log_alpha = math.log(min_alpha) if min_alpha else None
+        self.max_log_alpha = math.log(max_alpha) if max_alpha else None
+        log_alpha = torch.tensor(math.log(alpha_init), device=device)
+        if fixed_alpha:
+            self.register_buffer("log_alpha", log_alpha)
+        else:
+            self.register_parameter("log_alpha", torch.nn.Parameter(log_alpha))
+        self._vmap_qnetworkN0 = _vmap_func(
+            self.qvalue_network, (None, 0), randomness=self.vmap_randomness, pseudo_vmap=deactivate_vmap
+        )
+
+    # ------------------------------------------------------------ preference
+    def set_preference(self, preference: Tensor) -> None:
+        """Replaces the fixed preference (MORL/D's weight adaptation); requires one set at construction."""
+        if self.fixed_preference is None:
+            raise ValueError("this loss reads preferences from the batch; it has no fixed preference to set.")
+        preference = torch.as_tensor(preference, dtype=self.fixed_preference.dtype, device=self.fixed_preference.device)
+        check_preference(preference, self.num_objectives, name="preference")
+        if preference.shape != self.fixed_preference.shape:
+            raise ValueError(f"preference must have shape {tuple(self.fixed_preference.shape)}, got {tuple(preference.shape)}.")
+        self.fixed_preference.copy_(preference)
+
+    @property
+    def _reads_batch_preference(self) -> bool:
+        return self.fixed_preference is None and not self.resample_preferences
+
+    def _batch_preferences(self, data: TensorDictBase) -> Tensor:
+        batch = data.shape[0]
+        if self.fixed_preference is not None:
+            return self.fixed_preference.expand(batch, self.num_objectives)
+        if self.resample_preferences:
+            device = data.get(("next", self.tensor_keys.reward)).device
+            return self._sample_preferences((batch,), device)
+        return data.get(self.tensor_keys.preference)
+
+    def _with_preference(self, data: TensorDictBase, w: Tensor) -> TensorDictBase:
+        """A shallow copy of the batch whose root and ``"next"`` hold the preference ``w``."""
+        next_data = data.get("next").copy()
+        next_data.set(self.tensor_keys.preference, w)
+        data = data.copy()
+        data.set(self.tensor_keys.preference, w)
+        data.set("next", next_data)
+        return data
+
+    # ----------------------------------------------------------- temperature
+    @property
+    def _alpha(self) -> Tensor:
+        if self.min_log_alpha is not None or self.max_log_alpha is not None:
+            self.log_alpha.data.clamp_(self.min_log_alpha, self.max_log_alpha)
+        with torch.no_grad():
+            return self.log_alpha.exp()
+
+    def _alpha_objective(self, log_prob: Tensor) -> Tensor:
+        return -self.log_alpha * (log_prob + self.target_entropy)
+
+    # ---------------------------------------------------------------- critic
+    @property
+    @_cache_values
+    def _cached_detached_qvalue_params(self):
+        return self.qvalue_network_params.detach()
+
+    def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
+        """Pessimistic vector value over the critic ensemble ``q`` (``[n, B, ..., k]``).
+
+        ``"elementwise"`` takes the minimum per objective (CAPQL); ``"scalarized"``
+        takes the whole vector of the critic with the lowest ``w . Q`` (MORL/D).
+        """
+        if self.critic_min == "elementwise":
+            return q.min(0).values
+        w = w.reshape(w.shape[0], *([1] * (q.ndim - 3)), w.shape[-1])
+        worst = (q * w).sum(-1).argmin(0, keepdim=True)
+        return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
+
+    def _critic_objective(self, q: Tensor, target: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
+        """Per-sample critic loss summed over the ensemble and the ``|w . TD|`` priority, from ``[n, B, k]`` values."""
+        target = target.expand_as(q)
+        scalar_td = ((q - target) * w).sum(-1)
+        if self.critic_loss == "vector":
+            loss = distance_loss(q, target, self.loss_function).mean(-1).sum(0)
+        else:
+            loss = distance_loss((q * w).sum(-1), (target * w).sum(-1), self.loss_function).sum(0)
+        return loss, scalar_td.detach().abs().max(0).values
+
+    def _reduce(self, loss: Tensor, data: TensorDictBase) -> Tensor:
+        weights = self._maybe_get_priority_weight(data)
+        if weights is not None:
+            weights = weights.reshape(loss.shape)
+        return self._reduce_loss(loss, tensordict=data, weights=weights)
+
+    def _output(self, tensordict, losses: dict, log_prob: Tensor, td_error: Tensor) -> TensorDict:
+        tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
+        if self.fixed_alpha:
+            losses.pop("loss_alpha")
+        if self.reduction == "none":
+            out = TensorDict({k: v.reshape(tensordict.shape) for k, v in losses.items()}, batch_size=tensordict.shape)
+        else:
+            out = TensorDict({**losses, "alpha": self._alpha, "entropy": -log_prob.detach().mean()}, batch_size=[])
+        self._clear_weakrefs(
+            tensordict, out, "actor_network_params", "qvalue_network_params", "target_qvalue_network_params"
+        )
+        return out
+
+    @property
+    def out_keys(self) -> list[str]:
+        keys = ["loss_actor", "loss_qvalue"]
+        if not self.fixed_alpha:
+            keys.append("loss_alpha")
+        return [*keys, "alpha", "entropy"]
+
+    def _set_in_keys(self) -> None:
+        pref = self.tensor_keys.preference
+        net_keys = [k for k in (*self.actor_network.in_keys, *self.qvalue_network.in_keys) if k not in (pref, self.tensor_keys.action)]
+        keys = [
+            self.tensor_keys.action,
+            ("next", self.tensor_keys.reward),
+            ("next", self.tensor_keys.done),
+            ("next", self.tensor_keys.terminated),
+            *net_keys,
+            *[("next", key) for key in net_keys],
+        ]
+        if self._reads_batch_preference:
+            keys.append(pref)
+        self._in_keys = list(dict.fromkeys(keys))
+
+
+class MOSACLoss(_MOSACBase):
+    r"""Multi-objective SAC for continuous actions: vector critics, scalarised actor.
+
+    For each transition with preference :math:`w`, the ``num_qvalue_nets`` vector
+    critics regress onto
+
+    .. math::
+
+        y = r + \gamma (1 - d) \big(Q^-_{\min}(s', a', w) - \alpha \log\pi(a' | s', w)\,\mathbf 1\big),
+        \quad a' \sim \pi(\cdot | s', w)
+
+    and the actor minimises :math:`\alpha \log\pi(a|s,w) - w^\top Q_{\min}(s, a, w)`.
+    :math:`Q_{\min}` is the vector of the critic with the lowest :math:`w^\top Q`
+    (``critic_min="scalarized"``, MORL/D) or the per-objective minimum
+    (``"elementwise"``, CAPQL). The critic loss is the squared error of the
+    scalarised values (``critic_loss="scalarized"``, MORL/D) or of the vectors
+    (``"vector"``, CAPQL). :math:`\alpha` is tuned towards ``target_entropy``
+    unless ``fixed_alpha``.
+
+    Where the preference comes from: a fixed ``preference`` (one MORL/D policy;
+    change it with :meth:`set_preference`), fresh draws per sample
+    (``resample_preferences=True``) or the batch's ``"preference"`` entry.
+    Networks that do not read the preference (MORL/D's) are fine: the
+    preference then only scalarises.
+
+    Args:
+        actor_network (ProbabilisticTensorDictSequential): stochastic actor, e.g.
+            :func:`~morl_trl.objectives.networks.make_gaussian_actor`.
+        qvalue_network (TensorDictModule): vector critic writing ``"state_action_value"``
+            ``[*B, k]``, e.g. :func:`~morl_trl.objectives.networks.make_vector_critic`.
+            Its parameters are expanded to ``num_qvalue_nets`` independently
+            initialised copies, as in TorchRL's SAC.
+
+    Keyword Args:
+        num_objectives (int, optional): ``k``; read from networks made by the builders.
+        num_qvalue_nets (int): size of the critic ensemble. Defaults to 2.
+        preference (Tensor, optional): a fixed ``[k]`` preference.
+        resample_preferences (bool): draw a fresh preference per sample at every call. Defaults to ``False``.
+        preference_distribution (str): ``"dirichlet"`` (default) or ``"gaussian"``, for resampling.
+        critic_min (str): ``"scalarized"`` (default) or ``"elementwise"``.
+        critic_loss (str): ``"scalarized"`` (default) or ``"vector"``.
+        loss_function (str): ``"l2"`` (default), ``"l1"`` or ``"smooth_l1"``.
+        alpha_init (float): initial temperature. Defaults to 1.
+        min_alpha, max_alpha (float, optional): temperature bounds.
+        fixed_alpha (bool): keep :math:`\alpha` at ``alpha_init`` (no ``loss_alpha`` output). Defaults to ``False``.
+        target_entropy (float or "auto"): ``"auto"`` is minus the action dimension, read
+            from ``action_spec`` or the actor's spec.
+        action_spec (TensorSpec, optional): the action spec, for ``target_entropy="auto"``.
+        delay_qvalue (bool): keep target critic parameters (``SoftUpdate``). Defaults to ``True``.
+        reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
+        use_prioritized_weights (bool or "auto"): weight samples by ``"priority_weight"``.
+        deactivate_vmap (bool): loop over the critics instead of ``vmap``. Defaults to ``False``.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> from torchrl.data import Bounded
+        >>> from morl_trl.objectives.networks import make_gaussian_actor, make_vector_critic
+        >>> spec = Bounded(-1.0, 1.0, (2,))
+        >>> actor = make_gaussian_actor(5, spec, 3, num_cells=(32,))
+        >>> critic = make_vector_critic(5, 2, 3, num_cells=(32,))
+        >>> loss = MOSACLoss(actor, critic, preference=torch.tensor([0.2, 0.3, 0.5]))
+        >>> B = 8
+        >>> data = TensorDict({
+        ...     "observation": torch.randn(B, 5), "action": spec.rand((B,)),
+        ...     ("next", "observation"): torch.randn(B, 5), ("next", "reward"): torch.randn(B, 3),
+        ...     ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
+        ...     ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
+        >>> out = loss(data)
+        >>> sorted(out.keys())
+        ['alpha', 'entropy', 'loss_actor', 'loss_alpha', 'loss_qvalue']
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``).
+
+        Attributes:
+            action: the action. Defaults to ``"action"``.
+            state_action_value: critic output ``[*B, k]``. Defaults to ``"state_action_value"``.
+            preference: preference ``[*B, k]`` (read, or written for the networks). Defaults to ``"preference"``.
+            log_prob: log-probability entry of the actor. Defaults to TorchRL's sample log-prob key.
+            value_target: key of the estimator's target. Defaults to ``"value_target"``.
+            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
+            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
+            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
+            done: done flag under ``"next"``. Defaults to ``"done"``.
+            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
+        """
+
+        action: NestedKey = "action"
+        state_action_value: NestedKey = "state_action_value"
+        preference: NestedKey = "preference"
+        log_prob: NestedKey | None = None
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+        def __post_init__(self):
+            if self.log_prob is None:
+                self.log_prob = "sample_log_prob" if composite_lp_aggregate(nowarn=True) else "action_log_prob"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+
+    def __init__(
+        self,
+        actor_network: ProbabilisticTensorDictSequential,
+        qvalue_network: TensorDictModule,
+        *,
+        num_objectives: int | None = None,
+        num_qvalue_nets: int = 2,
+        preference: Tensor | None = None,
+        resample_preferences: bool = False,
+        preference_distribution: str = "dirichlet",
+        critic_min: str = "scalarized",
+        critic_loss: str = "scalarized",
+        loss_function: str = "l2",
+        alpha_init: float = 1.0,
+        min_alpha: float | None = None,
+        max_alpha: float | None = None,
+        fixed_alpha: bool = False,
+        target_entropy: float | str = "auto",
+        action_spec: TensorSpec | None = None,
+        delay_qvalue: bool = True,
+        reduction: str = "mean",
+        use_prioritized_weights: str | bool = "auto",
+        deactivate_vmap: bool = False,
+    ) -> None:
+        self._in_keys = None
+        super().__init__()
+        self._setup(
+            actor_network,
+            qvalue_network,
+            num_objectives=num_objectives,
+            num_qvalue_nets=num_qvalue_nets,
+            preference=preference,
+            resample_preferences=resample_preferences,
+            preference_distribution=preference_distribution,
+            critic_min=critic_min,
+            critic_loss=critic_loss,
+            loss_function=loss_function,
+            alpha_init=alpha_init,
+            min_alpha=min_alpha,
+            max_alpha=max_alpha,
+            fixed_alpha=fixed_alpha,
+            delay_qvalue=delay_qvalue,
+            reduction=reduction,
+            use_prioritized_weights=use_prioritized_weights,
+            deactivate_vmap=deactivate_vmap,
+        )
+        self.register_buffer(
+            "target_entropy",
+            torch.tensor(self._resolve_target_entropy(target_entropy, action_spec, actor_network), device=self.log_alpha.device),
+        )
+
+    def _resolve_target_entropy(self, target_entropy, action_spec, actor_network) -> float:
+        if target_entropy != "auto":
+            return float(target_entropy)
+        if self.fixed_alpha:
+            return 0.0  # unused
+        spec = action_spec if action_spec is not None else getattr(actor_network, "spec", None)
+        if isinstance(spec, Composite):
+            spec = spec.get(self.tensor_keys.action, None)
+        if spec is None:
+            raise ValueError("target_entropy='auto' needs the action spec: pass action_spec= or target_entropy=.")
+        return -float(spec.shape[-1:].numel())
+
+    # ---------------------------------------------------------------- pieces
+    def _actor_sample(self, data: TensorDictBase, params) -> tuple[Tensor, Tensor]:
+        with set_exploration_type(ExplorationType.RANDOM), params.to_module(self.actor_network, preserve_module_state=False):
+            dist = self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
+            return compute_rsample_log_prob(dist)
+
+    def _critics(self, data: TensorDictBase, action: Tensor | None, params) -> Tensor:
+        """``[n, B, k]`` values of all critics."""
+        td = data.select(*self.qvalue_network.in_keys, strict=False)
+        if action is not None:
+            td.set(self.tensor_keys.action, action)
+        return self._vmap_qnetworkN0(td, params).get(self.tensor_keys.state_action_value)
+
+    @torch.no_grad()
+    def _target(self, data: TensorDictBase, w: Tensor) -> Tensor:
+        next_data = data.get("next")
+        next_action, next_log_prob = self._actor_sample(next_data, self.actor_network_params)
+        q_next = self._critics(next_data, next_action, self.target_qvalue_network_params)
+        next_value = self._select_min(q_next, w) - self._alpha * next_log_prob.unsqueeze(-1)
+        return self.value_estimator.value_estimate(data, next_value=next_value)
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``."""
+        self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
+        data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
+        w = self._batch_preferences(data)
+        data_w = self._with_preference(data, w)
+
+        target = self._target(data_w, w)
+        q = self._critics(data_w, None, self.qvalue_network_params)
+        loss_qvalue, td_error = self._critic_objective(q, target, w)
+
+        action, log_prob = self._actor_sample(data_w, self.actor_network_params)
+        q_pi = self._critics(data_w, action, self._cached_detached_qvalue_params)
+        loss_actor = self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
+        loss_alpha = self._alpha_objective(log_prob.detach())
+
+        losses = {
+            "loss_actor": self._reduce(loss_actor, data),
+            "loss_qvalue": self._reduce(loss_qvalue, data),
+            "loss_alpha": self._reduce(loss_alpha, data),
+        }
+        return self._output(tensordict, losses, log_prob, td_error)
+
+
+class DiscreteMOSACLoss(_MOSACBase):
+    r"""Multi-objective SAC for discrete actions (MORL/D's ``MOSACDiscrete``).
+
+    The critics output ``[*B, |A|, k]``; expectations over the next action are
+    exact: :math:`y = r + \gamma(1-d)\sum_{a'} \pi(a'|s',w)\big(Q^-_{\min}(s',a',w) - \alpha\log\pi(a'|s',w)\mathbf 1\big)`
+    and the actor minimises :math:`\sum_a \pi(a|s,w)\big(\alpha\log\pi(a|s,w) - w^\top Q_{\min}(s,a,w)\big)`.
+    Options are those of :class:`MOSACLoss`; ``target_entropy="auto"`` is
+    ``target_entropy_weight * log |A|`` (MORL/D's LunarLander runs use 0.3).
+
+    Args:
+        actor_network (ProbabilisticTensorDictSequential): categorical actor, e.g.
+            :func:`~morl_trl.objectives.networks.make_categorical_actor`.
+        qvalue_network (TensorDictModule): writes ``"action_value"`` ``[*B, |A|, k]``, e.g.
+            :func:`~morl_trl.objectives.networks.make_vector_q_network`.
+
+    Keyword Args:
+        num_actions (int, optional): ``|A|``; read from networks made by the builders.
+        target_entropy_weight (float): scale of the automatic target entropy. Defaults to 0.98.
+        **others: as :class:`MOSACLoss` (``action_spec`` excepted).
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> from morl_trl.objectives.networks import make_categorical_actor, make_vector_q_network
+        >>> actor = make_categorical_actor(6, 4, 2, num_cells=(32,))
+        >>> critic = make_vector_q_network(6, 4, 2, num_cells=(32,))
+        >>> loss = DiscreteMOSACLoss(actor, critic)
+        >>> B = 8
+        >>> data = TensorDict({
+        ...     "observation": torch.randn(B, 6), "action": torch.randint(4, (B,)),
+        ...     "preference": torch.full((B, 2), 0.5),
+        ...     ("next", "observation"): torch.randn(B, 6), ("next", "reward"): torch.randn(B, 2),
+        ...     ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
+        ...     ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
+        >>> sorted(loss(data).keys())
+        ['alpha', 'entropy', 'loss_actor', 'loss_alpha', 'loss_qvalue']
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``).
+
+        Attributes:
+            action: the action (integer or one-hot). Defaults to ``"action"``.
+            action_value: critic output ``[*B, |A|, k]``. Defaults to ``"action_value"``.
+            preference: preference ``[*B, k]``. Defaults to ``"preference"``.
+            value_target: key of the estimator's target. Defaults to ``"value_target"``.
+            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
+            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
+            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
+            done: done flag under ``"next"``. Defaults to ``"done"``.
+            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
+        """
+
+        action: NestedKey = "action"
+        action_value: NestedKey = "action_value"
+        preference: NestedKey = "preference"
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+
+    def __init__(
+        self,
+        actor_network: ProbabilisticTensorDictSequential,
+        qvalue_network: TensorDictModule,
+        *,
+        num_actions: int | None = None,
+        num_objectives: int | None = None,
+        num_qvalue_nets: int = 2,
+        preference: Tensor | None = None,
+        resample_preferences: bool = False,
+        preference_distribution: str = "dirichlet",
+        critic_min: str = "scalarized",
+        critic_loss: str = "scalarized",
+        loss_function: str = "l2",
+        alpha_init: float = 1.0,
+        min_alpha: float | None = None,
+        max_alpha: float | None = None,
+        fixed_alpha: bool = False,
+        target_entropy_weight: float = 0.98,
+        target_entropy: float | str = "auto",
+        delay_qvalue: bool = True,
+        reduction: str = "mean",
+        use_prioritized_weights: str | bool = "auto",
+        deactivate_vmap: bool = False,
+    ) -> None:
+        self._in_keys = None
+        super().__init__()
+        self._setup(
+            actor_network,
+            qvalue_network,
+            num_objectives=num_objectives,
+            num_qvalue_nets=num_qvalue_nets,
+            preference=preference,
+            resample_preferences=resample_preferences,
+            preference_distribution=preference_distribution,
+            critic_min=critic_min,
+            critic_loss=critic_loss,
+            loss_function=loss_function,
+            alpha_init=alpha_init,
+            min_alpha=min_alpha,
+            max_alpha=max_alpha,
+            fixed_alpha=fixed_alpha,
+            delay_qvalue=delay_qvalue,
+            reduction=reduction,
+            use_prioritized_weights=use_prioritized_weights,
+            deactivate_vmap=deactivate_vmap,
+        )
+        if num_actions is None:
+            num_actions = getattr(qvalue_network, "num_actions", None)
+        self.num_actions = num_actions
+        if target_entropy == "auto":
+            if fixed_alpha:
+                target_entropy = 0.0
+            elif num_actions is None:
+                raise ValueError("target_entropy='auto' needs num_actions=.")
+            else:
+                target_entropy = target_entropy_weight * math.log(num_actions)
+        self.register_buffer("target_entropy", torch.tensor(float(target_entropy), device=self.log_alpha.device))
+
+    def _policy(self, data: TensorDictBase, params) -> tuple[Tensor, Tensor]:
+        """Action probabilities and log-probabilities, ``[B, |A|]`` each."""
+        with params.to_module(self.actor_network, preserve_module_state=False):
+            dist = self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
+        return dist.probs, dist.logits
+
+    def _critics(self, data: TensorDictBase, params) -> Tensor:
+        """``[n, B, |A|, k]`` values of all critics."""
+        td = data.select(*self.qvalue_network.in_keys, strict=False)
+        return self._vmap_qnetworkN0(td, params).get(self.tensor_keys.action_value)
+
+    @torch.no_grad()
+    def _target(self, data: TensorDictBase, w: Tensor) -> Tensor:
+        next_data = data.get("next")
+        probs, log_probs = self._policy(next_data, self.actor_network_params)
+        q_next = self._select_min(self._critics(next_data, self.target_qvalue_network_params), w)
+        next_value = (probs.unsqueeze(-1) * (q_next - self._alpha * log_probs.unsqueeze(-1))).sum(-2)
+        return self.value_estimator.value_estimate(data, next_value=next_value)
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``."""
+        self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
+        data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
+        w = self._batch_preferences(data)
+        data_w = self._with_preference(data, w)
+        batch, k = data.shape[0], self.num_objectives
+
+        target = self._target(data_w, w)
+        q = self._critics(data_w, self.qvalue_network_params)
+        index = action_index(data.get(self.tensor_keys.action), batch, q.shape[-2])
+        q_taken = q.gather(-2, index.view(1, batch, 1, 1).expand(q.shape[0], batch, 1, k)).squeeze(-2)
+        loss_qvalue, td_error = self._critic_objective(q_taken, target, w)
+
+        probs, log_probs = self._policy(data_w, self.actor_network_params)
+        q_pi = self._select_min(self._critics(data_w, self._cached_detached_qvalue_params), w)
+        scalar_q_pi = (q_pi * w.unsqueeze(-2)).sum(-1)
+        loss_actor = (probs * (self._alpha * log_probs - scalar_q_pi)).sum(-1)
+        neg_entropy = (probs * log_probs).sum(-1)
+        loss_alpha = self._alpha_objective(neg_entropy.detach())
+
+        losses = {
+            "loss_actor": self._reduce(loss_actor, data),
+            "loss_qvalue": self._reduce(loss_qvalue, data),
+            "loss_alpha": self._reduce(loss_alpha, data),
+        }
+        return self._output(tensordict, losses, neg_entropy, td_error)

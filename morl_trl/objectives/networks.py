@@ -1,0 +1,312 @@
+"""Preference-conditioned networks for the multi-objective losses.
+
+Every network here maps ``[obs, w]`` (and, for critics, the action) to its
+output through one concatenation and a plain MLP, optionally after a pixel
+encoder (:class:`NatureCNN`). They accept any number of leading batch
+dimensions, have no data-dependent control flow and capture as one graph under
+``torch.compile(fullgraph=True)``.
+
+The ``make_*`` builders wrap them in TensorDict modules with the keys the
+losses read by default (DESIGN.md): ``"observation"``, ``"preference"``,
+``"action"``, ``"action_value"`` (``[*B, |A|, k]``) and
+``"state_action_value"`` (``[*B, k]``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+from tensordict.nn import NormalParamExtractor, TensorDictModule
+from tensordict.utils import NestedKey
+from torch import nn
+from torchrl.data import Bounded, Categorical, Composite, OneHot, TensorSpec
+from torchrl.modules import OneHotCategorical, ProbabilisticActor, TanhNormal
+
+__all__ = [
+    "NatureCNN",
+    "PreferenceConditionedMLP",
+    "make_categorical_actor",
+    "make_gaussian_actor",
+    "make_vector_critic",
+    "make_vector_q_network",
+]
+
+DEFAULT_NUM_CELLS: tuple[int, ...] = (256, 256, 256, 256)
+
+
+class NatureCNN(nn.Module):
+    """The DQN "Nature" convolutional encoder (Mnih et al., 2015).
+
+    Three convolutions (32 8x8/4, 64 4x4/2, 64 3x3/1) and a linear layer to
+    ``features_dim`` features, ReLU throughout. ``uint8`` pixels are scaled to
+    ``[0, 1]``; float inputs are used as they are. Any leading batch shape is
+    accepted: ``[*B, C, H, W] -> [*B, features_dim]``.
+
+    Args:
+        obs_shape: ``(C, H, W)`` of one observation.
+        features_dim: output width. Defaults to 512.
+
+    Examples:
+        >>> enc = NatureCNN((4, 84, 84))
+        >>> enc(torch.zeros(2, 3, 4, 84, 84, dtype=torch.uint8)).shape
+        torch.Size([2, 3, 512])
+    """
+
+    def __init__(self, obs_shape: Sequence[int], features_dim: int = 512) -> None:
+        super().__init__()
+        if len(obs_shape) != 3:
+            raise ValueError(f"NatureCNN expects obs_shape=(C, H, W), got {tuple(obs_shape)}.")
+        self.obs_shape = tuple(int(s) for s in obs_shape)
+        self.features_dim = int(features_dim)
+        c, h, w = self.obs_shape
+        self.cnn = nn.Sequential(
+            nn.Conv2d(c, 32, kernel_size=8, stride=4),
+            nn.ReLU(),
+            nn.Conv2d(32, 64, kernel_size=4, stride=2),
+            nn.ReLU(),
+            nn.Conv2d(64, 64, kernel_size=3, stride=1),
+            nn.ReLU(),
+            nn.Flatten(),
+        )
+        with torch.no_grad():
+            n_flat = self.cnn(torch.zeros(1, c, h, w)).shape[-1]
+        self.linear = nn.Sequential(nn.Linear(n_flat, self.features_dim), nn.ReLU())
+
+    def forward(self, pixels: torch.Tensor) -> torch.Tensor:
+        batch = pixels.shape[:-3]
+        x = pixels.reshape(-1, *pixels.shape[-3:])
+        x = x.float() / 255.0 if pixels.dtype == torch.uint8 else x.float()
+        return self.linear(self.cnn(x)).reshape(*batch, self.features_dim)
+
+
+def _mlp(in_features: int, out_features: int, num_cells: Sequence[int], activation: type[nn.Module]) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    width = in_features
+    for cells in num_cells:
+        layers += [nn.Linear(width, cells), activation()]
+        width = cells
+    layers.append(nn.Linear(width, out_features))
+    return nn.Sequential(*layers)
+
+
+class PreferenceConditionedMLP(nn.Module):
+    """``cat([encoder(obs), *rest], -1) -> MLP -> [*B, *out_shape]``.
+
+    ``rest`` is typically the preference ``w`` (and the action, for a continuous
+    critic). The first input goes through ``encoder`` when one is given (e.g. a
+    :class:`NatureCNN` for pixels); all inputs must share their leading batch
+    shape.
+
+    Args:
+        in_features: width of the concatenated input (encoder output + the rest).
+        out_shape: trailing output shape, e.g. ``(num_actions, k)``.
+        num_cells: hidden layer widths. Defaults to four layers of 256, the paper's ``net_arch``.
+        activation: activation class. Defaults to ``nn.ReLU``.
+        encoder: optional module applied to the first input.
+
+    Examples:
+        >>> net = PreferenceConditionedMLP(8 + 2, (4, 2), num_cells=(32, 32))
+        >>> net(torch.randn(5, 8), torch.rand(5, 2)).shape
+        torch.Size([5, 4, 2])
+    """
+
+    def __init__(
+        self,
+        in_features: int,
+        out_shape: int | Sequence[int],
+        *,
+        num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+        activation: type[nn.Module] = nn.ReLU,
+        encoder: nn.Module | None = None,
+    ) -> None:
+        super().__init__()
+        self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
+        self.encoder = encoder
+        self.mlp = _mlp(int(in_features), math.prod(self.out_shape), tuple(num_cells), activation)
+
+    def forward(self, first: torch.Tensor, *rest: torch.Tensor) -> torch.Tensor:
+        if self.encoder is not None:
+            first = self.encoder(first)
+        x = torch.cat([first, *rest], dim=-1) if rest else first
+        out = self.mlp(x)
+        return out.reshape(*out.shape[:-1], *self.out_shape)
+
+
+def _encoder_and_width(obs_shape: int | Sequence[int], features_dim: int) -> tuple[nn.Module | None, int]:
+    if isinstance(obs_shape, int):
+        return None, obs_shape
+    obs_shape = tuple(obs_shape)
+    if len(obs_shape) == 1:
+        return None, obs_shape[0]
+    if len(obs_shape) == 3:
+        enc = NatureCNN(obs_shape, features_dim)
+        return enc, enc.features_dim
+    raise ValueError(f"obs_shape must be an int, (obs_dim,) or (C, H, W); got {obs_shape}.")
+
+
+def make_vector_q_network(
+    obs_shape: int | Sequence[int],
+    num_actions: int,
+    num_objectives: int,
+    *,
+    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+    activation: type[nn.Module] = nn.ReLU,
+    features_dim: int = 512,
+    observation_key: NestedKey = "observation",
+    preference_key: NestedKey | None = "preference",
+    out_key: NestedKey = "action_value",
+) -> TensorDictModule:
+    """Vector Q-network ``Q(s, ., w) -> [*B, num_actions, num_objectives]`` for discrete actions.
+
+    The Envelope Q-network (and, with ``preference_key=None``, MORL/D's
+    unconditioned discrete MOSAC critic). ``obs_shape=(C, H, W)`` puts a
+    :class:`NatureCNN` in front of the MLP.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> q = make_vector_q_network(8, 4, 2, num_cells=(32,))
+        >>> td = TensorDict({"observation": torch.randn(3, 8), "preference": torch.full((3, 2), 0.5)}, [3])
+        >>> q(td)["action_value"].shape
+        torch.Size([3, 4, 2])
+    """
+    encoder, width = _encoder_and_width(obs_shape, features_dim)
+    in_keys = [observation_key]
+    if preference_key is not None:
+        in_keys.append(preference_key)
+        width += num_objectives
+    net = PreferenceConditionedMLP(width, (num_actions, num_objectives), num_cells=num_cells, activation=activation, encoder=encoder)
+    net.num_objectives = num_objectives
+    net.num_actions = num_actions
+    return TensorDictModule(net, in_keys=in_keys, out_keys=[out_key])
+
+
+def make_vector_critic(
+    obs_dim: int,
+    action_dim: int,
+    num_objectives: int,
+    *,
+    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+    activation: type[nn.Module] = nn.ReLU,
+    observation_key: NestedKey = "observation",
+    action_key: NestedKey = "action",
+    preference_key: NestedKey | None = "preference",
+    out_key: NestedKey = "state_action_value",
+) -> TensorDictModule:
+    """Vector critic ``Q(s, a, w) -> [*B, num_objectives]`` for continuous actions (CAPQL, MOSAC).
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> q = make_vector_critic(5, 2, 3, num_cells=(16,))
+        >>> td = TensorDict({"observation": torch.randn(4, 5), "action": torch.rand(4, 2),
+        ...                  "preference": torch.full((4, 3), 1 / 3)}, [4])
+        >>> q(td)["state_action_value"].shape
+        torch.Size([4, 3])
+    """
+    in_keys = [observation_key, action_key]
+    width = obs_dim + action_dim
+    if preference_key is not None:
+        in_keys.append(preference_key)
+        width += num_objectives
+    net = PreferenceConditionedMLP(width, num_objectives, num_cells=num_cells, activation=activation)
+    net.num_objectives = num_objectives
+    return TensorDictModule(net, in_keys=in_keys, out_keys=[out_key])
+
+
+class _LocScale(nn.Module):
+    """Splits an MLP's ``2 * d`` outputs into a location and a positive scale."""
+
+    def __init__(self, net: nn.Module) -> None:
+        super().__init__()
+        self.net = net
+        self.extractor = NormalParamExtractor()
+
+    def forward(self, *inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.extractor(self.net(*inputs))
+
+
+def make_gaussian_actor(
+    obs_dim: int,
+    action_spec: Bounded,
+    num_objectives: int,
+    *,
+    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+    activation: type[nn.Module] = nn.ReLU,
+    observation_key: NestedKey = "observation",
+    preference_key: NestedKey | None = "preference",
+    action_key: NestedKey = "action",
+) -> ProbabilisticActor:
+    """Preference-conditioned tanh-Gaussian actor ``pi(a | s, w)`` within ``action_spec``'s bounds.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> from torchrl.data import Bounded
+        >>> actor = make_gaussian_actor(5, Bounded(-1.0, 1.0, (2,)), 3, num_cells=(16,))
+        >>> td = TensorDict({"observation": torch.randn(4, 5), "preference": torch.full((4, 3), 1 / 3)}, [4])
+        >>> actor(td)["action"].shape
+        torch.Size([4, 2])
+    """
+    action_dim = action_spec.shape[-1]
+    in_keys = [observation_key]
+    width = obs_dim
+    if preference_key is not None:
+        in_keys.append(preference_key)
+        width += num_objectives
+    net = _LocScale(PreferenceConditionedMLP(width, 2 * action_dim, num_cells=num_cells, activation=activation))
+    module = TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"])
+    return ProbabilisticActor(
+        module,
+        in_keys=["loc", "scale"],
+        out_keys=[action_key],
+        spec=Composite({action_key: action_spec}),
+        distribution_class=TanhNormal,
+        distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high},
+        return_log_prob=False,
+    )
+
+
+def make_categorical_actor(
+    obs_shape: int | Sequence[int],
+    num_actions: int,
+    num_objectives: int,
+    *,
+    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+    activation: type[nn.Module] = nn.ReLU,
+    features_dim: int = 512,
+    observation_key: NestedKey = "observation",
+    preference_key: NestedKey | None = "preference",
+    action_key: NestedKey = "action",
+    action_spec: TensorSpec | None = None,
+) -> ProbabilisticActor:
+    """Preference-conditioned categorical actor ``pi(. | s, w)`` writing an integer action.
+
+    Examples:
+        >>> from tensordict import TensorDict
+        >>> actor = make_categorical_actor(8, 4, 2, num_cells=(16,))
+        >>> td = TensorDict({"observation": torch.randn(3, 8), "preference": torch.full((3, 2), 0.5)}, [3])
+        >>> actor(td)["action"].shape
+        torch.Size([3])
+    """
+    encoder, width = _encoder_and_width(obs_shape, features_dim)
+    in_keys = [observation_key]
+    if preference_key is not None:
+        in_keys.append(preference_key)
+        width += num_objectives
+    net = PreferenceConditionedMLP(width, num_actions, num_cells=num_cells, activation=activation, encoder=encoder)
+    module = TensorDictModule(net, in_keys=in_keys, out_keys=["logits"])
+    if action_spec is None:
+        action_spec = Categorical(num_actions)
+    return ProbabilisticActor(
+        module,
+        in_keys=["logits"],
+        out_keys=[action_key],
+        spec=Composite({action_key: action_spec}),
+        distribution_class=_discrete_distribution(action_spec),
+        return_log_prob=False,
+    )
+
+
+def _discrete_distribution(spec: TensorSpec) -> type:
+    """The distribution matching a discrete action spec: one-hot or integer actions."""
+    return OneHotCategorical if isinstance(spec, OneHot) else torch.distributions.Categorical
