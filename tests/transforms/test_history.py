@@ -159,3 +159,34 @@ def test_step_before_reset_raises():
     td = TensorDict({"action": torch.tensor([1]), "context": torch.tensor([[1.0, 0.0]])}, batch_size=[1])
     with pytest.raises(RuntimeError, match="stepped before it was reset"):
         env.step(td)
+
+
+@pytest.mark.parametrize(
+    "env_id, simulator, width",
+    [
+        ("MOLunarLanderDR-v0", "Box2D", 26),  # SPEC: obs 8, Discrete(4) as an index -> 3*8 + 2*1
+        ("MOLunarLanderContinuousDR-v0", "Box2D", 28),
+        ("MOHopperDR-v5", "mujoco", 39),
+        ("MOHalfCheetahDR-v5", "mujoco", 63),
+        ("MOHumanoidDR-v5", "mujoco", 1078),
+    ],
+)
+def test_paper_history_widths_on_the_real_domains(env_id, simulator, width):
+    pytest.importorskip(simulator)
+    from morl_trl.envs import make_env
+
+    try:
+        env = make_env(env_id, num_envs=2, seed=0)
+    except (ImportError, AttributeError) as err:  # the domain is not in this checkout
+        pytest.skip(f"{env_id} unavailable: {err}")
+    env.append_transform(StateActionHistory(2))
+    assert env.observation_spec["observation"].shape == (2, width)
+    td = env.rollout(3, break_when_any_done=False)
+    assert td["next", "observation"].shape == (2, 3, width)
+    d = env.base_env.observation_spec["observation"].shape[-1]
+    a = (width - 3 * d) // 2
+    reset, step1 = td["observation"][:, 0], td["next", "observation"][:, 0]
+    s0 = reset[:, -d:]
+    assert torch.equal(reset, torch.cat([s0, torch.zeros(2, a), s0, torch.zeros(2, a), s0], -1))
+    a0 = td["action"][:, 0].reshape(2, -1).float()
+    assert torch.equal(step1[:, : 2 * d + 2 * a], torch.cat([s0, torch.zeros(2, a), s0, a0], -1))
