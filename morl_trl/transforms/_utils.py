@@ -83,6 +83,13 @@ class SeededTransform(Transform):
         self._seed = int(seed)
         self.generator.manual_seed(_mix(seed, self._salt))
 
+    def clone(self):
+        other = super().clone()
+        generator = torch.Generator()
+        generator.set_state(self.generator.get_state())  # a copy continues the stream, it does not share it
+        other.generator = generator
+        return other
+
     def _sync_seed(self) -> None:
         env_seed = _env_seed(self.parent)
         if env_seed is not None and env_seed != self._env_seed_seen:

@@ -171,3 +171,33 @@ def test_all_transforms_composed_in_parallel_env(where):
             assert not torch.equal(td["context"][:2, 0], td["context"][2:, 0])
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_pickle_and_clone_after_use(name):
+    import pickle
+
+    make_transform, check = CASES[name]
+    env = build("single", make_transform)
+    env.rollout(5, ScriptedPolicy(env.batch_size, 5), break_when_any_done=False)
+    transform = env.transform.clone()
+    restored = pickle.loads(pickle.dumps(transform))
+    assert type(restored) is type(transform) and restored.parent is None
+    td = run(TransformedEnv(ToyContextEnv(num_envs=4, seed=0), restored))
+    check(td)
+
+
+def test_clone_copies_the_random_stream():
+    t = DomainRandomization(TOY_CONTEXT, seed=0)
+    c = t.clone()
+    torch.testing.assert_close(c.sample(3), t.sample(3))
+
+
+@pytest.mark.slow
+def test_all_transforms_in_parallel_env_with_spawned_workers():
+    """The default start method pickles everything a worker needs (slow: each worker imports torch)."""
+    env = ParallelEnv(2, functools.partial(worker, all_transforms))
+    try:
+        check_all(run(env, seed=5))
+    finally:
+        env.close()
