@@ -397,7 +397,9 @@ class MOSACLoss(_MOSACBase):
             return 0.0  # unused
         spec = action_spec if action_spec is not None else getattr(actor_network, "spec", None)
         if isinstance(spec, Composite):
-            spec = spec.get(self.tensor_keys.action, None)
+            leaves = [key for key in spec.keys(True, True) if spec.get(key) is not None]
+            key = self.tensor_keys.action if self.tensor_keys.action in leaves or len(leaves) != 1 else leaves[0]
+            spec = spec.get(key, None)
         if spec is None:
             raise ValueError("target_entropy='auto' needs the action spec: pass action_spec= or target_entropy=.")
         return -float(spec.shape[-1:].numel())

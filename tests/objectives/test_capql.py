@@ -1,0 +1,168 @@
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.data import Bounded
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.objectives import HardUpdate, SACLoss, SoftUpdate, ValueEstimators
+
+from morl_trl.objectives import CAPQLLoss, make_gaussian_actor, make_vector_critic
+from tests.objectives._helpers import (
+    EXTREME_PREFERENCES,
+    continuous_bandit_dataset,
+    grads_of,
+    random_batch,
+    zero_grads,
+)
+
+pytestmark = pytest.mark.filterwarnings("ignore:No target network updater")
+
+OBS, ACT, K, B = 7, 3, 3, 10
+SPEC = Bounded(-1.0, 1.0, (ACT,))
+
+
+def make_loss(k=K, **kwargs):
+    torch.manual_seed(0)
+    loss = CAPQLLoss(make_gaussian_actor(OBS, SPEC, k, num_cells=(32,)), make_vector_critic(OBS, ACT, k, num_cells=(32,)), **kwargs)
+    loss.make_value_estimator(gamma=0.9)
+    return loss
+
+
+def test_defaults_are_the_paper_settings():
+    loss = make_loss()
+    assert float(loss._alpha) == pytest.approx(0.2)
+    assert not isinstance(loss.log_alpha, torch.nn.Parameter)
+    assert (loss.critic_min, loss.critic_loss, loss.resample_preferences) == ("elementwise", "vector", True)
+    assert loss.num_qvalue_nets == 2
+
+
+def test_output_keys_finite_without_a_stored_preference():
+    loss = make_loss()
+    data = random_batch(B, OBS, K, action_dim=ACT, preference=False)
+    out = loss(data)
+    assert sorted(out.keys()) == sorted(loss.out_keys) == ["alpha", "entropy", "loss_actor", "loss_qvalue"]
+    assert all(torch.isfinite(v).all() for v in out.values())
+    assert data["td_error"].shape == (B,)
+    assert "preference" not in loss.in_keys
+
+
+def test_fresh_preferences_per_sample_and_per_call():
+    loss = make_loss()
+    data = random_batch(B, OBS, K, action_dim=ACT)
+    w1, w2 = loss._batch_preferences(data), loss._batch_preferences(data)
+    assert w1.shape == (B, K)
+    torch.testing.assert_close(w1.sum(-1), torch.ones(B))
+    assert (w1 >= 0).all()
+    assert len({tuple(row.tolist()) for row in w1}) == B  # one draw per sample
+    assert not torch.equal(w1, w2)  # a new draw at every call
+    stored = make_loss(resample_preferences=False)
+    assert torch.equal(stored._batch_preferences(data), data["preference"])
+
+
+def test_gradients_reach_exactly_the_right_parameters():
+    loss = make_loss()
+    data = random_batch(B, OBS, K, action_dim=ACT, preference=False)
+    zero_grads(loss)
+    loss(data.clone())["loss_qvalue"].backward()
+    assert all(grads_of(loss.qvalue_network_params).values())
+    assert not any(grads_of(loss.actor_network_params).values())
+    zero_grads(loss)
+    loss(data.clone())["loss_actor"].backward()
+    assert all(grads_of(loss.actor_network_params).values())
+    assert not any(grads_of(loss.qvalue_network_params).values())
+    for p in loss.target_qvalue_network_params.values(True, True):
+        assert p.grad is None and not p.requires_grad
+    assert {id(p) for p in loss.parameters()} == {
+        id(p) for p in (*loss.actor_network_params.values(True, True), *loss.qvalue_network_params.values(True, True))
+    }
+
+
+def test_target_updaters_move_targets():
+    loss = make_loss()
+    key = next(iter(loss.qvalue_network_params.keys(True, True)))
+    with torch.no_grad():
+        loss.qvalue_network_params[key].add_(1.0)
+    assert not torch.equal(loss.qvalue_network_params[key].data, loss.target_qvalue_network_params[key])
+    updater = HardUpdate(loss, value_network_update_interval=0)
+    updater.step()
+    assert torch.equal(loss.qvalue_network_params[key].data, loss.target_qvalue_network_params[key])
+    soft = SoftUpdate(loss, tau=0.1)
+    with torch.no_grad():
+        loss.qvalue_network_params[key].add_(1.0)
+    before = loss.target_qvalue_network_params[key].clone()
+    soft.step()
+    torch.testing.assert_close(loss.target_qvalue_network_params[key], before + 0.1)
+
+
+def test_set_keys_renames():
+    torch.manual_seed(0)
+    actor = make_gaussian_actor(OBS, SPEC, K, num_cells=(16,), observation_key="obs", preference_key="pref", action_key="u")
+    critic = make_vector_critic(OBS, ACT, K, num_cells=(16,), observation_key="obs", action_key="u", preference_key="pref", out_key="qv")
+    loss = CAPQLLoss(actor, critic)
+    loss.set_keys(action="u", state_action_value="qv", preference="pref", reward="vec_r", terminated="term", done="dn", priority="p")
+    base = random_batch(B, OBS, K, action_dim=ACT, preference=False)
+    data = TensorDict(
+        {
+            "obs": base["observation"],
+            "u": base["action"],
+            ("next", "obs"): base["next", "observation"],
+            ("next", "vec_r"): base["next", "reward"],
+            ("next", "dn"): base["next", "done"],
+            ("next", "term"): base["next", "terminated"],
+        },
+        [B],
+    )
+    assert torch.isfinite(loss(data)["loss_qvalue"]) and data["p"].shape == (B,)
+
+
+def test_k1_is_sac_with_a_fixed_temperature():
+    ours = make_loss(k=1, resample_preferences=False)
+    theirs = SACLoss(ours.actor_network, ours.qvalue_network, loss_function="l2", alpha_init=0.2, fixed_alpha=True)
+    theirs.make_value_estimator(ValueEstimators.TD0, gamma=0.9)
+    theirs.qvalue_network_params.data.update_(ours.qvalue_network_params.data)
+    theirs.target_qvalue_network_params.data.update_(ours.target_qvalue_network_params.data)
+    data = random_batch(B, OBS, 1, action_dim=ACT)
+    data["next", "preference"] = data["preference"]  # all ones with k = 1
+    d1, d2 = data.clone(), data.clone()
+    torch.manual_seed(3)
+    a = ours(d1)
+    torch.manual_seed(3)
+    b = theirs(d2)
+    for key in ("loss_qvalue", "loss_actor", "entropy", "alpha"):
+        torch.testing.assert_close(a[key], b[key], msg=key)
+
+
+@pytest.mark.parametrize(
+    "mutate, match",
+    [
+        (lambda d: d.set(("next", "reward"), torch.randn(B, 2)), r"reward .*shape \(10, 2\).*3 objectives"),
+        (lambda d: d["next", "reward"].__setitem__((4, 2), float("-inf")), r"non-finite.*\[4, 2\]"),
+    ],
+)
+def test_bad_input_raises_before_any_update(mutate, match):
+    loss = make_loss()
+    data = random_batch(B, OBS, K, action_dim=ACT)
+    mutate(data)
+    with pytest.raises(ValueError, match=match):
+        loss(data)
+    assert "td_error" not in data.keys()
+
+
+def test_learns_preference_dependent_actions_on_a_convex_front():
+    torch.manual_seed(0)
+    data = continuous_bandit_dataset().exclude("preference")
+    actor = make_gaussian_actor(2, Bounded(-1.0, 1.0, (1,)), 2, num_cells=(64, 64))
+    critic = make_vector_critic(2, 1, 2, num_cells=(64, 64))
+    loss = CAPQLLoss(actor, critic)
+    loss.make_value_estimator(gamma=0.9)
+    updater = SoftUpdate(loss, tau=0.05)
+    optim = torch.optim.Adam(loss.parameters(), lr=3e-3)
+    for _ in range(150):
+        out = loss(data[torch.randint(len(data), (64,))])
+        optim.zero_grad()
+        (out["loss_qvalue"] + out["loss_actor"]).backward()
+        optim.step()
+        updater.step()
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        action = actor(TensorDict({"observation": torch.ones(2, 2), "preference": EXTREME_PREFERENCES}, [2]))["action"][:, 0]
+    # optimum: -0.86 under (0.9, 0.1) and +0.86 under (0.1, 0.9)
+    assert action[0] < -0.5 and action[1] > 0.5, action
