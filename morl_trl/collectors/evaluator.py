@@ -81,15 +81,21 @@ class MultiContextEvaluator:
             specialist fronts (``reference``'s bounds are used when not given).
         ref_point: unnormalized hypervolume reference point (default: the domain's).
         eum_weights: ``[M, k]`` weights of the EUM/EUGR (default: ``weights``).
-        chunk_size: at most this many sub-envs per batched env (default: the whole grid).
+        chunk_size: number of sub-envs of the batched env (default: the whole grid, one
+            sub-env per row). A smaller pool bounds memory: its sub-envs stream through the
+            grid, each taking the next pending (context, weight, episode) as soon as its
+            episode ends. For envs whose cost is per sub-env (Box2D, MuJoCo), a pool of a
+            few times fewer sub-envs than rows is also faster, since finished sub-envs no
+            longer wait, being stepped, for the longest episode.
         exploration_type: TorchRL exploration type used while acting.
         device: device of the default env.
-        seed: seed of everything random in the evaluation: the sub-env of grid row ``r`` is
-            seeded with ``seed + r`` (independent of ``chunk_size``), and torch's RNG is seeded
-            per chunk for stochastic policies.
-        reset_finished: partially reset sub-envs once they are done, so that they keep
-            stepping from valid states while masked (set ``False`` for domains that tolerate
-            being stepped past their end).
+        seed: seed of everything random in the evaluation: the env (sub-env ``i`` is seeded
+            with ``seed + i``) and torch's RNG while acting (stochastic policies); the global
+            RNG state is restored afterwards. Results are reproducible for a given seed and
+            ``chunk_size``.
+        reset_finished: partially reset sub-envs once they are done even when no row is
+            left for them, so that they keep stepping from valid states while masked (set
+            ``False`` for domains that tolerate being stepped past their end).
         preference_key: where the policy reads the preference.
         max_steps: safety horizon (default: the env's ``max_episode_steps``); episodes still
             running then are cut, with a warning.
@@ -282,73 +288,96 @@ class MultiContextEvaluator:
         policy = self.policy if policy is None else policy
         C, W, E = len(self.context_names), len(self.weights), self.episodes
         k = len(self.objective_names)
-        n = C * W * E
         # grid row r = (c * W + w) * E + e
         ctx_rows = self.contexts.repeat_interleave(W * E, dim=0)
         pref_rows = self.weights.repeat_interleave(E, dim=0).repeat(C, 1)
-        disc = torch.empty(n, k, dtype=torch.float64)
-        und = torch.empty(n, k, dtype=torch.float64)
-        lengths = torch.empty(n, dtype=torch.long)
-        for start in range(0, n, self.chunk_size):
-            stop = min(start + self.chunk_size, n)
-            d, u, ln = self._run_chunk(policy, ctx_rows[start:stop], pref_rows[start:stop], self.seed + start)
-            disc[start:stop], und[start:stop], lengths[start:stop] = d, u, ln
-        return self._result(
-            disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E)
-        )
+        disc, und, lengths = self._run_pool(policy, ctx_rows, pref_rows)
+        return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E))
 
     __call__ = evaluate
 
-    def _run_chunk(self, policy, ctx: torch.Tensor, prefs: torch.Tensor, seed: int):
-        n = ctx.shape[0]
-        env = self._env(n)
+    def _run_pool(self, policy, ctx_rows: torch.Tensor, pref_rows: torch.Tensor):
+        """Run every grid row as one episode on a pool of ``chunk_size`` sub-envs.
+
+        Sub-env ``i`` starts on row ``i``; whenever a sub-env finishes its episode it is
+        partially reset with the context of the next pending row (so a pool smaller than the
+        grid streams through it without waiting for the slowest episode of a batch). With
+        the default pool (the whole grid) every row has its own sub-env, seeded ``seed + r``.
+        """
+        n_rows = ctx_rows.shape[0]
+        m = self.chunk_size
+        env = self._env(m)
         dev = env.device
-        env.set_seed(seed)
-        pref = prefs.to(dev, torch.float32)
-        reset_td = TensorDict(
-            {"context": ctx.to(dev), self.preference_key: pref}, batch_size=env.batch_size, device=dev
-        )
         k = len(self.objective_names)
-        disc = torch.zeros(n, k, dtype=torch.float64, device=dev)
-        und = torch.zeros(n, k, dtype=torch.float64, device=dev)
-        lengths = torch.zeros(n, dtype=torch.long, device=dev)
-        active = torch.ones(n, dtype=torch.bool, device=dev)
+        env.set_seed(self.seed)
+
+        row = torch.arange(m, device=dev)  # the grid row each sub-env runs (-1: idle)
+        next_row = m
+        ctx_rows, pref_rows = ctx_rows.to(dev), pref_rows.to(dev, torch.float32)
+        pref = pref_rows[row]
+        factor = torch.ones(m, dtype=torch.float64, device=dev)
+        run_disc = torch.zeros(m, k, dtype=torch.float64, device=dev)
+        run_und = torch.zeros(m, k, dtype=torch.float64, device=dev)
+        run_len = torch.zeros(m, dtype=torch.long, device=dev)
+        disc = torch.zeros(n_rows, k, dtype=torch.float64, device=dev)
+        und = torch.zeros(n_rows, k, dtype=torch.float64, device=dev)
+        lengths = torch.zeros(n_rows, dtype=torch.long, device=dev)
+        reward_key = ("next", *_as_tuple(env.reward_key))
+
         horizon = self.max_steps or getattr(env, "max_episode_steps", None) or 100_000
-        factor = 1.0
         rng_devices = [dev.index or 0] if dev.type == "cuda" else []
         with torch.random.fork_rng(devices=rng_devices), torch.no_grad(), set_exploration_type(self.exploration_type):
-            torch.manual_seed(seed)
-            td = env.reset(reset_td)
-            for _ in range(horizon):
+            torch.manual_seed(self.seed)
+            td = env.reset(
+                TensorDict({"context": ctx_rows[row], self.preference_key: pref}, batch_size=env.batch_size, device=dev)
+            )
+            while True:
                 td.set(self.preference_key, pref)
                 if policy == "random":
                     td.set(env.action_key, env.full_action_spec[env.action_key].rand())
                 else:
                     td = policy(td)
-                if self.reset_finished:
-                    td, td_next = env.step_and_maybe_reset(td)
-                else:
-                    td = env.step(td)
-                    td_next = env.step_mdp(td) if hasattr(env, "step_mdp") else _step_mdp(td)
-                reward = td.get(("next", *_as_tuple(env.reward_key))).to(torch.float64)
-                if reward.shape != (n, k):
-                    reward = reward.reshape(n, k)
-                mask = active.unsqueeze(-1)
-                disc += torch.where(mask, factor * reward, 0.0)
-                und += torch.where(mask, reward, 0.0)
-                lengths += active
-                done = td.get(("next", "done")).reshape(n)
-                active &= ~done
-                if not active.any():
-                    break
+                td = env.step(td)
+                active = row >= 0
+                reward = td.get(reward_key).reshape(m, k).to(torch.float64)
+                run_disc += torch.where(active.unsqueeze(-1), factor.unsqueeze(-1) * reward, 0.0)
+                run_und += torch.where(active.unsqueeze(-1), reward, 0.0)
+                run_len += active
                 factor *= self.gamma
+                done = td.get(("next", "done")).reshape(m)
+                cut = active & (run_len >= horizon) & ~done
+                if cut.any():
+                    warnings.warn(
+                        f"{int(cut.sum())} episodes were still running after max_steps={horizon}; "
+                        "their returns are cut there",
+                        stacklevel=3,
+                    )
+                finished = active & (done | cut)
+                td_next = env.step_mdp(td)
+                reset = done.clone() if self.reset_finished else torch.zeros_like(done)
+                if finished.any():
+                    idx = finished.nonzero().squeeze(-1)
+                    r = row[idx]
+                    disc[r], und[r], lengths[r] = run_disc[idx], run_und[idx], run_len[idx]
+                    run_disc[idx], run_und[idx], run_len[idx], factor[idx] = 0.0, 0.0, 0, 1.0
+                    # hand the next pending rows to the sub-envs that just finished
+                    take = min(len(idx), n_rows - next_row)
+                    row[idx] = -1
+                    if take:
+                        fresh = idx[:take]
+                        row[fresh] = torch.arange(next_row, next_row + take, device=dev)
+                        next_row += take
+                        pref = pref_rows[row.clamp(min=0)]
+                        ctx = td_next.get("context").clone()
+                        ctx[fresh] = ctx_rows[row[fresh]]
+                        td_next.set("context", ctx)
+                        reset[fresh] = True
+                    if not (row >= 0).any():
+                        break
+                if reset.any():
+                    td_next.set("_reset", reset.reshape(td_next.get("done").shape))
+                    td_next = env.reset(td_next)
                 td = td_next
-            else:
-                warnings.warn(
-                    f"{int(active.sum())} of {n} episodes were still running after max_steps={horizon}; "
-                    "their returns are cut there",
-                    stacklevel=3,
-                )
         return disc.cpu(), und.cpu(), lengths.cpu()
 
     # ------------------------------------------------------------------ metrics
@@ -419,9 +448,5 @@ def _as_tuple(key) -> tuple:
     return key if isinstance(key, tuple) else (key,)
 
 
-def _step_mdp(td: TensorDictBase) -> TensorDictBase:
-    from torchrl.envs.utils import step_mdp
-
-    return step_mdp(td, keep_other=True)
 
 

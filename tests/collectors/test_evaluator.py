@@ -92,14 +92,22 @@ def test_each_sub_env_counts_only_its_first_episode():
         np.testing.assert_allclose(r.returns[:, :, 0].numpy(), expected_returns(), rtol=1e-6)
 
 
-def test_chunking_and_episodes_do_not_change_deterministic_returns():
+def test_episodes_repeat_each_pair():
     full = make(episodes=3).evaluate()
     assert full.returns.shape == (2, 3, 3, 2)
     np.testing.assert_allclose(full.returns.numpy(), np.repeat(expected_returns()[:, :, None], 3, 2), rtol=1e-6)
-    ev = make(episodes=3, chunk_size=4)
-    chunked = ev.evaluate()  # 18 sub-envs in chunks 4, 4, 4, 4, 2
-    torch.testing.assert_close(chunked.returns, full.returns)
-    assert sorted(ev._envs) == [2, 4]  # one batched env per chunk size
+
+
+@pytest.mark.parametrize("chunk_size", [1, 4, 5, 17])
+@pytest.mark.parametrize("reset_finished", [True, False])
+def test_a_smaller_pool_streams_through_the_grid_with_the_same_returns(chunk_size, reset_finished):
+    # 18 rows on a pool of sub-envs: a sub-env whose episode ends (after 3 or 6 steps) is reset
+    # with the context and preference of the next pending row
+    ev = make(episodes=3, chunk_size=chunk_size, reset_finished=reset_finished)
+    r = ev.evaluate()
+    np.testing.assert_allclose(r.returns.numpy(), np.repeat(expected_returns()[:, :, None], 3, 2), rtol=1e-6)
+    assert r.lengths[:, :, 0].tolist() == [[6, 3, 6], [6, 3, 6]]
+    assert list(ev._envs) == [chunk_size]  # one batched env of that size
 
 
 def test_policy_ignoring_the_preference_single_objective_baseline():
