@@ -85,6 +85,8 @@ class DomainRandomization(SeededTransform):
         self._fixed_val = torch.tensor(list(self.fixed.values()), dtype=torch.float32)
         fn = sampler if sampler is not None else context_space.sample
         self._pass_previous = _accepts_previous(fn)
+        # ContextSpace.sample draws inside the ranges by construction; custom draws are checked
+        self._check_draws = sampler is not None or type(context_space).sample is not ContextSpace.sample
         self._checked_parent = False
         self._init_seed(seed)
 
@@ -108,10 +110,11 @@ class DomainRandomization(SeededTransform):
                 f"with parameters {list(space.names)}"
             )
         ctx = ctx.to("cpu", torch.float32)
-        try:
-            space.validate(ctx, check_range=True)
-        except ValueError as err:
-            raise ValueError(f"the context sampler returned an invalid context: {err}") from None
+        if self._check_draws:
+            try:
+                space.validate(ctx, check_range=True)
+            except ValueError as err:
+                raise ValueError(f"the context sampler returned an invalid context: {err}") from None
         if self.fixed:
             ctx = ctx.clone()
             ctx[:, self._fixed_idx] = self._fixed_val

@@ -183,3 +183,15 @@ def test_explicit_context_in_reset_td_is_overridden_by_the_draw():
     env = TransformedEnv(ToyContextEnv(num_envs=2), DomainRandomization(TOY_CONTEXT, seed=0))
     td = env.reset(TensorDict(context=torch.tensor([[1.0, 0.0]] * 2), batch_size=[2]))
     torch.testing.assert_close(td["context"], first_draws(0, 2))
+
+
+class BrokenSpace(ContextSpace):
+    def sample(self, n, generator=None, device=None):
+        return torch.tensor([[1.0, 1.5]]).expand(n, 2)
+
+
+def test_custom_space_drawing_outside_its_ranges_raises():
+    space = BrokenSpace(TOY_CONTEXT.names, TOY_CONTEXT.default, TOY_CONTEXT.low, TOY_CONTEXT.high)
+    env = TransformedEnv(ToyContextEnv(num_envs=2), DomainRandomization(space))
+    with pytest.raises(ValueError, match=r"'bias' is 1.5 \(row 0\), outside its range \[-1.0, 1.0\]"):
+        env.reset()
