@@ -1,0 +1,41 @@
+"""MO-SuperMarioBros (SPEC §1.4): 32 stages as contexts, pixel observations, 3 objectives.
+
+Importing this package loads no emulator; nes-py's core library is loaded when the first
+stage starts (``pip install 'morl-trl[mario]'``).
+
+Example:
+    >>> from morl_trl.envs import make_env
+    >>> env = make_env("MOSuperMarioBrosZeroShot-v2", num_envs=2, seed=0)   # doctest: +SKIP
+    >>> env.reset()["context"]                                              # doctest: +SKIP
+    tensor([[8., 2.],
+            [6., 1.]])
+"""
+
+from morl_trl.envs.mario.env import MOSuperMarioBrosEnv, StagePool
+from morl_trl.envs.mario.game import SIMPLE_MOVEMENT, SIMPLE_MOVEMENT_BUTTONS, MarioStage
+from morl_trl.envs.mario.stages import (
+    EVAL_STAGES,
+    HELD_OUT_STAGES,
+    MARIO_STAGE_SPACE,
+    STAGES,
+    TRAIN_STAGES,
+    MarioStageSpace,
+    parse_stage,
+    stage_name,
+)
+
+__all__ = [
+    "MOSuperMarioBrosEnv",
+    "MarioStage",
+    "MarioStageSpace",
+    "MARIO_STAGE_SPACE",
+    "StagePool",
+    "SIMPLE_MOVEMENT",
+    "SIMPLE_MOVEMENT_BUTTONS",
+    "STAGES",
+    "TRAIN_STAGES",
+    "HELD_OUT_STAGES",
+    "EVAL_STAGES",
+    "parse_stage",
+    "stage_name",
+]
