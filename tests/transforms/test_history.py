@@ -39,8 +39,11 @@ def test_step_by_step_against_reference_through_partial_resets():
         for i in range(n):
             actions[i].append(td["action"][i].float().reshape(1))
             states[i].append(td["next", "observation"][i])
-            expected = torch.cat([states[i][-3], actions[i][-2], states[i][-2], actions[i][-1], states[i][-1]]) \
-                if len(actions[i]) >= 2 else torch.cat([states[i][0], torch.zeros(1), states[i][0], actions[i][0], states[i][1]])
+            if len(actions[i]) >= 2:  # [s_{t-1}, a_{t-1}, s_t, a_t, s_{t+1}]
+                parts = [states[i][-3], actions[i][-2], states[i][-2], actions[i][-1], states[i][-1]]
+            else:  # first step of the episode: [s0, 0, s0, a0, s1]
+                parts = [states[i][0], torch.zeros(1), states[i][0], actions[i][0], states[i][1]]
+            expected = torch.cat(parts)
             assert torch.equal(td["next", "history"][i], expected), (t, i)
         td = step_mdp(td)
         reset = td["done"].squeeze(-1).clone()

@@ -128,7 +128,8 @@ def test_given_mode_rejects_off_simplex_preferences_and_changes_nothing(w, match
         env.reset(TensorDict(preference=w, batch_size=[2]))
     assert env.base_env._step_count.tolist() == [1, 1]  # the env underneath was not reset
     td = env.step(td.set("action", torch.tensor([1, 1])))
-    assert td["next", "preference"].tolist() == [[0.25, 0.75]] * 2 and td["next", "observation"][:, 0].tolist() == [2, 2]
+    assert td["next", "preference"].tolist() == [[0.25, 0.75]] * 2
+    assert td["next", "observation"][:, 0].tolist() == [2, 2]
 
 
 def test_bad_constructor_arguments():
