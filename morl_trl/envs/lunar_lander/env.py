@@ -21,9 +21,9 @@ from morl_trl.envs.specs.lunar_lander import LUNAR_LANDER_CONTEXT, OBJECTIVES
 __all__ = ["MOLunarLanderEnv"]
 
 _GRAVITY, _WIND, _TURBULENCE, _MAIN, _SIDE, _X, _Y = range(7)
-_HALF_W = P.VIEWPORT_W / P.SCALE / 2
-_HALF_H = P.VIEWPORT_H / P.SCALE / 2
-_PAD_Y = P.HELIPAD_Y + P.LEG_DOWN / P.SCALE
+# observation = ((x, y) - offset) / scale, (vx, vy) * scale / FPS, as Gymnasium computes it
+_OBS_OFFSET = np.array([P.VIEWPORT_W / P.SCALE / 2, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE])
+_OBS_SCALE = np.array([P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2])
 
 
 def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
@@ -94,13 +94,13 @@ class MOLunarLanderEnv(ContextualMOEnv):
         n = num_envs
         self._all = np.arange(n)
         self._worlds: list[P.LanderWorld | None] = [None] * n
+        self._ready = False  # every sub-env has been reset at least once
         self._ctx = np.zeros((n, self.context_space.dim))
         # written by the contact listeners during Box2D steps
         self._game_over = np.zeros(n, dtype=bool)
         self._legs = np.zeros((n, 2), dtype=bool)
         self._listeners = [P.ContactFlags(self._game_over, self._legs, i) for i in range(n)]
-        self._wind_idx = np.zeros(n, dtype=np.int64)
-        self._torque_idx = np.zeros(n, dtype=np.int64)
+        self._wind_idx = np.zeros((n, 2), dtype=np.int64)  # wind and torque indices
         self._body = np.zeros((n, 6))  # x, y, vx, vy, angle, angular velocity (last read back)
         self._obs = np.zeros((n, 8), dtype=np.float32)
         self._prev_shaping = np.zeros(n)
@@ -133,13 +133,13 @@ class MOLunarLanderEnv(ContextualMOEnv):
                 old.world.contactListener = None
             w = P.build_world(self._streams.generator(i), g, x, y, self._listeners[i])
             self._worlds[i] = w
-            self._wind_idx[i] = w.wind_idx
-            self._torque_idx[i] = w.torque_idx
+            self._wind_idx[i] = (w.wind_idx, w.torque_idx)
+        self._ready = self._ready or all(w is not None for w in self._worlds)
         # Gymnasium's reset ends with one no-op step whose observation it returns
         zeros = np.zeros(len(idx))
         state, shaping, _ = self._advance(idx, zeros, zeros, zeros)
         self._prev_shaping[idx] = shaping
-        self._obs[idx] = state
+        self._obs[idx] = state  # _obs is never shared with a returned tensor (see _step_subenvs)
 
     def _observe(self):
         return {"observation": torch.tensor(self._obs, device=self.device)}
@@ -161,14 +161,14 @@ class MOLunarLanderEnv(ContextualMOEnv):
         return main, side, direction
 
     def _step_subenvs(self, action: torch.Tensor):
-        if any(w is None for w in self._worlds):
+        if not self._ready:
             raise RuntimeError("MOLunarLanderEnv: call reset() before step()")
         main, side, direction = self._engine_powers(action)
         state, shaping, awake = self._advance(self._all, main, side, direction)
 
         shaping_delta = shaping - self._prev_shaping
         self._prev_shaping = shaping
-        crashed = self._game_over | (np.abs(state[:, 0]) >= 1.0)
+        crashed = self._game_over | (np.abs(state[:, 0]) >= 1.0)  # float64 x, as Gymnasium tests it
         at_rest = ~awake
         landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
         original = shaping_delta - main * 0.30 - side * 0.03
@@ -176,10 +176,12 @@ class MOLunarLanderEnv(ContextualMOEnv):
         reward = np.stack([landing, shaping_delta, 0.0 - main, 0.0 - side], axis=-1).astype(np.float32)
         terminated = crashed | at_rest
 
-        self._obs = state
+        obs = state.astype(np.float32)
+        # a copy: the returned tensor lives on in rollouts while _obs is updated at resets
+        self._obs = obs.copy()
         dev = self.device
         return (
-            {"observation": torch.from_numpy(state).to(dev)},
+            {"observation": torch.from_numpy(obs).to(dev)},
             torch.from_numpy(reward).to(dev),
             torch.from_numpy(original.astype(np.float32)).to(dev),
             torch.from_numpy(terminated).to(dev),
@@ -188,22 +190,22 @@ class MOLunarLanderEnv(ContextualMOEnv):
     def _advance(self, idx: np.ndarray, main: np.ndarray, side: np.ndarray, direction: np.ndarray):
         """One Gymnasium step of the worlds ``idx`` with the given engine powers.
 
-        Returns the float32 observations ``[n, 8]``, the float64 shaping ``[n]`` and the
-        lander's ``awake`` flags ``[n]``.
+        Returns the observations ``[n, 8]`` (float64; Gymnasium's ``state`` before its cast
+        to float32), the shaping ``[n]`` and the lander's ``awake`` flags ``[n]``. Every expression keeps Gymnasium's operation order
+        (the results are the same float64 numbers).
         """
-        ctx = self._ctx[idx]
-        # wind and turbulence act only while no leg touches the ground
-        airborne = ~(self._legs[idx, 0] | self._legs[idx, 1])
-        kw = self._wind_idx[idx].astype(np.float64)
-        kt = self._torque_idx[idx].astype(np.float64)
-        wind = np.tanh(np.sin(P.WIND_K1 * kw) + np.sin(P.WIND_K2 * kw)) * ctx[:, _WIND]
-        torque = np.tanh(np.sin(P.WIND_K1 * kt) + np.sin(P.WIND_K2 * kt)) * ctx[:, _TURBULENCE]
-        self._wind_idx[idx] += airborne
-        self._torque_idx[idx] += airborne
+        every = len(idx) == self.num_envs
+        sel = slice(None) if every else idx  # views instead of gathers on the common path
+        ctx = self._ctx[sel]
+        # wind and turbulence (columns 0, 1) act only while no leg touches the ground
+        airborne = ~(self._legs[sel, 0] | self._legs[sel, 1])
+        k = self._wind_idx[sel].astype(np.float64)
+        wind = np.tanh(np.sin(P.WIND_K1 * k) + np.sin(P.WIND_K2 * k)) * ctx[:, _WIND : _TURBULENCE + 1]
+        self._wind_idx[sel] += airborne[:, None]
 
         disp = self._streams.take(idx) / P.SCALE
         d0, d1 = disp[:, 0], disp[:, 1]
-        body = self._body[idx]
+        body = self._body[sel]
         px, py, angle = body[:, 0], body[:, 1], body[:, 4]
         tip0, tip1 = np.sin(angle), np.cos(angle)
         side0, side1 = -tip1, tip0
@@ -211,65 +213,62 @@ class MOLunarLanderEnv(ContextualMOEnv):
         lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
         ox = tip0 * lever + side0 * d1
         oy = -tip1 * lever - side1 * d1
-        main_at = np.stack([px + ox, py + oy], -1)
-        main_imp = np.stack([-ox * ctx[:, _MAIN] * main, -oy * ctx[:, _MAIN] * main], -1)
+        main_x, main_y = px + ox, py + oy
+        power = ctx[:, _MAIN]
+        main_ix, main_iy = -ox * power * main, -oy * power * main
 
         arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
         ox = tip0 * d0 + side0 * arm
         oy = -tip1 * d0 - side1 * arm
-        side_at = np.stack(
-            [px + ox - tip0 * 17 / P.SCALE, py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE], -1
-        )
-        side_imp = np.stack([-ox * ctx[:, _SIDE] * side, -oy * ctx[:, _SIDE] * side], -1)
+        side_x = px + ox - tip0 * 17 / P.SCALE  # Gymnasium's 17 (not SIDE_ENGINE_HEIGHT) kept
+        side_y = py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE
+        power = ctx[:, _SIDE]
+        side_ix, side_iy = -ox * power * side, -oy * power * side
 
-        fire_main, fire_side = main > 0, side > 0
+        worlds = self._worlds if every else [self._worlds[i] for i in idx.tolist()]
         readback = []
-        worlds = self._worlds
-        for i, air, w_f, t_f, fm, m_imp, m_at, fs, s_imp, s_at in zip(
-            idx.tolist(), airborne.tolist(), wind.tolist(), torque.tolist(),
-            fire_main.tolist(), main_imp.tolist(), main_at.tolist(),
-            fire_side.tolist(), side_imp.tolist(), side_at.tolist(),
+        for w, air, (f, t), fm, mix, miy, mx, my, fs, six, siy, sx, sy in zip(
+            worlds, airborne.tolist(), wind.tolist(),
+            (main > 0).tolist(), main_ix.tolist(), main_iy.tolist(), main_x.tolist(), main_y.tolist(),
+            (side > 0).tolist(), side_ix.tolist(), side_iy.tolist(), side_x.tolist(), side_y.tolist(),
         ):  # fmt: skip
-            w = worlds[i]
             lander = w.lander
             if air:
-                lander.ApplyForceToCenter((w_f, 0.0), True)
-                lander.ApplyTorque(t_f, True)
+                lander.ApplyForceToCenter((f, 0.0), True)
+                lander.ApplyTorque(t, True)
             if fm:
-                lander.ApplyLinearImpulse(m_imp, m_at, True)
+                lander.ApplyLinearImpulse((mix, miy), (mx, my), True)
             if fs:
-                lander.ApplyLinearImpulse(s_imp, s_at, True)
+                lander.ApplyLinearImpulse((six, siy), (sx, sy), True)
             w.world.Step(P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS)
             pos, vel = lander.position, lander.linearVelocity
             readback.append((pos.x, pos.y, vel.x, vel.y, lander.angle, lander.angularVelocity, lander.awake))
 
         back = np.array(readback, dtype=np.float64).reshape(len(idx), 7)
-        self._body[idx] = back[:, :6]
-        legs = self._legs[idx].astype(np.float64)
+        self._body[sel] = back[:, :6]
         s = np.empty((len(idx), 8))
-        s[:, 0] = (back[:, 0] - _HALF_W) / _HALF_W
-        s[:, 1] = (back[:, 1] - _PAD_Y) / _HALF_H
-        s[:, 2] = back[:, 2] * _HALF_W / P.FPS
-        s[:, 3] = back[:, 3] * _HALF_H / P.FPS
+        s[:, 0:2] = (back[:, 0:2] - _OBS_OFFSET) / _OBS_SCALE
+        s[:, 2:4] = back[:, 2:4] * _OBS_SCALE / P.FPS
         s[:, 4] = back[:, 4]
         s[:, 5] = 20.0 * back[:, 5] / P.FPS
-        s[:, 6:] = legs
-        shaping = (
-            -100 * np.sqrt(s[:, 0] * s[:, 0] + s[:, 1] * s[:, 1])
-            - 100 * np.sqrt(s[:, 2] * s[:, 2] + s[:, 3] * s[:, 3])
-            - 100 * np.abs(s[:, 4])
-            + 10 * s[:, 6]
-            + 10 * s[:, 7]
-        )
-        return s.astype(np.float32), shaping, back[:, 6] > 0
+        s[:, 6:] = self._legs[sel]
+        sq = s[:, 0:4] * s[:, 0:4]
+        norms = np.sqrt(sq[:, 0::2] + sq[:, 1::2])  # |(x, y)|, |(vx, vy)|
+        shaping = -100 * norms[:, 0] - 100 * norms[:, 1] - 100 * np.abs(s[:, 4]) + 10 * s[:, 6] + 10 * s[:, 7]
+        return s, shaping, back[:, 6] > 0
 
     # ------------------------------------------------------------------ rendering
-    def render(self, index: int | None = 0) -> np.ndarray:
+    def render(self, index: int | None = 0, *, mode: str = "rgb_array") -> np.ndarray:
         """RGB image ``[400, 600, 3]`` (uint8) of sub-env ``index``; all of them
-        ``[num_envs, 400, 600, 3]`` with ``index=None``. Needs Pillow, opens no window."""
+        ``[num_envs, 400, 600, 3]`` with ``index=None``. Needs Pillow, opens no window.
+
+        Works with TorchRL's ``PixelRenderTransform(index=None)`` to record every sub-env.
+        """
         from morl_trl.envs.lunar_lander.render import render_world
 
-        if any(w is None for w in self._worlds):
+        if mode != "rgb_array":
+            raise ValueError(f"render mode {mode!r} is not supported; only 'rgb_array'")
+        if not self._ready:
             raise RuntimeError("MOLunarLanderEnv: call reset() before render()")
         if index is None:
             return np.stack([render_world(w) for w in self._worlds])
