@@ -142,8 +142,13 @@ class PreferenceConditioning(SeededTransform):
             parent = self.parent
             if parent is None:
                 raise RuntimeError("PreferenceConditioning: num_objectives unknown (no parent env to infer it)")
-            self._k = int(parent.full_reward_spec[parent.reward_key].shape[-1])
+            self._k = self._reward_width(parent)
         return self._k
+
+    @staticmethod
+    def _reward_width(parent) -> int:
+        key = "reward" if "reward" in parent.reward_keys else parent.reward_key
+        return int(parent.full_reward_spec[key].shape[-1])
 
     def _spec(self, batch, device) -> Bounded:
         return Bounded(0.0, 1.0, shape=(*batch, self.num_objectives), dtype=torch.float32, device=device)
@@ -151,7 +156,7 @@ class PreferenceConditioning(SeededTransform):
     def _check_width(self) -> None:
         parent = self.parent
         if parent is not None and self._k is not None:
-            width = int(parent.full_reward_spec[parent.reward_key].shape[-1])
+            width = self._reward_width(parent)
             if width != self._k:
                 what = "the weight set has" if self.weights is not None else "num_objectives gives"
                 raise ValueError(f"{what} {self._k} objectives; the env has {width}")

@@ -201,3 +201,19 @@ def test_all_transforms_in_parallel_env_with_spawned_workers():
         check_all(run(env, seed=5))
     finally:
         env.close()
+
+
+def test_all_transforms_with_a_torchrl_collector():
+    from torchrl.collectors import Collector
+
+    env = worker(all_transforms, num_envs=4)
+    env.set_seed(0)
+    collector = Collector(env, policy=None, frames_per_batch=64, total_frames=192)
+    try:
+        batches = [batch.clone() for batch in collector]
+    finally:
+        collector.shutdown()
+    assert [b.shape for b in batches] == [(4, 16)] * 3
+    data = torch.cat(batches, 1)  # episodes run on from one batch into the next
+    assert episode_starts(data)[:, 1:].sum() >= 8
+    check_all(data)
