@@ -78,6 +78,7 @@ class StateActionHistory(Transform):
         self._action_key = action_key
         self._history: torch.Tensor | None = None
         self._layout: tuple[int, int] | None = None  # (obs_dim, action_dim)
+        self._encoding: tuple[str, int] | None = None
 
     # ------------------------------------------------------------------ keys and sizes
     @property
@@ -125,13 +126,21 @@ class StateActionHistory(Transform):
             return count * spec.space.n
         return count
 
-    def _encode_action(self, action: torch.Tensor, spec: TensorSpec, batch: torch.Size, dtype) -> torch.Tensor:
-        kind = self._action_kind(spec)
+    def _action_encoding(self) -> tuple[str, int]:
+        """(kind, n) of the env's action, cached: read once from the spec."""
+        if self._encoding is None:
+            spec = self._action_spec()
+            kind = self._action_kind(spec)
+            self._encoding = (kind, spec.space.n if kind in ("onehot_spec", "categorical") else 0)
+        return self._encoding
+
+    def _encode_action(self, action: torch.Tensor, batch: torch.Size, dtype) -> torch.Tensor:
+        kind, n = self._action_encoding()
         action = action.reshape(*batch, -1)
         if kind == "onehot_spec" and self.discrete_action == "index":
             return action.to(torch.uint8).argmax(-1, keepdim=True).to(dtype)
         if kind == "categorical" and self.discrete_action == "one_hot":
-            return F.one_hot(action.long(), spec.space.n).reshape(*batch, -1).to(dtype)
+            return F.one_hot(action.long(), n).reshape(*batch, -1).to(dtype)
         return action.to(dtype)
 
     def _sizes(self, obs_spec: TensorSpec, nb: int) -> tuple[int, int]:
@@ -149,7 +158,7 @@ class StateActionHistory(Transform):
         nb = len(parent.batch_size) if parent is not None else len(observation_spec.shape)
         obs_spec = observation_spec[self.in_key]
         d, a = self._sizes(obs_spec, nb)
-        self._layout = (d, a)
+        self._layout, self._encoding = (d, a), None
         L = self.length
         batch = obs_spec.shape[:nb]
         width = (L + 1) * d + L * a
@@ -225,7 +234,7 @@ class StateActionHistory(Transform):
             raise RuntimeError("StateActionHistory: the env was stepped before it was reset")
         d, a = self._layout
         action = tensordict.get(self.action_key)
-        enc = self._encode_action(action, self._action_spec(), obs.shape[:-1], obs.dtype)
+        enc = self._encode_action(action, obs.shape[:-1], obs.dtype)
         history = torch.cat([self._history[..., d + a :], enc, obs], -1)
         self._history = history
         next_tensordict.set(self.out_key, history)
@@ -285,7 +294,7 @@ class StateActionHistory(Transform):
     def _encode_offline(self, action: torch.Tensor, obs: torch.Tensor) -> torch.Tensor:
         batch = obs.shape[:-1]
         if self.parent is not None:
-            return self._encode_action(action, self._action_spec(), batch, obs.dtype)
+            return self._encode_action(action, batch, obs.dtype)
         if self.discrete_action == "one_hot":
             raise ValueError("offline one-hot encoding needs the env (its action spec); use it inside a TransformedEnv")
         return action.reshape(*batch, -1).to(obs.dtype)
