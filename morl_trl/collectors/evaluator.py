@@ -102,11 +102,12 @@ class MultiContextEvaluator:
 
     Example:
         >>> from morl_trl.collectors import MultiContextEvaluator
-        >>> ev = MultiContextEvaluator("random", "MOLunarLanderDR-v0", weights=10, seed=0)  # doctest: +SKIP
-        >>> result = ev.evaluate()                                                        # doctest: +SKIP
-        >>> result.returns.shape                                                          # doctest: +SKIP
-        torch.Size([8, 10, 1, 4])
-        >>> result.metric("hypervolume")["MOLunarLanderHard-v0"]                          # doctest: +SKIP
+        >>> ev = MultiContextEvaluator("random", "MOLunarLanderDR-v0", weights=4, seed=0)
+        >>> result = ev.evaluate()            # 8 contexts x 4 weights, one batched env of 32
+        >>> result.returns.shape              # [contexts, weights, episodes, objectives]
+        torch.Size([8, 4, 1, 4])
+        >>> sorted(result.per_context["MOLunarLanderHard-v0"].metrics)
+        ['cardinality', 'eum', 'hypervolume', 'sparsity']
     """
 
     def __init__(

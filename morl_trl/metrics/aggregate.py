@@ -61,7 +61,7 @@ def optimality_gap(scores, target: float = 1.0) -> float:
     """How far the scores fall short of ``target``: ``target - mean(min(scores, target))``.
 
     Example:
-        >>> optimality_gap([[0.5, 1.2], [0.8, 0.9]])
+        >>> round(optimality_gap([[0.5, 1.2], [0.8, 0.9]]), 6)
         0.2
     """
     arr = _scores(scores)

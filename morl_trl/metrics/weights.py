@@ -62,6 +62,11 @@ def energy_weights(num_objectives: int, n: int = 100, *, seed: int = 42, dtype=t
         (torch.Size([5, 2]), True)
     """
     _check(num_objectives, n)
+    if n < num_objectives:
+        raise ValueError(
+            f"energy weights need n >= num_objectives (they include the {num_objectives} corners of the "
+            f"simplex), got n={n}; use uniform_weights or extreme_weights for fewer"
+        )
     return torch.as_tensor(_energy(num_objectives, n, int(seed)).copy(), dtype=dtype)
 
 

@@ -205,6 +205,7 @@ GOOD = [[1.0, 2.0], [2.0, 1.0]]
         (lambda: pareto_front([[1.0, float("nan")]]), "finite"),
         (lambda: Bounds([0.0, 1.0], [1.0, 1.0]), "upper must be > lower"),
         (lambda: energy_weights(0, 10), "num_objectives"),
+        (lambda: energy_weights(4, 3), "n >= num_objectives"),
         (lambda: uniform_weights(2, 0), "positive"),
         (lambda: interquartile_mean([]), "empty"),
         (lambda: optimality_gap([[0.5, float("nan")]]), "NaN"),
