@@ -21,9 +21,13 @@ from morl_trl.envs.specs.lunar_lander import LUNAR_LANDER_CONTEXT, OBJECTIVES
 __all__ = ["MOLunarLanderEnv"]
 
 _GRAVITY, _WIND, _TURBULENCE, _MAIN, _SIDE, _X, _Y = range(7)
-# observation = ((x, y) - offset) / scale, (vx, vy) * scale / FPS, as Gymnasium computes it
-_OBS_OFFSET = np.array([P.VIEWPORT_W / P.SCALE / 2, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE])
-_OBS_SCALE = np.array([P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2])
+_HALF_W, _HALF_H = P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2
+# Gymnasium's state from (x, y, vx, vy, angle, angular velocity): (x - W/2) / (W/2),
+# (y - pad) / (H/2), vx * (W/2) / FPS, vy * (H/2) / FPS, angle, 20 * w / FPS. As one
+# (v * mul - sub) / div whose extra factors (* 1, - 0, / 1) are exact: the same floats.
+_OBS_MUL = np.array([1.0, 1.0, _HALF_W, _HALF_H, 1.0, 20.0])
+_OBS_SUB = np.array([_HALF_W, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE, 0.0, 0.0, 0.0, 0.0])
+_OBS_DIV = np.array([_HALF_W, _HALF_H, P.FPS, P.FPS, 1.0, P.FPS])
 
 
 def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
@@ -34,6 +38,45 @@ def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
     values people type (all the paper's contexts).
     """
     return context.detach().cpu().numpy().astype(np.float32).astype(str).astype(np.float64)
+
+
+def _engine_impulses(body, ctx, disp, main, side, direction):
+    """Per sub-env ``(impulse, point)`` of the main and the side engine (``None``: not firing).
+
+    ``body`` ``[n, 6]`` is the lander state read back after the previous step, ``disp``
+    ``[n, 2]`` the step's dispersion (already divided by ``SCALE``).
+    """
+    n = len(main)
+    fire_main, fire_side = main > 0, side > 0
+    main_kicks = side_kicks = [None] * n
+    if not (fire_main.any() or fire_side.any()):
+        return main_kicks, side_kicks
+    d0, d1 = disp[:, 0], disp[:, 1]
+    px, py, angle = body[:, 0], body[:, 1], body[:, 4]
+    tip0, tip1 = np.sin(angle), np.cos(angle)
+    side0, side1 = -tip1, tip0
+    if fire_main.any():
+        lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
+        ox = tip0 * lever + side0 * d1
+        oy = -tip1 * lever - side1 * d1
+        power = ctx[:, _MAIN]
+        main_kicks = _kicks(fire_main, -ox * power * main, -oy * power * main, px + ox, py + oy)
+    if fire_side.any():
+        arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
+        ox = tip0 * d0 + side0 * arm
+        oy = -tip1 * d0 - side1 * arm
+        power = ctx[:, _SIDE]
+        x = px + ox - tip0 * 17 / P.SCALE  # Gymnasium's 17 (not SIDE_ENGINE_HEIGHT), kept
+        y = py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE
+        side_kicks = _kicks(fire_side, -ox * power * side, -oy * power * side, x, y)
+    return main_kicks, side_kicks
+
+
+def _kicks(fire, ix, iy, x, y) -> list:
+    return [
+        ((a, b), (c, d)) if f else None
+        for f, a, b, c, d in zip(fire.tolist(), ix.tolist(), iy.tolist(), x.tolist(), y.tolist())
+    ]
 
 
 class MOLunarLanderEnv(ContextualMOEnv):
@@ -190,56 +233,34 @@ class MOLunarLanderEnv(ContextualMOEnv):
     def _advance(self, idx: np.ndarray, main: np.ndarray, side: np.ndarray, direction: np.ndarray):
         """One Gymnasium step of the worlds ``idx`` with the given engine powers.
 
-        Returns the observations ``[n, 8]`` (float64; Gymnasium's ``state`` before its cast
-        to float32), the shaping ``[n]`` and the lander's ``awake`` flags ``[n]``. Every expression keeps Gymnasium's operation order
-        (the results are the same float64 numbers).
+        Returns the observations ``[n, 8]`` (float64: Gymnasium's ``state`` before its cast
+        to float32), the shaping ``[n]`` and the landers' ``awake`` flags ``[n]``. Every
+        expression keeps Gymnasium's operation order, so the floats are the same.
         """
         every = len(idx) == self.num_envs
         sel = slice(None) if every else idx  # views instead of gathers on the common path
         ctx = self._ctx[sel]
-        # wind and turbulence (columns 0, 1) act only while no leg touches the ground
+        # wind and turbulence act only while no leg touches the ground
         airborne = ~(self._legs[sel, 0] | self._legs[sel, 1])
-        k = self._wind_idx[sel].astype(np.float64)
+        k = self._wind_idx[sel].astype(np.float64)  # columns: wind, torque
         wind = np.tanh(np.sin(P.WIND_K1 * k) + np.sin(P.WIND_K2 * k)) * ctx[:, _WIND : _TURBULENCE + 1]
         self._wind_idx[sel] += airborne[:, None]
-
-        disp = self._streams.take(idx) / P.SCALE
-        d0, d1 = disp[:, 0], disp[:, 1]
-        body = self._body[sel]
-        px, py, angle = body[:, 0], body[:, 1], body[:, 4]
-        tip0, tip1 = np.sin(angle), np.cos(angle)
-        side0, side1 = -tip1, tip0
-
-        lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
-        ox = tip0 * lever + side0 * d1
-        oy = -tip1 * lever - side1 * d1
-        main_x, main_y = px + ox, py + oy
-        power = ctx[:, _MAIN]
-        main_ix, main_iy = -ox * power * main, -oy * power * main
-
-        arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
-        ox = tip0 * d0 + side0 * arm
-        oy = -tip1 * d0 - side1 * arm
-        side_x = px + ox - tip0 * 17 / P.SCALE  # Gymnasium's 17 (not SIDE_ENGINE_HEIGHT) kept
-        side_y = py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE
-        power = ctx[:, _SIDE]
-        side_ix, side_iy = -ox * power * side, -oy * power * side
+        disp = self._streams.take(idx) / P.SCALE  # drawn at every step, engines firing or not
+        main_kicks, side_kicks = _engine_impulses(self._body[sel], ctx, disp, main, side, direction)
 
         worlds = self._worlds if every else [self._worlds[i] for i in idx.tolist()]
         readback = []
-        for w, air, (f, t), fm, mix, miy, mx, my, fs, six, siy, sx, sy in zip(
-            worlds, airborne.tolist(), wind.tolist(),
-            (main > 0).tolist(), main_ix.tolist(), main_iy.tolist(), main_x.tolist(), main_y.tolist(),
-            (side > 0).tolist(), side_ix.tolist(), side_iy.tolist(), side_x.tolist(), side_y.tolist(),
-        ):  # fmt: skip
+        for w, air, (force, torque), main_kick, side_kick in zip(
+            worlds, airborne.tolist(), wind.tolist(), main_kicks, side_kicks
+        ):
             lander = w.lander
             if air:
-                lander.ApplyForceToCenter((f, 0.0), True)
-                lander.ApplyTorque(t, True)
-            if fm:
-                lander.ApplyLinearImpulse((mix, miy), (mx, my), True)
-            if fs:
-                lander.ApplyLinearImpulse((six, siy), (sx, sy), True)
+                lander.ApplyForceToCenter((force, 0.0), True)
+                lander.ApplyTorque(torque, True)
+            if main_kick is not None:
+                lander.ApplyLinearImpulse(*main_kick, True)
+            if side_kick is not None:
+                lander.ApplyLinearImpulse(*side_kick, True)
             w.world.Step(P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS)
             pos, vel = lander.position, lander.linearVelocity
             readback.append((pos.x, pos.y, vel.x, vel.y, lander.angle, lander.angularVelocity, lander.awake))
@@ -247,14 +268,12 @@ class MOLunarLanderEnv(ContextualMOEnv):
         back = np.array(readback, dtype=np.float64).reshape(len(idx), 7)
         self._body[sel] = back[:, :6]
         s = np.empty((len(idx), 8))
-        s[:, 0:2] = (back[:, 0:2] - _OBS_OFFSET) / _OBS_SCALE
-        s[:, 2:4] = back[:, 2:4] * _OBS_SCALE / P.FPS
-        s[:, 4] = back[:, 4]
-        s[:, 5] = 20.0 * back[:, 5] / P.FPS
+        s[:, :6] = (back[:, :6] * _OBS_MUL - _OBS_SUB) / _OBS_DIV
         s[:, 6:] = self._legs[sel]
         sq = s[:, 0:4] * s[:, 0:4]
-        norms = np.sqrt(sq[:, 0::2] + sq[:, 1::2])  # |(x, y)|, |(vx, vy)|
-        shaping = -100 * norms[:, 0] - 100 * norms[:, 1] - 100 * np.abs(s[:, 4]) + 10 * s[:, 6] + 10 * s[:, 7]
+        hundred_norms = 100 * np.sqrt(sq[:, 0::2] + sq[:, 1::2])  # 100 |(x, y)|, 100 |(vx, vy)|
+        legs = 10 * s[:, 6:]
+        shaping = -hundred_norms[:, 0] - hundred_norms[:, 1] - 100 * np.abs(s[:, 4]) + legs[:, 0] + legs[:, 1]
         return s, shaping, back[:, 6] > 0
 
     # ------------------------------------------------------------------ rendering
