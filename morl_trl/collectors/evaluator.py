@@ -240,7 +240,9 @@ class MultiContextEvaluator:
         specs = [domain_of(i) for i in ids]  # raises on unknown ids
         domains = {s.train_id for s in specs}
         if len(domains) != 1:
-            raise ValueError(f"contexts {ids} belong to several domains {sorted(domains)}; evaluate one domain at a time")
+            raise ValueError(
+                f"contexts {ids} belong to several domains {sorted(domains)}; evaluate one domain at a time"
+            )
         self.domain = specs[0]
         return tuple(ids), torch.stack([self.domain.context_of(i) for i in ids])
 
@@ -250,7 +252,9 @@ class MultiContextEvaluator:
             out.update({c: self.reference.bounds[c] for c in self.context_names})
         for c, b in (bounds or {}).items():
             if c not in self.context_names:
-                raise ValueError(f"bounds given for {c!r}, which is not evaluated; contexts: {list(self.context_names)}")
+                raise ValueError(
+                    f"bounds given for {c!r}, which is not evaluated; contexts: {list(self.context_names)}"
+                )
             b = b if isinstance(b, Bounds) else Bounds(*b)
             if b.num_objectives != k:
                 raise ValueError(f"bounds of {c!r} have {b.num_objectives} objectives, the env {k}")

@@ -137,7 +137,8 @@ class EvaluationResult:
         return out
 
     def write_csv(self, path: str | Path, kind: str = "episodes") -> Path:
-        """Write ``to_rows()`` (``kind="episodes"``), ``metric_rows()`` (``"metrics"``) or ``front_rows()`` (``"fronts"``)."""
+        """Write ``to_rows()`` (``kind="episodes"``), ``metric_rows()`` (``"metrics"``) or
+        ``front_rows()`` (``"fronts"``) as CSV."""
         makers = {"episodes": self.to_rows, "metrics": self.metric_rows, "fronts": self.front_rows}
         if kind not in makers:
             raise ValueError(f"unknown kind {kind!r}; valid: {list(makers)}")
@@ -154,4 +155,7 @@ class EvaluationResult:
     def __repr__(self) -> str:
         C, W, E, k = self.returns.shape
         agg = ", ".join(f"{m}={v:.4g}" for m, v in self.aggregate.items())
-        return f"EvaluationResult(contexts={C}, weights={W}, episodes={E}, objectives={list(self.objective_names)}, {agg})"
+        return (
+            f"EvaluationResult(contexts={C}, weights={W}, episodes={E}, "
+            f"objectives={list(self.objective_names)}, {agg})"
+        )
