@@ -59,7 +59,8 @@ target = HardUpdate(loss, value_network_update_interval=cfg.target_update_period
 
 # ---------------------------------------------------------------- data
 collector = Collector(env, explore, frames_per_batch=cfg.frames_per_batch, total_frames=cfg.frames,
-                      init_random_frames=cfg.init_random_frames, exploration_type=ExplorationType.RANDOM)
+                      init_random_frames=cfg.init_random_frames, exploration_type=ExplorationType.RANDOM,
+                      auto_register_policy_transforms=False)
 buffer = TensorDictReplayBuffer(
     storage=LazyTensorStorage(cfg.buffer_size),
     sampler=prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta),

@@ -53,7 +53,8 @@ target = SoftUpdate(loss, tau=cfg.tau)
 
 # ---------------------------------------------------------------- data
 collector = Collector(env, actor, frames_per_batch=cfg.frames_per_batch, total_frames=cfg.frames,
-                      init_random_frames=cfg.init_random_frames, exploration_type=ExplorationType.RANDOM)
+                      init_random_frames=cfg.init_random_frames, exploration_type=ExplorationType.RANDOM,
+                      auto_register_policy_transforms=False)
 buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size), batch_size=cfg.batch_size)
 evaluator = MultiContextEvaluator(actor, spec.train_id, weights=cfg.eval_weights, gamma=gamma,
                                   transform=make_eval_transform(cfg), seed=cfg.seed)

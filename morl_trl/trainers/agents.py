@@ -94,6 +94,7 @@ class Agent:
             init_random_frames=max(cfg.init_random_frames - frames_done, 0),
             device=self.device,
             exploration_type=ExplorationType.RANDOM,
+            auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
         )
 
     def make_evaluator(self, transform, spec):

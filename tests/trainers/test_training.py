@@ -67,8 +67,9 @@ def _rows(path: Path) -> list[dict]:
 
 
 def test_short_run_writes_everything(tmp_path, reference_dir):
+    # 2 sub-envs x 256 steps: every training episode ends (truncation at 256) within the run
     cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, run_dir=str(tmp_path / "run"),
-                         reference_dir=str(reference_dir), **TINY)
+                         reference_dir=str(reference_dir), **{**TINY, "num_envs": 2})
     summary = train(cfg)
     run = tmp_path / "run"
     assert json.loads((run / "config.json").read_text())["frames"] == 512
@@ -84,7 +85,9 @@ def test_short_run_writes_everything(tmp_path, reference_dir):
     assert {"return_lava", "return_time", "weight_lava", "weight_time"} <= set(episodes[0])
     fronts = _rows(run / "fronts" / "frames_000000000512.csv")
     assert set(fronts[0]) == {"context", "lava", "time"}
-    assert (run / "train" / "episodes.csv").exists()
+    train_eps = _rows(run / "train" / "episodes.csv")
+    assert len(train_eps) >= 2
+    assert {"context_lava_x2_y2", "preference_lava", "return_lava", "discounted_return_time"} <= set(train_eps[0])
     assert latest_checkpoint(run).name == "frames_000000000512"
     report = (run / "report.md").read_text()
     assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper)" in report
