@@ -290,7 +290,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(format_table(rows))
+    try:
+        print(format_table(rows), flush=True)
+    except BrokenPipeError:  # e.g. piped into `head`
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     if args.csv:
         dicts = [r.as_dict() for r in rows]
         keys = list(dict.fromkeys(k for d in dicts for k in d))
