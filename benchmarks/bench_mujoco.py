@@ -5,7 +5,9 @@ TorchRL's ``step_and_maybe_reset`` (what collectors call: partial resets include
 1, 16, 64, and the raw Gymnasium env doing the same physics (``gym.make("<Domain>-v5")``
 with its default wrappers, reset when an episode ends), both with uniform random actions
 drawn beforehand. Each figure is the best of a few alternating repeats, which keeps the
-ratio meaningful on a shared machine. Target: ratio >= 1.0 at N=16 for every domain.
+ratio meaningful on a shared machine. Our envs are measured with their default thread
+count (``auto``: ``min(N, usable CPUs)`` C++ threads step the sub-envs) and with one thread.
+Target: ratio >= 1.0 at N=16 for every domain.
 
     python benchmarks/bench_mujoco.py            # ~1 minute
     python benchmarks/bench_mujoco.py --quick    # ~15 s, noisier
@@ -53,8 +55,8 @@ def gym_steps_per_second(env_id: str, kwargs: dict, seconds: float, seed: int = 
     return rate
 
 
-def ours_steps_per_second(env_id: str, num_envs: int, seconds: float, seed: int = 0) -> float:
-    env = make_env(env_id, num_envs=num_envs, seed=seed)
+def ours_steps_per_second(env_id: str, num_envs: int, seconds: float, seed: int = 0, threads=None) -> float:
+    env = make_env(env_id, num_envs=num_envs, seed=seed, num_threads=threads)
     td = env.reset()
     spec = env.action_spec
     low, high = spec.space.low, spec.space.high
@@ -81,22 +83,33 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true", help="shorter runs, fewer repeats")
     parser.add_argument("--domains", nargs="*", default=list(DOMAINS), choices=list(DOMAINS))
     parser.add_argument("--num-envs", nargs="*", type=int, default=[1, 16, 64])
+    parser.add_argument(
+        "--threads", nargs="*", type=int, default=[0, 1],
+        help="num_threads of our envs to measure; 0 is the default, min(N, CPUs)",
+    )
     args = parser.parse_args(argv)
     seconds, repeats = (0.4, 2) if args.quick else (1.5, 3)
     torch.set_num_threads(1)
 
     print(f"sub-env steps/s, best of {repeats} alternating repeats of {seconds}s each "
-          f"(torch {torch.__version__}, gymnasium {gym.__version__}, {os.cpu_count()} CPUs)")
-    print(f"{'domain':<12} {'peer (Gymnasium, 1 env)':>24} " + " ".join(f"{f'N={n}':>10} {'ratio':>6}" for n in args.num_envs))
+          f"(torch {torch.__version__}, gymnasium {gym.__version__}, {len(os.sched_getaffinity(0))} usable CPUs)")
+    head = " ".join(f"{f'N={n}':>9} {'ratio':>6}" for n in args.num_envs)
+    print(f"{'domain':<12} {'Gymnasium (1 env)':>17} {'threads':>8} {head}")
     for domain in args.domains:
         ours_id, gym_id, gym_kwargs = DOMAINS[domain]
-        peer, ours = 0.0, dict.fromkeys(args.num_envs, 0.0)
+        configs = [(t, n) for t in args.threads for n in args.num_envs if not (t == 1 and n == 1 and 0 in args.threads)]
+        peer, ours = 0.0, dict.fromkeys(configs, 0.0)
         for _ in range(repeats):
             peer = max(peer, gym_steps_per_second(gym_id, gym_kwargs, seconds))
-            for n in args.num_envs:
-                ours[n] = max(ours[n], ours_steps_per_second(ours_id, n, seconds))
-        cells = " ".join(f"{ours[n]:>10.0f} {ours[n] / peer:>6.2f}" for n in args.num_envs)
-        print(f"{domain:<12} {peer:>24.0f} {cells}", flush=True)
+            for t, n in configs:
+                ours[t, n] = max(ours[t, n], ours_steps_per_second(ours_id, n, seconds, threads=t or None))
+        for row, t in enumerate(args.threads):
+            cells = " ".join(
+                f"{ours[t, n]:>9.0f} {ours[t, n] / peer:>6.2f}" if (t, n) in ours else f"{'':>9} {'':>6}"
+                for n in args.num_envs
+            )
+            name, peer_cell = (domain, f"{peer:>17.0f}") if row == 0 else ("", f"{'':>17}")
+            print(f"{name:<12} {peer_cell} {t or 'auto':>8} {cells}", flush=True)
 
 
 if __name__ == "__main__":

@@ -127,10 +127,11 @@ class MujocoContextEnv(ContextualMOEnv):
         self._xml_context = self._read_context(base)
         self._default_f32 = np.asarray(self.context_space_.default, dtype=np.float32)
         self._body_mass = np.tile(base.body_mass, (num_envs, 1))
+        names = self.context_space_.names
+        self._damping_columns = np.array([c for c, n in enumerate(names) if n.startswith("damping_")], dtype=np.int64)
         context = self._context.cpu().numpy()
         self._check_physics(context)
-        for i in range(num_envs):
-            self._apply_context(i, context[i])
+        self._apply_contexts(range(num_envs), context)
         self._sim = Batch(base, num_envs, nthread=num_threads, persistent=True)
         self._sim.set_models(self._models)
         # bound before the first call: derived fields fill in at every call
@@ -174,24 +175,25 @@ class MujocoContextEnv(ContextualMOEnv):
         """Write a float64 context ``[c]`` into the model arrays SPEC names."""
         raise NotImplementedError
 
-    def _apply_context(self, i: int, context: np.ndarray) -> None:
+    def _apply_contexts(self, ids, context: np.ndarray) -> None:
+        """Write the contexts ``[len(ids), c]`` into the models of the sub-envs ``ids``."""
         values = _as_decimal_float64(context)
         at_default = np.asarray(context, dtype=np.float32) == self._default_f32
         values = np.where(at_default, self._xml_context, values)
-        self._write_context(self._models[i], values)
-        self._body_mass[i] = self._models[i].body_mass
+        for i, row in zip(ids, values):
+            self._write_context(self._models[i], row)
+            self._body_mass[i] = self._models[i].body_mass
 
     def _check_physics(self, context: np.ndarray) -> None:
         """Reject what the ContextSpace lets through but MuJoCo should not get (negative damping)."""
-        for col, name in enumerate(self.context_space_.names):
-            if name.startswith("damping_"):
-                bad = context[:, col] < 0
-                if bad.any():
-                    row = int(np.flatnonzero(bad)[0])
-                    raise ValueError(
-                        f"context parameter {name!r} is {float(context[row, col])} (row {row}); "
-                        "joint damping must be >= 0"
-                    )
+        bad = context[:, self._damping_columns] < 0
+        if bad.any():
+            row, k = (int(v) for v in np.argwhere(bad)[0])
+            col = self._damping_columns[k]
+            raise ValueError(
+                f"context parameter {self.context_space_.names[col]!r} is {float(context[row, col])} "
+                f"(row {row}); joint damping must be >= 0"
+            )
 
     # ------------------------------------------------------------------ seeding
     def _seed_subenvs(self, seed: int) -> None:
@@ -206,8 +208,7 @@ class MujocoContextEnv(ContextualMOEnv):
         context = context.cpu().numpy()
         self._check_physics(context)  # before anything changes
         ids = idx.cpu().numpy()
-        for j, i in enumerate(ids):
-            self._apply_context(i, context[j])
+        self._apply_contexts(ids, context)
         self._sim.set_models(self._models)  # Batch's contract after editing a model
         # Gymnasium's reset: mj_resetData, noisy qpos/qvel, mj_forward
         self._sim.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)

@@ -70,16 +70,19 @@ class MOHopperEnv(MujocoContextEnv):
         return np.concatenate([qpos[:, 1:], np.clip(qvel, -10.0, 10.0)], axis=1)
 
     def _is_healthy(self) -> np.ndarray:
+        # Gymnasium: z > 0.7, -0.2 < angle < 0.2, every entry of (qpos[2:], qvel) in (-100, 100)
         qpos, qvel = self._fields["qpos"], self._fields["qvel"]
         z, angle = qpos[:, 1], qpos[:, 2]
-        state = np.concatenate([qpos[:, 2:], qvel], axis=1)
-        healthy_state = ((-100.0 < state) & (state < 100.0)).all(axis=1)
-        return healthy_state & (0.7 < z) & (z < np.inf) & (-0.2 < angle) & (angle < 0.2)
+        healthy = (np.abs(qpos[:, 2:]) < 100.0).all(axis=1) & (np.abs(qvel) < 100.0).all(axis=1)
+        return healthy & (z > 0.7) & (z < np.inf) & (np.abs(angle) < 0.2)
 
     def _rewards(self, x_velocity, ctrl):
         sq = np.square(ctrl).sum(axis=1)
-        height = 10.0 * (self._fields["qpos"][:, 1] - self._init_qpos[1])
-        reward = np.stack([x_velocity, height, -sq], axis=1) + self.healthy_bonus
+        reward = np.empty((self.num_envs, 3))
+        reward[:, 0] = x_velocity
+        reward[:, 1] = 10.0 * (self._fields["qpos"][:, 1] - self._init_qpos[1])
+        reward[:, 2] = -sq
+        reward += self.healthy_bonus
         healthy = self._is_healthy()
         original = (self.forward_reward_weight * x_velocity + healthy * self.healthy_reward) - self.ctrl_cost_weight * sq
         return reward, original, ~healthy
