@@ -1,4 +1,4 @@
-"""A tiny pure-tensor contextual MO env for tests of transforms, evaluators and losses.
+"""A tiny pure-tensor contextual MO env: for examples, tests of transforms, evaluators and losses.
 
 ``ToyContextEnv``: each sub-env is a counter on a line. Context ``(speed, bias)``. Action 0
 moves left, 1 right. Observation ``[position, step/10]``. Reward ``[speed*move+bias, -1]``
@@ -18,6 +18,16 @@ TOY_CONTEXT = ContextSpace(("speed", "bias"), (1.0, 0.0), (0.5, -1.0), (2.0, 1.0
 
 
 class ToyContextEnv(ContextualMOEnv):
+    """A counter on a line per sub-env, context ``(speed, bias)`` (see the module docstring).
+
+    Example:
+        >>> import torch
+        >>> env = ToyContextEnv(num_envs=2, context=torch.tensor([2.0, 0.5]))
+        >>> td = env.rollout(2, lambda td: td.set("action", torch.ones(2, dtype=torch.long)))
+        >>> td["next", "reward"][0].tolist()
+        [[2.5, -1.0], [2.5, -1.0]]
+    """
+
     objective_names = ("progress", "time")
 
     def __init__(self, num_envs=1, context=None, device="cpu", seed=None, max_episode_steps=6):

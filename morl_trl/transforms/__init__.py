@@ -27,7 +27,7 @@ history repeats the context), and :class:`LinearScalarization` after
 
 Example:
     >>> from torchrl.envs import Compose, TransformedEnv
-    >>> from tests.mocks import ToyContextEnv, TOY_CONTEXT
+    >>> from morl_trl.envs.toy import ToyContextEnv, TOY_CONTEXT
     >>> env = TransformedEnv(ToyContextEnv(num_envs=4, seed=0), Compose(
     ...     DomainRandomization(TOY_CONTEXT), StateActionHistory(2), ContextObservation(normalize="unit"),
     ...     PreferenceConditioning(), LinearScalarization(), DiscountedVectorReturn(gamma=0.99)))

@@ -35,7 +35,7 @@ class ContextObservation(Transform):
 
     Example:
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv
+        >>> from morl_trl.envs.toy import ToyContextEnv
         >>> env = TransformedEnv(ToyContextEnv(num_envs=1), ContextObservation(normalize="unit"))
         >>> env.reset()["observation"]          # [position, time, speed 1 in [0.5, 2], bias 0 in [-1, 1]]
         tensor([[0.0000, 0.0000, 0.3333, 0.5000]])

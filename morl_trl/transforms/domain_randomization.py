@@ -55,7 +55,7 @@ class DomainRandomization(SeededTransform):
 
     Example:
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv, TOY_CONTEXT
+        >>> from morl_trl.envs.toy import ToyContextEnv, TOY_CONTEXT
         >>> env = TransformedEnv(ToyContextEnv(num_envs=3), DomainRandomization(TOY_CONTEXT, seed=0))
         >>> ctx = env.reset()["context"]
         >>> ctx.shape, TOY_CONTEXT.contains(ctx)

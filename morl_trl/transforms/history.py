@@ -49,7 +49,7 @@ class StateActionHistory(Transform):
     Example:
         >>> import torch
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv
+        >>> from morl_trl.envs.toy import ToyContextEnv
         >>> env = TransformedEnv(ToyContextEnv(num_envs=1), StateActionHistory(2))
         >>> td = env.reset()
         >>> td["observation"]                       # [s0, 0, s0, 0, s0], s0 = [position, time]

@@ -84,7 +84,7 @@ class PreferenceConditioning(SeededTransform):
 
     Example:
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv
+        >>> from morl_trl.envs.toy import ToyContextEnv
         >>> env = TransformedEnv(ToyContextEnv(num_envs=3), PreferenceConditioning(weights=[[1.0, 0.0], [0.5, 0.5]]))
         >>> env.reset()["preference"]
         tensor([[1.0000, 0.0000],

@@ -31,7 +31,7 @@ class DiscountedVectorReturn(Transform):
     Example:
         >>> import torch
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv
+        >>> from morl_trl.envs.toy import ToyContextEnv
         >>> env = TransformedEnv(ToyContextEnv(num_envs=1), DiscountedVectorReturn(gamma=0.5))
         >>> td = env.rollout(2, lambda td: td.set("action", torch.tensor([1])))
         >>> td["next", "episode_discounted_return"][:, -1]   # [1 + 0.5 * 1, -1 - 0.5]

@@ -36,7 +36,7 @@ class LinearScalarization(Transform):
     Example:
         >>> import torch
         >>> from torchrl.envs import TransformedEnv
-        >>> from tests.mocks import ToyContextEnv
+        >>> from morl_trl.envs.toy import ToyContextEnv
         >>> env = TransformedEnv(ToyContextEnv(num_envs=1), LinearScalarization([0.25, 0.75]))
         >>> td = env.step(env.reset().set("action", torch.tensor([1])))
         >>> td["next", "reward"], td["next", "scalar_reward"]   # reward [speed*1 + bias, -1]
