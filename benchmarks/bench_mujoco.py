@@ -92,7 +92,7 @@ def main(argv=None) -> None:
     torch.set_num_threads(1)
 
     print(f"sub-env steps/s, best of {repeats} alternating repeats of {seconds}s each "
-          f"(torch {torch.__version__}, gymnasium {gym.__version__}, {len(os.sched_getaffinity(0))} usable CPUs)")
+          f"(torch {torch.__version__}, gymnasium {gym.__version__}, {os.cpu_count()} CPUs)")
     head = " ".join(f"{f'N={n}':>9} {'ratio':>6}" for n in args.num_envs)
     print(f"{'domain':<12} {'Gymnasium (1 env)':>17} {'threads':>8} {head}")
     for domain in args.domains:

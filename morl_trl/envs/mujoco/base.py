@@ -56,6 +56,12 @@ def load_model(xml_name: str) -> mujoco.MjModel:
         mujoco.set_mju_user_warning(previous)
 
 
+def _usable_cpus() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
 def _as_decimal_float64(context: np.ndarray) -> np.ndarray:
     """float32 contexts -> the float64 of their shortest decimal (0.1f -> 0.1, not 0.100000001).
 
@@ -116,7 +122,7 @@ class MujocoContextEnv(ContextualMOEnv):
             max_episode_steps=max_episode_steps,
         )
         if num_threads is None:
-            num_threads = min(num_envs, len(os.sched_getaffinity(0)))
+            num_threads = min(num_envs, _usable_cpus())
         if not isinstance(num_threads, int) or num_threads < 1:
             raise ValueError(f"num_threads must be a positive int, got {num_threads!r}")
         base = load_model(self.xml_file)
