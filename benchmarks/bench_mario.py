@@ -16,7 +16,8 @@ emulator when its episode ends:
 * **ours, 2 processes** (skipped with ``--quick``): ``torchrl.envs.ParallelEnv`` of 2
   workers, each holding N/2 emulators in one thread;
 
-for N = 1, 2, 4, and prints each rate with its ratio to the raw loop.
+for N = 1, 2, 4, and prints each rate with its ratio to the raw loop. It first prints what a
+stage costs: starting an emulator on it, resetting it (restoring its snapshot), one frame.
 
     python benchmarks/bench_mario.py            # ~2 min
     python benchmarks/bench_mario.py --quick    # ~30 s
@@ -107,6 +108,28 @@ def processes_rate(n: int, steps: int, warmup: int) -> float:
         env.close()
 
 
+def stage_costs(reps: int = 1000) -> tuple[float, float, float]:
+    """Seconds to start a stage emulator (title screen -> stage), to reset one (restore its
+    snapshot), and to emulate one frame."""
+    from morl_trl.envs.mario.game import MarioStage
+
+    start = time.perf_counter()
+    games = [MarioStage(w, l) for w, l in ((1, 1), (3, 3), (8, 4))]
+    started = (time.perf_counter() - start) / len(games)
+    game = games[0]
+    start = time.perf_counter()
+    for _ in range(reps):
+        game.reset()
+    reset = (time.perf_counter() - start) / reps
+    start = time.perf_counter()
+    for _ in range(reps // 4):
+        game.nes.step(0x80)
+    frame = (time.perf_counter() - start) / (reps // 4)
+    for g in games:
+        g.close()
+    return started, reset, frame
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer steps, no worker processes")
@@ -116,6 +139,11 @@ def main() -> None:
     warmup = 10
     torch.set_num_threads(1)  # the frame pipeline is small; keep the cores for the emulators
 
+    started, reset, frame = stage_costs()
+    print(
+        f"stage start {started * 1e3:.0f} ms (kept in a pool), reset by restore {reset * 1e6:.0f} us, "
+        f"one emulated frame {frame * 1e3:.2f} ms"
+    )
     print(f"MO-SuperMarioBros stage {STAGE[0]}-{STAGE[1]}, {steps} timed agent steps (x4 frames) per emulator")
     header = f"{'N':>3} {'raw loop':>10} {'ours 1 thr':>16} {'ours 2 thr':>16}"
     if not args.quick:

@@ -370,3 +370,29 @@ def test_threads_do_not_change_results():
     torch.testing.assert_close(outs[0]["next", "reward"], outs[1]["next", "reward"], rtol=0, atol=0)
     assert torch.equal(outs[0]["next", "observation"], outs[1]["next", "observation"])
     assert not torch.equal(outs[0]["next", "observation"][0], outs[0]["next", "observation"][1])
+
+
+@pytest.mark.mario
+@needs_nes
+def test_partial_reset_touches_only_the_selected_sub_env():
+    from morl_trl.envs.mario import MOSuperMarioBrosEnv
+
+    env = make_env("MOSuperMarioBros-1-1-v2", num_envs=2)
+    assert type(env) is MOSuperMarioBrosEnv  # frames are skipped natively: no TorchRL FrameSkipTransform
+    start = env.reset()["observation"]
+    td = start
+    for _ in range(5):
+        td = env.step(TensorDict(action=torch.tensor([RIGHT, RIGHT]), batch_size=[2]))["next"]
+    moved = td["observation"]
+    assert not torch.equal(moved[0], start[0])
+    # as in step_and_maybe_reset: the carried TensorDict holds the sub-envs that keep going
+    reset = td.clone().update({"_reset": torch.tensor([[False], [True]]), "context": torch.tensor([[1.0, 1.0], [8.0, 4.0]])})
+    out = env.reset(reset)
+    assert torch.equal(out["observation"][0], moved[0])  # untouched
+    assert env.stage_names() == ["1-1", "8-4"]
+    assert env._games[1].loaded_stage() == (8, 4)
+    assert torch.equal(out["observation"][1, 0], out["observation"][1, 3])  # a fresh stack
+    after = env.step(out.set("action", torch.tensor([RIGHT, RIGHT])))["next"]["observation"]
+    assert torch.equal(after[0, :3], moved[0, 1:])  # sub-env 0 went on where it was
+    assert torch.equal(after[1, :3], out["observation"][1, 1:])  # sub-env 1 from its new start
+    env.close()

@@ -6,9 +6,9 @@ stage starts (``pip install 'morl-trl[mario]'``).
 Example:
     >>> from morl_trl.envs import make_env
     >>> env = make_env("MOSuperMarioBrosZeroShot-v2", num_envs=2, seed=0)   # doctest: +SKIP
-    >>> env.reset()["context"]                                              # doctest: +SKIP
-    tensor([[8., 2.],
-            [6., 1.]])
+    >>> td = env.reset()                                                     # doctest: +SKIP
+    >>> td["context"].shape, td["observation"].shape, td["observation"].dtype   # doctest: +SKIP
+    (torch.Size([2, 2]), torch.Size([2, 4, 84, 84]), torch.uint8)
 """
 
 from morl_trl.envs.mario.env import MOSuperMarioBrosEnv, StagePool

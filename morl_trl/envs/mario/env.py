@@ -117,9 +117,10 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     so the first step earns the start position (x = 40, +1.2 scaled) as progress.
 
     The death penalty is given on the frame Mario starts dying, which is also the frame
-    the episode ends. (The reference computes it as "the lives counter dropped", but its
-    stage environment ends the episode at that same frame, before the counter drops, so
-    its penalty never fires; SPEC and the paper mean -25 per death.)
+    the episode ends, as gym-super-mario-bros' own death penalty. (The reference MO
+    wrapper tests "the lives counter dropped", but the stage environment under it ends the
+    episode on the frame Mario starts dying, ~180 frames before the counter drops, so there
+    the -25 of SPEC §1.4 never fires.)
 
     Args:
         num_envs: number of emulators.

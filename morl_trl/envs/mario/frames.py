@@ -61,7 +61,9 @@ class AreaResize:
     def __call__(self, img: torch.Tensor) -> torch.Tensor:
         if tuple(img.shape[-2:]) != self.src_hw:
             raise ValueError(f"expected images [..., {self.src_hw[0]}, {self.src_hw[1]}], got {tuple(img.shape)}")
-        return self.rows.to(img) @ (img @ self.cols.to(img))
+        if self.rows.dtype != img.dtype or self.rows.device != img.device:
+            self.rows, self.cols = self.rows.to(img), self.cols.to(img)
+        return self.rows @ (img @ self.cols)
 
 
 class FramePipeline:
@@ -84,15 +86,19 @@ class FramePipeline:
     def __init__(self, src_hw=(240, 256), dst_hw=(84, 84), rgb_channels=(0, 1, 2)) -> None:
         self.resize = AreaResize(src_hw, dst_hw)
         self.rgb_channels = tuple(rgb_channels)
+        self._gray = {}  # number of channels -> weight vector
 
     def __call__(self, last_two: torch.Tensor) -> torch.Tensor:
         """``uint8 [B, 2, H, W, C]`` (the last two raw frames of the skip) -> ``uint8 [B, h, w]``."""
         if last_two.dim() != 5 or last_two.shape[1] != 2:
             raise ValueError(f"expected frames [B, 2, H, W, C], got {tuple(last_two.shape)}")
         pooled = torch.maximum(last_two[:, 0], last_two[:, 1])  # per-channel max, as the reference
-        weights = torch.zeros(pooled.shape[-1])
-        weights[list(self.rgb_channels)] = torch.tensor(GRAY_WEIGHTS)
-        gray = pooled.float() @ weights  # [B, H, W]
+        channels = pooled.shape[-1]
+        if channels not in self._gray:
+            weights = torch.zeros(channels)
+            weights[list(self.rgb_channels)] = torch.tensor(GRAY_WEIGHTS)
+            self._gray[channels] = weights
+        gray = pooled.float() @ self._gray[channels]  # [B, H, W]
         small = self.resize(gray)
         # float32 sums of exact grays land a hair under an integer; truncating like
         # numpy's astype(uint8) must not turn 255 into 254 for a white frame.
