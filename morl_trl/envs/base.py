@@ -21,7 +21,9 @@ A domain subclass implements four hooks:
     re-initialise the sub-envs ``idx`` (a ``LongTensor``) with contexts ``[len(idx), c]``.
 ``_step_subenvs(action)``
     advance all sub-envs; return ``(observations: dict, reward [N, k],
-    original_reward [N, 1] | None, terminated [N] bool)``.
+    original_reward [N, 1] | None, terminated [N] bool)``. During a partial step
+    (TorchRL's ``"_step"`` mask) ``self._active`` is the ``[N]`` bool mask of the sub-envs to
+    advance (``None``: all); a domain may skip the others, whose outputs are ignored.
 ``_observe()``
     the current observation dict of all sub-envs (used after a reset).
 
@@ -85,6 +87,7 @@ class ContextualMOEnv(EnvBase):
         self._step_count = torch.zeros(num_envs, dtype=torch.long, device=self.device)
         self._make_specs()
         self._seed = None
+        self._active: torch.Tensor | None = None
         self._set_seed(seed)
 
     # ------------------------------------------------------------------ specs
@@ -164,8 +167,13 @@ class ContextualMOEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action")
         action = self._check_action(action)
+        # TorchRL's partial steps: "_step" [N] marks the sub-envs to advance. Domains whose
+        # per-sub-env cost dominates (Box2D, MuJoCo) skip the others (see `_active`); the
+        # outputs of skipped sub-envs are to be ignored by the caller.
+        partial = tensordict.get("_step", None)
+        self._active = None if partial is None else partial.reshape(self.num_envs).to(self.device, torch.bool)
         obs, reward, original, terminated = self._step_subenvs(action)
-        self._step_count += 1
+        self._step_count += 1 if self._active is None else self._active.long()
         truncated = (self._step_count >= self.max_episode_steps) & ~terminated
         return self._make_output(obs, reward, original, terminated, truncated)
 

@@ -52,9 +52,12 @@ class ToyContextEnv(ContextualMOEnv):
 
     def _step_subenvs(self, action):
         move = action.float() * 2 - 1
+        if self._active is not None:  # a partial step: the other sub-envs stay where they are
+            move = move * self._active
         speed, bias = self._context[:, 0], self._context[:, 1]
         self._pos = self._pos + move
         reward = torch.stack([speed * move + bias, -torch.ones_like(move)], -1)
         terminated = self._pos.abs() >= 3
-        obs = torch.stack([self._pos, (self._step_count + 1).float() / 10], -1)
+        steps = self._step_count + (1 if self._active is None else self._active.long())
+        obs = torch.stack([self._pos, steps.float() / 10], -1)
         return {"observation": obs}, reward, reward.sum(-1, keepdim=True), terminated

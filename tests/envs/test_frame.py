@@ -173,3 +173,17 @@ def test_domain_randomization_fixed_parameter():
     env = TransformedEnv(ToyContextEnv(num_envs=8), DomainRandomization(TOY_CONTEXT, seed=0, fixed={"bias": 0.25}))
     ctx = env.reset()["context"]
     assert (ctx[:, 1] == 0.25).all() and ctx[:, 0].unique().numel() == 8
+
+
+def test_partial_steps_advance_only_the_selected_subenvs():
+    env = ToyContextEnv(num_envs=3)
+    td = env.reset()
+    td["action"] = torch.ones(3, dtype=torch.long)
+    td["_step"] = torch.tensor([True, False, True])
+    out = env.step(td)["next"]
+    assert out["observation"][[0, 2]].tolist() == pytest.approx([[1.0, 0.1], [1.0, 0.1]])
+    td = out.clone()
+    td["action"] = torch.ones(3, dtype=torch.long)
+    out = env.step(td)["next"]
+    # sub-env 1 was skipped once: one step behind
+    assert out["observation"].tolist() == pytest.approx([[2.0, 0.2], [1.0, 0.1], [2.0, 0.2]])
