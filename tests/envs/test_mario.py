@@ -396,3 +396,12 @@ def test_partial_reset_touches_only_the_selected_sub_env():
     assert torch.equal(after[0, :3], moved[0, 1:])  # sub-env 0 went on where it was
     assert torch.equal(after[1, :3], out["observation"][1, 1:])  # sub-env 1 from its new start
     env.close()
+
+
+def test_missing_emulator_is_an_import_error_naming_the_extra(monkeypatch):
+    from morl_trl.envs.mario import _nes
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(_nes.importlib.util, "find_spec", lambda name, *a: None if name == "nes_py" else real(name, *a))
+    with pytest.raises(ImportError, match=r"morl-trl\[mario\]"):
+        _nes.require_emulator()

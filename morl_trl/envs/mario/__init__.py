@@ -1,7 +1,9 @@
 """MO-SuperMarioBros (SPEC §1.4): 32 stages as contexts, pixel observations, 3 objectives.
 
-Importing this package loads no emulator; nes-py's core library is loaded when the first
-stage starts (``pip install 'morl-trl[mario]'``).
+Importing this package loads no emulator (and never the old ``gym``); nes-py's core library
+is loaded when the first stage starts. ``MOSuperMarioBrosEnv`` needs the ``mario`` extra
+(``pip install 'morl-trl[mario]'``); without it, importing it raises ``ModuleNotFoundError``
+while the stage space and the registry keep working.
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -11,7 +13,6 @@ Example:
     (torch.Size([2, 2]), torch.Size([2, 4, 84, 84]), torch.uint8)
 """
 
-from morl_trl.envs.mario.env import MOSuperMarioBrosEnv, StagePool
 from morl_trl.envs.mario.game import SIMPLE_MOVEMENT, SIMPLE_MOVEMENT_BUTTONS, MarioStage
 from morl_trl.envs.mario.stages import (
     EVAL_STAGES,
@@ -39,3 +40,12 @@ __all__ = [
     "parse_stage",
     "stage_name",
 ]
+
+
+def __getattr__(name: str):
+    # the env module checks that the emulator is installed: import it on first use only
+    if name in ("MOSuperMarioBrosEnv", "StagePool"):
+        from morl_trl.envs.mario import env
+
+        return getattr(env, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

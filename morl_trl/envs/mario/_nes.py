@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NESEmulator", "RomHeader", "read_rom_header", "rom_path", "SCREEN_HEIGHT", "SCREEN_WIDTH", "RGB_CHANNELS"]
+__all__ = ["require_emulator", "NESEmulator", "RomHeader", "read_rom_header", "rom_path", "SCREEN_HEIGHT", "SCREEN_WIDTH", "RGB_CHANNELS"]
 
 SCREEN_HEIGHT = 240
 SCREEN_WIDTH = 256
@@ -42,6 +42,13 @@ def _package_dir(name: str) -> str:
     if spec is None or not spec.submodule_search_locations:
         raise ModuleNotFoundError(f"{name} is not installed. {_MISSING}", name=name)
     return list(spec.submodule_search_locations)[0]
+
+
+def require_emulator() -> None:
+    """Raise ``ModuleNotFoundError`` (an ``ImportError``) naming the ``mario`` extra when
+    nes-py or gym-super-mario-bros is not installed; imports neither."""
+    for name in ("nes_py", "gym_super_mario_bros"):
+        _package_dir(name)
 
 
 @functools.cache

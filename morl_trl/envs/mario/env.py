@@ -12,12 +12,16 @@ import torch
 from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
-from morl_trl.envs.mario._nes import RGB_CHANNELS, SCREEN_HEIGHT, SCREEN_WIDTH
+from morl_trl.envs.mario._nes import RGB_CHANNELS, SCREEN_HEIGHT, SCREEN_WIDTH, require_emulator
 from morl_trl.envs.mario.frames import FramePipeline
 from morl_trl.envs.mario.game import REWARD_SCALE, SIMPLE_MOVEMENT, SIMPLE_MOVEMENT_BUTTONS, MarioStage
 from morl_trl.envs.mario.stages import MARIO_STAGE_SPACE, MarioStageSpace
 
 __all__ = ["MOSuperMarioBrosEnv", "StagePool"]
+
+# Fail at import (an ImportError naming the extra) rather than at the first reset, so that
+# ``DomainSpec.env_cls()`` tells whether the domain can run; this checks, it imports nothing.
+require_emulator()
 
 
 def _available_cores() -> int:
