@@ -434,3 +434,19 @@ def test_skipping_exhaust_particles_keeps_the_trajectory():
     """The peer in rgb_array mode simulates exhaust particles; the lander moves identically."""
     pytest.importorskip("pygame")
     _peer_parity(2, 0.0, 0.0, steps=200, render_mode="rgb_array", policy="heuristic")
+
+
+def test_partial_steps_skip_the_unselected_worlds():
+    """A "_step" mask advances only the selected landers; the others keep their exact state."""
+    full = make_env("MOLunarLanderDefault-v0", num_envs=3, seed=5)
+    part = make_env("MOLunarLanderDefault-v0", num_envs=3, seed=5)
+    a, b = full.reset(), part.reset()
+    actions = torch.tensor([2, 1, 3])
+    a["action"] = actions
+    b["action"] = actions
+    b["_step"] = torch.tensor([True, False, True])
+    out_full, out_part = full.step(a)["next"], part.step(b)["next"]
+    assert torch.equal(out_part["observation"][[0, 2]], out_full["observation"][[0, 2]])
+    assert torch.equal(out_part["reward"][[0, 2]], out_full["reward"][[0, 2]])
+    assert torch.equal(out_part["observation"][1], b["observation"][1])  # the skipped lander did not move
+    assert out_part["reward"][1].abs().sum() == 0

@@ -207,26 +207,38 @@ class MOLunarLanderEnv(ContextualMOEnv):
         if not self._ready:
             raise RuntimeError("MOLunarLanderEnv: call reset() before step()")
         main, side, direction = self._engine_powers(action)
-        state, shaping, awake = self._advance(self._all, main, side, direction)
+        n = self.num_envs
+        if self._active is None or bool(self._active.all()):
+            idx, sel = self._all, slice(None)
+        else:  # a partial step: only the selected worlds advance (e.g. the evaluator's unfinished episodes)
+            idx = np.flatnonzero(self._active.cpu().numpy())
+            sel = idx
+            main, side, direction = main[idx], side[idx], direction[idx]
+        state, shaping, awake = self._advance(idx, main, side, direction)
 
-        shaping_delta = shaping - self._prev_shaping
-        self._prev_shaping = shaping
-        crashed = self._game_over | (np.abs(state[:, 0]) >= 1.0)  # float64 x, as Gymnasium tests it
+        shaping_delta = shaping - self._prev_shaping[sel]
+        self._prev_shaping[sel] = shaping
+        crashed = self._game_over[sel] | (np.abs(state[:, 0]) >= 1.0)  # float64 x, as Gymnasium tests it
         at_rest = ~awake
         landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
         original = shaping_delta - main * 0.30 - side * 0.03
         original = np.where(crashed | at_rest, landing, original)
-        reward = np.stack([landing, shaping_delta, 0.0 - main, 0.0 - side], axis=-1).astype(np.float32)
-        terminated = crashed | at_rest
+        reward = np.zeros((n, 4), dtype=np.float32)
+        reward[sel] = np.stack([landing, shaping_delta, 0.0 - main, 0.0 - side], axis=-1)
+        original_all = np.zeros(n, dtype=np.float32)
+        original_all[sel] = original
+        terminated = np.zeros(n, dtype=bool)
+        terminated[sel] = crashed | at_rest
 
-        obs = state.astype(np.float32)
-        # a copy: the returned tensor lives on in rollouts while _obs is updated at resets
-        self._obs = obs.copy()
+        # a fresh array: the returned tensor lives on in rollouts while _obs is updated at resets
+        obs = self._obs.copy()
+        obs[sel] = state
+        self._obs[sel] = state
         dev = self.device
         return (
             {"observation": torch.from_numpy(obs).to(dev)},
             torch.from_numpy(reward).to(dev),
-            torch.from_numpy(original.astype(np.float32)).to(dev),
+            torch.from_numpy(original_all).to(dev),
             torch.from_numpy(terminated).to(dev),
         )
 
