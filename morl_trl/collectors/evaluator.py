@@ -342,8 +342,11 @@ class MultiContextEvaluator:
                     td.set(env.action_key, env.full_action_spec[env.action_key].rand())
                 else:
                     td = policy(td)
-                td = env.step(td)
                 active = row >= 0
+                if not bool(active.all()):
+                    # TorchRL partial step: domains that can (Box2D, MuJoCo) skip the idle sub-envs
+                    td.set("_step", active.reshape(env.batch_size))
+                td = env.step(td)
                 reward = td.get(reward_key).reshape(m, k).to(torch.float64)
                 run_disc += torch.where(active.unsqueeze(-1), factor.unsqueeze(-1) * reward, 0.0)
                 run_und += torch.where(active.unsqueeze(-1), reward, 0.0)
