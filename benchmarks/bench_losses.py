@@ -1,0 +1,438 @@
+"""Gradient updates per second of the MORL losses against MORL-Baselines, measured in one run.
+
+Each figure is a full update as a training loop runs it, replay sampling included:
+
+* **Envelope** at the paper's MO-LunarLander settings: observation 26 (8 x 3 with the
+  state-action history + 2), 4 actions, 4 objectives, 4 x 256 MLP, batch 128 x 8 sampled
+  preferences, homotopy lambda 0.95, prioritized replay (alpha 0.6) with priority updates,
+  gradient clipping at 1, hard target update every 1000 updates. Ours:
+  ``EnvelopeQLoss`` + ``TensorDictReplayBuffer`` with ``morl_trl.data.prioritized_sampler``.
+* **CAPQL** at the Hopper settings: observation 39 (11 x 3 + 3 x 2), 3 actions, 3
+  objectives, 4 x 256 MLPs, batch 256, alpha 0.2, two vector critics, Polyak 0.005.
+  Ours: ``CAPQLLoss`` + ``TensorDictReplayBuffer``.
+
+The peer is MORL-Baselines' ``Envelope.update()`` / ``CAPQL.update()`` on the same
+settings, driven directly on a filled buffer. Install it in a scratch environment that
+reuses our torch (``morl-baselines`` itself pulls an unpinned torch):
+
+    python -m venv --system-site-packages /tmp/mb_venv
+    /tmp/mb_venv/bin/pip install --no-deps morl-baselines
+    /tmp/mb_venv/bin/pip install -c <(echo "torch==$(python -c 'import torch; print(torch.__version__)')") wandb
+    /tmp/mb_venv/bin/python benchmarks/bench_losses.py [--quick]
+
+Without it (``--peer recreation``, or ``auto`` when the import fails) the peer is our
+re-creation of its update loops (same networks, same tensor work: the target network
+evaluated on batch x N x N rows for Envelope, separate critic/actor passes for CAPQL),
+and the output says so.
+
+Ours and the peer alternate in rounds so that machine load hits both alike; the
+median rate over rounds is reported.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+
+from tensordict import TensorDict  # noqa: E402
+from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
+from torchrl.objectives import HardUpdate, SoftUpdate  # noqa: E402
+
+from morl_trl.data import prioritized_sampler  # noqa: E402
+from morl_trl.objectives import (  # noqa: E402
+    CAPQLLoss,
+    EnvelopeQLoss,
+    make_gaussian_actor,
+    make_vector_critic,
+    make_vector_q_network,
+)
+
+warnings.filterwarnings("ignore", message="No target network updater")
+
+NET = [256, 256, 256, 256]
+LR = 3e-4
+GAMMA = 0.99
+ENVELOPE = dict(obs=26, actions=4, k=4, batch=128, n_w=8, lam=0.95, per_alpha=0.6, target_every=1000)
+CAPQL = dict(obs=39, act=3, k=3, batch=256, alpha=0.2, tau=0.005)
+
+
+def random_transitions(n, obs, k, *, num_actions=None, act_dim=None, seed=0):
+    g = np.random.default_rng(seed)
+    out = {
+        "obs": g.standard_normal((n, obs)).astype(np.float32),
+        "next_obs": g.standard_normal((n, obs)).astype(np.float32),
+        "reward": g.standard_normal((n, k)).astype(np.float32),
+        "done": (g.random(n) < 0.01),
+        "w": np.abs(g.standard_normal((n, k))).astype(np.float32),
+    }
+    out["w"] /= out["w"].sum(1, keepdims=True)
+    if num_actions is not None:
+        out["action"] = g.integers(num_actions, size=n)
+    else:
+        out["action"] = g.uniform(-1, 1, (n, act_dim)).astype(np.float32)
+    return out
+
+
+def as_tensordict(tr) -> TensorDict:
+    n = len(tr["obs"])
+    done = torch.as_tensor(tr["done"]).unsqueeze(-1)
+    return TensorDict(
+        {
+            "observation": torch.as_tensor(tr["obs"]),
+            "action": torch.as_tensor(tr["action"]),
+            "preference": torch.as_tensor(tr["w"]),
+            ("next", "observation"): torch.as_tensor(tr["next_obs"]),
+            ("next", "reward"): torch.as_tensor(tr["reward"]),
+            ("next", "done"): done,
+            ("next", "terminated"): done.clone(),
+        },
+        [n],
+    )
+
+
+# ------------------------------------------------------------------------------------ ours
+def ours_envelope(tr, buffer_size):
+    c = ENVELOPE
+    loss = EnvelopeQLoss(
+        make_vector_q_network(c["obs"], c["actions"], c["k"], num_cells=NET),
+        num_preference_samples=c["n_w"],
+        homotopy_lambda=c["lam"],
+        preference_distribution="gaussian",
+    )
+    loss.make_value_estimator(gamma=GAMMA)
+    updater = HardUpdate(loss, value_network_update_interval=c["target_every"])
+    optim = torch.optim.Adam(loss.parameters(), lr=LR)
+    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), sampler=sampler, batch_size=c["batch"])
+    rb.extend(as_tensordict(tr))
+    params = list(loss.parameters())
+
+    def step():
+        batch = rb.sample()
+        out = loss(batch)
+        optim.zero_grad()
+        out["loss_qvalue"].backward()
+        torch.nn.utils.clip_grad_norm_(params, 1.0)
+        optim.step()
+        rb.update_tensordict_priority(batch)
+        updater.step()
+
+    return step, type(sampler).__name__
+
+
+def ours_capql(tr, buffer_size):
+    c = CAPQL
+    spec = Bounded(-1.0, 1.0, (c["act"],))
+    loss = CAPQLLoss(
+        make_gaussian_actor(c["obs"], spec, c["k"], num_cells=NET),
+        make_vector_critic(c["obs"], c["act"], c["k"], num_cells=NET),
+        alpha=c["alpha"],
+    )
+    loss.make_value_estimator(gamma=GAMMA)
+    updater = SoftUpdate(loss, tau=c["tau"])
+    optim = torch.optim.Adam(loss.parameters(), lr=LR)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=c["batch"])
+    rb.extend(as_tensordict(tr))
+
+    def step():
+        out = loss(rb.sample())
+        optim.zero_grad()
+        (out["loss_qvalue"] + out["loss_actor"]).backward()
+        optim.step()
+        updater.step()
+
+    return step
+
+
+# ------------------------------------------------------------------- MORL-Baselines itself
+def _spaces_env(obs, action_space, k):
+    import gymnasium as gym
+
+    class SpacesOnly(gym.Env):
+        """Carries the spaces MORL-Baselines reads; never stepped."""
+
+        def __init__(self):
+            self.observation_space = gym.spaces.Box(-np.inf, np.inf, (obs,), np.float32)
+            self.action_space = action_space
+            self.reward_space = gym.spaces.Box(-np.inf, np.inf, (k,), np.float32)
+
+    return SpacesOnly()
+
+
+def mb_envelope(tr, buffer_size):
+    import gymnasium as gym
+    from morl_baselines.multi_policy.envelope.envelope import Envelope
+
+    c = ENVELOPE
+    agent = Envelope(
+        _spaces_env(c["obs"], gym.spaces.Discrete(c["actions"]), c["k"]),
+        learning_rate=LR,
+        gamma=GAMMA,
+        batch_size=c["batch"],
+        net_arch=NET,
+        num_sample_w=c["n_w"],
+        per=True,
+        per_alpha=c["per_alpha"],
+        initial_homotopy_lambda=c["lam"],
+        final_homotopy_lambda=1.0,
+        target_net_update_freq=c["target_every"],
+        tau=1.0,
+        buffer_size=buffer_size,
+        learning_starts=0,
+        max_grad_norm=1.0,
+        log=False,
+        seed=0,
+        device="cpu",
+    )
+    for i in range(len(tr["obs"])):
+        agent.replay_buffer.add(tr["obs"][i], tr["action"][i], tr["reward"][i], tr["next_obs"][i], tr["done"][i])
+    agent.global_step = 1
+
+    def step():
+        agent.global_step += 1
+        agent.update()
+
+    return step
+
+
+def mb_capql(tr, buffer_size):
+    import gymnasium as gym
+    from morl_baselines.multi_policy.capql.capql import CAPQL as MBCAPQL
+
+    c = CAPQL
+    agent = MBCAPQL(
+        _spaces_env(c["obs"], gym.spaces.Box(-1.0, 1.0, (c["act"],), np.float32), c["k"]),
+        learning_rate=LR,
+        gamma=GAMMA,
+        tau=c["tau"],
+        buffer_size=buffer_size,
+        net_arch=NET,
+        batch_size=c["batch"],
+        num_q_nets=2,
+        alpha=c["alpha"],
+        learning_starts=0,
+        log=False,
+        seed=0,
+        device="cpu",
+    )
+    for i in range(len(tr["obs"])):
+        agent.replay_buffer.push(tr["obs"][i], tr["action"][i], tr["w"][i], tr["reward"][i], tr["next_obs"][i], tr["done"][i])
+    agent.global_step = 1
+
+    def step():
+        agent.global_step += 1
+        agent.update()
+
+    return step
+
+
+# --------------------------------------------------- re-creation of MORL-Baselines' loops
+def _mlp(i, o):
+    layers, w = [], i
+    for h in NET:
+        layers += [torch.nn.Linear(w, h), torch.nn.ReLU()]
+        w = h
+    return torch.nn.Sequential(*layers, torch.nn.Linear(w, o))
+
+
+class _NumpyPER:
+    """Proportional PER over a flat NumPy array of priorities (cumulative-sum sampling)."""
+
+    def __init__(self, n, rng):
+        self.p = np.ones(n)
+        self.rng = rng
+
+    def sample(self, batch):
+        c = np.cumsum(self.p)
+        return np.searchsorted(c, self.rng.uniform(0, c[-1], batch))
+
+    def update(self, idx, priority):
+        self.p[idx] = priority
+
+
+def rec_envelope(tr, buffer_size):
+    """Envelope.update(): batch repeated N times, target nets on B * N * N rows, PER updates."""
+    c = ENVELOPE
+    b, n, a, k = c["batch"], c["n_w"], c["actions"], c["k"]
+    rng = np.random.default_rng(0)
+    q, q_t = _mlp(c["obs"] + k, a * k), _mlp(c["obs"] + k, a * k)
+    q_t.load_state_dict(q.state_dict())
+    optim = torch.optim.Adam(q.parameters(), lr=LR)
+    per = _NumpyPER(len(tr["obs"]), rng)
+    state = {"step": 0}
+
+    def net(m, obs, w):
+        return m(torch.cat([obs, w], -1)).view(-1, a, k)
+
+    def step():
+        idx = per.sample(b)
+        obs, act, rew, nxt, done = (
+            torch.tensor(tr[key][idx]).float() for key in ("obs", "action", "reward", "next_obs", "done")
+        )
+        sw = torch.tensor(np.abs(rng.standard_normal((n, k)))).float()
+        sw = sw / sw.sum(1, keepdim=True)
+        w = sw.repeat_interleave(b, 0)
+        obs, act, rew, nxt, done = obs.repeat(n, 1), act.repeat(n), rew.repeat(n, 1), nxt.repeat(n, 1), done.repeat(n)
+        with torch.no_grad():
+            big_w = sw.repeat(nxt.size(0), 1)
+            big_next = nxt.repeat_interleave(n, 0)
+            nq = net(q, big_next, big_w).view(nxt.size(0), n, a, k)
+            best_q, best_a = torch.einsum("br,bwar->bwa", w, nq).max(2)
+            pref = best_q.argmax(1)
+            nq_t = net(q_t, big_next, big_w).view(nxt.size(0), n, a, k)
+            target = nq_t.gather(2, best_a[:, :, None, None].expand(-1, -1, 1, k)).squeeze(2)
+            target = target.gather(1, pref[:, None, None].expand(-1, 1, k)).squeeze(1)
+            target_q = rew + (1 - done)[:, None] * GAMMA * target
+        qv = net(q, obs, w).gather(1, act.long()[:, None, None].expand(-1, 1, k)).squeeze(1)
+        loss = torch.nn.functional.mse_loss(qv, target_q)
+        aux = torch.nn.functional.mse_loss((qv * w).sum(-1), (target_q * w).sum(-1))
+        loss = (1 - c["lam"]) * loss + c["lam"] * aux
+        optim.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(q.parameters(), 1.0)
+        optim.step()
+        td = ((qv[:b] - target_q[:b]).detach() * w[:b]).sum(-1).abs().numpy()
+        per.update(idx, (td + 1e-5) ** c["per_alpha"])
+        state["step"] += 1
+        if state["step"] % c["target_every"] == 0:
+            q_t.load_state_dict(q.state_dict())
+
+    return step
+
+
+def rec_capql(tr, buffer_size):
+    """CAPQL.update(): list-buffer sampling, two critics and the actor in separate passes."""
+    c = CAPQL
+    rng = np.random.default_rng(0)
+    o, d, k = c["obs"], c["act"], c["k"]
+    critics = [_mlp(o + d + k, k) for _ in range(2)]
+    targets = [_mlp(o + d + k, k) for _ in range(2)]
+    for t, q in zip(targets, critics):
+        t.load_state_dict(q.state_dict())
+    body, mean, log_std = _mlp(o + k, NET[-1]), torch.nn.Linear(NET[-1], d), torch.nn.Linear(NET[-1], d)
+    actor_params = [*body.parameters(), *mean.parameters(), *log_std.parameters()]
+    q_optim = torch.optim.Adam([p for q in critics for p in q.parameters()], lr=LR)
+    pi_optim = torch.optim.Adam(actor_params, lr=LR)
+    memory = [tuple(tr[key][i] for key in ("obs", "action", "w", "reward", "next_obs", "done")) for i in range(len(tr["obs"]))]
+
+    def policy(obs, w):
+        h = torch.relu(body(torch.cat([obs, w], -1)))
+        mu, ls = mean(h), log_std(h).clamp(-20, 2)
+        x = mu + ls.exp() * torch.randn_like(mu)
+        y = torch.tanh(x)
+        logp = torch.distributions.Normal(mu, ls.exp()).log_prob(x).sum(1) - torch.log(1 - y.pow(2) + 1e-6).sum(1)
+        return y, logp.clamp(-1e3, 1e3)
+
+    def step():
+        batch = [memory[i] for i in rng.choice(len(memory), c["batch"], replace=False)]
+        obs, act, w, rew, nxt, done = (torch.tensor(np.stack(x), dtype=torch.float32) for x in zip(*batch))
+        with torch.no_grad():
+            na, nlogp = policy(nxt, w)
+            qt = torch.stack([t(torch.cat([nxt, na, w], -1)) for t in targets]).min(0)[0] - c["alpha"] * nlogp[:, None]
+            y = rew + (1 - done[:, None]) * GAMMA * qt
+        closs = sum(torch.nn.functional.mse_loss(q(torch.cat([obs, act, w], -1)), y) for q in critics) / 2
+        q_optim.zero_grad()
+        closs.backward()
+        q_optim.step()
+        pi, logp = policy(obs, w)
+        mq = (torch.stack([q(torch.cat([obs, pi, w], -1)) for q in critics]).min(0)[0] * w).sum(-1)
+        ploss = (c["alpha"] * logp - mq).mean()
+        pi_optim.zero_grad()
+        ploss.backward()
+        pi_optim.step()
+        with torch.no_grad():
+            for q, t in zip(critics, targets):
+                for p, pt in zip(q.parameters(), t.parameters()):
+                    pt.mul_(1 - c["tau"]).add_(c["tau"] * p)
+
+    return step
+
+
+# ------------------------------------------------------------------------------- harness
+CLOCK = time.perf_counter
+
+
+def rate(step, n):
+    t = CLOCK()
+    for _ in range(n):
+        step()
+    return n / (CLOCK() - t)
+
+
+def compare(name, ours, peer, *, warmup, updates, rounds):
+    for _ in range(warmup):
+        ours()
+        peer()
+    r_ours, r_peer = [], []
+    for _ in range(rounds):
+        r_ours.append(rate(ours, updates))
+        r_peer.append(rate(peer, updates))
+    a, b = statistics.median(r_ours), statistics.median(r_peer)
+    print(f"{name:<10} {a:>12.1f} {b:>12.1f} {a / b:>8.2f}x")
+    return a / b
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="a short sanity run (1 round of 8 updates)")
+    p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation"], default="auto")
+    p.add_argument("--updates", type=int, default=40, help="updates per round")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
+    p.add_argument(
+        "--clock",
+        choices=["wall", "cpu"],
+        default="wall",
+        help="wall time (default), or this process's CPU time: steadier on a shared machine, with --threads 1",
+    )
+    args = p.parse_args(argv)
+    global CLOCK
+    CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    warmup, updates, rounds = (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
+    buffer_size, filled = (4_096, 4_096) if args.quick else (100_000, 20_000)
+
+    peer = args.peer
+    if peer in ("auto", "morl-baselines"):
+        try:
+            import morl_baselines  # noqa: F401
+
+            peer = "morl-baselines"
+        except ImportError as err:
+            if args.peer == "morl-baselines":
+                raise SystemExit(f"morl-baselines is not importable ({err}); see this script's docstring.")
+            peer = "recreation"
+    peer_label = (
+        f"MORL-Baselines {__import__('morl_baselines').__version__ if hasattr(__import__('morl_baselines'), '__version__') else ''}".strip()
+        if peer == "morl-baselines"
+        else "re-creation of MORL-Baselines' update loops (MORL-Baselines not importable)"
+    )
+    torch.manual_seed(0)
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock; peer: {peer_label}")
+    print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
+    env_tr = random_transitions(filled, ENVELOPE["obs"], ENVELOPE["k"], num_actions=ENVELOPE["actions"])
+    cap_tr = random_transitions(filled, CAPQL["obs"], CAPQL["k"], act_dim=CAPQL["act"], seed=1)
+    ours_env, sampler_name = ours_envelope(env_tr, buffer_size)
+    peer_env = (mb_envelope if peer == "morl-baselines" else rec_envelope)(env_tr, buffer_size)
+    ours_cap = ours_capql(cap_tr, buffer_size)
+    peer_cap = (mb_capql if peer == "morl-baselines" else rec_capql)(cap_tr, buffer_size)
+    print(f"(our prioritized sampler: {sampler_name})")
+    print(f"{'loss':<10} {'ours/s':>12} {'peer/s':>12} {'ratio':>9}")
+    compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds)
+    compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
