@@ -249,6 +249,24 @@ def test_partial_reset_leaves_the_other_subenvs_on_their_trajectory():
     assert not torch.equal(td["observation"][0], ref_next["observation"][-1, 0])
 
 
+@pytest.mark.parametrize("env_id", ["MOHopperDefault-v5", "MOHumanoidDefault-v5"])
+def test_partial_step_advances_only_the_selected_subenvs(env_id):
+    ref = make_env(env_id, num_envs=2, seed=8)
+    acts = actions(ref, 3, seed=1)
+    ref_next, _ = run(ref, acts, auto_reset=False)
+
+    env = make_env(env_id, num_envs=2, seed=8)
+    td = env.reset()
+    skipped_qpos = env.mj_data(1).qpos.copy()
+    td = env.step(td.set("action", acts[0]).set("_step", torch.tensor([True, False])))["next"]
+    assert np.array_equal(env.mj_data(1).qpos, skipped_qpos)  # sub-env 1 did not move
+    assert torch.equal(td["observation"][0], ref_next["observation"][0, 0])
+    for t in (1, 2):  # sub-env 0 continues on its own trajectory, full steps from now on
+        td = env.step(td.set("action", acts[t]).exclude("_step"))["next"]
+    assert torch.equal(td["observation"][0], ref_next["observation"][2, 0])
+    assert torch.equal(td["reward"][0], ref_next["reward"][2, 0])
+
+
 def test_truncation_after_max_episode_steps():
     env = make_env("MOHalfCheetahDefault-v5", num_envs=2, seed=0, max_episode_steps=4)
     td = env.rollout(4)

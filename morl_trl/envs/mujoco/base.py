@@ -227,8 +227,8 @@ class MujocoContextEnv(ContextualMOEnv):
     def _after_reset(self, ids: np.ndarray) -> None:
         """Hook: refresh domain state of the sub-envs ``ids`` after their reset."""
 
-    def _after_step(self) -> None:
-        """Hook: run after every step of all sub-envs."""
+    def _after_step(self, ids: np.ndarray | None) -> None:
+        """Hook: run after every step of the sub-envs ``ids`` (``None``: all)."""
 
     def _x_position(self) -> np.ndarray:
         """The x coordinate whose change per ``dt`` is the forward velocity."""
@@ -240,9 +240,16 @@ class MujocoContextEnv(ContextualMOEnv):
     def _step_subenvs(self, action: torch.Tensor):
         x_before = self._x_position()
         ctrl = action.detach().to("cpu", torch.float64).numpy()
-        self._fields["ctrl"][:] = ctrl
-        self._sim.step(nstep=self.frame_skip)
-        self._after_step()
+        if self._active is None:  # the usual full step
+            ids = None
+            self._fields["ctrl"][:] = ctrl
+            self._sim.step(nstep=self.frame_skip)
+        else:  # a TorchRL partial step: the other sub-envs keep their state
+            ids = np.flatnonzero(self._active.cpu().numpy())
+            self._fields["ctrl"][ids] = ctrl[ids]
+            if ids.size:
+                self._sim.step(ids, nstep=self.frame_skip)
+        self._after_step(ids)
         x_velocity = (self._x_position() - x_before) / self.dt
         reward, original, terminated = self._rewards(x_velocity, ctrl)
         obs = {"observation": self._to_tensor(self._observation())}

@@ -69,13 +69,13 @@ class MOHumanoidEnv(MujocoContextEnv):
         self._cfrc_ext = np.zeros((self.num_envs, *self._fields["xipos"].shape[1:-1], 6))
         self._scratch = mujoco.MjData(self._models[0])
 
-    def _after_step(self) -> None:
+    def _after_step(self, ids) -> None:
         # Gymnasium calls mj_rnePostConstraint after mj_step to fill cfrc_ext (the last 78
         # observation entries); Batch has no such hook, so run it on a copy of each sub-env's
         # MjData (a few microseconds each; the copy is exact, the state is untouched)
-        for i, model in enumerate(self._models):
+        for i in range(self.num_envs) if ids is None else ids:
             self._sim.get_data(i, self._scratch)
-            mujoco.mj_rnePostConstraint(model, self._scratch)
+            mujoco.mj_rnePostConstraint(self._models[i], self._scratch)
             self._cfrc_ext[i] = self._scratch.cfrc_ext
 
     def _after_reset(self, ids: np.ndarray) -> None:
