@@ -60,6 +60,9 @@ class ContextualMOEnv(EnvBase):
 
     objective_names: tuple[str, ...] = ()
     has_original_reward: bool = True
+    #: validate every action against the spec (one reduction per step); set False on an
+    #: accelerator once a policy is trusted, to drop the host sync it costs.
+    check_actions: bool = True
     batch_locked = True
 
     def __init__(
@@ -192,42 +195,45 @@ class ContextualMOEnv(EnvBase):
         out["terminated"] = terminated.reshape(self.num_envs, 1)
         out["truncated"] = truncated.reshape(self.num_envs, 1)
         out["done"] = done.reshape(self.num_envs, 1)
-        return TensorDict(out, batch_size=self.batch_size, device=self.device)
+        # every entry is built here with the right batch shape and device: skip the checks
+        return TensorDict._new_unsafe(out, batch_size=self.batch_size, device=self.device)
 
     def _check_action(self, action: torch.Tensor) -> torch.Tensor:
         spec = self.action_spec
         if action is None:
             raise ValueError("the step TensorDict has no 'action'")
-        action = torch.as_tensor(action, device=self.device)
+        if not isinstance(action, torch.Tensor):
+            action = torch.as_tensor(action, device=self.device)
+        elif action.device != self.device:
+            action = action.to(self.device)
         if isinstance(spec, Categorical):
+            n = spec.space.n
             if action.shape == (self.num_envs, 1):
                 action = action.squeeze(-1)
             if action.shape != spec.shape:
                 raise ValueError(
                     f"action has shape {tuple(action.shape)}; expected {tuple(spec.shape)} "
-                    f"(one index in [0, {spec.space.n}) per sub-env)"
+                    f"(one index in [0, {n}) per sub-env)"
                 )
             if action.is_floating_point():
                 if not torch.equal(action, action.round()):
                     raise ValueError(f"discrete actions must be integers, got {action}")
                 action = action.long()
-            bad = (action < 0) | (action >= spec.space.n)
-            if bad.any():
-                raise ValueError(
-                    f"action {action[bad][0].item()} is out of the action space [0, {spec.space.n})"
-                )
+            if self.check_actions and bool(((action < 0) | (action >= n)).any()):
+                bad = action[(action < 0) | (action >= n)][0].item()
+                raise ValueError(f"action {bad} is out of the action space [0, {n})")
             return action
         if action.shape != spec.shape:
             raise ValueError(f"action has shape {tuple(action.shape)}; expected {tuple(spec.shape)}")
-        if not torch.isfinite(action).all():
-            raise ValueError("action contains NaN or inf")
-        if isinstance(spec, Bounded):
-            low, high = spec.space.low, spec.space.high
-            tol = 1e-6
-            if ((action < low - tol) | (action > high + tol)).any():
+        if self.check_actions:
+            low, high = (spec.space.low, spec.space.high) if isinstance(spec, Bounded) else (-torch.inf, torch.inf)
+            # one reduction (one host sync on an accelerator): NaN fails both comparisons
+            if not bool(((action >= low - 1e-6) & (action <= high + 1e-6)).all()):
+                if not torch.isfinite(action).all():
+                    raise ValueError("action contains NaN or inf")
                 raise ValueError(
-                    f"action out of its bounds [{low.min().item()}, {high.max().item()}]: "
-                    f"min {action.min().item()}, max {action.max().item()}"
+                    f"action out of its bounds [{torch.as_tensor(low).min().item()}, "
+                    f"{torch.as_tensor(high).max().item()}]: min {action.min().item()}, max {action.max().item()}"
                 )
         return action
 
