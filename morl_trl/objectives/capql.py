@@ -47,7 +47,9 @@ class CAPQLLoss(MOSACLoss):
         >>> from torchrl.data import Bounded
         >>> from morl_trl.objectives.networks import make_gaussian_actor, make_vector_critic
         >>> spec = Bounded(-1.0, 1.0, (3,))
+        >>> from torchrl.objectives import SoftUpdate
         >>> loss = CAPQLLoss(make_gaussian_actor(7, spec, 2, num_cells=(32,)), make_vector_critic(7, 3, 2, num_cells=(32,)))
+        >>> updater = SoftUpdate(loss, tau=0.005)
         >>> B = 8
         >>> data = TensorDict({
         ...     "observation": torch.randn(B, 7), "action": spec.rand((B,)),

@@ -91,9 +91,11 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         >>> from tensordict import TensorDict
         >>> from morl_trl.objectives.networks import make_vector_q_network
         >>> q = make_vector_q_network(6, 3, 2, num_cells=(32, 32))
+        >>> from torchrl.objectives import HardUpdate
         >>> loss = EnvelopeQLoss(q, num_preference_samples=4, homotopy_lambda=0.95)
         >>> loss.make_value_estimator(gamma=0.99)  # doctest: +ELLIPSIS
         EnvelopeQLoss(...)
+        >>> updater = HardUpdate(loss, value_network_update_interval=1000)  # call updater.step() per update
         >>> B = 16
         >>> data = TensorDict({
         ...     "observation": torch.randn(B, 6),

@@ -5,6 +5,10 @@ on the preference-scalarised objective. With a fixed preference per policy this
 is MORL/D's MOSAC building block; with ``k = 1`` it is plain SAC; with
 preference-conditioned networks and fresh preferences it is CAPQL
 (:class:`~morl_trl.objectives.capql.CAPQLLoss`).
+
+The paper's SAC baseline (trained on the scalar ``original_reward``) is
+``MOSACLoss(actor, critic, num_objectives=1, preference=torch.ones(1))`` after
+``loss.set_keys(reward="original_reward")``.
 """
 
 from __future__ import annotations
@@ -292,7 +296,9 @@ class MOSACLoss(_MOSACBase):
         >>> spec = Bounded(-1.0, 1.0, (2,))
         >>> actor = make_gaussian_actor(5, spec, 3, num_cells=(32,))
         >>> critic = make_vector_critic(5, 2, 3, num_cells=(32,))
+        >>> from torchrl.objectives import SoftUpdate
         >>> loss = MOSACLoss(actor, critic, preference=torch.tensor([0.2, 0.3, 0.5]))
+        >>> updater = SoftUpdate(loss, tau=0.005)
         >>> B = 8
         >>> data = TensorDict({
         ...     "observation": torch.randn(B, 5), "action": spec.rand((B,)),
@@ -475,7 +481,9 @@ class DiscreteMOSACLoss(_MOSACBase):
         >>> from morl_trl.objectives.networks import make_categorical_actor, make_vector_q_network
         >>> actor = make_categorical_actor(6, 4, 2, num_cells=(32,))
         >>> critic = make_vector_q_network(6, 4, 2, num_cells=(32,))
-        >>> loss = DiscreteMOSACLoss(actor, critic)
+        >>> from torchrl.objectives import HardUpdate
+        >>> loss = DiscreteMOSACLoss(actor, critic, target_entropy_weight=0.3)
+        >>> updater = HardUpdate(loss, value_network_update_interval=2000)
         >>> B = 8
         >>> data = TensorDict({
         ...     "observation": torch.randn(B, 6), "action": torch.randint(4, (B,)),

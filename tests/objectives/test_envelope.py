@@ -319,3 +319,53 @@ def test_learns_preference_dependent_actions_on_a_convex_front():
         q0 = net(START.expand(2, 3), EXTREME_PREFERENCES)
     torch.testing.assert_close(q0[0, 0], torch.tensor([0.9, 0.0]), atol=0.15, rtol=0)
     torch.testing.assert_close(q0[1, 1], torch.tensor([0.0, 0.9]), atol=0.15, rtol=0)
+
+
+def test_trains_on_rollouts_of_a_batched_contextual_env():
+    from tests.mocks import ToyContextEnv
+
+    env = ToyContextEnv(num_envs=4, seed=0)
+    rollout = env.rollout(6, break_when_any_done=False)  # [4 envs, 6 steps], reward [4, 6, 2]
+    torch.manual_seed(0)
+    loss = EnvelopeQLoss(make_vector_q_network(2, 2, 2, num_cells=(16,)), num_preference_samples=3)
+    HardUpdate(loss, value_network_update_interval=10)
+    out = loss(rollout)
+    assert torch.isfinite(out["loss_qvalue"]) and rollout["td_error"].shape == (4, 6)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(100), sampler=TorchPrioritizedSampler(100, 0.6, 0.4), batch_size=8)
+    rb.extend(rollout.reshape(-1).exclude("td_error"))
+    sample = rb.sample()
+    loss(sample)["loss_qvalue"].backward()
+    rb.update_tensordict_priority(sample)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"envelope": False}, {"double_dqn": False}, {"double_dqn": False, "delay_value": False}],
+    ids=["scalarized-ddqn-target", "single-q", "no-target-net"],
+)
+def test_target_variants(options):
+    loss = make_loss(**options)
+    data = random_batch(B, OBS, K, num_actions=A)
+    out = loss(data)
+    assert torch.isfinite(out["loss_qvalue"])
+    out["loss_qvalue"].backward()
+    assert all(grads_of(loss.value_network_params).values())
+    if options.get("delay_value") is False:
+        with pytest.raises(RuntimeError):
+            HardUpdate(loss)  # nothing to update
+    with pytest.raises(ValueError, match="double_dqn=True requires delay_value=True"):
+        make_loss(double_dqn=True, delay_value=False)
+
+
+def test_state_dict_round_trip():
+    loss = make_loss(homotopy_lambda=0.4)
+    perturb_targets(loss)
+    other = make_loss()
+    other.load_state_dict(loss.state_dict())
+    assert float(other.homotopy_lambda) == pytest.approx(0.4)
+    data = random_batch(B, OBS, K, num_actions=A)
+    torch.manual_seed(9)
+    a = loss(data.clone())["loss_qvalue"]
+    torch.manual_seed(9)
+    b = other(data.clone())["loss_qvalue"]
+    torch.testing.assert_close(a, b)

@@ -303,3 +303,22 @@ def test_discrete_learns_preference_dependent_actions():
         ).probs
     assert probs.argmax(-1).tolist() == [0, 1], probs
     assert (probs.max(-1).values > 0.6).all(), probs
+
+
+@pytest.mark.parametrize("make", LOSSES)
+def test_state_dict_round_trip(make):
+    loss = make(preference=torch.tensor([0.6, 0.2, 0.2]))
+    with torch.no_grad():
+        loss.log_alpha.fill_(-0.7)
+        for p in loss.target_qvalue_network_params.values(True, True):
+            p.add_(0.1)
+    other = make(preference=torch.tensor([1.0, 0.0, 0.0]))
+    other.load_state_dict(loss.state_dict())
+    assert other.fixed_preference.tolist() == pytest.approx([0.6, 0.2, 0.2])
+    data = batch_for(loss, preference=False)
+    torch.manual_seed(4)
+    a = loss(data.clone())
+    torch.manual_seed(4)
+    b = other(data.clone())
+    for key in ("loss_qvalue", "loss_actor", "loss_alpha", "alpha"):
+        torch.testing.assert_close(a[key], b[key], msg=key)
