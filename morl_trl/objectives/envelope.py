@@ -11,7 +11,7 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.objectives.utils import distance_loss
 
-from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+from morl_trl.objectives.common import MultiObjectiveLossModule
 
 __all__ = ["EnvelopeQLoss"]
 
@@ -180,7 +180,6 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         if reduction not in ("mean", "sum", "none"):
             raise ValueError(f"reduction={reduction!r}; valid values are 'mean', 'sum', 'none'.")
         self.num_objectives = self._resolve_num_objectives(num_objectives, value_network)
-        self.num_actions = getattr(value_network, "num_actions", None)
         self.num_preference_samples = int(num_preference_samples)
         self.shared_preferences = shared_preferences
         self.include_batch_preference = include_batch_preference
@@ -277,8 +276,6 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         Writes the per-transition TD error under ``tensor_keys.priority``.
         """
         self._check_inputs(tensordict, needs_preference=self.include_batch_preference)
-        if self.include_batch_preference and self.validate_inputs:
-            check_preference(tensordict.get(self.tensor_keys.preference), self.num_objectives)
         data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
         batch, n = data.shape[0], self.num_preference_samples
         w = self._preferences(data)
@@ -290,6 +287,7 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
 
         next_value = self._envelope_next_value(data.get("next"), w)
         target_keys = [("next", key) for key in (self.tensor_keys.reward, self.tensor_keys.done, self.tensor_keys.terminated)]
+        target_keys.append(self.value_estimator.tensor_keys.steps_to_next_obs)  # n-step returns (MultiStep)
         target_data = data.select(*target_keys, strict=False).unsqueeze(1).expand(batch, n)
         target = self.value_estimator.value_estimate(target_data, next_value=next_value).detach()
 

@@ -169,3 +169,20 @@ def test_factory_falls_back_when_the_native_sampler_cannot_load():
             prioritized_sampler(16, 0.6, 0.4, backend="native")
     with pytest.raises(ValueError, match="backend"):
         prioritized_sampler(16, 0.6, 0.4, backend="c++")
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+def test_multi_dimensional_storage():
+    torch.manual_seed(0)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(12, ndim=2), sampler=TorchPrioritizedSampler(12, 1.0, 0.5), batch_size=6)
+    rb.extend(TensorDict({"obs": torch.arange(12.0).reshape(4, 3)}, [4, 3]))
+    sample = rb.sample()
+    index = sample["index"]
+    assert index.shape == (6, 2)
+    stored = rb.storage._storage["obs"]
+    torch.testing.assert_close(sample["obs"], stored[index[:, 0], index[:, 1]])
+    sample["td_error"] = torch.arange(1.0, 7.0)
+    rb.update_tensordict_priority(sample)
+    flat = index[:, 0] * stored.shape[1] + index[:, 1]
+    last = {int(f): float(p) for f, p in zip(flat, sample["td_error"])}
+    torch.testing.assert_close(rb.sampler._sum_tree[torch.tensor(list(last))], torch.tensor(list(last.values())))
