@@ -46,6 +46,7 @@ class _MOSACBase(MultiObjectiveLossModule):
     target_qvalue_network_params: TensorDictParams
 
     _schedulable_buffers = frozenset({"log_alpha"})
+    critic_ensemble_mode: str = "auto"
 
     def _setup(
         self,
@@ -118,9 +119,7 @@ class _MOSACBase(MultiObjectiveLossModule):
             self.register_buffer("log_alpha", log_alpha)
         else:
             self.register_parameter("log_alpha", torch.nn.Parameter(log_alpha))
-        self._vmap_qnetworkN0 = _vmap_func(
-            self.qvalue_network, (None, 0), randomness=self.vmap_randomness, pseudo_vmap=deactivate_vmap
-        )
+        self._vmap_qnetworkN0 = _vmap_func(self.qvalue_network, (None, 0), randomness=self.vmap_randomness)
 
     # ------------------------------------------------------------ preference
     def set_preference(self, preference: Tensor) -> None:
@@ -171,6 +170,26 @@ class _MOSACBase(MultiObjectiveLossModule):
     @_cache_values
     def _cached_detached_qvalue_params(self):
         return self.qvalue_network_params.detach()
+
+    def _critic_ensemble(self, td: TensorDictBase, params: TensorDictBase, key: NestedKey) -> Tensor:
+        """``[n, *B, ...]``: every critic of the ensemble on ``td``.
+
+        ``vmap`` batches the critics into ``bmm`` calls, which pays on accelerators; on
+        CPU one plain call per critic is faster (``bmm`` runs ~20% slower than two
+        ``addmm`` of the same size there). ``critic_ensemble_mode`` picks: ``"auto"``
+        (loop on CPU or with ``deactivate_vmap=True``, ``vmap`` elsewhere), ``"loop"`` or ``"vmap"``.
+        """
+        mode = self.critic_ensemble_mode
+        if mode == "auto":
+            on_cpu = next(iter(params.values(True, True))).device.type == "cpu"
+            mode = "loop" if self.deactivate_vmap or on_cpu else "vmap"
+        if mode == "vmap":
+            return self._vmap_qnetworkN0(td, params).get(key)
+        values = []
+        for i in range(self.num_qvalue_nets):
+            with params[i].to_module(self.qvalue_network, preserve_module_state=False):
+                values.append(self.qvalue_network(td.copy()).get(key))
+        return torch.stack(values)
 
     def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
         """Pessimistic vector value over the critic ensemble ``q`` (``[n, B, ..., k]``).
@@ -421,7 +440,7 @@ class MOSACLoss(_MOSACBase):
         td = data.select(*self.qvalue_network.in_keys, strict=False)
         if action is not None:
             td.set(self.tensor_keys.action, action)
-        return self._vmap_qnetworkN0(td, params).get(self.tensor_keys.state_action_value)
+        return self._critic_ensemble(td, params, self.tensor_keys.state_action_value)
 
     @torch.no_grad()
     def _target(self, data: TensorDictBase, w: Tensor) -> Tensor:
@@ -592,7 +611,7 @@ class DiscreteMOSACLoss(_MOSACBase):
     def _critics(self, data: TensorDictBase, params) -> Tensor:
         """``[n, B, |A|, k]`` values of all critics."""
         td = data.select(*self.qvalue_network.in_keys, strict=False)
-        return self._vmap_qnetworkN0(td, params).get(self.tensor_keys.action_value)
+        return self._critic_ensemble(td, params, self.tensor_keys.action_value)
 
     @torch.no_grad()
     def _target(self, data: TensorDictBase, w: Tensor) -> Tensor:

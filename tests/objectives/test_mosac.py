@@ -322,3 +322,16 @@ def test_state_dict_round_trip(make):
     b = other(data.clone())
     for key in ("loss_qvalue", "loss_actor", "loss_alpha", "alpha"):
         torch.testing.assert_close(a[key], b[key], msg=key)
+
+
+@pytest.mark.parametrize("make", LOSSES)
+def test_vmapped_and_looped_critic_ensembles_agree(make):
+    loss = make()
+    data = batch_for(loss)
+    outs = {}
+    for mode in ("loop", "vmap"):
+        loss.critic_ensemble_mode = mode
+        torch.manual_seed(8)
+        outs[mode] = loss(data.clone())
+    for key in ("loss_qvalue", "loss_actor", "loss_alpha"):
+        torch.testing.assert_close(outs["loop"][key], outs["vmap"][key], msg=key)
