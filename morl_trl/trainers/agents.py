@@ -86,12 +86,17 @@ class Agent:
 
     def make_collector(self, env, *, total_frames: int, frames_done: int = 0) -> Collector:
         cfg = self.cfg
+        per_batch = cfg.frames_per_batch
+
+        def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
+            return -(-max(frames, 0) // per_batch) * per_batch
+
         return Collector(
             env,
             self.explore_policy,
-            frames_per_batch=cfg.frames_per_batch,
-            total_frames=max(total_frames, cfg.frames_per_batch),
-            init_random_frames=max(cfg.init_random_frames - frames_done, 0),
+            frames_per_batch=per_batch,
+            total_frames=max(whole_batches(total_frames), per_batch),
+            init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
             device=self.device,
             exploration_type=ExplorationType.RANDOM,
             auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed

@@ -27,6 +27,7 @@ class TrainConfig:
     env_id: str = "MOLavaGridDR-v0"
     seed: int = 0
     device: str = "cpu"
+    num_threads: int = 1                # torch CPU threads; 1 avoids OpenMP oversubscription with small nets (0: torch's default)
     frames: int = 1_000_000
     num_envs: int = 16
     frames_per_batch: int = 64          # environment frames per collector batch (all sub-envs)

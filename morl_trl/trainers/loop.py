@@ -27,10 +27,21 @@ from morl_trl.trainers.run_log import RunLog
 __all__ = ["train", "evaluate_run"]
 
 
+def _set_threads(cfg: TrainConfig) -> None:
+    if cfg.num_threads:
+        torch.set_num_threads(cfg.num_threads)
+
+
 def _seed_everything(seed: int) -> None:
     random.seed(seed)
     np.random.seed(seed)
     torch.manual_seed(seed)
+
+
+def _eval_line(summary: dict) -> str:
+    agg = summary["aggregate"]
+    parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
+    return f"[eval @ {summary['frames']:,} frames] mean over contexts: " + ", ".join(parts)
 
 
 def _default_run_dir(cfg: TrainConfig) -> Path:
@@ -57,6 +68,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
         run_dir.mkdir(parents=True, exist_ok=True)
         cfg.run_dir = str(run_dir)
         cfg.save(run_dir / "config.json")
+    _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
@@ -98,6 +110,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
                 summary = log.evaluation(frames, evaluator(agent.eval_policy))
                 last_nhgr = summary.get("nhgr_mean", float("nan"))
                 next_eval += cfg.eval_interval
+                tqdm.write(_eval_line(summary))
             buffer.extend(batch.reshape(-1))
             frames += batch.numel()
             log.training_episodes(frames, batch)
@@ -144,6 +157,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     ckpt = latest_checkpoint(run_dir)
     if ckpt is None:
         raise ValueError(f"{str(run_dir)!r} has no checkpoint to evaluate")
+    _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
