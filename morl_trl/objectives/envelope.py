@@ -11,7 +11,7 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.objectives.utils import distance_loss
 
-from morl_trl.objectives.common import MultiObjectiveLossModule
+from morl_trl.objectives.common import MultiObjectiveLossModule, module_output
 
 __all__ = ["EnvelopeQLoss"]
 
@@ -251,7 +251,7 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         pairs = data.select(*self._network_input_keys).unsqueeze(1).expand(batch, n)
         pairs.set(self.tensor_keys.preference, w)
         with params.to_module(self.value_network, preserve_module_state=False):
-            return self.value_network(pairs).get(self.tensor_keys.action_value)
+            return module_output(self.value_network, pairs, self.tensor_keys.action_value)
 
     @torch.no_grad()
     def _envelope_next_value(self, next_data: TensorDictBase, w: torch.Tensor) -> torch.Tensor:

@@ -26,7 +26,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import _cache_values, _vmap_func, distance_loss
 
-from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference, module_output
 from morl_trl.objectives.envelope import action_index
 
 __all__ = ["DiscreteMOSACLoss", "MOSACLoss"]
@@ -188,7 +188,7 @@ class _MOSACBase(MultiObjectiveLossModule):
         values = []
         for i in range(self.num_qvalue_nets):
             with params[i].to_module(self.qvalue_network, preserve_module_state=False):
-                values.append(self.qvalue_network(td.copy()).get(key))
+                values.append(module_output(self.qvalue_network, td, key))
         return torch.stack(values)
 
     def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
