@@ -26,7 +26,8 @@ evaluated on batch x N x N rows for Envelope, separate critic/actor passes for C
 and the output says so.
 
 Ours and the peer alternate in rounds so that machine load hits both alike; the
-median rate over rounds is reported.
+median rate over rounds is reported. On a shared machine, ``--threads 1 --clock cpu``
+(process CPU time) gives steadier figures than wall time.
 """
 
 from __future__ import annotations
@@ -413,11 +414,12 @@ def main(argv=None) -> int:
             if args.peer == "morl-baselines":
                 raise SystemExit(f"morl-baselines is not importable ({err}); see this script's docstring.")
             peer = "recreation"
-    peer_label = (
-        f"MORL-Baselines {__import__('morl_baselines').__version__ if hasattr(__import__('morl_baselines'), '__version__') else ''}".strip()
-        if peer == "morl-baselines"
-        else "re-creation of MORL-Baselines' update loops (MORL-Baselines not importable)"
-    )
+    if peer == "morl-baselines":
+        from importlib.metadata import version
+
+        peer_label = f"MORL-Baselines {version('morl-baselines')}"
+    else:
+        peer_label = "re-creation of MORL-Baselines' update loops (MORL-Baselines not importable)"
     torch.manual_seed(0)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock; peer: {peer_label}")
     print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
