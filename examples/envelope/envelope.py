@@ -4,8 +4,9 @@ The paper's experimental loop (§6) written out top to bottom with morl_trl's an
 pieces; ``morl-trl train envelope ENV_ID`` runs the same recipe with checkpoints, resume,
 CSV/TensorBoard logging and a report.
 
-    python examples/envelope/envelope.py                          # MO-LavaGrid, --quick
-    python examples/envelope/envelope.py --config examples/envelope/lunar_lander.toml
+    python examples/envelope/envelope.py                          # MO-LunarLander, quick preset
+    python examples/envelope/envelope.py --config examples/envelope/lava_grid_quick.toml
+    python examples/envelope/envelope.py --config examples/envelope/lunar_lander_paper.toml
 """
 
 import argparse
@@ -28,13 +29,14 @@ from morl_trl.trainers.agents import ScalarizedArgmax
 from morl_trl.trainers.env_factory import make_eval_transform, make_train_env
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--config", default=str(Path(__file__).with_name("lava_grid.toml")))
+parser.add_argument("--config", default=str(Path(__file__).with_name("lunar_lander_quick.toml")))
 parser.add_argument("--seed", type=int, default=0)
 args = parser.parse_args()
 
 # ---------------------------------------------------------------- config: paper defaults + file
-cfg = resolve_config("envelope", "MOLavaGridDR-v0", config_file=args.config, seed=args.seed)
+cfg = resolve_config("envelope", "MOLunarLanderDR-v0", config_file=args.config, seed=args.seed)
 torch.manual_seed(cfg.seed)
+torch.set_num_threads(cfg.num_threads)
 spec = domain_of(cfg.env_id)
 gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
 
@@ -89,6 +91,6 @@ for batch in collector:
     if frames >= next_eval or frames >= cfg.frames:
         next_eval += cfg.eval_interval
         result = evaluator.evaluate()
-        hv = ", ".join(f"{c.replace('MOLavaGrid', '')[:-3]}={v:.3g}" for c, v in result.metric("hypervolume").items())
+        hv = ", ".join(f"{c.split('-')[0][len(spec.name) - 1:]}={v:.3g}" for c, v in result.metric("hypervolume").items())
         print(f"frames {frames:>8}  loss {loss_td['loss_qvalue'].item():.3f}  hypervolume: {hv}", flush=True)
 collector.shutdown()

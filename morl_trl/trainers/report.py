@@ -133,6 +133,10 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     png = _plot_fronts(result, reference, run_dir / "report_fronts.png", tuple(spec.objective_names))
     if png is not None:
         lines.append(f"![Pareto fronts per context]({png.name})")
+        if len(spec.objective_names) > 2:
+            lines.append("")
+            lines.append(f"(Projections on {spec.objective_names[0]} × {spec.objective_names[1]}; the fronts are "
+                         f"non-dominated in all {len(spec.objective_names)} objectives: see fronts/*.csv.)")
     path = run_dir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     print("\n".join(lines[: lines.index("") + 1 + len(contexts) + 4]))
