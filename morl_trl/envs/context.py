@@ -137,21 +137,20 @@ class ContextSpace:
             )
         flat = context.reshape(-1, self.dim)
         bad = ~torch.isfinite(flat)
-        if bad.any():
+        positive = [self.names.index(name) for name in sorted(self.positive)]
+        if positive:
+            bad[:, positive] |= flat[:, positive] <= 0
+        if bool(bad.any()):  # one reduction on the valid path; diagnose only on failure
             row, col = (int(i) for i in bad.nonzero()[0])
-            raise ValueError(
-                f"context parameter {self.names[col]!r} is {flat[row, col].item()} (row {row}); "
-                "it must be a finite number"
-            )
-        for name in self.positive:
-            col = self.names.index(name)
-            nonpos = flat[:, col] <= 0
-            if nonpos.any():
-                row = int(nonpos.nonzero()[0])
+            value = flat[row, col].item()
+            if not torch.isfinite(flat[row, col]):
                 raise ValueError(
-                    f"context parameter {name!r} is {flat[row, col].item()} (row {row}); "
-                    "the physics needs it strictly positive"
+                    f"context parameter {self.names[col]!r} is {value} (row {row}); it must be a finite number"
                 )
+            raise ValueError(
+                f"context parameter {self.names[col]!r} is {value} (row {row}); "
+                "the physics needs it strictly positive"
+            )
         if check_range:
             lo, hi = self.bounds(flat.device)
             # a float32 round-off tolerance: samples are computed as lo + u * (hi - lo)
