@@ -162,15 +162,15 @@ class Agent:
         return {
             "loss": self.loss.state_dict(),
             "optimizers": {k: o.state_dict() for k, o in self.optimizers.items()},
-            "target_updater": getattr(self.target_updater, "_steps", None),
+            "target_updater_counter": getattr(self.target_updater, "counter", None),  # HardUpdate's period
         }
 
     def load_state_dict(self, state: dict) -> None:
         self.loss.load_state_dict(state["loss"])
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])
-        if state.get("target_updater") is not None and hasattr(self.target_updater, "_steps"):
-            self.target_updater._steps = state["target_updater"]
+        if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
+            self.target_updater.counter = state["target_updater_counter"]
 
 
 # ---------------------------------------------------------------------- builders

@@ -38,6 +38,12 @@ def _seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
+def _transform_generators(env) -> dict[int, torch.Generator]:
+    """The random generators of the env's transforms (domain randomization, preferences), by position."""
+    transforms = list(env.transform) if hasattr(env.transform, "__iter__") else [env.transform]
+    return {i: t.generator for i, t in enumerate(transforms) if isinstance(getattr(t, "generator", None), torch.Generator)}
+
+
 def _eval_line(summary: dict) -> str:
     agg = summary["aggregate"]
     parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
@@ -89,12 +95,20 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
         env.load_state_dict(state["env_transforms"])
         frames, updates = state["frames"], state["updates"]
         next_eval, next_ckpt = state["next_eval"], state["next_ckpt"]
+        # episodes in flight are lost; the simulators restart from a seed derived from the
+        # checkpoint (not the run's first seed, which would replay the first episodes)
+        env.set_seed(cfg.seed + frames)
+        for i, gen in _transform_generators(env).items():
+            gen.set_state(state["transform_generators"][i])
         set_rng_state(state["rng"])
+        agent.on_frames(frames)
         log.note(f"resumed from {ckpt.name} at {frames} frames")
 
     def checkpoint(tag_frames: int) -> None:
         state = dict(
-            agent=agent.state_dict(), env_transforms=env.state_dict(), frames=frames, updates=updates,
+            agent=agent.state_dict(), env_transforms=env.state_dict(),
+            transform_generators={i: g.get_state() for i, g in _transform_generators(env).items()},
+            frames=frames, updates=updates,
             next_eval=next_eval, next_ckpt=next_ckpt, rng=rng_state(), config=cfg.to_dict(),
         )
         save_checkpoint(run_dir, tag_frames, state, buffer)

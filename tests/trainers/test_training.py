@@ -154,4 +154,7 @@ def test_kill_and_resume(tmp_path):
     assert latest_checkpoint(run).name == "frames_000000006144"
     state = torch.load(latest_checkpoint(run) / "state.pt", weights_only=False)
     assert state["frames"] == 6144
+    # domain randomization and preference sampling continue their streams instead of restarting
+    assert len(state["transform_generators"]) == 2
+    assert state["agent"]["optimizers"]["qvalue"]["state"], "optimizer moments are checkpointed"
     assert state["updates"] >= (6144 - 128) // 64 * 2 - 2
