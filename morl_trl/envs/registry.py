@@ -170,9 +170,11 @@ def make_env(
 
     Example:
         >>> from morl_trl.envs import make_env
-        >>> env = make_env("MOLunarLanderHard-v0", num_envs=4, seed=0)  # doctest: +SKIP
-        >>> env.rollout(3)["next", "reward"].shape                       # doctest: +SKIP
+        >>> env = make_env("MOLunarLanderHard-v0", num_envs=4, seed=0)
+        >>> env.rollout(3)["next", "reward"].shape
         torch.Size([4, 3, 4])
+        >>> make_env("MOLunarLanderDR-v0", num_envs=2, seed=0, wind_power=0.0).reset()["context"][:, 1]
+        tensor([0., 0.])
     """
     spec = _lookup(env_id)
     if not isinstance(num_envs, int) or num_envs < 1:
