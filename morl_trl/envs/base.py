@@ -91,6 +91,7 @@ class ContextualMOEnv(EnvBase):
         self._make_specs()
         self._seed = None
         self._active: torch.Tensor | None = None
+        self._action_bounds: tuple[torch.Tensor, torch.Tensor] | None = None
         self._set_seed(seed)
 
     # ------------------------------------------------------------------ specs
@@ -226,9 +227,12 @@ class ContextualMOEnv(EnvBase):
         if action.shape != spec.shape:
             raise ValueError(f"action has shape {tuple(action.shape)}; expected {tuple(spec.shape)}")
         if self.check_actions:
-            low, high = (spec.space.low, spec.space.high) if isinstance(spec, Bounded) else (-torch.inf, torch.inf)
+            if self._action_bounds is None:  # computed once: with the 1e-6 float tolerance
+                low, high = (spec.space.low, spec.space.high) if isinstance(spec, Bounded) else (-torch.inf, torch.inf)
+                self._action_bounds = (torch.as_tensor(low - 1e-6), torch.as_tensor(high + 1e-6))
+            low, high = self._action_bounds
             # one reduction (one host sync on an accelerator): NaN fails both comparisons
-            if not bool(((action >= low - 1e-6) & (action <= high + 1e-6)).all()):
+            if not bool(((action >= low) & (action <= high)).all()):
                 if not torch.isfinite(action).all():
                     raise ValueError("action contains NaN or inf")
                 raise ValueError(
