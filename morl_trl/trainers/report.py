@@ -86,7 +86,7 @@ def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Pa
 def write_report(log, summary: dict, fps: float | None) -> Path:
     """Write ``report.md`` (+ PNGs) into the run directory and print its table."""
     result = log.last_result
-    cfg, spec, run_dir = log.cfg, log.spec, log.run_dir
+    cfg, spec, run_dir = log.cfg, log.spec, log.out_dir
     contexts = list(result.context_names)
     reference = getattr(log, "reference", None)
     nhgr_cols: dict[str, dict[str, float]] = {}

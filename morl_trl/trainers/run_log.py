@@ -10,6 +10,7 @@ Layout of a run directory::
     fronts/frames_<N>.csv        the Pareto front of every context at that evaluation
     train/episodes.csv           one row per finished training episode: context, preference, returns
     report.md, report_*.png      the last evaluation against the specialists (and published baselines)
+    reevaluation/...             the same eval/, fronts/ and report written by ``morl-trl evaluate``
 
 Nothing is averaged over objectives: every column names its objective.
 """
@@ -75,6 +76,8 @@ class RunLog:
         self.tag = tag
         self.objectives = tuple(spec.objective_names)
         self.logger = _make_logger(cfg.logger, self.run_dir, tag)
+        # a re-evaluation (morl-trl evaluate) writes beside the run's own outputs, not over them
+        self.out_dir = self.run_dir if tag == "train" else self.run_dir / tag
         self._pending_episodes: list[dict] = []
         self.last_result = None
 
@@ -124,9 +127,9 @@ class RunLog:
         """Log one :class:`~morl_trl.collectors.EvaluationResult`; returns a small summary."""
         self.last_result = result
         rows = [{"frames": frames, **r} for r in result.metric_rows()]
-        _append_rows(self.run_dir / "eval" / "metrics.csv", rows)
-        _append_rows(self.run_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()])
-        result.write_csv(self.run_dir / "fronts" / f"frames_{frames:012d}.csv", kind="fronts")
+        _append_rows(self.out_dir / "eval" / "metrics.csv", rows)
+        _append_rows(self.out_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()])
+        result.write_csv(self.out_dir / "fronts" / f"frames_{frames:012d}.csv", kind="fronts")
         for name, value in result.summary(prefix=f"{self.tag}_eval").items():
             self._scalar(name, value, frames)
         nhgr = result.aggregate.get("nhgr")

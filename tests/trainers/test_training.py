@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from morl_trl.trainers import TrainConfig, resolve_config, train
+from morl_trl.trainers import TrainConfig, evaluate_run, resolve_config, train
 from morl_trl.trainers.checkpoint import latest_checkpoint
 
 TINY = dict(
@@ -93,6 +93,14 @@ def test_short_run_writes_everything(tmp_path, reference_dir):
     assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper)" in report
     assert (run / "report_fronts.png").stat().st_size > 1000
     assert 0.0 <= summary["nhgr_mean"] <= 1.0
+    # morl-trl evaluate: the last checkpoint again, written beside (not over) the run's outputs
+    again = evaluate_run(run, weights=3)
+    assert again["frames"] == 512
+    assert again["per_context"]["MOLavaGridRoom-v0"]["nhgr"] == pytest.approx(
+        summary["per_context"]["MOLavaGridRoom-v0"]["nhgr"])  # same checkpoint, same seed: same numbers
+    assert len(_rows(run / "reevaluation" / "eval" / "metrics.csv")) == 2
+    assert len(_rows(run / "eval" / "metrics.csv")) == 6
+    assert (run / "reevaluation" / "report.md").exists()
 
 
 def test_non_finite_loss_stops_with_a_clear_message_and_a_good_checkpoint(tmp_path, monkeypatch):
