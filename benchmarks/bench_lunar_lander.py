@@ -59,7 +59,7 @@ def gymnasium_runner(make: Callable, steps: int, seed: int = 0) -> Callable[[], 
 def morl_trl_runner(num_envs: int, steps: int, seed: int = 0) -> Callable[[], int]:
     from morl_trl.envs import make_env
 
-    env = make_env("MOLunarLanderDR-v0", num_envs=num_envs, seed=seed)
+    env = make_env(ENV_ID, num_envs=num_envs, seed=seed)
     torch.manual_seed(seed)
     spec = env.action_spec
     state = {"td": env.reset()}
@@ -121,13 +121,20 @@ def breakdown(num_envs: int) -> None:
         print(f"  {name:<50}{us:8.0f}")
 
 
+ENV_ID = "MOLunarLanderDR-v0"  # --context default: MOLunarLanderDefault-v0, the peer's exact physics
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer steps and rounds (~15 s)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 16, 64])
     parser.add_argument("--rounds", type=int, default=None)
     parser.add_argument("--breakdown", action="store_true", help="also print where one step's time goes")
+    parser.add_argument("--context", choices=("dr", "default"), default="dr",
+                        help="dr: domain-randomized (MOLunarLanderDR-v0); default: the fixed default context")
     args = parser.parse_args()
+    global ENV_ID
+    ENV_ID = "MOLunarLanderDR-v0" if args.context == "dr" else "MOLunarLanderDefault-v0"
     torch.set_num_threads(1)
     warnings.filterwarnings("ignore")
     rounds = args.rounds or (2 if args.quick else 5)
@@ -149,7 +156,7 @@ def main() -> None:
     except ImportError:
         pass
     for n in args.sizes:
-        runners[f"morl_trl MOLunarLanderDR-v0 num_envs={n}"] = morl_trl_runner(n, max(sub_env_steps // n, 20))
+        runners[f"morl_trl {ENV_ID} num_envs={n}"] = morl_trl_runner(n, max(sub_env_steps // n, 20))
 
     best = {name: (0.0, 0.0) for name in runners}
     for _ in range(rounds):

@@ -87,6 +87,8 @@ def main(argv=None) -> None:
         "--threads", nargs="*", type=int, default=[0, 1],
         help="num_threads of our envs to measure; 0 is the default, min(N, CPUs)",
     )
+    parser.add_argument("--context", choices=("dr", "default"), default="dr",
+                        help="dr: the domain-randomized ids; default: MO<Domain>Default-v5, the peer's physics")
     args = parser.parse_args(argv)
     seconds, repeats = (0.4, 2) if args.quick else (1.5, 3)
     torch.set_num_threads(1)
@@ -97,6 +99,8 @@ def main(argv=None) -> None:
     print(f"{'domain':<12} {'Gymnasium (1 env)':>17} {'threads':>8} {head}")
     for domain in args.domains:
         ours_id, gym_id, gym_kwargs = DOMAINS[domain]
+        if args.context == "default":
+            ours_id = ours_id.replace("DR-", "Default-")
         configs = [(t, n) for t in args.threads for n in args.num_envs if not (t == 1 and n == 1 and 0 in args.threads)]
         peer, ours = 0.0, dict.fromkeys(configs, 0.0)
         for _ in range(repeats):
