@@ -450,3 +450,32 @@ def test_partial_steps_skip_the_unselected_worlds():
     assert torch.equal(out_part["reward"][[0, 2]], out_full["reward"][[0, 2]])
     assert torch.equal(out_part["observation"][1], b["observation"][1])  # the skipped lander did not move
     assert out_part["reward"][1].abs().sum() == 0
+
+
+@_PEER_WARNINGS
+def test_batched_auto_reset_matches_one_peer_per_subenv():
+    """``step_and_maybe_reset`` on 4 sub-envs (partial resets of whichever finished) gives the
+    same floats as 4 MO-Gymnasium envs seeded ``seed + i``, each reset when it ends."""
+    mo_gym = pytest.importorskip("mo_gymnasium")
+    n, seed = 4, 3
+    peers = [mo_gym.make("mo-lunar-lander-v3", enable_wind=True) for _ in range(n)]
+    obs = np.stack([p.reset(seed=seed + i)[0] for i, p in enumerate(peers)])
+    env = make_env("MOLunarLanderDefault-v0", num_envs=n, seed=seed)
+    td = env.reset()
+    assert np.array_equal(td["observation"].numpy(), obs)
+    actions = np.random.default_rng(seed).integers(0, 4, size=(400, n))
+    resets = 0
+    for a in actions:
+        td["action"] = torch.as_tensor(a)
+        out, td = env.step_and_maybe_reset(td)
+        for i, p in enumerate(peers):
+            o, r, term, trunc, info = p.step(int(a[i]))
+            assert np.array_equal(out["next", "observation"][i].numpy(), o)
+            assert np.array_equal(out["next", "reward"][i].numpy(), r)
+            assert out["next", "original_reward"][i, 0].item() == np.float32(info["original_reward"])
+            assert out["next", "terminated"][i].item() == term
+            if term or trunc:
+                o, _ = p.reset()
+                resets += 1
+            assert np.array_equal(td["observation"][i].numpy(), o)
+    assert resets >= 8
