@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from Box2D import b2World
+from Box2D import b2_dynamicBody, b2_staticBody, b2BodyDef, b2World
 from Box2D.b2 import contactListener, edgeShape, fixtureDef, polygonShape, revoluteJointDef
 
 FPS = 50
@@ -84,6 +84,40 @@ class LanderWorld:
     torque_idx: int
 
 
+def _fixture(shape, **kwargs) -> fixtureDef:
+    fixture = fixtureDef(shape=shape, **kwargs)
+    fixture.keep_shape = shape  # the definition points into the shape: keep it alive
+    return fixture
+
+
+# Definitions reused by every build (Box2D copies them into the world), set up once instead
+# of through pybox2d's keyword constructors: the same values, a fraction of the time.
+_GROUND = b2BodyDef(type=b2_staticBody)
+_BASE_EDGE = _fixture(edgeShape(vertices=[(0, 0), (W, 0)]))
+_TERRAIN_EDGE = _fixture(edgeShape(vertices=[(0, 0), (1, 0)]), density=0, friction=0.1)
+_LANDER_FIXTURE = _fixture(
+    polygonShape(vertices=[(x / SCALE, y / SCALE) for x, y in LANDER_POLY]),
+    density=5.0, friction=0.1, categoryBits=0x0010, maskBits=0x001, restitution=0.0,
+)
+_LEG_FIXTURE = _fixture(
+    polygonShape(box=(LEG_W / SCALE, LEG_H / SCALE)),
+    density=1.0, restitution=0.0, categoryBits=0x0020, maskBits=0x001,
+)
+_BODY = b2BodyDef(type=b2_dynamicBody)
+_LEG_JOINTS = []
+for _side in (-1, +1):
+    _rjd = revoluteJointDef(
+        localAnchorA=(0, 0),
+        localAnchorB=(_side * LEG_AWAY / SCALE, LEG_DOWN / SCALE),
+        enableMotor=True,
+        enableLimit=True,
+        maxMotorTorque=LEG_SPRING_TORQUE,
+        motorSpeed=+0.3 * _side,
+    )
+    _rjd.lowerAngle, _rjd.upperAngle = (+0.9 - 0.5, +0.9) if _side == -1 else (-0.9, -0.9 + 0.5)
+    _LEG_JOINTS.append(_rjd)
+
+
 def build_world(
     rng: np.random.Generator,
     gravity: float,
@@ -94,7 +128,8 @@ def build_world(
     """Create a fresh world as Gymnasium's ``reset`` does (without its closing no-op step).
 
     Draws from ``rng`` in Gymnasium's order: 12 terrain heights, the 2 components of the
-    initial push, then the wind and torque indices (``enable_wind`` is always on).
+    initial push, then the wind and torque indices (``enable_wind`` is always on). Bodies,
+    fixtures and joints are created in Gymnasium's order with Gymnasium's values.
     """
     world = b2World(gravity=(0, gravity))
     world.contactListener = listener
@@ -105,28 +140,23 @@ def build_world(
     i = np.arange(CHUNKS)
     smooth_y = (0.33 * (height[i - 1] + height[i] + height[i + 1])).tolist()  # i-1 wraps at 0, as in Gymnasium
 
-    moon = world.CreateStaticBody(shapes=edgeShape(vertices=[(0, 0), (W, 0)]))
+    moon = world.CreateBody(_GROUND)
+    moon.CreateFixture(_BASE_EDGE)
+    edge = _TERRAIN_EDGE.keep_shape
     sky_polys = []
     for k in range(CHUNKS - 1):
         p1 = (chunk_x[k], smooth_y[k])
         p2 = (chunk_x[k + 1], smooth_y[k + 1])
-        moon.CreateEdgeFixture(vertices=[p1, p2], density=0, friction=0.1)
+        edge.vertices = [p1, p2]
+        moon.CreateFixture(_TERRAIN_EDGE)
         sky_polys.append([p1, p2, (p2[0], H), (p1[0], H)])
 
     initial_x = VIEWPORT_W / SCALE * x_coeff
     initial_y = VIEWPORT_H / SCALE * y_coeff
-    lander = world.CreateDynamicBody(
-        position=(initial_x, initial_y),
-        angle=0.0,
-        fixtures=fixtureDef(
-            shape=polygonShape(vertices=[(x / SCALE, y / SCALE) for x, y in LANDER_POLY]),
-            density=5.0,
-            friction=0.1,
-            categoryBits=0x0010,
-            maskBits=0x001,
-            restitution=0.0,
-        ),
-    )
+    _BODY.position = (initial_x, initial_y)
+    _BODY.angle = 0.0
+    lander = world.CreateBody(_BODY)
+    lander.CreateFixture(_LANDER_FIXTURE)
     lander.userData = LANDER
     push = (rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM), rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM))
     lander.ApplyForceToCenter(push, True)
@@ -134,35 +164,16 @@ def build_world(
     torque_idx = int(rng.integers(-9999, 9999))
 
     legs = []
-    for j, side in enumerate((-1, +1)):
-        leg = world.CreateDynamicBody(
-            position=(initial_x - side * LEG_AWAY / SCALE, initial_y),
-            angle=side * 0.05,
-            fixtures=fixtureDef(
-                shape=polygonShape(box=(LEG_W / SCALE, LEG_H / SCALE)),
-                density=1.0,
-                restitution=0.0,
-                categoryBits=0x0020,
-                maskBits=0x001,
-            ),
-        )
+    for j, (side, rjd) in enumerate(zip((-1, +1), _LEG_JOINTS)):
+        _BODY.position = (initial_x - side * LEG_AWAY / SCALE, initial_y)
+        _BODY.angle = side * 0.05
+        leg = world.CreateBody(_BODY)
+        leg.CreateFixture(_LEG_FIXTURE)
         leg.userData = j
-        rjd = revoluteJointDef(
-            bodyA=lander,
-            bodyB=leg,
-            localAnchorA=(0, 0),
-            localAnchorB=(side * LEG_AWAY / SCALE, LEG_DOWN / SCALE),
-            enableMotor=True,
-            enableLimit=True,
-            maxMotorTorque=LEG_SPRING_TORQUE,
-            motorSpeed=+0.3 * side,
-        )
-        if side == -1:
-            rjd.lowerAngle = +0.9 - 0.5
-            rjd.upperAngle = +0.9
-        else:
-            rjd.lowerAngle = -0.9
-            rjd.upperAngle = -0.9 + 0.5
+        rjd.bodyA, rjd.bodyB = lander, leg
+        rjd.referenceAngle = leg.angle - lander.angle  # as pybox2d's revoluteJointDef(bodyA=, bodyB=)
         world.CreateJoint(rjd)
         legs.append(leg)
+    for rjd in _LEG_JOINTS:  # no references from the module-level definitions into this world
+        rjd.bodyA = rjd.bodyB = None
     return LanderWorld(world, lander, tuple(legs), sky_polys, wind_idx, torque_idx)
