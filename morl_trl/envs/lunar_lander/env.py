@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from Box2D import _Box2D
 from torchrl.data import Bounded, Categorical, Unbounded
 
 from morl_trl.envs.base import ContextualMOEnv
@@ -28,6 +29,18 @@ _HALF_W, _HALF_H = P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2
 _OBS_MUL = np.array([1.0, 1.0, _HALF_W, _HALF_H, 1.0, 20.0])
 _OBS_SUB = np.array([_HALF_W, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE, 0.0, 0.0, 0.0, 0.0])
 _OBS_DIV = np.array([_HALF_W, _HALF_H, P.FPS, P.FPS, 1.0, P.FPS])
+
+# pybox2d's C entry points, called directly in the per-world loop: its Python properties
+# and methods only forward to these, at about twice the cost
+_apply_force = _Box2D.b2Body_ApplyForceToCenter
+_apply_torque = _Box2D.b2Body_ApplyTorque
+_apply_impulse = _Box2D.b2Body_ApplyLinearImpulse
+_position = _Box2D.b2Body___GetPosition
+_velocity = _Box2D.b2Body___GetLinearVelocity
+_angle = _Box2D.b2Body___GetAngle
+_spin = _Box2D.b2Body___GetAngularVelocity
+_awake = _Box2D.b2Body___IsAwake
+_x, _y = _Box2D.b2Vec2_x_get, _Box2D.b2Vec2_y_get
 
 
 def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
@@ -137,6 +150,8 @@ class MOLunarLanderEnv(ContextualMOEnv):
         n = num_envs
         self._all = np.arange(n)
         self._worlds: list[P.LanderWorld | None] = [None] * n
+        self._landers: list = [None] * n  # the worlds' lander bodies and bound Step methods
+        self._world_steps: list = [None] * n
         self._ready = False  # every sub-env has been reset at least once
         self._ctx = np.zeros((n, self.context_space.dim))
         # written by the contact listeners during Box2D steps
@@ -176,6 +191,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
                 old.world.contactListener = None
             w = P.build_world(self._streams.generator(i), g, x, y, self._listeners[i])
             self._worlds[i] = w
+            self._landers[i], self._world_steps[i] = w.lander, w.world.Step
             self._wind_idx[i] = (w.wind_idx, w.torque_idx)
         self._ready = self._ready or all(w is not None for w in self._worlds)
         # Gymnasium's reset ends with one no-op step whose observation it returns
@@ -260,22 +276,24 @@ class MOLunarLanderEnv(ContextualMOEnv):
         disp = self._streams.take(idx) / P.SCALE  # drawn at every step, engines firing or not
         main_kicks, side_kicks = _engine_impulses(self._body[sel], ctx, disp, main, side, direction)
 
-        worlds = self._worlds if every else [self._worlds[i] for i in idx.tolist()]
+        landers = self._landers if every else [self._landers[i] for i in idx.tolist()]
+        steps = self._world_steps if every else [self._world_steps[i] for i in idx.tolist()]
         readback = []
-        for w, air, (force, torque), main_kick, side_kick in zip(
-            worlds, airborne.tolist(), wind.tolist(), main_kicks, side_kicks
+        push = readback.extend
+        dt, vel_iters, pos_iters = P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS
+        for lander, step, air, force, torque, main_kick, side_kick in zip(
+            landers, steps, airborne.tolist(), wind[:, 0].tolist(), wind[:, 1].tolist(), main_kicks, side_kicks
         ):
-            lander = w.lander
             if air:
-                lander.ApplyForceToCenter((force, 0.0), True)
-                lander.ApplyTorque(torque, True)
+                _apply_force(lander, (force, 0.0), True)
+                _apply_torque(lander, torque, True)
             if main_kick is not None:
-                lander.ApplyLinearImpulse(*main_kick, True)
+                _apply_impulse(lander, main_kick[0], main_kick[1], True)
             if side_kick is not None:
-                lander.ApplyLinearImpulse(*side_kick, True)
-            w.world.Step(P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS)
-            pos, vel = lander.position, lander.linearVelocity
-            readback.append((pos.x, pos.y, vel.x, vel.y, lander.angle, lander.angularVelocity, lander.awake))
+                _apply_impulse(lander, side_kick[0], side_kick[1], True)
+            step(dt, vel_iters, pos_iters)
+            pos, vel = _position(lander), _velocity(lander)
+            push((_x(pos), _y(pos), _x(vel), _y(vel), _angle(lander), _spin(lander), _awake(lander)))
 
         back = np.array(readback, dtype=np.float64).reshape(len(idx), 7)
         self._body[sel] = back[:, :6]
