@@ -29,6 +29,10 @@ _HALF_W, _HALF_H = P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2
 _OBS_MUL = np.array([1.0, 1.0, _HALF_W, _HALF_H, 1.0, 20.0])
 _OBS_SUB = np.array([_HALF_W, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE, 0.0, 0.0, 0.0, 0.0])
 _OBS_DIV = np.array([_HALF_W, _HALF_H, P.FPS, P.FPS, 1.0, P.FPS])
+# discrete action -> (main power, side power, side direction), as Gymnasium derives them
+_MAIN_POWER = np.array([0.0, 0.0, 1.0, 0.0])
+_SIDE_POWER = np.array([0.0, 1.0, 0.0, 1.0])
+_DIRECTION = np.array([-2.0, -1.0, 0.0, 1.0])
 
 # pybox2d's C entry points, called directly in the per-world loop: its Python properties
 # and methods only forward to these, at about twice the cost
@@ -54,42 +58,44 @@ def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
 
 
 def _engine_impulses(body, ctx, disp, main, side, direction):
-    """Per sub-env ``(impulse, point)`` of the main and the side engine (``None``: not firing).
+    """Per sub-env ``(impulse x, impulse y, point x, point y)`` rows of the main and the side
+    engine, as lists, or ``None`` for an engine that fires nowhere; the loop applies a row
+    only where that engine fires (``main > 0``, ``side > 0``).
 
     ``body`` ``[n, 6]`` is the lander state read back after the previous step, ``disp``
     ``[n, 2]`` the step's dispersion (already divided by ``SCALE``).
     """
-    n = len(main)
     fire_main, fire_side = main > 0, side > 0
-    main_kicks = side_kicks = [None] * n
-    if not (fire_main.any() or fire_side.any()):
-        return main_kicks, side_kicks
+    any_main, any_side = fire_main.any(), fire_side.any()
+    if not (any_main or any_side):
+        return None, None
     d0, d1 = disp[:, 0], disp[:, 1]
     px, py, angle = body[:, 0], body[:, 1], body[:, 4]
     tip0, tip1 = np.sin(angle), np.cos(angle)
     side0, side1 = -tip1, tip0
-    if fire_main.any():
+    main_kicks = side_kicks = None
+    if any_main:
         lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
         ox = tip0 * lever + side0 * d1
         oy = -tip1 * lever - side1 * d1
         power = ctx[:, _MAIN]
-        main_kicks = _kicks(fire_main, -ox * power * main, -oy * power * main, px + ox, py + oy)
-    if fire_side.any():
+        main_kicks = _rows(-ox * power * main, -oy * power * main, px + ox, py + oy)
+    if any_side:
         arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
         ox = tip0 * d0 + side0 * arm
         oy = -tip1 * d0 - side1 * arm
         power = ctx[:, _SIDE]
         x = px + ox - tip0 * 17 / P.SCALE  # Gymnasium's 17 (not SIDE_ENGINE_HEIGHT), kept
         y = py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE
-        side_kicks = _kicks(fire_side, -ox * power * side, -oy * power * side, x, y)
+        side_kicks = _rows(-ox * power * side, -oy * power * side, x, y)
     return main_kicks, side_kicks
 
 
-def _kicks(fire, ix, iy, x, y) -> list:
-    return [
-        ((a, b), (c, d)) if f else None
-        for f, a, b, c, d in zip(fire.tolist(), ix.tolist(), iy.tolist(), x.tolist(), y.tolist())
-    ]
+def _rows(*columns) -> list:
+    out = np.empty((len(columns[0]), len(columns)))
+    for j, c in enumerate(columns):
+        out[:, j] = c
+    return out.tolist()
 
 
 class MOLunarLanderEnv(ContextualMOEnv):
@@ -213,10 +219,8 @@ class MOLunarLanderEnv(ContextualMOEnv):
             fire_side = np.abs(a[:, 1]) > 0.5
             side = np.where(fire_side, np.clip(np.abs(a[:, 1]), 0.5, 1.0), 0.0)
             direction = np.sign(a[:, 1])
-        else:
-            main = (a == 2).astype(np.float64)
-            side = ((a == 1) | (a == 3)).astype(np.float64)
-            direction = (a - 2).astype(np.float64)
+        else:  # noop, left, main, right -> main power 0/1, side power 0/1, direction a - 2
+            main, side, direction = _MAIN_POWER[a], _SIDE_POWER[a], _DIRECTION[a]
         return main, side, direction
 
     def _step_subenvs(self, action: torch.Tensor):
@@ -238,13 +242,19 @@ class MOLunarLanderEnv(ContextualMOEnv):
         at_rest = ~awake
         landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
         original = shaping_delta - main * 0.30 - side * 0.03
-        original = np.where(crashed | at_rest, landing, original)
-        reward = np.zeros((n, 4), dtype=np.float32)
-        reward[sel] = np.stack([landing, shaping_delta, 0.0 - main, 0.0 - side], axis=-1)
-        original_all = np.zeros(n, dtype=np.float32)
-        original_all[sel] = original
-        terminated = np.zeros(n, dtype=bool)
-        terminated[sel] = crashed | at_rest
+        done = crashed | at_rest
+        if sel is idx:
+            reward = np.zeros((n, 4), dtype=np.float32)
+            original_all = np.zeros(n, dtype=np.float32)
+            terminated = np.zeros(n, dtype=bool)
+        else:
+            reward = np.empty((n, 4), dtype=np.float32)
+            original_all = np.empty(n, dtype=np.float32)
+            terminated = np.empty(n, dtype=bool)
+        for j, column in enumerate((landing, shaping_delta, 0.0 - main, 0.0 - side)):
+            reward[sel, j] = column
+        original_all[sel] = np.where(done, landing, original)
+        terminated[sel] = done
 
         # a fresh array: the returned tensor lives on in rollouts while _obs is updated at resets
         obs = self._obs.copy()
@@ -269,11 +279,11 @@ class MOLunarLanderEnv(ContextualMOEnv):
         sel = slice(None) if every else idx  # views instead of gathers on the common path
         ctx = self._ctx[sel]
         # wind and turbulence act only while no leg touches the ground
-        airborne = ~(self._legs[sel, 0] | self._legs[sel, 1])
+        airborne = ~self._legs[sel].any(axis=1)
         k = self._wind_idx[sel].astype(np.float64)  # columns: wind, torque
         wind = np.tanh(np.sin(P.WIND_K1 * k) + np.sin(P.WIND_K2 * k)) * ctx[:, _WIND : _TURBULENCE + 1]
         self._wind_idx[sel] += airborne[:, None]
-        disp = self._streams.take(idx) / P.SCALE  # drawn at every step, engines firing or not
+        disp = self._streams.take(None if every else idx) / P.SCALE  # drawn at every step, engines firing or not
         main_kicks, side_kicks = _engine_impulses(self._body[sel], ctx, disp, main, side, direction)
 
         landers = self._landers if every else [self._landers[i] for i in idx.tolist()]
@@ -281,21 +291,24 @@ class MOLunarLanderEnv(ContextualMOEnv):
         readback = []
         push = readback.extend
         dt, vel_iters, pos_iters = P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS
-        for lander, step, air, force, torque, main_kick, side_kick in zip(
-            landers, steps, airborne.tolist(), wind[:, 0].tolist(), wind[:, 1].tolist(), main_kicks, side_kicks
+        n = len(idx)
+        no_kicks = [None] * n
+        for lander, step, air, (force, torque), fire_main, main_kick, fire_side, side_kick in zip(
+            landers, steps, airborne.tolist(), wind.tolist(),
+            (main > 0).tolist(), main_kicks or no_kicks, (side > 0).tolist(), side_kicks or no_kicks,
         ):
             if air:
                 _apply_force(lander, (force, 0.0), True)
                 _apply_torque(lander, torque, True)
-            if main_kick is not None:
-                _apply_impulse(lander, main_kick[0], main_kick[1], True)
-            if side_kick is not None:
-                _apply_impulse(lander, side_kick[0], side_kick[1], True)
+            if fire_main:
+                _apply_impulse(lander, (main_kick[0], main_kick[1]), (main_kick[2], main_kick[3]), True)
+            if fire_side:
+                _apply_impulse(lander, (side_kick[0], side_kick[1]), (side_kick[2], side_kick[3]), True)
             step(dt, vel_iters, pos_iters)
             pos, vel = _position(lander), _velocity(lander)
             push((_x(pos), _y(pos), _x(vel), _y(vel), _angle(lander), _spin(lander), _awake(lander)))
 
-        back = np.array(readback, dtype=np.float64).reshape(len(idx), 7)
+        back = np.array(readback, dtype=np.float64).reshape(n, 7)
         self._body[sel] = back[:, :6]
         s = np.empty((len(idx), 8))
         s[:, :6] = (back[:, :6] * _OBS_MUL - _OBS_SUB) / _OBS_DIV

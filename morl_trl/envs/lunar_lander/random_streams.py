@@ -34,6 +34,7 @@ class BlockUniformStreams:
     def __init__(self, num: int, seed: int, width: int = 2, block: int = 64) -> None:
         self.num, self.width, self.block = num, width, block
         self.buffer = np.empty((num, block, width))
+        self._all = np.arange(num)
         self.seed(seed)
 
     def seed(self, seed: int) -> None:
@@ -55,8 +56,15 @@ class BlockUniformStreams:
             self.block_start[i] = None
         return self.rngs[i]
 
-    def take(self, idx: np.ndarray) -> np.ndarray:
-        """The next row ``[len(idx), width]`` of each sub-env in ``idx``."""
+    def take(self, idx: np.ndarray | None = None) -> np.ndarray:
+        """The next row ``[len(idx), width]`` of each sub-env in ``idx`` (all if ``None``)."""
+        if idx is None:  # the common case, with fewer (and cheaper) numpy calls
+            pos = self.pos
+            if pos.max() >= self.block:
+                return self.take(self._all)
+            rows = self.buffer[self._all, pos]
+            pos += 1
+            return rows
         pos = self.pos[idx]
         empty = pos >= self.block
         if empty.any():
