@@ -54,7 +54,18 @@ def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
     going through the shortest decimal gives the same physics as the float64 peer for the
     values people type (all the paper's contexts).
     """
-    return context.detach().cpu().numpy().astype(np.float32).astype(str).astype(np.float64)
+    rows = context.detach().cpu().numpy().astype(np.float32)
+    key = rows.tobytes()
+    out = _DECIMAL_CACHE.get(key)
+    if out is None:  # the string round trip costs tens of us: remembered (auto-resets repeat contexts)
+        out = rows.astype(str).astype(np.float64)
+        if len(_DECIMAL_CACHE) >= 1024:
+            _DECIMAL_CACHE.clear()
+        _DECIMAL_CACHE[key] = out
+    return out.copy()
+
+
+_DECIMAL_CACHE: dict[bytes, np.ndarray] = {}
 
 
 def _engine_impulses(body, ctx, disp, main, side, direction):
