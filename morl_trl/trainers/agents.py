@@ -58,10 +58,9 @@ class Agent:
         target_updater: TorchRL ``SoftUpdate`` / ``HardUpdate`` (stepped after every update).
     """
 
-    def __init__(self, cfg, env, loss, explore_policy, eval_policy, optimizers, target_updater,
+    def __init__(self, cfg, loss, explore_policy, eval_policy, optimizers, target_updater,
                  *, device, exploration_module=None, eval_exploration=ExplorationType.DETERMINISTIC) -> None:
         self.cfg = cfg
-        self.env = env
         self.loss = loss
         self.explore_policy = explore_policy
         self.eval_policy = eval_policy
@@ -211,7 +210,7 @@ def _build_envelope(cfg, env, gamma, device) -> Agent:
     )
     loss.make_value_estimator(gamma=gamma)
     opt = {"qvalue": torch.optim.Adam(loss.parameters(), lr=cfg.lr)}
-    return Agent(cfg, env, loss, explore, greedy, opt, _target_updater(cfg, loss), device=device,
+    return Agent(cfg, loss, explore, greedy, opt, _target_updater(cfg, loss), device=device,
                  exploration_module=egreedy)
 
 
@@ -240,7 +239,7 @@ def _build_continuous(cfg, env, gamma, device, capql: bool) -> Agent:
     else:
         loss = MOSACLoss(actor, critic, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha, action_spec=spec)
     loss.make_value_estimator(gamma=gamma)
-    return Agent(cfg, env, loss, actor, actor, _actor_critic_optimizers(cfg, loss), _target_updater(cfg, loss),
+    return Agent(cfg, loss, actor, actor, _actor_critic_optimizers(cfg, loss), _target_updater(cfg, loss),
                  device=device)
 
 
@@ -257,7 +256,7 @@ def _build_mosac_discrete(cfg, env, gamma, device) -> Agent:
     loss = DiscreteMOSACLoss(actor, critic, num_actions=n, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha,
                              target_entropy=target_entropy)
     loss.make_value_estimator(gamma=gamma)
-    return Agent(cfg, env, loss, actor, actor, _actor_critic_optimizers(cfg, loss), _target_updater(cfg, loss),
+    return Agent(cfg, loss, actor, actor, _actor_critic_optimizers(cfg, loss), _target_updater(cfg, loss),
                  device=device, eval_exploration=ExplorationType.RANDOM)
 
 

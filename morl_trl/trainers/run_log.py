@@ -22,8 +22,6 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
-import torch
 
 __all__ = ["RunLog"]
 
@@ -78,7 +76,6 @@ class RunLog:
         self.logger = _make_logger(cfg.logger, self.run_dir, tag)
         # a re-evaluation (morl-trl evaluate) writes beside the run's own outputs, not over them
         self.out_dir = self.run_dir if tag == "train" else self.run_dir / tag
-        self._pending_episodes: list[dict] = []
         self.last_result = None
 
     # ------------------------------------------------------------------ notes
@@ -155,7 +152,3 @@ class RunLog:
                     exp.close()
                 except Exception:  # noqa: BLE001 - closing a logger must not hide the run's own error
                     pass
-
-
-def as_numpy(x) -> np.ndarray:
-    return x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
