@@ -6,7 +6,7 @@ Measures, in one run, sub-env steps per second of
   (pre-drawn, so the peer pays nothing for sampling), reset when an episode ends;
 * ``mo_gymnasium.make("mo-lunar-lander-v3", enable_wind=True)``: the same with the vector reward;
 * ``morl_trl.envs.make_env("MOLunarLanderDR-v0", num_envs=N)`` for N in 1, 16, 64: random
-  actions from the action spec, ``env.step_and_maybe_reset`` (``step`` + ``step_mdp`` + a
+  actions from the action spec (pre-drawn too), ``env.step_and_maybe_reset`` (``step`` + ``step_mdp`` + a
   partial reset of the finished sub-envs, each with a fresh random context drawn by
   ``DomainRandomization``);
 
@@ -62,12 +62,13 @@ def morl_trl_runner(num_envs: int, steps: int, seed: int = 0) -> Callable[[], in
     env = make_env(ENV_ID, num_envs=num_envs, seed=seed)
     torch.manual_seed(seed)
     spec = env.action_spec
+    actions = torch.stack([spec.rand() for _ in range(steps)])  # pre-drawn, as for the peer
     state = {"td": env.reset()}
 
     def run() -> int:
         td = state["td"]
-        for _ in range(steps):
-            td["action"] = spec.rand()
+        for action in actions:
+            td["action"] = action
             _, td = env.step_and_maybe_reset(td)
         state["td"] = td
         return steps * num_envs

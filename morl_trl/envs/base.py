@@ -159,48 +159,154 @@ class ContextualMOEnv(EnvBase):
             chosen = self._context[idx]
         if idx.numel():
             self._reset_subenvs(idx, chosen)
-            # out of place: step outputs share self._context without copying it every step
-            context = self._context.clone()
-            context[idx] = chosen
-            self._context = context
+            if new_context is not None:
+                # out of place: step outputs share self._context without copying it every step
+                context = self._context.clone()
+                context[idx] = chosen
+                self.__dict__["_context"] = context
             self._step_count[idx] = 0
-        return self._make_output(self._observe(), reward=None, original=None,
-                                 terminated=torch.zeros(self.num_envs, dtype=torch.bool, device=self.device),
-                                 truncated=torch.zeros(self.num_envs, dtype=torch.bool, device=self.device))
+        flags = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        return self._make_output(self._observe(), reward=None, original=None, terminated=flags, truncated=flags)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action")
-        action = self._check_action(action)
+        action = self._check_action(tensordict.get("action", None))
         # TorchRL's partial steps: "_step" [N] marks the sub-envs to advance. Domains whose
         # per-sub-env cost dominates (Box2D, MuJoCo) skip the others (see `_active`); the
         # outputs of skipped sub-envs are to be ignored by the caller.
         partial = tensordict.get("_step", None)
-        self._active = None if partial is None else partial.reshape(self.num_envs).to(self.device, torch.bool)
+        active = None if partial is None else partial.reshape(self.num_envs).to(self.device, torch.bool)
+        self.__dict__["_active"] = active  # (nn.Module.__setattr__ costs microseconds per step)
         obs, reward, original, terminated = self._step_subenvs(action)
-        self._step_count += 1 if self._active is None else self._active.long()
+        if active is None:
+            self._step_count += 1
+        else:
+            self._step_count += active
         truncated = (self._step_count >= self.max_episode_steps) & ~terminated
         return self._make_output(obs, reward, original, terminated, truncated)
+
+    # ------------------------------------------------------------------ auto-reset
+    def _step_and_maybe_reset(self, tensordict: TensorDictBase) -> tuple[TensorDictBase, TensorDictBase]:
+        """TorchRL's ``step`` + ``step_mdp`` + ``maybe_reset``, without their per-call bookkeeping.
+
+        Collectors and rollouts call this once per batch of sub-env steps. On the CPU, the
+        generic path's checks and copies cost about as much as ten Box2D sub-env steps per
+        call, and a partial reset as much again; this class already guarantees what they
+        check (one flat done group, outputs of the right shape, done False after a reset).
+        The results are the same TensorDicts: ``tensordict`` gains ``"next"`` in place; the
+        returned one holds what ``step_mdp`` keeps, with the rows of finished sub-envs
+        replaced as ``maybe_reset`` does (their reset values, and zeros for the entries the
+        reset does not produce, such as ``"action"``). Anything unusual (partial steps, a
+        preset ``"next"``, type checks, step-MDP hooks, nested entries, another device or
+        batch size) takes TorchRL's path.
+        """
+        if not self._lean_step_applies(tensordict):
+            return super()._step_and_maybe_reset(tensordict)
+        next_td = self._step(tensordict)
+        tensordict.set("next", next_td)
+        entries = self._step_mdp_entries(tensordict, next_td)
+        done = next_td.get("done")
+        if entries is None:  # nested or non-tensor entries: TorchRL's step_mdp and maybe_reset
+            return tensordict, self.maybe_reset(self._step_mdp(tensordict))
+        if done.any():
+            mask = done.view(self.num_envs)
+            reset = self._auto_reset(mask)
+            if mask.all():  # as maybe_reset: a full reset updates, keeping the entries it does not produce
+                entries.update(reset)
+                return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
+            for key, old in entries.items():
+                new = reset.get(key, None)
+                cond = mask.view(-1, *(1,) * (old.ndim - 1))
+                entries[key] = old.masked_fill(cond, 0) if new is None else torch.where(cond, new, old)
+            for key, new in reset.items():
+                if key not in entries:
+                    entries[key] = new.masked_fill(~mask.view(-1, *(1,) * (new.ndim - 1)), 0)
+        return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
+
+    def _auto_reset(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Reset the sub-envs ``mask`` (``[N]`` bool) with their current contexts; return the
+        entries ``_reset`` would (rows outside ``mask`` are to be ignored)."""
+        if type(self)._reset is not ContextualMOEnv._reset:  # a domain with its own reset
+            return dict(self._reset(self._reset_request(mask.view(-1, 1))).items())
+        idx = mask.nonzero().squeeze(-1)
+        self._reset_subenvs(idx, self._context[idx])
+        self._step_count.masked_fill_(mask, 0)
+        out = self._observe()
+        out["context"] = self._context
+        n = self.num_envs
+        if self.has_original_reward:
+            out["original_reward"] = torch.zeros(n, 1, device=self.device)
+        for key in ("terminated", "truncated", "done"):
+            out[key] = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+        return out
+
+    def _lean_step_applies(self, tensordict: TensorDictBase) -> bool:
+        return (
+            tensordict.batch_size == self.batch_size
+            and tensordict.device == self.device
+            and tensordict.get("_step", None) is None
+            and tensordict.get("next", None) is None
+            and not self.run_type_checks
+            and self._post_step_mdp_hooks is None
+            and not self.__dict__.get("_torchrl_native_autoreset", False)
+        )
+
+    def _reset_request(self, done: torch.Tensor) -> TensorDictBase:
+        return TensorDict._new_unsafe({"_reset": done}, batch_size=self.batch_size, device=self.device)
+
+    def _make_step_mdp_plan(self):
+        step_mdp = self._step_mdp  # TorchRL's own key lists (observations, states, done flags)
+        flat = all(v is None for v in step_mdp.exclude_from_root.values()) and all(
+            v is None for v in step_mdp.keys_from_next.values()
+        )
+        return (frozenset(step_mdp.exclude_from_root), tuple(step_mdp.keys_from_next)) if flat else False
+
+    def _cached(self, name: str, compute):
+        """``compute()``, remembered in TorchRL's spec cache while the specs are locked (TorchRL
+        clears that cache whenever a spec changes)."""
+        if not self.is_spec_locked:
+            return compute()
+        cache = self.__dict__.setdefault("_cache", {})
+        value = cache.get(name)
+        if value is None:
+            value = cache[name] = compute()
+        return value
+
+    def _step_mdp_entries(self, tensordict: TensorDictBase, next_td: TensorDictBase) -> dict | None:
+        """The entries ``step_mdp(tensordict)`` would hold, as a dict; ``None`` if any is
+        not a plain tensor (then TorchRL's ``step_mdp`` handles it)."""
+        plan = self._cached("step_mdp_plan", self._make_step_mdp_plan)
+        if not plan:
+            return None
+        exclude, from_next = plan
+        entries = {key: value for key, value in tensordict.items() if key not in exclude}
+        for key in from_next:
+            value = next_td.get(key, None)
+            if value is not None:
+                entries[key] = value
+        if not all(type(value) is torch.Tensor for value in entries.values()):
+            return None
+        return entries
 
     def _make_output(self, obs, reward, original, terminated, truncated) -> TensorDictBase:
         out = dict(obs)
         out["context"] = self._context
+        n = self.num_envs
         if self.has_original_reward:
             out["original_reward"] = (
-                original.reshape(self.num_envs, 1).to(self.device, torch.float32)
+                original.reshape(n, 1).to(self.device, torch.float32)
                 if original is not None
-                else torch.zeros(self.num_envs, 1, device=self.device)
+                else torch.zeros(n, 1, device=self.device)
             )
         if reward is not None:
             out["reward"] = reward.to(self.device, torch.float32)
-        done = terminated | truncated
-        out["terminated"] = terminated.reshape(self.num_envs, 1)
-        out["truncated"] = truncated.reshape(self.num_envs, 1)
-        out["done"] = done.reshape(self.num_envs, 1)
+        out["terminated"] = terminated.view(n, 1)
+        out["truncated"] = truncated.view(n, 1)
+        out["done"] = (terminated | truncated).view(n, 1)
         # every entry is built here with the right batch shape and device: skip the checks
         return TensorDict._new_unsafe(out, batch_size=self.batch_size, device=self.device)
 
     def _check_action(self, action: torch.Tensor) -> torch.Tensor:
-        spec = self.action_spec
+        spec = self._cached("action_spec", lambda: self.action_spec)  # the property walks the input spec
         if action is None:
             raise ValueError("the step TensorDict has no 'action'")
         if not isinstance(action, torch.Tensor):
@@ -220,19 +326,29 @@ class ContextualMOEnv(EnvBase):
                 if not torch.equal(action, action.round()):
                     raise ValueError(f"discrete actions must be integers, got {action}")
                 action = action.long()
-            if self.check_actions and bool(((action < 0) | (action >= n)).any()):
-                bad = action[(action < 0) | (action >= n)][0].item()
-                raise ValueError(f"action {bad} is out of the action space [0, {n})")
+            if self.check_actions:
+                lo, hi = torch.aminmax(action)  # one reduction (one host sync on an accelerator)
+                if int(lo) < 0 or int(hi) >= n:
+                    bad = action[(action < 0) | (action >= n)][0].item()
+                    raise ValueError(f"action {bad} is out of the action space [0, {n})")
             return action
         if action.shape != spec.shape:
             raise ValueError(f"action has shape {tuple(action.shape)}; expected {tuple(spec.shape)}")
         if self.check_actions:
             if self._action_bounds is None:  # computed once: with the 1e-6 float tolerance
                 low, high = (spec.space.low, spec.space.high) if isinstance(spec, Bounded) else (-torch.inf, torch.inf)
-                self._action_bounds = (torch.as_tensor(low - 1e-6), torch.as_tensor(high + 1e-6))
+                low, high = torch.as_tensor(low - 1e-6), torch.as_tensor(high + 1e-6)
+                if bool((low == low.min()).all() and (high == high.max()).all()):  # one range for all: floats
+                    low, high = float(low.min()), float(high.max())
+                self._action_bounds = (low, high)
             low, high = self._action_bounds
-            # one reduction (one host sync on an accelerator): NaN fails both comparisons
-            if not bool(((action >= low) & (action <= high)).all()):
+            # one reduction (one host sync on an accelerator): NaN fails every comparison
+            if isinstance(low, float):
+                lo, hi = torch.aminmax(action)
+                inside = float(lo) >= low and float(hi) <= high
+            else:
+                inside = bool(((action >= low) & (action <= high)).all())
+            if not inside:
                 if not torch.isfinite(action).all():
                     raise ValueError("action contains NaN or inf")
                 raise ValueError(
@@ -266,3 +382,4 @@ class ContextualMOEnv(EnvBase):
             f"{type(self).__name__}(num_envs={self.num_envs}, objectives={list(self.objective_names)}, "
             f"context={list(self.context_space.names)}, device={self.device})"
         )
+

@@ -9,6 +9,8 @@ floating-point numbers as ``LunarLander-v3`` / MO-Gymnasium's ``mo-lunar-lander-
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 from Box2D import _Box2D
@@ -29,10 +31,22 @@ _HALF_W, _HALF_H = P.VIEWPORT_W / P.SCALE / 2, P.VIEWPORT_H / P.SCALE / 2
 _OBS_MUL = np.array([1.0, 1.0, _HALF_W, _HALF_H, 1.0, 20.0])
 _OBS_SUB = np.array([_HALF_W, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE, 0.0, 0.0, 0.0, 0.0])
 _OBS_DIV = np.array([_HALF_W, _HALF_H, P.FPS, P.FPS, 1.0, P.FPS])
-# discrete action -> (main power, side power, side direction), as Gymnasium derives them
-_MAIN_POWER = np.array([0.0, 0.0, 1.0, 0.0])
-_SIDE_POWER = np.array([0.0, 1.0, 0.0, 1.0])
-_DIRECTION = np.array([-2.0, -1.0, 0.0, 1.0])
+# per-step engine terms, one row per sub-env: main power, side power, 0, side direction *
+# SIDE_ENGINE_AWAY / SCALE (the side engine's lateral offset, as Gymnasium computes it)
+_SIDE_OFFSET = P.SIDE_ENGINE_AWAY / P.SCALE
+_DISCRETE_ENGINES = np.array([  # noop, left, main, right (direction = action - 2)
+    [0.0, 0.0, 0.0, -2.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
+    [0.0, 1.0, 0.0, -1.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
+    [1.0, 0.0, 0.0, 0.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
+    [0.0, 1.0, 0.0, 1.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
+])
+# both engines at once, as [n, 2] columns (main, side): the offset (ox, oy) of an engine is
+# tip * a + side * b with a = (MAIN_Y / SCALE + 2 d0, d0), b = (d1, 3 d1 + lateral offset)
+_A_MUL, _A_ADD = np.array([2.0, 1.0]), np.array([P.MAIN_ENGINE_Y_LOCATION / P.SCALE, 0.0])
+_B_MUL = np.array([1.0, 3.0])
+# impulse point: the main engine at the offset, the side engine further up the lander by
+# (-tip0 * 17, tip1 * SIDE_ENGINE_HEIGHT) / SCALE (Gymnasium's 17, not SIDE_ENGINE_HEIGHT, kept)
+_X_UP, _Y_UP, _UP_DIV = np.array([0.0, 17.0]), np.array([0.0, P.SIDE_ENGINE_HEIGHT]), np.array([1.0, P.SCALE])
 
 # pybox2d's C entry points, called directly in the per-world loop: its Python properties
 # and methods only forward to these, at about twice the cost
@@ -68,45 +82,55 @@ def _as_decimal_float64(context: torch.Tensor) -> np.ndarray:
 _DECIMAL_CACHE: dict[bytes, np.ndarray] = {}
 
 
-def _engine_impulses(body, ctx, disp, main, side, direction):
-    """Per sub-env ``(impulse x, impulse y, point x, point y)`` rows of the main and the side
-    engine, as lists, or ``None`` for an engine that fires nowhere; the loop applies a row
-    only where that engine fires (``main > 0``, ``side > 0``).
+class _WindTable:
+    """Gymnasium's wind and turbulence profile ``tanh(sin(0.02 k) + sin(pi * 0.01 k))`` by
+    integer index ``k``, tabulated with Gymnasium's own ``math`` calls (the same floats).
+
+    Rows store ``k + OFFSET``, a valid table index: the initial indices lie in
+    ``[-9999, 9999)`` and grow by one per airborne step; :meth:`ensure` extends the table.
+    """
+
+    OFFSET = 9999
+
+    def __init__(self) -> None:
+        self.values = np.empty(0)
+        self.ensure(2 * self.OFFSET + 2048)
+
+    def ensure(self, size: int) -> None:
+        old = len(self.values)
+        if size > old:
+            size = max(size, 2 * old)
+            k1, k2 = P.WIND_K1, P.WIND_K2
+            more = [math.tanh(math.sin(k1 * k) + math.sin(k2 * k)) for k in range(old - self.OFFSET, size - self.OFFSET)]
+            self.values = np.concatenate([self.values, np.array(more)])
+
+
+_WIND_TABLE = _WindTable()
+_NO_KICKS = [(False, False)] * 256  # the rows of a step in which no engine fires
+
+
+def _engine_impulses(body: np.ndarray, ctx: np.ndarray, disp: np.ndarray, engines: np.ndarray) -> list:
+    """Per sub-env ``[[impulse x, impulse y, point x, point y] of the main engine, the same
+    of the side engine]``, as Gymnasium computes them; the loop applies an engine's row only
+    where it fires.
 
     ``body`` ``[n, 6]`` is the lander state read back after the previous step, ``disp``
-    ``[n, 2]`` the step's dispersion (already divided by ``SCALE``).
+    ``[n, 2]`` the step's dispersion (already divided by ``SCALE``), ``engines`` ``[n, 4]``
+    the rows of :data:`_DISCRETE_ENGINES`. Columns are (main, side) throughout.
     """
-    fire_main, fire_side = main > 0, side > 0
-    any_main, any_side = fire_main.any(), fire_side.any()
-    if not (any_main or any_side):
-        return None, None
-    d0, d1 = disp[:, 0], disp[:, 1]
-    px, py, angle = body[:, 0], body[:, 1], body[:, 4]
-    tip0, tip1 = np.sin(angle), np.cos(angle)
-    side0, side1 = -tip1, tip0
-    main_kicks = side_kicks = None
-    if any_main:
-        lever = P.MAIN_ENGINE_Y_LOCATION / P.SCALE + 2 * d0
-        ox = tip0 * lever + side0 * d1
-        oy = -tip1 * lever - side1 * d1
-        power = ctx[:, _MAIN]
-        main_kicks = _rows(-ox * power * main, -oy * power * main, px + ox, py + oy)
-    if any_side:
-        arm = 3 * d1 + direction * P.SIDE_ENGINE_AWAY / P.SCALE
-        ox = tip0 * d0 + side0 * arm
-        oy = -tip1 * d0 - side1 * arm
-        power = ctx[:, _SIDE]
-        x = px + ox - tip0 * 17 / P.SCALE  # Gymnasium's 17 (not SIDE_ENGINE_HEIGHT), kept
-        y = py + oy + tip1 * P.SIDE_ENGINE_HEIGHT / P.SCALE
-        side_kicks = _rows(-ox * power * side, -oy * power * side, x, y)
-    return main_kicks, side_kicks
-
-
-def _rows(*columns) -> list:
-    out = np.empty((len(columns[0]), len(columns)))
-    for j, c in enumerate(columns):
-        out[:, j] = c
-    return out.tolist()
+    angle = body[:, 4]
+    tip0, tip1 = np.sin(angle)[:, None], np.cos(angle)[:, None]
+    side0 = -tip1  # side = (-tip1, tip0)
+    a = disp[:, :1] * _A_MUL + _A_ADD
+    b = disp[:, 1:] * _B_MUL + engines[:, 2:]
+    ox = tip0 * a + side0 * b
+    oy = side0 * a - tip0 * b  # -tip1 * a - side1 * b
+    power = ctx[:, _MAIN : _SIDE + 1]
+    kick_x = -ox * power * engines[:, :2]
+    kick_y = -oy * power * engines[:, :2]
+    at_x = body[:, :1] + ox - tip0 * _X_UP / _UP_DIV
+    at_y = body[:, 1:2] + oy + tip1 * _Y_UP / _UP_DIV
+    return np.stack((kick_x, kick_y, at_x, at_y), 2).tolist()
 
 
 class MOLunarLanderEnv(ContextualMOEnv):
@@ -175,7 +199,8 @@ class MOLunarLanderEnv(ContextualMOEnv):
         self._game_over = np.zeros(n, dtype=bool)
         self._legs = np.zeros((n, 2), dtype=bool)
         self._listeners = [P.ContactFlags(self._game_over, self._legs, i) for i in range(n)]
-        self._wind_idx = np.zeros((n, 2), dtype=np.int64)  # wind and torque indices
+        self._wind_idx = np.zeros((n, 2), dtype=np.int64)  # wind and torque indices, + _WIND_TABLE.OFFSET
+        self._wind_guard = [0]  # steps the wind table is known to cover for every sub-env (a list: cheap to update)
         self._body = np.zeros((n, 6))  # x, y, vx, vy, angle, angular velocity (last read back)
         self._obs = np.zeros((n, 8), dtype=np.float32)
         self._prev_shaping = np.zeros(n)
@@ -191,7 +216,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
 
     def _seed_subenvs(self, seed: int) -> None:
         if self._streams is None:
-            self._streams = BlockUniformStreams(self.num_envs, seed)
+            self._streams = BlockUniformStreams(self.num_envs, seed, divisor=P.SCALE)  # Gymnasium's u / SCALE
         else:
             self._streams.seed(seed)
 
@@ -206,129 +231,151 @@ class MOLunarLanderEnv(ContextualMOEnv):
             old = self._worlds[i]
             if old is not None:
                 old.world.contactListener = None
+                # freed before the new world is built, so that Box2D's allocations reuse its
+                # memory: building into fresh pages costs several times more
+                self._worlds[i] = self._landers[i] = self._world_steps[i] = old = None
             w = P.build_world(self._streams.generator(i), g, x, y, self._listeners[i])
             self._worlds[i] = w
             self._landers[i], self._world_steps[i] = w.lander, w.world.Step
-            self._wind_idx[i] = (w.wind_idx, w.torque_idx)
-        self._ready = self._ready or all(w is not None for w in self._worlds)
+            self._wind_idx[i] = (w.wind_idx + _WIND_TABLE.OFFSET, w.torque_idx + _WIND_TABLE.OFFSET)
+        if not self._ready:
+            self._ready = all(w is not None for w in self._worlds)
         # Gymnasium's reset ends with one no-op step whose observation it returns
-        zeros = np.zeros(len(idx))
-        state, shaping, _ = self._advance(idx, zeros, zeros, zeros)
+        state, shaping, _ = self._advance(idx, np.zeros((len(idx), 4)))
         self._prev_shaping[idx] = shaping
-        self._obs[idx] = state  # _obs is never shared with a returned tensor (see _step_subenvs)
+        obs = self._obs.copy()  # out of place: step outputs share the previous array
+        obs[idx] = state
+        self.__dict__["_obs"] = obs
 
     def _observe(self):
         return {"observation": torch.tensor(self._obs, device=self.device)}
 
     # ------------------------------------------------------------------ step
-    def _engine_powers(self, action: torch.Tensor):
-        """(main power, side power, side direction) per sub-env, as Gymnasium derives them."""
-        a = action.detach().cpu().numpy()
-        if self.continuous:
-            a = np.clip(a, -1, +1).astype(np.float64)
-            main = np.where(a[:, 0] > 0.0, (np.clip(a[:, 0], 0.0, 1.0) + 1.0) * 0.5, 0.0)
-            fire_side = np.abs(a[:, 1]) > 0.5
-            side = np.where(fire_side, np.clip(np.abs(a[:, 1]), 0.5, 1.0), 0.0)
-            direction = np.sign(a[:, 1])
-        else:  # noop, left, main, right -> main power 0/1, side power 0/1, direction a - 2
-            main, side, direction = _MAIN_POWER[a], _SIDE_POWER[a], _DIRECTION[a]
-        return main, side, direction
+    def _engines(self, action: torch.Tensor) -> np.ndarray:
+        """``[n, 4]``: main power, side power, 0, side direction * SIDE_ENGINE_AWAY / SCALE,
+        as Gymnasium derives them from the actions."""
+        a = action.numpy() if action.device.type == "cpu" else action.detach().cpu().numpy()
+        if not self.continuous:
+            return _DISCRETE_ENGINES[a]
+        a = np.clip(a, -1, +1).astype(np.float64)
+        engines = np.zeros((len(a), 4))
+        engines[:, 0] = np.where(a[:, 0] > 0.0, (np.clip(a[:, 0], 0.0, 1.0) + 1.0) * 0.5, 0.0)
+        engines[:, 1] = np.where(np.abs(a[:, 1]) > 0.5, np.clip(np.abs(a[:, 1]), 0.5, 1.0), 0.0)
+        engines[:, 3] = np.sign(a[:, 1]) * P.SIDE_ENGINE_AWAY / P.SCALE
+        return engines
 
     def _step_subenvs(self, action: torch.Tensor):
         if not self._ready:
             raise RuntimeError("MOLunarLanderEnv: call reset() before step()")
-        main, side, direction = self._engine_powers(action)
+        engines = self._engines(action)
         n = self.num_envs
-        if self._active is None or bool(self._active.all()):
-            idx, sel = self._all, slice(None)
+        active = self._active
+        if active is None or bool(active.all()):
+            idx = sel = self._all
         else:  # a partial step: only the selected worlds advance (e.g. the evaluator's unfinished episodes)
-            idx = np.flatnonzero(self._active.cpu().numpy())
+            idx = np.flatnonzero(active.cpu().numpy())
             sel = idx
-            main, side, direction = main[idx], side[idx], direction[idx]
-        state, shaping, awake = self._advance(idx, main, side, direction)
+            engines = engines[idx]
+        state, shaping, at_rest = self._advance(idx, engines)
+        full = sel is self._all
+        if full:
+            sel = slice(None)  # views instead of gathers
 
         shaping_delta = shaping - self._prev_shaping[sel]
         self._prev_shaping[sel] = shaping
         crashed = self._game_over[sel] | (np.abs(state[:, 0]) >= 1.0)  # float64 x, as Gymnasium tests it
-        at_rest = ~awake
         landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
-        original = shaping_delta - main * 0.30 - side * 0.03
         done = crashed | at_rest
-        if sel is idx:
-            reward = np.zeros((n, 4), dtype=np.float32)
-            original_all = np.zeros(n, dtype=np.float32)
-            terminated = np.zeros(n, dtype=bool)
-        else:
-            reward = np.empty((n, 4), dtype=np.float32)
-            original_all = np.empty(n, dtype=np.float32)
-            terminated = np.empty(n, dtype=bool)
-        for j, column in enumerate((landing, shaping_delta, 0.0 - main, 0.0 - side)):
-            reward[sel, j] = column
-        original_all[sel] = np.where(done, landing, original)
+        original = np.where(done, landing, shaping_delta - engines[:, 0] * 0.30 - engines[:, 1] * 0.03)
+        reward = np.zeros((n, 4), dtype=np.float32)
+        original_all = np.zeros(n, dtype=np.float32)
+        terminated = np.zeros(n, dtype=bool)
+        reward[sel, 0] = landing
+        reward[sel, 1] = shaping_delta
+        reward[sel, 2:] = 0.0 - engines[:, :2]  # main_fuel, side_fuel (0.0 - p: no -0.0 when idle)
+        original_all[sel] = original
         terminated[sel] = done
 
-        # a fresh array: the returned tensor lives on in rollouts while _obs is updated at resets
-        obs = self._obs.copy()
-        obs[sel] = state
-        self._obs[sel] = state
-        dev = self.device
-        return (
-            {"observation": torch.from_numpy(obs).to(dev)},
-            torch.from_numpy(reward).to(dev),
-            torch.from_numpy(original_all).to(dev),
-            torch.from_numpy(terminated).to(dev),
-        )
+        if full:
+            obs = state.astype(np.float32)
+        else:
+            obs = self._obs.copy()
+            obs[sel] = state
+        self.__dict__["_obs"] = obs  # shared with the returned tensor: resets write a copy
+        out = torch.from_numpy(obs), torch.from_numpy(reward), torch.from_numpy(original_all), torch.from_numpy(terminated)
+        if self.device.type != "cpu":
+            out = tuple(t.to(self.device) for t in out)
+        return {"observation": out[0]}, *out[1:]
 
-    def _advance(self, idx: np.ndarray, main: np.ndarray, side: np.ndarray, direction: np.ndarray):
-        """One Gymnasium step of the worlds ``idx`` with the given engine powers.
+    def _advance(self, idx: np.ndarray, engines: np.ndarray):
+        """One Gymnasium step of the worlds ``idx`` with the given engine rows ``[n, 4]``.
 
         Returns the observations ``[n, 8]`` (float64: Gymnasium's ``state`` before its cast
-        to float32), the shaping ``[n]`` and the landers' ``awake`` flags ``[n]``. Every
-        expression keeps Gymnasium's operation order, so the floats are the same.
+        to float32), the shaping ``[n]`` and whether each lander has come to rest ``[n]``.
+        Every expression keeps Gymnasium's operation order, so the floats are the same.
         """
-        every = len(idx) == self.num_envs
+        n = len(idx)
+        every = idx is self._all
         sel = slice(None) if every else idx  # views instead of gathers on the common path
         ctx = self._ctx[sel]
         # wind and turbulence act only while no leg touches the ground
-        airborne = ~self._legs[sel].any(axis=1)
-        k = self._wind_idx[sel].astype(np.float64)  # columns: wind, torque
-        wind = np.tanh(np.sin(P.WIND_K1 * k) + np.sin(P.WIND_K2 * k)) * ctx[:, _WIND : _TURBULENCE + 1]
+        legs = self._legs[sel]
+        airborne = ~(legs[:, 0] | legs[:, 1])
+        guard = self._wind_guard
+        if guard[0] <= 0:
+            self._extend_wind_table()
+        guard[0] -= 1
+        wind = _WIND_TABLE.values[self._wind_idx[sel]] * ctx[:, _WIND : _TURBULENCE + 1]  # columns: wind, torque
         self._wind_idx[sel] += airborne[:, None]
-        disp = self._streams.take(None if every else idx) / P.SCALE  # drawn at every step, engines firing or not
-        main_kicks, side_kicks = _engine_impulses(self._body[sel], ctx, disp, main, side, direction)
+        disp = self._streams.take(None if every else idx)  # u / SCALE, drawn at every step, engines firing or not
+        fire = engines[:, :2] > 0
+        if fire.any():
+            kicks = _engine_impulses(self._body[sel], ctx, disp, engines)
+            fire = fire.tolist()
+        else:
+            kicks = fire = _NO_KICKS[:n] if n <= len(_NO_KICKS) else [(False, False)] * n
 
         landers = self._landers if every else [self._landers[i] for i in idx.tolist()]
         steps = self._world_steps if every else [self._world_steps[i] for i in idx.tolist()]
         readback = []
         push = readback.extend
         dt, vel_iters, pos_iters = P.TIME_STEP, P.VELOCITY_ITERATIONS, P.POSITION_ITERATIONS
-        n = len(idx)
-        no_kicks = [None] * n
-        for lander, step, air, (force, torque), fire_main, main_kick, fire_side, side_kick in zip(
-            landers, steps, airborne.tolist(), wind.tolist(),
-            (main > 0).tolist(), main_kicks or no_kicks, (side > 0).tolist(), side_kicks or no_kicks,
+        for lander, step, air, (force, torque), (fire_main, fire_side), kick in zip(
+            landers, steps, airborne.tolist(), wind.tolist(), fire, kicks
         ):
             if air:
                 _apply_force(lander, (force, 0.0), True)
                 _apply_torque(lander, torque, True)
             if fire_main:
-                _apply_impulse(lander, (main_kick[0], main_kick[1]), (main_kick[2], main_kick[3]), True)
+                k = kick[0]
+                _apply_impulse(lander, (k[0], k[1]), (k[2], k[3]), True)
             if fire_side:
-                _apply_impulse(lander, (side_kick[0], side_kick[1]), (side_kick[2], side_kick[3]), True)
+                k = kick[1]
+                _apply_impulse(lander, (k[0], k[1]), (k[2], k[3]), True)
             step(dt, vel_iters, pos_iters)
             pos, vel = _position(lander), _velocity(lander)
             push((_x(pos), _y(pos), _x(vel), _y(vel), _angle(lander), _spin(lander), _awake(lander)))
 
         back = np.array(readback, dtype=np.float64).reshape(n, 7)
-        self._body[sel] = back[:, :6]
-        s = np.empty((len(idx), 8))
-        s[:, :6] = (back[:, :6] * _OBS_MUL - _OBS_SUB) / _OBS_DIV
+        body = back[:, :6]
+        if every:
+            self.__dict__["_body"] = body
+        else:
+            self._body[idx] = body
+        s = np.empty((n, 8))
+        s[:, :6] = (body * _OBS_MUL - _OBS_SUB) / _OBS_DIV
         s[:, 6:] = self._legs[sel]
         sq = s[:, 0:4] * s[:, 0:4]
         hundred_norms = 100 * np.sqrt(sq[:, 0::2] + sq[:, 1::2])  # 100 |(x, y)|, 100 |(vx, vy)|
         legs = 10 * s[:, 6:]
         shaping = -hundred_norms[:, 0] - hundred_norms[:, 1] - 100 * np.abs(s[:, 4]) + legs[:, 0] + legs[:, 1]
-        return s, shaping, back[:, 6] > 0
+        return s, shaping, back[:, 6] == 0
+
+    def _extend_wind_table(self) -> None:
+        """Make sure the wind table covers the next steps of every sub-env (see ``_wind_guard``)."""
+        top = max(int(self._wind_idx.max()), 2 * _WIND_TABLE.OFFSET)  # a reset starts below 2 * OFFSET
+        _WIND_TABLE.ensure(top + 4096)
+        self._wind_guard[0] = len(_WIND_TABLE.values) - 1 - top  # each step (or reset) adds at most one
 
     # ------------------------------------------------------------------ rendering
     def render(self, index: int | None = 0, *, mode: str = "rgb_array") -> np.ndarray:

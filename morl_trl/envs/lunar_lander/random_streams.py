@@ -16,7 +16,7 @@ __all__ = ["BlockUniformStreams"]
 
 
 class BlockUniformStreams:
-    """``num`` generators, each yielding rows of ``width`` ``uniform(-1, 1)`` draws.
+    """``num`` generators, each yielding rows of ``width`` ``uniform(-1, 1) / divisor`` draws.
 
     Sub-env ``i`` is seeded like Gymnasium's ``reset(seed=seed + i)``
     (``np.random.Generator(PCG64(SeedSequence(seed + i)))``).
@@ -31,8 +31,8 @@ class BlockUniformStreams:
         True
     """
 
-    def __init__(self, num: int, seed: int, width: int = 2, block: int = 64) -> None:
-        self.num, self.width, self.block = num, width, block
+    def __init__(self, num: int, seed: int, width: int = 2, block: int = 64, divisor: float = 1.0) -> None:
+        self.num, self.width, self.block, self.divisor = num, width, block, divisor
         self.buffer = np.empty((num, block, width))
         self._all = np.arange(num)
         self.seed(seed)
@@ -42,6 +42,7 @@ class BlockUniformStreams:
         self.rngs = [np.random.default_rng(seed + i) for i in range(self.num)]
         self.pos = np.full(self.num, self.block, dtype=np.int64)
         self.block_start = [None] * self.num
+        self.headroom = 0  # rows every sub-env has left in its block: take() without checks
 
     def generator(self, i: int) -> np.random.Generator:
         """Sub-env ``i``'s generator, positioned right after the rows already taken."""
@@ -54,25 +55,28 @@ class BlockUniformStreams:
             rng.random(used * self.width)
             self.pos[i] = self.block
             self.block_start[i] = None
+            self.headroom = 0
         return self.rngs[i]
 
     def take(self, idx: np.ndarray | None = None) -> np.ndarray:
         """The next row ``[len(idx), width]`` of each sub-env in ``idx`` (all if ``None``)."""
-        if idx is None:  # the common case, with fewer (and cheaper) numpy calls
-            pos = self.pos
-            if pos.max() >= self.block:
-                return self.take(self._all)
-            rows = self.buffer[self._all, pos]
-            pos += 1
-            return rows
+        if idx is None:
+            if self.headroom > 0:  # the common case: one gather
+                self.headroom -= 1
+                pos = self.pos
+                rows = self.buffer[self._all, pos]
+                pos += 1
+                return rows
+            idx = self._all
         pos = self.pos[idx]
         empty = pos >= self.block
         if empty.any():
             for i in idx[empty].tolist():
                 rng = self.rngs[i]
                 self.block_start[i] = rng.bit_generator.state
-                self.buffer[i] = rng.uniform(-1.0, 1.0, size=(self.block, self.width))
+                self.buffer[i] = rng.uniform(-1.0, 1.0, size=(self.block, self.width)) / self.divisor
             self.pos[idx[empty]] = 0
             pos = self.pos[idx]
         self.pos[idx] = pos + 1
+        self.headroom = self.block - int(self.pos.max())
         return self.buffer[idx, pos]

@@ -1,0 +1,103 @@
+"""``ContextualMOEnv.step_and_maybe_reset``'s lean path gives TorchRL's generic results.
+
+Each env is run twice from the same seed: once through the override, once through
+``EnvBase._step_and_maybe_reset`` (``step`` + ``step_mdp`` + ``maybe_reset``). Both
+TensorDicts must be equal entry for entry at every step, across auto-resets, with extra
+entries (a policy output) carried along and zeroed in the rows that reset.
+"""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.envs import EnvBase
+
+from morl_trl.envs import make_env
+from tests.mocks import ToyContextEnv
+
+
+def _assert_same(a: TensorDict, b: TensorDict, where: str) -> None:
+    keys_a, keys_b = sorted(a.keys(True, True), key=str), sorted(b.keys(True, True), key=str)
+    assert keys_a == keys_b, where
+    for key in keys_a:
+        x, y = a.get(key), b.get(key)
+        assert x.dtype == y.dtype and x.shape == y.shape, (where, key)
+        assert torch.equal(x, y), (where, key, x, y)
+
+
+def _run_both(make, steps: int, *, nested: bool = False) -> int:
+    lean, generic = make(), make()
+    td_lean, td_generic = lean.reset(), generic.reset()
+    _assert_same(td_lean, td_generic, "reset")
+    gen = torch.Generator().manual_seed(0)
+    spec = lean.action_spec
+    resets = 0
+    for t in range(steps):
+        if spec.dtype == torch.long:
+            action = torch.randint(0, spec.space.n, spec.shape, generator=gen)
+        else:
+            action = torch.rand(spec.shape, generator=gen) * 2 - 1
+        extra = torch.randn(lean.num_envs, 3, generator=gen)
+        for td in (td_lean, td_generic):
+            td["action"] = action.clone()
+            td["policy_output"] = extra.clone()
+            if nested:
+                td["policy", "hidden"] = extra[:, :1].clone()
+        out_lean, td_lean = lean.step_and_maybe_reset(td_lean)
+        out_generic, td_generic = EnvBase._step_and_maybe_reset(generic, td_generic)
+        _assert_same(out_lean, out_generic, f"step {t}")
+        _assert_same(td_lean, td_generic, f"step {t}, after the resets")
+        resets += int(out_lean["next", "done"].sum())
+    return resets
+
+
+def test_toy_env_matches_torchrl_path_with_hand_checked_reset_rows():
+    resets = _run_both(lambda: ToyContextEnv(num_envs=3, seed=0), steps=40)
+    assert resets >= 10  # episodes last at most 6 steps
+    env = ToyContextEnv(num_envs=2)
+    td = env.reset()
+    td["action"] = torch.tensor([1, 1])
+    td["policy_output"] = torch.ones(2, 3)
+    for _ in range(2):
+        _, td = env.step_and_maybe_reset(td)
+    td["action"] = torch.tensor([1, 0])
+    out, td = env.step_and_maybe_reset(td)  # sub-env 0 reaches position 3 and terminates
+    assert out["next", "done"].squeeze(-1).tolist() == [True, False]
+    assert out["next", "observation"][0].tolist() == [3.0, 0.30000001192092896]  # the step's, kept
+    assert td["observation"].tolist() == [[0.0, 0.0], [1.0, 0.30000001192092896]]
+    assert td["done"].squeeze(-1).tolist() == [False, False]
+    assert td["action"].tolist() == [0, 0] and td["policy_output"].tolist() == [[0.0] * 3, [1.0] * 3]
+
+
+def test_lunar_lander_matches_torchrl_path():
+    assert _run_both(lambda: make_env("MOLunarLanderDefault-v0", num_envs=4, seed=3), steps=300) >= 4
+
+
+def test_continuous_lunar_lander_matches_torchrl_path():
+    assert _run_both(lambda: make_env("MOLunarLanderContinuousDefault-v0", num_envs=3, seed=1), steps=200) >= 2
+
+
+def test_domain_with_its_own_reset_matches_torchrl_path():
+    # MO-LavaGrid with randomize=True draws new maps in its own _reset
+    from morl_trl.envs.lava_grid import MOLavaGridEnv
+
+    make = lambda: MOLavaGridEnv(num_envs=8, seed=0, randomize=True, max_episode_steps=15)  # noqa: E731
+    assert _run_both(make, steps=40) >= 16
+
+
+def test_nested_entries_take_torchrl_path_with_the_same_results():
+    assert _run_both(lambda: ToyContextEnv(num_envs=3, seed=0), steps=20, nested=True) >= 5
+
+
+def test_partial_step_takes_torchrl_path():
+    env = ToyContextEnv(num_envs=2)
+    td = env.reset()
+    td["action"] = torch.tensor([1, 1])
+    td["_step"] = torch.tensor([True, False])
+    out, td = env.step_and_maybe_reset(td)
+    assert out["next", "observation"][:, 0].tolist() == [1.0, 0.0]
+
+
+@pytest.mark.parametrize("env_id", ["MOHopperDefault-v5"])
+def test_mujoco_matches_torchrl_path(env_id):
+    pytest.importorskip("mujoco")
+    assert _run_both(lambda: make_env(env_id, num_envs=3, seed=0), steps=120) >= 1
