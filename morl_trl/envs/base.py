@@ -32,6 +32,7 @@ and may override ``_seed_subenvs(seed)`` to seed its own random generators.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import torch
@@ -181,7 +182,7 @@ class ContextualMOEnv(EnvBase):
             self._step_count += 1
         else:
             self._step_count += active
-        truncated = (self._step_count >= self.max_episode_steps) & ~terminated
+        truncated = (self._step_count >= self.max_episode_steps) > terminated  # (bools: a > b is a & ~b)
         return self._make_output(obs, reward, original, terminated, truncated)
 
     # ------------------------------------------------------------------ auto-reset
@@ -201,6 +202,14 @@ class ContextualMOEnv(EnvBase):
         """
         if not self._lean_step_applies(tensordict):
             return super()._step_and_maybe_reset(tensordict)
+        return self._lean_step_and_maybe_reset(tensordict)
+
+    def _lean_step_and_maybe_reset(
+        self, tensordict: TensorDictBase, draw_contexts: Callable[[torch.Tensor], torch.Tensor | None] | None = None
+    ) -> tuple[TensorDictBase, TensorDictBase]:
+        """The lean path (see ``_step_and_maybe_reset``). ``draw_contexts(mask)`` (``[N]``
+        bool -> ``[n, c]``, one row per sub-env being reset) gives the reset contexts, as a
+        context-drawing transform does in a reset; without it they are kept."""
         next_td = self._step(tensordict)
         tensordict.set("next", next_td)
         entries = self._step_mdp_entries(tensordict, next_td)
@@ -209,7 +218,7 @@ class ContextualMOEnv(EnvBase):
             return tensordict, self.maybe_reset(self._step_mdp(tensordict))
         if done.any():
             mask = done.view(self.num_envs)
-            reset = self._auto_reset(mask)
+            reset = self._auto_reset(mask, None if draw_contexts is None else draw_contexts(mask))
             if mask.all():  # as maybe_reset: a full reset updates, keeping the entries it does not produce
                 entries.update(reset)
                 return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
@@ -222,13 +231,26 @@ class ContextualMOEnv(EnvBase):
                     entries[key] = new.masked_fill(~mask.view(-1, *(1,) * (new.ndim - 1)), 0)
         return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
 
-    def _auto_reset(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Reset the sub-envs ``mask`` (``[N]`` bool) with their current contexts; return the
-        entries ``_reset`` would (rows outside ``mask`` are to be ignored)."""
+    def _auto_reset(self, mask: torch.Tensor, context: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+        """Reset the sub-envs ``mask`` (``[N]`` bool), with the contexts ``context`` (``[n, c]``,
+        one row per sub-env in ``mask``) or their current ones; return the entries ``_reset``
+        would (rows outside ``mask`` are to be ignored)."""
         if type(self)._reset is not ContextualMOEnv._reset:  # a domain with its own reset
-            return dict(self._reset(self._reset_request(mask.view(-1, 1))).items())
+            request = self._reset_request(mask.view(-1, 1))
+            if context is not None:
+                full = self._context.clone()
+                full[mask] = context.to(self.device, full.dtype)
+                request.set("context", full)
+            return dict(self._reset(request).items())
         idx = mask.nonzero().squeeze(-1)
-        self._reset_subenvs(idx, self._context[idx])
+        if context is None:
+            self._reset_subenvs(idx, self._context[idx])
+        else:  # validated before any state changes, as in _reset
+            chosen = self.context_space.validate(context.to(self.device)).to(torch.float32)
+            self._reset_subenvs(idx, chosen)
+            new_context = self._context.clone()  # out of place: earlier outputs share the old one
+            new_context[idx] = chosen
+            self.__dict__["_context"] = new_context
         self._step_count.masked_fill_(mask, 0)
         out = self._observe()
         out["context"] = self._context
@@ -243,8 +265,8 @@ class ContextualMOEnv(EnvBase):
         return (
             tensordict.batch_size == self.batch_size
             and tensordict.device == self.device
-            and tensordict.get("_step", None) is None
-            and tensordict.get("next", None) is None
+            and "_step" not in tensordict.keys()
+            and "next" not in tensordict.keys()
             and not self.run_type_checks
             and self._post_step_mdp_hooks is None
             and not self.__dict__.get("_torchrl_native_autoreset", False)
@@ -258,7 +280,7 @@ class ContextualMOEnv(EnvBase):
         flat = all(v is None for v in step_mdp.exclude_from_root.values()) and all(
             v is None for v in step_mdp.keys_from_next.values()
         )
-        return (frozenset(step_mdp.exclude_from_root), tuple(step_mdp.keys_from_next)) if flat else False
+        return (frozenset(step_mdp.exclude_from_root), frozenset(step_mdp.keys_from_next)) if flat else False
 
     def _cached(self, name: str, compute):
         """``compute()``, remembered in TorchRL's spec cache while the specs are locked (TorchRL
@@ -278,13 +300,17 @@ class ContextualMOEnv(EnvBase):
         if not plan:
             return None
         exclude, from_next = plan
-        entries = {key: value for key, value in tensordict.items() if key not in exclude}
-        for key in from_next:
-            value = next_td.get(key, None)
-            if value is not None:
+        entries = {}
+        for key, value in tensordict.items():
+            if key not in exclude:
+                if type(value) is not torch.Tensor:
+                    return None
                 entries[key] = value
-        if not all(type(value) is torch.Tensor for value in entries.values()):
-            return None
+        for key, value in next_td.items():
+            if key in from_next:
+                if type(value) is not torch.Tensor:
+                    return None
+                entries[key] = value
         return entries
 
     def _make_output(self, obs, reward, original, terminated, truncated) -> TensorDictBase:

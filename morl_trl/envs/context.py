@@ -91,6 +91,20 @@ class ContextSpace:
         hi = torch.tensor(self.high, dtype=torch.float32, device=device)
         return lo, hi
 
+    def _tensors(self, device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Cached ``(low, high, high - low, floor)`` on ``device`` (internal: never handed out,
+        so never modified). ``floor`` is 0 for the positive parameters, -inf for the others."""
+        cache = self.__dict__.setdefault("_tensor_cache", {})  # not a field: outside eq and hash
+        key = str(torch.device("cpu") if device is None else torch.device(device))
+        tensors = cache.get(key)
+        if tensors is None:
+            lo, hi = self.bounds(device)
+            floor = torch.tensor(
+                [0.0 if name in self.positive else -float("inf") for name in self.names], device=lo.device
+            )
+            tensors = cache[key] = (lo, hi, hi - lo, floor)
+        return tensors
+
     def as_dict(self, context: torch.Tensor) -> dict[str, float]:
         """Name each entry of a single ``[c]`` context."""
         context = self.validate(context)
@@ -115,9 +129,9 @@ class ContextSpace:
         """Draw ``n`` contexts, each parameter independently uniform in ``[low, high]``."""
         if generator is not None and device is None:
             device = generator.device
-        lo, hi = self.bounds(device)
+        lo, _, span, _ = self._tensors(device)
         u = torch.rand((n, self.dim), generator=generator, device=device)
-        return lo + u * (hi - lo)
+        return lo + u * span
 
     # ------------------------------------------------------------------ validation
     def validate(self, context, *, check_range: bool = False) -> torch.Tensor:
@@ -136,12 +150,10 @@ class ContextSpace:
                 f"with parameters {list(self.names)}"
             )
         flat = context.reshape(-1, self.dim)
-        bad = ~torch.isfinite(flat)
-        positive = [self.names.index(name) for name in sorted(self.positive)]
-        if positive:
-            bad[:, positive] |= flat[:, positive] <= 0
-        if bool(bad.any()):  # one reduction on the valid path; diagnose only on failure
-            row, col = (int(i) for i in bad.nonzero()[0])
+        floor = self._tensors(flat.device)[3]
+        valid = (flat > floor) & (flat < float("inf"))  # NaN fails both
+        if not bool(valid.all()):  # one reduction on the valid path; diagnose only on failure
+            row, col = (int(i) for i in (~valid).nonzero()[0])
             value = flat[row, col].item()
             if not torch.isfinite(flat[row, col]):
                 raise ValueError(
@@ -152,7 +164,7 @@ class ContextSpace:
                 "the physics needs it strictly positive"
             )
         if check_range:
-            lo, hi = self.bounds(flat.device)
+            lo, hi = self._tensors(flat.device)[:2]
             # a float32 round-off tolerance: samples are computed as lo + u * (hi - lo)
             tol = 1e-5 * (1.0 + torch.maximum(lo.abs(), hi.abs()))
             out = (flat < lo - tol) | (flat > hi + tol)

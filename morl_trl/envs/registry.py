@@ -198,8 +198,6 @@ def make_env(
     env = cls(num_envs=num_envs, context=context, device=device, seed=seed, **kwargs)
     if env_id != spec.train_id:
         return env
-    from torchrl.envs import TransformedEnv
+    from morl_trl.transforms.domain_randomization import DomainRandomization, DomainRandomizedEnv
 
-    from morl_trl.transforms.domain_randomization import DomainRandomization
-
-    return TransformedEnv(env, DomainRandomization(space, seed=seed, fixed=ctx_over))
+    return DomainRandomizedEnv(env, DomainRandomization(space, seed=seed, fixed=ctx_over))

@@ -37,7 +37,7 @@ Example:
 """
 
 from morl_trl.transforms.context_observation import ContextObservation
-from morl_trl.transforms.domain_randomization import DomainRandomization
+from morl_trl.transforms.domain_randomization import DomainRandomization, DomainRandomizedEnv
 from morl_trl.transforms.history import StateActionHistory
 from morl_trl.transforms.preference import PreferenceConditioning
 from morl_trl.transforms.returns import DiscountedVectorReturn
@@ -47,6 +47,7 @@ __all__ = [
     "ContextObservation",
     "DiscountedVectorReturn",
     "DomainRandomization",
+    "DomainRandomizedEnv",
     "LinearScalarization",
     "PreferenceConditioning",
     "StateActionHistory",

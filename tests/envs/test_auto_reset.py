@@ -12,7 +12,8 @@ from tensordict import TensorDict
 from torchrl.envs import EnvBase
 
 from morl_trl.envs import make_env
-from tests.mocks import ToyContextEnv
+from morl_trl.transforms import DomainRandomization, DomainRandomizedEnv, StateActionHistory
+from tests.mocks import TOY_CONTEXT, ToyContextEnv
 
 
 def _assert_same(a: TensorDict, b: TensorDict, where: str) -> None:
@@ -101,3 +102,46 @@ def test_partial_step_takes_torchrl_path():
 def test_mujoco_matches_torchrl_path(env_id):
     pytest.importorskip("mujoco")
     assert _run_both(lambda: make_env(env_id, num_envs=3, seed=0), steps=120) >= 1
+
+
+# ---------------------------------------------------------------- domain randomization
+def test_dr_env_matches_torchrl_path_and_draws_the_same_contexts():
+    make = lambda: DomainRandomizedEnv(ToyContextEnv(num_envs=3, seed=0), DomainRandomization(TOY_CONTEXT, seed=5))  # noqa: E731
+    assert _run_both(make, steps=40) >= 10
+
+
+def test_dr_lunar_lander_matches_torchrl_path():
+    env = make_env("MOLunarLanderDR-v0", num_envs=4, seed=2)
+    assert isinstance(env, DomainRandomizedEnv)
+    assert _run_both(lambda: make_env("MOLunarLanderDR-v0", num_envs=4, seed=2), steps=300) >= 4
+
+
+def test_dr_env_with_more_transforms_is_a_plain_transformed_env():
+    def make():
+        env = make_env("MOLunarLanderDR-v0", num_envs=2, seed=0)
+        env.append_transform(StateActionHistory(2))
+        return env
+
+    env = make()
+    calls = []
+    env.base_env._lean_step_and_maybe_reset = lambda *a, **k: calls.append(1)
+    td = env.reset().set("action", torch.zeros(2, dtype=torch.long))
+    env.step_and_maybe_reset(td)
+    assert calls == []  # TorchRL's path: the history transform sees every step and reset
+    assert _run_both(make, steps=150) >= 1
+
+
+def test_dr_bad_draw_raises_and_resets_nothing():
+    bad = torch.tensor([[3.0, 0.0]] * 2)
+    env = DomainRandomizedEnv(ToyContextEnv(num_envs=2), DomainRandomization(TOY_CONTEXT, sampler=lambda n, g: bad[:n]))
+    env.transform.sampler = None  # the first reset draws from the space
+    td = env.reset()
+    env.transform.sampler = lambda n, g: bad[:n]
+    td["action"] = torch.ones(2, dtype=torch.long)
+    for _ in range(2):
+        _, td = env.step_and_maybe_reset(td)
+    td["action"] = torch.ones(2, dtype=torch.long)
+    context = env.base_env.context
+    with pytest.raises(ValueError, match="'speed' is 3.0"):
+        env.step_and_maybe_reset(td)  # third step: position 3, both done; the draw is rejected
+    assert torch.equal(env.base_env.context, context)
