@@ -178,10 +178,10 @@ class ContextualMOEnv(EnvBase):
         active = None if partial is None else partial.reshape(self.num_envs).to(self.device, torch.bool)
         self.__dict__["_active"] = active  # (nn.Module.__setattr__ costs microseconds per step)
         obs, reward, original, terminated = self._step_subenvs(action)
-        if active is None:
-            self._step_count += 1
+        if active is None:  # (in place, without an attribute assignment: EnvBase's __setattr__ is slow)
+            self._step_count.add_(1)
         else:
-            self._step_count += active
+            self._step_count.add_(active)
         truncated = (self._step_count >= self.max_episode_steps) > terminated  # (bools: a > b is a & ~b)
         return self._make_output(obs, reward, original, terminated, truncated)
 
@@ -222,9 +222,12 @@ class ContextualMOEnv(EnvBase):
             if mask.all():  # as maybe_reset: a full reset updates, keeping the entries it does not produce
                 entries.update(reset)
                 return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
+            conds = {}
             for key, old in entries.items():
                 new = reset.get(key, None)
-                cond = mask.view(-1, *(1,) * (old.ndim - 1))
+                cond = conds.get(old.ndim)
+                if cond is None:
+                    cond = conds[old.ndim] = mask.view(-1, *(1,) * (old.ndim - 1))
                 entries[key] = old.masked_fill(cond, 0) if new is None else torch.where(cond, new, old)
             for key, new in reset.items():
                 if key not in entries:

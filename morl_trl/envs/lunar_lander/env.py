@@ -110,8 +110,8 @@ _NO_KICKS = [(False, False)] * 256  # the rows of a step in which no engine fire
 
 
 def _engine_impulses(body: np.ndarray, ctx: np.ndarray, disp: np.ndarray, engines: np.ndarray) -> list:
-    """Per sub-env ``[[impulse x, impulse y, point x, point y] of the main engine, the same
-    of the side engine]``, as Gymnasium computes them; the loop applies an engine's row only
+    """Per sub-env ``[impulse x, impulse y, point x, point y]`` of each engine, interleaved
+    (main, side, main, side, ...) as Gymnasium computes them; the loop applies an engine only
     where it fires.
 
     ``body`` ``[n, 6]`` is the lander state read back after the previous step, ``disp``
@@ -130,7 +130,7 @@ def _engine_impulses(body: np.ndarray, ctx: np.ndarray, disp: np.ndarray, engine
     kick_y = -oy * power * engines[:, :2]
     at_x = body[:, :1] + ox - tip0 * _X_UP / _UP_DIV
     at_y = body[:, 1:2] + oy + tip1 * _Y_UP / _UP_DIV
-    return np.stack((kick_x, kick_y, at_x, at_y), 2).tolist()
+    return np.concatenate((kick_x, kick_y, at_x, at_y), 1).tolist()
 
 
 class MOLunarLanderEnv(ContextualMOEnv):
@@ -347,11 +347,9 @@ class MOLunarLanderEnv(ContextualMOEnv):
                 _apply_force(lander, (force, 0.0), True)
                 _apply_torque(lander, torque, True)
             if fire_main:
-                k = kick[0]
-                _apply_impulse(lander, (k[0], k[1]), (k[2], k[3]), True)
+                _apply_impulse(lander, (kick[0], kick[2]), (kick[4], kick[6]), True)
             if fire_side:
-                k = kick[1]
-                _apply_impulse(lander, (k[0], k[1]), (k[2], k[3]), True)
+                _apply_impulse(lander, (kick[1], kick[3]), (kick[5], kick[7]), True)
             step(dt, vel_iters, pos_iters)
             pos, vel = _position(lander), _velocity(lander)
             push((_x(pos), _y(pos), _x(vel), _y(vel), _angle(lander), _spin(lander), _awake(lander)))

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from Box2D import b2_dynamicBody, b2_staticBody, b2BodyDef, b2World
+from Box2D import _Box2D, b2_dynamicBody, b2_staticBody, b2BodyDef, b2World
 from Box2D.b2 import contactListener, edgeShape, fixtureDef, polygonShape, revoluteJointDef
 
 FPS = 50
@@ -84,6 +84,14 @@ class LanderWorld:
     torque_idx: int
 
 
+# pybox2d's C entry points behind world.CreateBody, body.CreateFixture, world.CreateJoint and
+# edge.vertices: its Python wrappers only check and forward the definitions built below
+_create_body = _Box2D.b2World___CreateBody
+_create_fixture = _Box2D.b2Body___CreateFixture
+_create_joint = _Box2D.b2World___CreateJoint
+_set_vertex1, _set_vertex2 = _Box2D.b2EdgeShape_vertex1_set, _Box2D.b2EdgeShape_vertex2_set
+
+
 def _fixture(shape, **kwargs) -> fixtureDef:
     fixture = fixtureDef(shape=shape, **kwargs)
     fixture.keep_shape = shape  # the definition points into the shape: keep it alive
@@ -140,23 +148,24 @@ def build_world(
     i = np.arange(CHUNKS)
     smooth_y = (0.33 * (height[i - 1] + height[i] + height[i + 1])).tolist()  # i-1 wraps at 0, as in Gymnasium
 
-    moon = world.CreateBody(_GROUND)
-    moon.CreateFixture(_BASE_EDGE)
-    edge = _TERRAIN_EDGE.keep_shape
+    moon = _create_body(world, _GROUND)
+    _create_fixture(moon, _BASE_EDGE)
+    edge = _TERRAIN_EDGE.keep_shape  # a two-vertex edge: only its two vertices change
     sky_polys = []
     for k in range(CHUNKS - 1):
         p1 = (chunk_x[k], smooth_y[k])
         p2 = (chunk_x[k + 1], smooth_y[k + 1])
-        edge.vertices = [p1, p2]
-        moon.CreateFixture(_TERRAIN_EDGE)
+        _set_vertex1(edge, p1)
+        _set_vertex2(edge, p2)
+        _create_fixture(moon, _TERRAIN_EDGE)
         sky_polys.append([p1, p2, (p2[0], H), (p1[0], H)])
 
     initial_x = VIEWPORT_W / SCALE * x_coeff
     initial_y = VIEWPORT_H / SCALE * y_coeff
     _BODY.position = (initial_x, initial_y)
     _BODY.angle = 0.0
-    lander = world.CreateBody(_BODY)
-    lander.CreateFixture(_LANDER_FIXTURE)
+    lander = _create_body(world, _BODY)
+    _create_fixture(lander, _LANDER_FIXTURE)
     lander.userData = LANDER
     push = (rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM), rng.uniform(-INITIAL_RANDOM, INITIAL_RANDOM))
     lander.ApplyForceToCenter(push, True)
@@ -167,12 +176,12 @@ def build_world(
     for j, (side, rjd) in enumerate(zip((-1, +1), _LEG_JOINTS)):
         _BODY.position = (initial_x - side * LEG_AWAY / SCALE, initial_y)
         _BODY.angle = side * 0.05
-        leg = world.CreateBody(_BODY)
-        leg.CreateFixture(_LEG_FIXTURE)
+        leg = _create_body(world, _BODY)
+        _create_fixture(leg, _LEG_FIXTURE)
         leg.userData = j
         rjd.bodyA, rjd.bodyB = lander, leg
         rjd.referenceAngle = leg.angle - lander.angle  # as pybox2d's revoluteJointDef(bodyA=, bodyB=)
-        world.CreateJoint(rjd)
+        _create_joint(world, rjd)
         legs.append(leg)
     for rjd in _LEG_JOINTS:  # no references from the module-level definitions into this world
         rjd.bodyA = rjd.bodyB = None
