@@ -248,7 +248,8 @@ class MOLunarLanderEnv(ContextualMOEnv):
         self.__dict__["_obs"] = obs
 
     def _observe(self):
-        return {"observation": torch.tensor(self._obs, device=self.device)}
+        # _obs is replaced, never written in place, after it is handed out: no copy needed
+        return {"observation": torch.from_numpy(self._obs).to(self.device)}
 
     # ------------------------------------------------------------------ step
     def _engines(self, action: torch.Tensor) -> np.ndarray:
@@ -287,14 +288,19 @@ class MOLunarLanderEnv(ContextualMOEnv):
         landing = np.where(at_rest, 100.0, np.where(crashed, -100.0, 0.0))
         done = crashed | at_rest
         original = np.where(done, landing, shaping_delta - engines[:, 0] * 0.30 - engines[:, 1] * 0.03)
-        reward = np.zeros((n, 4), dtype=np.float32)
-        original_all = np.zeros(n, dtype=np.float32)
-        terminated = np.zeros(n, dtype=bool)
+        if full:
+            reward = np.empty((n, 4), dtype=np.float32)
+            original_all = original.astype(np.float32)
+            terminated = done
+        else:  # the skipped rows are zeros
+            reward = np.zeros((n, 4), dtype=np.float32)
+            original_all = np.zeros(n, dtype=np.float32)
+            terminated = np.zeros(n, dtype=bool)
+            original_all[sel] = original
+            terminated[sel] = done
         reward[sel, 0] = landing
         reward[sel, 1] = shaping_delta
         reward[sel, 2:] = 0.0 - engines[:, :2]  # main_fuel, side_fuel (0.0 - p: no -0.0 when idle)
-        original_all[sel] = original
-        terminated[sel] = done
 
         if full:
             obs = state.astype(np.float32)
