@@ -95,14 +95,13 @@ class ContextSpace:
         """Cached ``(low, high, high - low, floor)`` on ``device`` (internal: never handed out,
         so never modified). ``floor`` is 0 for the positive parameters, -inf for the others."""
         cache = self.__dict__.setdefault("_tensor_cache", {})  # not a field: outside eq and hash
-        key = str(torch.device("cpu") if device is None else torch.device(device))
-        tensors = cache.get(key)
+        tensors = cache.get(device)  # keyed by what callers pass (None, a str or a torch.device)
         if tensors is None:
             lo, hi = self.bounds(device)
             floor = torch.tensor(
                 [0.0 if name in self.positive else -float("inf") for name in self.names], device=lo.device
             )
-            tensors = cache[key] = (lo, hi, hi - lo, floor)
+            tensors = cache[device] = (lo, hi, hi - lo, floor)
         return tensors
 
     def as_dict(self, context: torch.Tensor) -> dict[str, float]:
