@@ -164,7 +164,8 @@ def make_env(
 
     A ``*DR-*`` (training) id gives the fixed env wrapped in
     :class:`~morl_trl.transforms.DomainRandomization` (a new context per sub-env at each of
-    its resets); any other id gives its fixed context. Keyword ``overrides`` that name
+    its resets), as a :class:`~morl_trl.transforms.DomainRandomizedEnv` (a ``TransformedEnv``
+    whose auto-resets take the env's lean path); any other id gives its fixed context. Keyword ``overrides`` that name
     context parameters fix those parameters (also under domain randomization); other
     keywords go to the env constructor.
 

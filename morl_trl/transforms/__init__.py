@@ -8,7 +8,8 @@ work inside and outside ``SerialEnv``/``ParallelEnv``.
 transform                  writes
 =========================  ===================================================================
 DomainRandomization        ``"context"`` in the reset TensorDict: a new context per sub-env
-                           at each of its resets (the env reads it)
+                           at each of its resets (the env reads it); ``make_env`` of a DR id
+                           gives ``DomainRandomizedEnv(env, DomainRandomization(...))``
 StateActionHistory         ``(s_{t-2}, a_{t-2}, s_{t-1}, a_{t-1}, s_t)`` into ``"observation"``
                            (default, replacing it) or ``out_key``
 ContextObservation         ``[obs, c]`` (``c`` optionally normalized) into ``"observation"``
