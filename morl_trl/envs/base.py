@@ -47,6 +47,9 @@ from morl_trl.envs.context import ContextSpace
 
 __all__ = ["ContextualMOEnv"]
 
+# entries that every reset sets to zero (False): the domain's original reward and the done flags
+_ZERO_AFTER_RESET = ("original_reward", "terminated", "truncated", "done")
+
 
 class ContextualMOEnv(EnvBase):
     """Base class of the batched contextual MO domains (see the module docstring).
@@ -224,10 +227,15 @@ class ContextualMOEnv(EnvBase):
             reset = self._auto_reset(mask, None if draw_contexts is None else draw_contexts(mask))
             if mask.all():  # as maybe_reset: a full reset updates, keeping the entries it does not produce
                 entries.update(reset)
+                for key in _ZERO_AFTER_RESET:
+                    if key in entries and key not in reset:
+                        entries[key] = torch.zeros_like(entries[key])
                 return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
             conds = {}
             for key, old in entries.items():
                 new = reset.get(key, None)
+                if new is old:  # e.g. contexts that the reset kept
+                    continue
                 cond = conds.get(old.ndim)
                 if cond is None:
                     cond = conds[old.ndim] = mask.view(-1, *(1,) * (old.ndim - 1))
@@ -240,7 +248,8 @@ class ContextualMOEnv(EnvBase):
     def _auto_reset(self, mask: torch.Tensor, context: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Reset the sub-envs ``mask`` (``[N]`` bool), with the contexts ``context`` (``[n, c]``,
         one row per sub-env in ``mask``) or their current ones; return the entries ``_reset``
-        would (rows outside ``mask`` are to be ignored)."""
+        would (rows outside ``mask`` are to be ignored), but for those that a reset zeroes
+        (``_ZERO_AFTER_RESET``), which may be left out."""
         if type(self)._reset is not ContextualMOEnv._reset:  # a domain with its own reset
             request = self._reset_request(mask.view(-1, 1))
             if context is not None:
@@ -260,11 +269,6 @@ class ContextualMOEnv(EnvBase):
         self._step_count.masked_fill_(mask, 0)
         out = self._observe()
         out["context"] = self._context
-        n = self.num_envs
-        if self.has_original_reward:
-            out["original_reward"] = torch.zeros(n, 1, device=self.device)
-        for key in ("terminated", "truncated", "done"):
-            out[key] = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
         return out
 
     def _lean_step_applies(self, tensordict: TensorDictBase) -> bool:

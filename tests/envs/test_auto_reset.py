@@ -145,3 +145,12 @@ def test_dr_bad_draw_raises_and_resets_nothing():
     with pytest.raises(ValueError, match="'speed' is 3.0"):
         env.step_and_maybe_reset(td)  # third step: position 3, both done; the draw is rejected
     assert torch.equal(env.base_env.context, context)
+
+
+@pytest.mark.parametrize("env_id, steps", [("MOLavaGridDR-v0", 300), ("MOHopperDR-v5", 120)])
+def test_dr_ids_of_other_domains_match_torchrl_path(env_id, steps):
+    if "Hopper" in env_id:
+        pytest.importorskip("mujoco")
+    make = lambda: make_env(env_id, num_envs=4, seed=1)  # noqa: E731
+    assert isinstance(make(), DomainRandomizedEnv)
+    assert _run_both(make, steps=steps) >= 1
