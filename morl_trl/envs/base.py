@@ -172,8 +172,8 @@ class ContextualMOEnv(EnvBase):
                 context[idx] = chosen
                 self.__dict__["_context"] = context
             self._step_count[idx] = 0
-        flags = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        return self._make_output(self._observe(), reward=None, original=None, terminated=flags, truncated=flags)
+        no = torch.zeros(2, self.num_envs, dtype=torch.bool, device=self.device)  # (two rows: no shared views)
+        return self._make_output(self._observe(), reward=None, original=None, terminated=no[0], truncated=no[1])
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = self._check_action(tensordict.get("action", None))
@@ -363,7 +363,7 @@ class ContextualMOEnv(EnvBase):
                     raise ValueError(f"discrete actions must be integers, got {action}")
                 action = action.long()
             if self.check_actions:
-                lo, hi = torch.aminmax(action)  # one reduction (one host sync on an accelerator)
+                lo, hi = torch.aminmax(action)  # one reduction
                 if int(lo) < 0 or int(hi) >= n:
                     bad = action[(action < 0) | (action >= n)][0].item()
                     raise ValueError(f"action {bad} is out of the action space [0, {n})")
@@ -378,7 +378,7 @@ class ContextualMOEnv(EnvBase):
                     low, high = float(low.min()), float(high.max())
                 self._action_bounds = (low, high)
             low, high = self._action_bounds
-            # one reduction (one host sync on an accelerator): NaN fails every comparison
+            # one reduction: NaN fails every comparison
             if isinstance(low, float):
                 lo, hi = torch.aminmax(action)
                 inside = float(lo) >= low and float(hi) <= high
@@ -418,4 +418,3 @@ class ContextualMOEnv(EnvBase):
             f"{type(self).__name__}(num_envs={self.num_envs}, objectives={list(self.objective_names)}, "
             f"context={list(self.context_space.names)}, device={self.device})"
         )
-

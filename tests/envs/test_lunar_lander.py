@@ -479,3 +479,24 @@ def test_batched_auto_reset_matches_one_peer_per_subenv():
                 resets += 1
             assert np.array_equal(td["observation"][i].numpy(), o)
     assert resets >= 8
+
+
+def test_wind_table_is_gymnasiums_formula_and_grows_past_its_end():
+    import math
+
+    from morl_trl.envs.lunar_lander import env as lander_env
+
+    table = lander_env._WIND_TABLE
+    for k in (-9999, -1234, 0, 1, 777, 9998):
+        expected = math.tanh(math.sin(0.02 * k) + math.sin(math.pi * 0.01 * k))  # Gymnasium's expression
+        assert table.values[k + table.OFFSET] == expected
+    env = MOLunarLanderEnv(num_envs=2, seed=0)
+    env.reset()
+    end = len(table.values)
+    env._wind_idx[:] = end - 1  # as after a very long airborne episode
+    env._wind_guard[0] = 0
+    td = env.step(TensorDict(action=torch.zeros(2, dtype=torch.long), batch_size=[2]))
+    assert len(table.values) > end + 1000 and torch.isfinite(td["next", "observation"]).all()
+    k = end - table.OFFSET
+    assert table.values[end] == math.tanh(math.sin(0.02 * k) + math.sin(math.pi * 0.01 * k))
+    assert env._wind_idx.tolist() == [[end, end]] * 2  # both airborne: one step further

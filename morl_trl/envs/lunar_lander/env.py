@@ -33,7 +33,6 @@ _OBS_SUB = np.array([_HALF_W, P.HELIPAD_Y + P.LEG_DOWN / P.SCALE, 0.0, 0.0, 0.0,
 _OBS_DIV = np.array([_HALF_W, _HALF_H, P.FPS, P.FPS, 1.0, P.FPS])
 # per-step engine terms, one row per sub-env: main power, side power, 0, side direction *
 # SIDE_ENGINE_AWAY / SCALE (the side engine's lateral offset, as Gymnasium computes it)
-_SIDE_OFFSET = P.SIDE_ENGINE_AWAY / P.SCALE
 _DISCRETE_ENGINES = np.array([  # noop, left, main, right (direction = action - 2)
     [0.0, 0.0, 0.0, -2.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
     [0.0, 1.0, 0.0, -1.0 * P.SIDE_ENGINE_AWAY / P.SCALE],
@@ -106,7 +105,6 @@ class _WindTable:
 
 
 _WIND_TABLE = _WindTable()
-_NO_KICKS = [(False, False)] * 256  # the rows of a step in which no engine fires
 
 
 def _engine_impulses(body: np.ndarray, ctx: np.ndarray, disp: np.ndarray, engines: np.ndarray) -> list:
@@ -339,7 +337,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
             kicks = _engine_impulses(self._body[sel], ctx, disp, engines)
             fire = fire.tolist()
         else:
-            kicks = fire = _NO_KICKS[:n] if n <= len(_NO_KICKS) else [(False, False)] * n
+            kicks = fire = [(False, False)] * n  # (a reset's no-op step)
 
         landers = self._landers if every else [self._landers[i] for i in idx.tolist()]
         steps = self._world_steps if every else [self._world_steps[i] for i in idx.tolist()]
