@@ -203,8 +203,8 @@ class ContextualMOEnv(EnvBase):
         returned one holds what ``step_mdp`` keeps, with the rows of finished sub-envs
         replaced as ``maybe_reset`` does (their reset values, and zeros for the entries the
         reset does not produce, such as ``"action"``). Anything unusual (partial steps, a
-        preset ``"next"``, type checks, step-MDP hooks, nested entries, another device or
-        batch size) takes TorchRL's path.
+        preset ``"next"``, type checks, step-MDP hooks, nested entries, a lazy stack, another
+        device or batch size) takes TorchRL's path.
         """
         if not self._lean_step_applies(tensordict):
             return super()._step_and_maybe_reset(tensordict)
@@ -273,7 +273,8 @@ class ContextualMOEnv(EnvBase):
 
     def _lean_step_applies(self, tensordict: TensorDictBase) -> bool:
         return (
-            tensordict.batch_size == self.batch_size
+            isinstance(tensordict, TensorDict)  # (not a lazy stack or a view)
+            and tensordict.batch_size == self.batch_size
             and tensordict.device == self.device
             and "_step" not in tensordict.keys()
             and "next" not in tensordict.keys()

@@ -154,3 +154,13 @@ def test_dr_ids_of_other_domains_match_torchrl_path(env_id, steps):
     make = lambda: make_env(env_id, num_envs=4, seed=1)  # noqa: E731
     assert isinstance(make(), DomainRandomizedEnv)
     assert _run_both(make, steps=steps) >= 1
+
+
+def test_lazy_stacked_input_takes_torchrl_path():
+    env = ToyContextEnv(num_envs=2)
+    td = env.reset()
+    td["action"] = torch.tensor([1, 1])
+    lazy = TensorDict.lazy_stack(list(td.unbind(0)), 0)
+    assert not env._lean_step_applies(lazy)
+    out, nxt = env.step_and_maybe_reset(lazy)
+    assert out["next", "observation"][:, 0].tolist() == [1.0, 1.0]
