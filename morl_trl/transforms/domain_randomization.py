@@ -171,7 +171,8 @@ class DomainRandomization(SeededTransform):
         n = int(mask.sum())
         if not n:
             return None
-        return self.sample(n, previous=current[mask]).to(current.device)
+        previous = current[mask] if self._pass_previous else None
+        return self.sample(n, previous=previous).to(current.device)
 
     def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
         return tensordict_reset
@@ -205,18 +206,32 @@ class DomainRandomizedEnv(TransformedEnv):
     """
 
     def _step_and_maybe_reset(self, tensordict: TensorDictBase) -> tuple[TensorDictBase, TensorDictBase]:
-        transform, base = self.transform, self.base_env
+        transform = self.transform
+        lean = self.__dict__.get("_lean_base")
+        if lean is None or lean[0] is not transform:  # (re)checked whenever the transform changes
+            lean = self.__dict__["_lean_base"] = (transform, self._lean_base_env(transform))
+        base = lean[1]
         if (
-            type(transform) is DomainRandomization
-            and transform.context_key == "context"
-            and isinstance(base, ContextualMOEnv)
+            base is not None
             and not self.run_type_checks
-            and type(transform)._post_step_mdp_hooks is Transform._post_step_mdp_hooks
             and not self.__dict__.get("_torchrl_native_autoreset", False)
             and base._lean_step_applies(tensordict)
         ):
             return base._lean_step_and_maybe_reset(tensordict, draw_contexts=self._draw_contexts)
         return super()._step_and_maybe_reset(tensordict)
 
+    def _lean_base_env(self, transform) -> ContextualMOEnv | None:
+        """The base env when its lean path applies with ``transform`` alone, else ``None``."""
+        base = self.base_env
+        if (
+            type(transform) is DomainRandomization
+            and transform.context_key == "context"
+            and isinstance(base, ContextualMOEnv)
+            and type(transform)._post_step_mdp_hooks is Transform._post_step_mdp_hooks
+        ):
+            return base
+        return None
+
     def _draw_contexts(self, mask: torch.Tensor) -> torch.Tensor | None:
-        return self.transform.draw(mask, self.base_env._context)
+        transform, base = self.__dict__["_lean_base"]
+        return transform.draw(mask, base._context)
