@@ -49,6 +49,11 @@ class DomainSpec:
         gamma: the discount the paper evaluates with.
         hv_ref_point: the paper's unnormalized hypervolume reference point.
         objective_names: names of the reward entries, in order.
+        max_episode_steps: the truncation horizon.
+        history_len: the paper's state-action history length (``StateActionHistory``; 0: none).
+        train_frames: the paper's training length in environment frames.
+        eval_interval: the paper's evaluation period in frames.
+        eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
     """
 
     name: str
@@ -62,6 +67,11 @@ class DomainSpec:
     gamma: float = 0.99
     hv_ref_point: tuple[float, ...] | None = None
     max_episode_steps: int = 1000
+    # the paper's training and evaluation protocol (SPEC §2, §4)
+    history_len: int = 0
+    train_frames: int = 1_000_000
+    eval_interval: int = 50_000
+    eval_weights: int = 100
 
     def __post_init__(self) -> None:
         missing = [e for e in self.evaluation_ids if e not in self.contexts]

@@ -41,8 +41,6 @@ DOMAIN_NAMES = {
     "MOSuperMarioBrosZeroShot-v2": "MO-SuperMarioBros",
     "MOLavaGridDR-v0": "MO-LavaGrid",
 }
-# evaluation weights per domain (SPEC §2): 100, Mario 32
-EVAL_WEIGHTS = {"MOSuperMarioBrosZeroShot-v2": 32}
 
 _ALGO_LABELS = {
     "MORL-D(MOSACDiscrete)-SB": "MORL/D SB",
@@ -158,6 +156,16 @@ def _ordered(domains: list[str]) -> list[str]:
     return known + sorted(d for d in domains if d not in DOMAIN_NAMES)
 
 
+def _eval_weights(domain: str) -> int:
+    """The paper's number of evaluation weights for ``domain`` (its spec's; 100 for an unknown domain)."""
+    from morl_trl.envs import domain_of
+
+    try:
+        return domain_of(domain).eval_weights
+    except ValueError:
+        return 100
+
+
 def domain_rows(
     ref: DomainReference,
     runs: dict[str, dict[int, dict[str, np.ndarray]]],
@@ -168,7 +176,7 @@ def domain_rows(
     seed: int = 0,
 ) -> list[TableRow]:
     """The table rows of one domain from its reference and ``{algo: {seed: {context: front}}}``."""
-    n_w = num_weights or EVAL_WEIGHTS.get(ref.domain, 100)
+    n_w = num_weights or _eval_weights(ref.domain)
     weights = energy_weights(ref.num_objectives, n_w).numpy() if eugr else None
     ctxs = ref.contexts
     denom_nhv = {c: ref.specialist_normalized_hypervolume(c) for c in ctxs}

@@ -97,16 +97,8 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------- defaults
-# The paper's settings (SPEC §4). Keys: algo -> domain train id -> overrides.
-_DOMAIN = {
-    "MOLunarLanderDR-v0": dict(frames=3_000_000, history_len=2, eval_interval=50_000),
-    "MOLunarLanderContinuousDR-v0": dict(frames=3_000_000, history_len=2, eval_interval=50_000),
-    "MOLavaGridDR-v0": dict(frames=5_000_000, history_len=0, eval_interval=50_000),
-    "MOHopperDR-v5": dict(frames=3_000_000, history_len=2, eval_interval=100_000),
-    "MOHalfCheetahDR-v5": dict(frames=5_000_000, history_len=2, eval_interval=100_000),
-    "MOHumanoidDR-v5": dict(frames=10_000_000, history_len=2, eval_interval=100_000),
-    "MOSuperMarioBrosZeroShot-v2": dict(frames=3_000_000, history_len=0, eval_interval=100_000, eval_weights=32),
-}
+# The paper's settings (SPEC §4): the domain's protocol comes from its DomainSpec, then the
+# algorithm's defaults, then (algorithm, domain) overrides.
 _ALGO = {
     "envelope": dict(batch_size=128, target_update_period=1000, prioritized=True, homotopy_lambda0=0.95,
                      num_sampled_prefs=8, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
@@ -171,9 +163,11 @@ def resolve_config(
         raise ValueError(f"unknown algorithm {algo!r}; valid: {list(ALGORITHMS)}")
     from morl_trl.envs import domain_of
 
-    train_id = domain_of(env_id).train_id  # raises with close matches on an unknown id
+    spec = domain_of(env_id)  # raises with close matches on an unknown id
+    train_id = spec.train_id
     values: dict[str, Any] = {"algo": algo, "env_id": env_id}
-    values.update(_DOMAIN.get(train_id, {}))
+    values.update(frames=spec.train_frames, history_len=spec.history_len, eval_interval=spec.eval_interval,
+                  eval_weights=spec.eval_weights)
     values.update(_ALGO[algo])
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if quick:

@@ -21,5 +21,8 @@ register_domain(
         gamma=0.995,
         hv_ref_point=(-1000.0, -500.0),
         max_episode_steps=256,
+        history_len=0,
+        train_frames=5_000_000,
+        eval_interval=50_000,
     )
 )

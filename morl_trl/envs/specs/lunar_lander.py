@@ -57,5 +57,8 @@ for _prefix, _continuous in (("MOLunarLander", False), ("MOLunarLanderContinuous
             gamma=0.99,
             hv_ref_point=(-101.0, -1001.0, -101.0, -101.0),
             max_episode_steps=1000,
+            history_len=2,
+            train_frames=3_000_000,
+            eval_interval=50_000,
         )
     )

@@ -23,5 +23,9 @@ register_domain(
         gamma=0.99,
         hv_ref_point=(-100.0, -100.0, -100.0),
         max_episode_steps=500,
+        history_len=0,
+        train_frames=3_000_000,
+        eval_interval=100_000,
+        eval_weights=32,
     )
 )

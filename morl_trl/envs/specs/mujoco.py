@@ -97,10 +97,10 @@ _HUMANOID = {
     "Hard": _humanoid((8.9075, 2.2619, 6.6162, 0.7, 0.6, 0.5, 8.0, 7.0, 6.0, 0.1, 0.1, 5.0, 5.0), _LOW_DAMPING),
 }
 
-for _name, _space, _contexts, _objectives, _ref in (
-    ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3),
-    ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0)),
-    ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0)),
+for _name, _space, _contexts, _objectives, _ref, _frames in (
+    ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3, 3_000_000),
+    ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0), 5_000_000),
+    ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0), 10_000_000),
 ):
     register_domain(
         DomainSpec(
@@ -114,5 +114,8 @@ for _name, _space, _contexts, _objectives, _ref in (
             gamma=0.99,
             hv_ref_point=_ref,
             max_episode_steps=1000,
+            history_len=2,
+            train_frames=_frames,
+            eval_interval=100_000,
         )
     )
