@@ -1,22 +1,143 @@
-"""The ``morl-trl`` command line.
+"""The ``morl-trl`` command line: every entry point of the package, in one place.
 
-Subcommands are small functions registered in ``COMMANDS``; each parses its own arguments so
-that a subcommand's module is only imported when it runs.
+Each subcommand is a small function that parses its own arguments and imports what it needs
+only when it runs (``morl-trl envs`` loads no simulator, no training code).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
+import os
 import sys
+import time
+from pathlib import Path
 
-# name -> ("module:function", help). The function takes the remaining argv list.
-COMMANDS: dict[str, tuple[str, str]] = {
-    "train": ("morl_trl.trainers.cli:train_main", "train a generalist across contexts, evaluate it, report"),
-    "evaluate": ("morl_trl.trainers.cli:evaluate_main", "re-evaluate a run's checkpoint on its evaluation suite"),
-    "demo": ("morl_trl.demo:main", "build every domain, step it under random contexts, print vector returns"),
-    "envs": ("morl_trl.demo:list_main", "list domains, their contexts and evaluation suites"),
-    "reference-table": ("morl_trl.metrics.table:main", "reproduce the paper's NHGR table from the published fronts"),
+__all__ = ["main", "COMMANDS"]
+
+
+def _default_reference() -> str | None:
+    """``$MORL_TRL_REFERENCE`` or ``../shared/reference`` when it holds the published data."""
+    for cand in (os.environ.get("MORL_TRL_REFERENCE"), "../shared/reference"):
+        if cand and (Path(cand) / "minmax_values").is_dir():
+            return cand
+    return None
+
+
+# ---------------------------------------------------------------------- train / evaluate
+def train_main(argv: list[str]) -> int:
+    from morl_trl.recipes.config import ALGORITHMS
+
+    p = argparse.ArgumentParser(
+        prog="morl-trl train",
+        description="Train a generalist under domain randomization, evaluate it on the evaluation suite, report.",
+    )
+    p.add_argument("algo", choices=ALGORITHMS, help="algorithm")
+    p.add_argument("env_id", help="training env id, e.g. MOLunarLanderDR-v0 (morl-trl envs lists them)")
+    p.add_argument("--frames", type=int, help="environment frames to train for")
+    p.add_argument("--seed", type=int, help="one seed for contexts, preferences, networks and evaluation")
+    p.add_argument("--device", help="cpu, cuda, ...")
+    p.add_argument("--config", help="a .toml/.json file of config overrides")
+    p.add_argument("--quick", action="store_true", help="a preset that finishes in a few CPU minutes")
+    p.add_argument("--run-dir", help="where to write the run (default runs/<algo>_<env>_s<seed>_<time>)")
+    p.add_argument("--reference", help="the published data (bounds, specialist fronts) for NHGR; "
+                   "default $MORL_TRL_REFERENCE or ../shared/reference if present")
+    p.add_argument("--logger", choices=("csv", "tensorboard", "wandb", "none"))
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue a killed run from its last checkpoint")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
+    args = p.parse_args(argv)
+    from morl_trl.recipes import resolve_config, train
+
+    if args.resume:
+        train(None, resume=args.resume)
+        return 0
+    reference = args.reference or _default_reference()
+    cfg = resolve_config(
+        args.algo, args.env_id, quick=args.quick, config_file=args.config, frames=args.frames, seed=args.seed,
+        device=args.device, run_dir=args.run_dir, reference_dir=reference, logger=args.logger,
+        progress=False if args.no_progress else None,
+    )
+    if args.print_config:
+        print(cfg.to_toml())
+        return 0
+    train(cfg)
+    return 0
+
+
+def evaluate_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="morl-trl evaluate",
+                                description="Re-evaluate a run's latest checkpoint on its evaluation suite.")
+    p.add_argument("run_dir")
+    p.add_argument("--reference", help="the published data for NHGR/EUGR (default as in train)")
+    p.add_argument("--weights", type=int, help="number of evaluation weights (default: the run's)")
+    args = p.parse_args(argv)
+    from morl_trl.recipes import evaluate_run
+
+    evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights)
+    return 0
+
+
+# ---------------------------------------------------------------------- envs / demo
+def envs_main(argv: list[str]) -> int:
+    argparse.ArgumentParser(prog="morl-trl envs", description="List domains and evaluation suites.").parse_args(argv)
+    from morl_trl.envs import list_domains
+
+    for spec in list_domains():
+        print(f"{spec.name}  train: {spec.train_id}  objectives: {list(spec.objective_names)}")
+        print(f"    context ({spec.context_space.dim}): {', '.join(spec.context_space.names)}")
+        print(f"    evaluation suite: {', '.join(spec.evaluation_ids)}")
+        extra = [i for i in spec.contexts if i not in spec.evaluation_ids]
+        if extra:
+            print(f"    other fixed contexts: {', '.join(extra)}")
+    return 0
+
+
+def demo_main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog="morl-trl demo", description="Build every domain, step it under random contexts, print vector returns.")
+    parser.add_argument("--num-envs", type=int, default=4)
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    import torch
+
+    from morl_trl.envs import list_domains, make_env
+
+    torch.manual_seed(args.seed)
+    for spec in list_domains():
+        try:
+            spec.env_cls()
+        except ImportError:
+            print(f"{spec.train_id:34s} (skipped: its extra is not installed)")
+            continue
+        env = make_env(spec.train_id, num_envs=args.num_envs, seed=args.seed)
+        t0 = time.perf_counter()
+        td = env.rollout(args.steps, break_when_any_done=False)  # random policy
+        dt = time.perf_counter() - t0
+        ret = td["next", "reward"].sum(-2)  # undiscounted return of each sub-env's trajectory
+        names = ", ".join(spec.objective_names)
+        print(f"{spec.train_id:34s} {args.num_envs}x{args.steps} steps in {dt:5.2f}s  objectives [{names}]")
+        for i in range(min(args.num_envs, 2)):
+            ctx = ", ".join(f"{v:.2f}" for v in td["context"][i, 0].tolist()[:4])
+            vals = ", ".join(f"{v:9.2f}" for v in ret[i].tolist())
+            print(f"    sub-env {i}: context [{ctx}{', ...' if td['context'].shape[-1] > 4 else ''}]  return [{vals}]")
+    return 0
+
+
+# ---------------------------------------------------------------------- the paper's table
+def reference_table_main(argv: list[str]) -> int:
+    from morl_trl.metrics.table import main
+
+    return main(argv)
+
+
+# name -> (function, help)
+COMMANDS = {
+    "train": (train_main, "train a generalist across contexts, evaluate it, report"),
+    "evaluate": (evaluate_main, "re-evaluate a run's checkpoint on its evaluation suite"),
+    "demo": (demo_main, "build every domain, step it under random contexts, print vector returns"),
+    "envs": (envs_main, "list domains, their contexts and evaluation suites"),
+    "reference-table": (reference_table_main, "reproduce the paper's NHGR table from the published fronts"),
 }
 
 
@@ -29,9 +150,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if argv[0] not in COMMANDS:
         parser.error(f"unknown command {argv[0]!r}; valid: {sorted(COMMANDS)}")
-    module, _, func = COMMANDS[argv[0]][0].partition(":")
     try:
-        return int(getattr(importlib.import_module(module), func)(argv[1:]) or 0)
+        return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
     except ValueError as err:  # bad input: say what is wrong and what is valid, no traceback
         print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
         return 2

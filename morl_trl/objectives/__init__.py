@@ -6,6 +6,9 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
 * :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
 
+Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
+Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
+
 Networks: :mod:`morl_trl.objectives.networks`.
 """
 
@@ -22,12 +25,14 @@ from morl_trl.objectives.networks import (
     make_vector_q_network,
 )
 from morl_trl.objectives.preferences import sample_preferences
+from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
 
 __all__ = [
     "CAPQLLoss",
     "DiscreteMOSACLoss",
     "EnvelopeQLoss",
+    "MOQValueModule",
     "MOSACLoss",
     "MultiObjectiveLossModule",
     "NatureCNN",
@@ -38,5 +43,6 @@ __all__ = [
     "make_vector_critic",
     "make_vector_q_network",
     "sample_preferences",
+    "scalarized_argmax",
     "vector_td0_return_estimate",
 ]

@@ -22,6 +22,10 @@ DiscountedVectorReturn     ``"episode_return"``, ``"episode_discounted_return"``
                            ``"episode_discount"`` ``[*B, 1]``
 =========================  ===================================================================
 
+Composition helpers: :func:`compose_policy_env` (the env + the observation transforms a policy
+was trained with: what the evaluator runs) and :func:`compose_training_env` (that + a
+preference per sub-env and episode + vector returns: what the training recipes run).
+
 Order: put :class:`ContextObservation` after :class:`StateActionHistory` (otherwise the
 history repeats the context), and :class:`LinearScalarization` after
 :class:`PreferenceConditioning`. A policy then reads ``"observation"`` and ``"preference"``.
@@ -37,6 +41,7 @@ Example:
     (torch.Size([4, 10, 10]), torch.Size([4, 10, 2]), torch.Size([4, 10, 1]))
 """
 
+from morl_trl.transforms.compose import compose_policy_env, compose_training_env
 from morl_trl.transforms.context_observation import ContextObservation
 from morl_trl.transforms.domain_randomization import DomainRandomization, DomainRandomizedEnv
 from morl_trl.transforms.history import StateActionHistory
@@ -52,4 +57,6 @@ __all__ = [
     "LinearScalarization",
     "PreferenceConditioning",
     "StateActionHistory",
+    "compose_policy_env",
+    "compose_training_env",
 ]

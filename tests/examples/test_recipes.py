@@ -1,4 +1,4 @@
-"""Every recipe in examples/ runs end to end (tiny settings) and prints its evaluations."""
+"""The example configs resolve, and the custom loop in examples/ runs end to end."""
 
 import subprocess
 import sys
@@ -6,35 +6,37 @@ from pathlib import Path
 
 import pytest
 
+from morl_trl.recipes import resolve_config
+
 ROOT = Path(__file__).resolve().parents[2]
-TINY = """
-frames = 256
-num_envs = 4
-frames_per_batch = 64
-updates_per_batch = 2
-init_random_frames = 128
-batch_size = 32
-buffer_size = 1000
-hidden = [16]
-eval_interval = 256
-eval_weights = 4
-"""
 
 
 @pytest.mark.parametrize(
-    "script, args, env_id, first_context",
+    "algo, path, env_id, frames",
     [
-        ("examples/envelope/envelope.py", [], "MOLunarLanderDR-v0", "Default"),
-        ("examples/envelope/envelope.py", [], "MOLavaGridDR-v0", "CheckerBoard"),
-        ("examples/actor_critic/actor_critic.py", ["--algo", "capql"], "MOHopperDR-v5", "Default"),
-        ("examples/actor_critic/actor_critic.py", ["--algo", "mosac"], "MOHalfCheetahDR-v5", "Default"),
+        ("envelope", "examples/envelope/lunar_lander_quick.toml", "MOLunarLanderDR-v0", 60_000),
+        ("envelope", "examples/envelope/lava_grid_quick.toml", "MOLavaGridDR-v0", 60_000),
+        ("envelope", "examples/envelope/lunar_lander_paper.toml", "MOLunarLanderDR-v0", 3_000_000),
+        ("capql", "examples/actor_critic/hopper_quick.toml", "MOHopperDR-v5", 20_000),
+        ("capql", "examples/actor_critic/hopper_paper.toml", "MOHopperDR-v5", 3_000_000),
+        ("mosac", "examples/actor_critic/half_cheetah_quick.toml", "MOHalfCheetahDR-v5", 20_000),
+        ("mosac", "examples/actor_critic/half_cheetah_paper.toml", "MOHalfCheetahDR-v5", 5_000_000),
     ],
 )
-def test_recipe_runs(tmp_path, script, args, env_id, first_context):
-    cfg = tmp_path / "tiny.toml"
-    cfg.write_text(f'env_id = "{env_id}"\n' + TINY)
-    out = subprocess.run([sys.executable, str(ROOT / script), *args, "--config", str(cfg)],
-                         capture_output=True, text=True, timeout=300, cwd=ROOT)
+def test_example_configs_resolve(algo, path, env_id, frames):
+    cfg = resolve_config(algo, "MOLavaGridDR-v0", config_file=ROOT / path)
+    assert (cfg.env_id, cfg.frames) == (env_id, frames)
+
+
+def test_quick_config_file_equals_the_quick_preset():
+    from_file = resolve_config("envelope", "MOLunarLanderDR-v0", config_file=ROOT / "examples/envelope/lunar_lander_quick.toml")
+    assert from_file == resolve_config("envelope", "MOLunarLanderDR-v0", quick=True)
+
+
+def test_custom_trainer_runs():
+    out = subprocess.run([sys.executable, str(ROOT / "examples/custom_trainer.py"), "--frames", "1536",
+                          "--eval-weights", "3"], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert out.returncode == 0, out.stderr[-3000:]
-    lines = [line for line in out.stdout.splitlines() if line.startswith("frames")]
-    assert len(lines) == 1 and f"hypervolume: {first_context}=" in lines[0]
+    (line,) = [line for line in out.stdout.splitlines() if line.startswith("frames")]
+    assert line.startswith("frames 1536: hypervolume per context CheckerBoard=")
+    assert line.count("=") == 8

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from morl_trl.trainers import TrainConfig, evaluate_run, resolve_config, train
-from morl_trl.trainers.checkpoint import latest_checkpoint
+from morl_trl.recipes import TrainConfig, evaluate_run, resolve_config, train
+from morl_trl.runs import latest_checkpoint
 
 TINY = dict(
     frames=512, num_envs=8, frames_per_batch=64, init_random_frames=128, updates_per_batch=2, batch_size=32,
@@ -105,7 +105,7 @@ def test_short_run_writes_everything(tmp_path, reference_dir):
 
 def test_non_finite_loss_stops_with_a_clear_message_and_a_good_checkpoint(tmp_path, monkeypatch):
     from morl_trl.objectives import EnvelopeQLoss
-    from morl_trl.trainers.agents import NonFiniteLossError
+    from morl_trl.recipes import NonFiniteLossError
 
     forward = EnvelopeQLoss.forward
     calls = {"n": 0}

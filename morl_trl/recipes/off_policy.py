@@ -1,9 +1,12 @@
-"""The paper's experimental loop (§6): train a generalist under domain randomization, evaluate
-it periodically on the evaluation suite, checkpoint, report.
+"""The off-policy recipe: the paper's experimental loop (§6) for Envelope, CAPQL and MOSAC.
 
-One screen, top to bottom: environment -> agent -> collector + replay buffer -> updates ->
-evaluation / logging / checkpoints. Everything algorithm-specific lives in
-:mod:`morl_trl.trainers.agents`.
+Train a generalist under domain randomization, evaluate it periodically on the evaluation
+suite, checkpoint, report. This is the code ``morl-trl train`` runs; read it top to bottom:
+environment -> agent -> collector + replay buffer -> updates -> evaluation / logging /
+checkpoints. What is algorithm-specific (networks, policies, loss, optimizers) is built by
+the algorithm's own module (:mod:`morl_trl.recipes.envelope`,
+:mod:`morl_trl.recipes.actor_critic`); what every run needs (run directory, checkpoints,
+logs, report) is :mod:`morl_trl.runs`.
 """
 
 from __future__ import annotations
@@ -17,14 +20,89 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from morl_trl.envs import domain_of
-from morl_trl.trainers.agents import NonFiniteLossError, build_agent
-from morl_trl.trainers.checkpoint import latest_checkpoint, load_checkpoint, rng_state, save_checkpoint, set_rng_state
-from morl_trl.trainers.config import TrainConfig
-from morl_trl.trainers.env_factory import make_eval_transform, make_train_env
-from morl_trl.trainers.run_log import RunLog
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.envs.utils import ExplorationType
 
-__all__ = ["train", "evaluate_run"]
+from morl_trl.data import prioritized_sampler
+from morl_trl.envs import DomainSpec, domain_of, make_env
+from morl_trl.evaluation import MultiContextEvaluator
+from morl_trl.recipes.agent import Agent, NonFiniteLossError
+from morl_trl.recipes.config import TrainConfig
+from morl_trl.runs.checkpoint import latest_checkpoint, load_checkpoint, rng_state, save_checkpoint, set_rng_state
+from morl_trl.runs.run_log import RunLog
+from morl_trl.transforms import compose_policy_env, compose_training_env
+
+__all__ = ["train", "evaluate_run", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
+
+
+# ---------------------------------------------------------------------- the pieces of a run
+def make_training_env(cfg: TrainConfig, device: torch.device):
+    """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
+    policy's history + a Dirichlet preference per sub-env and episode + vector returns."""
+    spec = domain_of(cfg.env_id)
+    env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
+    gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
+    return compose_training_env(env, gamma=gamma, history_len=cfg.history_len, preference_seed=cfg.seed + 1)
+
+
+def make_replay_buffer(cfg: TrainConfig, device: torch.device) -> TensorDictReplayBuffer:
+    """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``."""
+    storage = LazyTensorStorage(cfg.buffer_size, device=device)
+    if cfg.prioritized:
+        sampler = prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
+        return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.batch_size,
+                                      priority_key="td_error")
+    return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
+
+
+def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frames_done: int = 0) -> Collector:
+    """TorchRL's ``Collector`` for the frames still to go (uniformly random before ``init_random_frames``)."""
+    per_batch = cfg.frames_per_batch
+
+    def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
+        return -(-max(frames, 0) // per_batch) * per_batch
+
+    return Collector(
+        env,
+        policy,
+        frames_per_batch=per_batch,
+        total_frames=max(whole_batches(cfg.frames - frames_done), per_batch),
+        init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
+        device=device,
+        exploration_type=ExplorationType.RANDOM,
+        auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
+    )
+
+
+def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=None) -> MultiContextEvaluator:
+    """The multi-context evaluator on the policy stack of training (same env, same history)."""
+    device = agent.device
+
+    def env_factory(num_envs: int, seed: int):
+        return compose_policy_env(make_env(spec.evaluation_ids[0], num_envs=num_envs, seed=seed, device=device),
+                                  history_len=cfg.history_len)
+
+    return MultiContextEvaluator(
+        agent.eval_policy,
+        list(cfg.eval_contexts) if cfg.eval_contexts else spec.train_id,
+        weights=cfg.eval_weights,
+        episodes=cfg.eval_episodes,
+        gamma=cfg.gamma if cfg.gamma is not None else spec.gamma,
+        env_factory=env_factory,
+        reference=reference,
+        exploration_type=agent.eval_exploration,
+        device=device,
+        seed=cfg.seed,
+    )
+
+
+def _load_reference(cfg: TrainConfig, spec: DomainSpec):
+    if not cfg.reference_dir:
+        return None
+    from morl_trl.metrics.reference import load_domain_reference
+
+    return load_domain_reference(cfg.reference_dir, spec.train_id)
 
 
 def _set_threads(cfg: TrainConfig) -> None:
@@ -59,7 +137,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
     """Run (or resume) a training run; returns the last evaluation summary.
 
     Example:
-        >>> from morl_trl.trainers import resolve_config, train
+        >>> from morl_trl.recipes import resolve_config, train
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
@@ -80,12 +158,14 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
     spec = domain_of(cfg.env_id)
     gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
 
-    env = make_train_env(cfg, device)
+    from morl_trl.recipes import build_agent
+
+    env = make_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=gamma, device=device)
-    buffer = agent.make_replay_buffer()
+    buffer = make_replay_buffer(cfg, device)
     log = RunLog(run_dir, cfg, spec)
-    evaluator = agent.make_evaluator(make_eval_transform(cfg), spec)
-    log.reference = agent.reference
+    log.reference = _load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, log.reference)
 
     frames, updates, next_eval, next_ckpt = 0, 0, 0, cfg.checkpoint_interval
     ckpt = latest_checkpoint(run_dir) if resume is not None else None
@@ -113,7 +193,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
         )
         save_checkpoint(run_dir, tag_frames, state, buffer)
 
-    collector = agent.make_collector(env, total_frames=max(cfg.frames - frames, 0), frames_done=frames)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames)
     updates_per_batch = cfg.updates_per_batch or cfg.frames_per_batch
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
     t_start, frames_start, last_nhgr = time.perf_counter(), frames, float("nan")
@@ -121,7 +201,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
     try:
         for batch in collector:
             if frames >= next_eval:  # evaluate the policy the batch was collected with (frame 0 included)
-                summary = log.evaluation(frames, evaluator(agent.eval_policy))
+                summary = log.evaluation(frames, evaluator.evaluate())
                 last_nhgr = summary.get("nhgr_mean", float("nan"))
                 next_eval += cfg.eval_interval
                 tqdm.write(_eval_line(summary))
@@ -146,10 +226,10 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
             if frames >= next_ckpt:
                 next_ckpt += cfg.checkpoint_interval
                 checkpoint(frames)
-        summary = log.evaluation(frames, evaluator(agent.eval_policy))
+        summary = log.evaluation(frames, evaluator.evaluate())
         checkpoint(frames)
         if cfg.eval_random_baseline:
-            log.random_result = evaluator("random")
+            log.random_result = evaluator.evaluate("random")
         log.report(summary, fps=(frames - frames_start) / max(time.perf_counter() - t_start, 1e-9))
     finally:
         bar.close()
@@ -175,12 +255,15 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
-    env = make_train_env(cfg, device)
+    from morl_trl.recipes import build_agent
+
+    env = make_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
     agent.load_state_dict(load_checkpoint(ckpt)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
+    log.reference = _load_reference(cfg, spec)
     frames = int(ckpt.name.split("_")[-1])
-    summary = log.evaluation(frames, agent.make_evaluator(make_eval_transform(cfg), spec)(agent.eval_policy))
+    summary = log.evaluation(frames, make_evaluator(cfg, agent, spec, log.reference).evaluate())
     log.report(summary, fps=None)
     log.close()
     return summary

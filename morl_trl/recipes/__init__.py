@@ -1,0 +1,57 @@
+"""Training recipes: each algorithm's training loop, written once; ``morl-trl train`` runs them.
+
+================== ============================================= ===================================
+algorithm          agent (networks, policies, loss, optimizers)  loop
+================== ============================================= ===================================
+``envelope``       :func:`~morl_trl.recipes.envelope.make_envelope_agent`          :mod:`~morl_trl.recipes.off_policy`
+``capql``          :func:`~morl_trl.recipes.actor_critic.make_capql_agent`         :mod:`~morl_trl.recipes.off_policy`
+``mosac``          :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`         :mod:`~morl_trl.recipes.off_policy`
+``mosac_discrete`` :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent` :mod:`~morl_trl.recipes.off_policy`
+================== ============================================= ===================================
+
+The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
+settings for the algorithm and domain; ``examples/`` holds ready config files.
+
+Example:
+    >>> from morl_trl.recipes import resolve_config, train
+    >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
+    >>> summary = train(cfg)                                                            # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_agent, make_mosac_agent
+from morl_trl.recipes.agent import Agent, NonFiniteLossError
+from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
+from morl_trl.recipes.envelope import make_envelope_agent
+from morl_trl.recipes.off_policy import evaluate_run, train
+
+__all__ = [
+    "AGENT_BUILDERS",
+    "ALGORITHMS",
+    "Agent",
+    "NonFiniteLossError",
+    "TrainConfig",
+    "build_agent",
+    "evaluate_run",
+    "resolve_config",
+    "train",
+]
+
+#: algorithm name -> ``builder(cfg, env, *, gamma, device) -> Agent``
+AGENT_BUILDERS = {
+    "envelope": make_envelope_agent,
+    "capql": make_capql_agent,
+    "mosac": make_mosac_agent,
+    "mosac_discrete": make_discrete_mosac_agent,
+}
+assert tuple(AGENT_BUILDERS) == ALGORITHMS
+
+
+def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
+    """The :class:`Agent` of ``cfg.algo`` for ``env`` (a batched env with ``"preference"``)."""
+    try:
+        builder = AGENT_BUILDERS[cfg.algo]
+    except KeyError:
+        raise ValueError(f"unknown algorithm {cfg.algo!r}; valid: {list(ALGORITHMS)}") from None
+    return builder(cfg, env, gamma=gamma, device=device)

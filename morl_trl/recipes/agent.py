@@ -1,0 +1,132 @@
+"""What the off-policy recipe drives: an :class:`Agent` (loss, policies, optimizers, target
+updates, schedules) and the pieces every agent builder shares.
+
+The builders live with their algorithm (:mod:`morl_trl.recipes.envelope`,
+:mod:`morl_trl.recipes.actor_critic`); :func:`morl_trl.recipes.build_agent` picks one by name.
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torch import nn
+from torchrl.data import Categorical, OneHot
+from torchrl.envs.utils import ExplorationType
+from torchrl.objectives import HardUpdate, SoftUpdate
+
+__all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objectives", "action_spec",
+           "target_updater", "actor_critic_optimizers"]
+
+
+class NonFiniteLossError(RuntimeError):
+    """A loss came out NaN or infinite; the update was not applied."""
+
+
+class Agent:
+    """Holds the modules of one algorithm and performs its updates.
+
+    Attributes:
+        explore_policy: acts during collection (epsilon-greedy / stochastic).
+        eval_policy: acts during evaluation (greedy / mean action unless ``eval_stochastic``).
+        loss: the :class:`~torchrl.objectives.LossModule`.
+        optimizers: name -> optimizer; stepped together after one backward of the summed losses.
+        target_updater: TorchRL ``SoftUpdate`` / ``HardUpdate`` (stepped after every update).
+    """
+
+    def __init__(self, cfg, loss, explore_policy, eval_policy, optimizers, target_updater,
+                 *, device, exploration_module=None, eval_exploration=ExplorationType.DETERMINISTIC) -> None:
+        self.cfg = cfg
+        self.loss = loss
+        self.explore_policy = explore_policy
+        self.eval_policy = eval_policy
+        self.optimizers = optimizers
+        self.target_updater = target_updater
+        self.device = device
+        self.exploration_module = exploration_module
+        self.eval_exploration = eval_exploration
+        self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
+
+    # ------------------------------------------------------------------ learning
+    def update(self, buffer) -> TensorDictBase:
+        """One gradient step on a sampled batch; raises :class:`NonFiniteLossError` before stepping on NaNs."""
+        batch = buffer.sample().to(self.device)
+        out = self.loss(batch)
+        total = sum(out[k] for k in self.loss_keys)
+        if not torch.isfinite(total):
+            bad = {k: out[k].item() for k in self.loss_keys}
+            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
+        for opt in self.optimizers.values():
+            opt.zero_grad(set_to_none=True)
+        total.backward()
+        for opt in self.optimizers.values():
+            opt.step()
+        self.target_updater.step()
+        if self.cfg.prioritized:
+            buffer.update_tensordict_priority(batch)
+        return out.detach()
+
+    def on_frames(self, frames: int) -> None:
+        """Advance the frame-based schedules (epsilon, homotopy)."""
+        if self.exploration_module is not None:
+            self.exploration_module.eps.fill_(self._eps(frames))
+        if hasattr(self.loss, "update_homotopy"):
+            self.loss.update_homotopy(frames)
+
+    def _eps(self, frames: int) -> float:
+        cfg = self.cfg
+        frac = min(1.0, frames / max(1, cfg.eps_frames))
+        return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        return {
+            "loss": self.loss.state_dict(),
+            "optimizers": {k: o.state_dict() for k, o in self.optimizers.items()},
+            "target_updater_counter": getattr(self.target_updater, "counter", None),  # HardUpdate's period
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.loss.load_state_dict(state["loss"])
+        for k, o in self.optimizers.items():
+            o.load_state_dict(state["optimizers"][k])
+        if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
+            self.target_updater.counter = state["target_updater_counter"]
+
+
+# ---------------------------------------------------------------------- shared by the builders
+def obs_shape(env) -> tuple[int, ...]:
+    """The unbatched shape of the env's ``"observation"``."""
+    return tuple(env.observation_spec["observation"].shape[len(env.batch_size):])
+
+
+def num_objectives(env) -> int:
+    """The width ``k`` of the env's vector reward."""
+    return int(env.full_reward_spec[env.reward_key].shape[-1])
+
+
+def action_spec(env):
+    """The unbatched action spec."""
+    spec = env.full_action_spec[env.action_key]
+    return spec[(0,) * len(env.batch_size)] if len(env.batch_size) else spec
+
+
+def is_discrete(spec) -> bool:
+    return isinstance(spec, (Categorical, OneHot))
+
+
+def target_updater(cfg, loss):
+    """Polyak averaging with ``cfg.tau``, else a hard copy every ``cfg.target_update_period`` updates."""
+    if cfg.tau is not None:
+        return SoftUpdate(loss, tau=cfg.tau)
+    return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
+
+
+def actor_critic_optimizers(cfg, loss) -> dict:
+    """Adam for the actor, the critics and (when learned) the temperature."""
+    opts = {
+        "actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr),
+        "qvalue": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.lr),
+    }
+    if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
+        opts["alpha"] = torch.optim.Adam([loss.log_alpha], lr=cfg.lr)
+    return opts

@@ -1,0 +1,380 @@
+"""The configuration of a recipe: one dataclass, grouped, with the paper's defaults per (algorithm, domain).
+
+Resolution order (later wins): the domain's protocol (its :class:`~morl_trl.envs.DomainSpec`:
+frames, history, evaluation period and weights) -> the algorithm's defaults (SPEC §4) ->
+(algorithm, domain) overrides -> the ``quick`` preset (if asked) -> a TOML/JSON config file
+-> command-line flags.
+
+The keys are grouped as TorchRL's sota recipes group theirs (``run``, ``env``, ``collector``,
+``replay_buffer``, ``optim``, ``network``, ``exploration``, ``envelope``, ``actor_critic``,
+``eval``): a config file may use ``[group]`` tables or flat keys, and
+``TrainConfig.to_toml()`` (``morl-trl train ... --print-config``) writes the complete grouped
+config. Every value is checked (type and range) when the config is built: a bad one raises a
+``ValueError`` naming the key, the value and what is valid; an unknown key lists the valid ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "resolve_config", "load_config_file"]
+
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete")
+LOGGERS = ("csv", "tensorboard", "wandb", "none")
+
+
+def _key(group: str, default: Any, help: str, check: Callable[[Any], str | None] | None = None):
+    return field(default=default, metadata={"group": group, "help": help, "check": check})
+
+
+# ---------------------------------------------------------------------- value checks
+def _int(lo: int, hi: float = math.inf, *, optional: bool = False):
+    def check(v):
+        if v is None and optional:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int):
+            return f"an int in [{lo}, {hi}]" + (" or null" if optional else "")
+        if not lo <= v <= hi:
+            return f"an int in [{lo}, {hi}]" + (" or null" if optional else "")
+        return None
+
+    return check
+
+
+def _float(lo: float, hi: float, *, optional: bool = False, open_low: bool = False):
+    interval = f"{'(' if open_low else '['}{lo}, {hi}]"
+
+    def check(v):
+        if v is None and optional:
+            return None
+        what = f"a number in {interval}" + (" or null" if optional else "")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return what
+        if v < lo or v > hi or (open_low and v == lo):
+            return what
+        return None
+
+    return check
+
+
+def _bool(v):
+    return None if isinstance(v, bool) else "true or false"
+
+
+def _choice(options):
+    def check(v):
+        return None if v in options else f"one of {list(options)}"
+
+    return check
+
+
+def _str(optional: bool = False):
+    def check(v):
+        if v is None and optional:
+            return None
+        return None if isinstance(v, str) and v else "a non-empty string" + (" or null" if optional else "")
+
+    return check
+
+
+def _hidden(v):
+    ok = isinstance(v, tuple) and len(v) > 0 and all(
+        isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v)
+    return None if ok else "a non-empty list of positive ints (hidden layer widths), e.g. [256, 256]"
+
+
+def _contexts(v):
+    if v is None:
+        return None
+    ok = isinstance(v, tuple) and len(v) > 0 and all(isinstance(x, str) for x in v)
+    return None if ok else "a non-empty list of env ids of the training domain, or null for its evaluation suite"
+
+
+def _device(v):
+    import torch
+
+    if not isinstance(v, str) or not v:
+        return "a torch device string such as 'cpu' or 'cuda'"
+    try:
+        dev = torch.device(v)
+    except (RuntimeError, ValueError):
+        return "a torch device string such as 'cpu', 'cuda' or 'cuda:0'"
+    if dev.type == "cpu":
+        return None
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            return "'cpu' (no CUDA device is available on this machine)"
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            return f"'cuda' or 'cuda:0'..'cuda:{torch.cuda.device_count() - 1}'"
+        return None
+    return "'cpu' or 'cuda' (training runs on those)"
+
+
+@dataclass
+class TrainConfig:
+    """Every knob of a training run, by group (see :func:`resolve_config` for where values come from).
+
+    Example:
+        >>> cfg = TrainConfig(frames=1000)
+        >>> cfg.group("replay_buffer")["batch_size"]
+        128
+        >>> TrainConfig(frames=-100).validate()
+        Traceback (most recent call last):
+        ...
+        ValueError: config key 'frames' (collector) is -100; valid: an int in [1, inf]
+    """
+
+    # run
+    algo: str = _key("run", "envelope", "algorithm", _choice(ALGORITHMS))
+    env_id: str = _key("run", "MOLavaGridDR-v0", "training env id (a *DR-* id trains under domain randomization)",
+                       _str())
+    seed: int = _key("run", 0, "one seed for contexts, preferences, networks and evaluation", _int(0, 2**63 - 1))
+    device: str = _key("run", "cpu", "torch device of envs, replay buffer and networks", _device)
+    num_threads: int = _key("run", 1, "torch CPU threads (1 avoids OpenMP oversubscription with small nets; "
+                            "0: torch's default)", _int(0, 4096))
+    run_dir: str | None = _key("run", None, "where the run is written (null: runs/<algo>_<env>_s<seed>_<time>)",
+                               _str(optional=True))
+    checkpoint_interval: int = _key("run", 50_000, "frames between checkpoints", _int(1))
+    logger: str = _key("run", "csv", "TorchRL logger", _choice(LOGGERS))
+    progress: bool = _key("run", True, "show a progress bar", _bool)
+    # env
+    num_envs: int = _key("env", 16, "sub-environments stepped together", _int(1, 1 << 20))
+    history_len: int = _key("env", 0, "StateActionHistory length (the paper: 2 for LunarLander and MuJoCo)",
+                            _int(0, 64))
+    gamma: float | None = _key("env", None, "discount (null: the domain's evaluation discount)",
+                               _float(0.0, 1.0, optional=True))
+    # collector
+    frames: int = _key("collector", 1_000_000, "environment frames to train for", _int(1))
+    frames_per_batch: int = _key("collector", 64, "frames per collector batch (all sub-envs)", _int(1))
+    init_random_frames: int = _key("collector", 1_000, "uniformly random actions before learning starts", _int(0))
+    # replay buffer
+    buffer_size: int = _key("replay_buffer", 1_000_000, "transitions kept", _int(1))
+    batch_size: int = _key("replay_buffer", 128, "transitions per update", _int(1))
+    prioritized: bool = _key("replay_buffer", True, "prioritized replay (keyed by the loss's td_error)", _bool)
+    per_alpha: float = _key("replay_buffer", 0.6, "priority exponent", _float(0.0, 1.0))
+    per_beta: float = _key("replay_buffer", 0.4, "importance-sampling exponent", _float(0.0, 1.0))
+    # optim
+    lr: float = _key("optim", 3e-4, "Adam learning rate", _float(0.0, 1.0, open_low=True))
+    updates_per_batch: int = _key("optim", 0, "gradient updates per collected batch (0: one per frame)", _int(0))
+    target_update_period: int = _key("optim", 1000, "updates between hard target copies (when tau is null)",
+                                     _int(1))
+    tau: float | None = _key("optim", None, "Polyak coefficient of the targets (null: hard copies)",
+                             _float(0.0, 1.0, optional=True, open_low=True))
+    # network
+    hidden: tuple[int, ...] = _key("network", (256, 256, 256, 256), "hidden layer widths of every MLP", _hidden)
+    # exploration (epsilon-greedy)
+    eps_start: float = _key("exploration", 1.0, "initial epsilon", _float(0.0, 1.0))
+    eps_end: float = _key("exploration", 0.05, "final epsilon", _float(0.0, 1.0))
+    eps_frames: int = _key("exploration", 1_000_000, "frames over which epsilon decays linearly", _int(1))
+    # envelope
+    num_sampled_prefs: int = _key("envelope", 8, "preferences sampled per transition in the loss", _int(1))
+    homotopy_lambda0: float = _key("envelope", 0.95, "initial homotopy lambda", _float(0.0, 1.0))
+    homotopy_frames: int | None = _key("envelope", None, "frames of the homotopy schedule (null: the whole run)",
+                                       _int(1, optional=True))
+    # actor-critic (CAPQL, MOSAC)
+    alpha: float = _key("actor_critic", 0.2, "entropy temperature (initial value when learned)",
+                        _float(0.0, 1e6))
+    learn_alpha: bool = _key("actor_critic", False, "learn the temperature", _bool)
+    target_entropy_scale: float = _key("actor_critic", 0.3, "discrete MOSAC: target entropy as a fraction of "
+                                       "the maximum", _float(0.0, 1.0))
+    # evaluation
+    eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
+    eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
+                             _int(1, 100_000))
+    eval_episodes: int = _key("eval", 1, "episodes per (context, weight)", _int(1, 10_000))
+    eval_contexts: tuple[str, ...] | None = _key("eval", None, "evaluation env ids (null: the domain's suite)",
+                                                 _contexts)
+    reference_dir: str | None = _key("eval", None, "the published data (bounds, specialist fronts) for NHGR/EUGR",
+                                     _str(optional=True))
+    eval_random_baseline: bool = _key("eval", True, "also evaluate a uniformly random policy at the end",
+                                      _bool)
+
+    # ------------------------------------------------------------------ checks
+    def validate(self) -> "TrainConfig":
+        """Check every value (type and range); raise ``ValueError`` naming the key, the value and what is valid."""
+        for f in dataclasses.fields(self):
+            check = f.metadata.get("check")
+            value = getattr(self, f.name)
+            problem = check(value) if check is not None else None
+            if problem is not None:
+                raise ValueError(f"config key {f.name!r} ({f.metadata['group']}) is {value!r}; valid: {problem}")
+        return self
+
+    # ------------------------------------------------------------------ views and files
+    def group(self, name: str) -> dict[str, Any]:
+        """The keys of one group and their values."""
+        if name not in GROUPS:
+            raise ValueError(f"unknown config group {name!r}; valid: {list(GROUPS)}")
+        return {k: getattr(self, k) for k in GROUPS[name]}
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def to_toml(self) -> str:
+        """The complete config as grouped TOML (``null`` values are written as comments)."""
+        lines = []
+        for g, keys in GROUPS.items():
+            lines.append(f"[{g}]")
+            for k in keys:
+                value = getattr(self, k)
+                help_ = _FIELDS[k].metadata["help"]
+                if value is None:
+                    lines.append(f"# {k} = null  # {help_}")
+                else:
+                    lines.append(f"{k} = {_toml_value(value)}  # {help_}")
+            lines.append("")
+        return "\n".join(lines)
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2, sort_keys=True))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "TrainConfig":
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise ValueError(f"cannot read the config {str(path)!r}: {err}") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"the config {str(path)!r} holds a {type(data).__name__}, not an object of keys")
+        return cls(**_coerce(data)).validate()
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return repr(v)
+
+
+_FIELDS = {f.name: f for f in dataclasses.fields(TrainConfig)}
+#: group name -> its keys, in order
+GROUPS: dict[str, tuple[str, ...]] = {}
+for _f in dataclasses.fields(TrainConfig):
+    GROUPS.setdefault(_f.metadata["group"], ())
+    GROUPS[_f.metadata["group"]] += (_f.name,)
+
+
+def _flatten(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """Flat keys from a mapping that may hold ``{group: {key: value}}`` tables."""
+    flat: dict[str, Any] = {}
+    for k, v in values.items():
+        if k in GROUPS and isinstance(v, dict):
+            wrong = sorted(set(v) - set(GROUPS[k]))
+            if wrong:
+                raise ValueError(f"{source}: key(s) {wrong} are not in group [{k}]; its keys: {list(GROUPS[k])}")
+            flat.update(v)
+        else:
+            flat[k] = v
+    return flat
+
+
+def _coerce(values: dict[str, Any]) -> dict[str, Any]:
+    unknown = sorted(set(values) - set(_FIELDS))
+    if unknown:
+        raise ValueError(f"unknown config key(s) {unknown}; valid keys: {sorted(_FIELDS)}")
+    out = {}
+    for k, v in values.items():
+        if k in ("hidden", "eval_contexts") and isinstance(v, list):
+            v = tuple(v)
+        elif k in ("lr", "gamma", "tau", "per_alpha", "per_beta", "alpha", "eps_start", "eps_end",
+                   "homotopy_lambda0", "target_entropy_scale") and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        out[k] = v
+    return out
+
+
+# --------------------------------------------------------------------------- defaults
+# The paper's settings (SPEC §4): the domain's protocol comes from its DomainSpec, then the
+# algorithm's defaults, then (algorithm, domain) overrides.
+_ALGO = {
+    "envelope": dict(batch_size=128, target_update_period=1000, prioritized=True, homotopy_lambda0=0.95,
+                     num_sampled_prefs=8, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
+    "capql": dict(batch_size=256, tau=0.005, alpha=0.2, init_random_frames=1_000, prioritized=False),
+    "mosac": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=10_000,
+                  prioritized=False),
+    "mosac_discrete": dict(batch_size=128, target_update_period=2000, learn_alpha=True,
+                           target_entropy_scale=0.3, prioritized=False),
+}
+_ALGO_DOMAIN = {
+    ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200),
+    ("envelope", "MOSuperMarioBrosZeroShot-v2"): dict(batch_size=64, init_random_frames=25_000, buffer_size=100_000,
+                                                      eps_start=0.2, eps_end=0.01, hidden=(512, 512)),
+    ("capql", "MOHumanoidDR-v5"): dict(init_random_frames=25_000),
+    ("mosac", "MOHopperDR-v5"): dict(init_random_frames=10_000),
+    ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
+    ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
+}
+# --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
+_QUICK = dict(
+    frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
+    buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
+    eval_weights=8, checkpoint_interval=20_000,
+)
+
+
+def load_config_file(path: str | Path) -> dict[str, Any]:
+    """Read overrides from a ``.toml`` or ``.json`` file (flat keys of :class:`TrainConfig`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"config file {str(path)!r} does not exist")
+    text = path.read_bytes()
+    try:
+        if path.suffix == ".toml":
+            data = tomllib.loads(text.decode())
+        elif path.suffix == ".json":
+            data = json.loads(text)
+        else:
+            raise ValueError(f"config file {str(path)!r}: use a .toml or .json file")
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"config file {str(path)!r} does not parse: {err}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config file {str(path)!r} holds a {type(data).__name__}, not a table of keys")
+    return _coerce(_flatten(data, f"config file {str(path)!r}"))
+
+
+def resolve_config(
+    algo: str,
+    env_id: str,
+    *,
+    quick: bool = False,
+    config_file: str | Path | None = None,
+    **overrides: Any,
+) -> TrainConfig:
+    """Build the :class:`TrainConfig` of a run (see the module docstring for the order).
+
+    Example:
+        >>> cfg = resolve_config("envelope", "MOLunarLanderDR-v0", seed=3)
+        >>> cfg.history_len, cfg.batch_size, cfg.frames
+        (2, 128, 3000000)
+    """
+    from_file = load_config_file(config_file) if config_file is not None else {}
+    if "algo" in from_file and from_file["algo"] != algo:
+        raise ValueError(f"config file {str(config_file)!r} is for algo {from_file['algo']!r}, not {algo!r}")
+    env_id = from_file.get("env_id", env_id)  # a recipe file may name its domain
+    if algo not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; valid: {list(ALGORITHMS)}")
+    from morl_trl.envs import domain_of
+
+    spec = domain_of(env_id)  # raises with close matches on an unknown id
+    train_id = spec.train_id
+    values: dict[str, Any] = {"algo": algo, "env_id": env_id}
+    values.update(frames=spec.train_frames, history_len=spec.history_len, eval_interval=spec.eval_interval,
+                  eval_weights=spec.eval_weights)
+    values.update(_ALGO[algo])
+    values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
+    if quick:
+        values.update(_QUICK)
+    values.update(from_file)
+    values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
+    return TrainConfig(**_coerce(values)).validate()

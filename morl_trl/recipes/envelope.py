@@ -1,0 +1,47 @@
+"""Envelope Q-learning (Yang et al., 2019): the agent that ``morl-trl train envelope`` trains.
+
+A vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its greedy policy
+``argmax_a w · Q(s, a, w)`` (:class:`~morl_trl.objectives.MOQValueModule`), TorchRL's
+epsilon-greedy exploration on top, :class:`~morl_trl.objectives.EnvelopeQLoss` with a hard
+target copy, Adam. The loop that drives it is :mod:`morl_trl.recipes.off_policy`.
+
+Example:
+    >>> from morl_trl.envs import make_env
+    >>> from morl_trl.recipes import resolve_config
+    >>> from morl_trl.transforms import compose_training_env
+    >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, hidden=(16,))
+    >>> env = compose_training_env(make_env(cfg.env_id, num_envs=2), gamma=0.995)
+    >>> agent = make_envelope_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+    >>> agent.eval_policy(env.reset())["action"].shape
+    torch.Size([2])
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict.nn import TensorDictSequential
+from torchrl.modules import EGreedyModule
+
+from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
+from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape, target_updater
+
+__all__ = ["make_envelope_agent"]
+
+
+def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
+    """The Envelope :class:`~morl_trl.recipes.agent.Agent` of ``cfg`` for ``env`` (discrete actions)."""
+    spec = action_spec(env)
+    if not is_discrete(spec):
+        raise ValueError(f"envelope needs discrete actions; {cfg.env_id} has {type(spec).__name__}: use capql or mosac")
+    qnet = make_vector_q_network(obs_shape(env), spec.space.n, num_objectives(env), num_cells=cfg.hidden).to(device)
+    greedy = TensorDictSequential(qnet, MOQValueModule())
+    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
+                            annealing_num_steps=max(1, cfg.eps_frames))
+    loss = EnvelopeQLoss(
+        qnet, num_preference_samples=cfg.num_sampled_prefs, homotopy_lambda=cfg.homotopy_lambda0,
+        final_homotopy_lambda=1.0, homotopy_steps=cfg.homotopy_frames or cfg.frames,
+    )
+    loss.make_value_estimator(gamma=gamma)
+    optimizers = {"qvalue": torch.optim.Adam(loss.parameters(), lr=cfg.lr)}
+    return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
+                 device=device, exploration_module=egreedy)
