@@ -3,11 +3,13 @@
 * :class:`TorchPrioritizedSampler` -- prioritized replay on pure-torch segment trees,
   a drop-in :class:`torchrl.data.PrioritizedSampler` that needs no C++ extension.
 * :func:`prioritized_sampler` -- TorchRL's native sampler when it loads, else the above.
+* :func:`normalize_device` -- compare devices only in this form (``"cuda" != "cuda:0"``).
 """
 
 from morl_trl.data.prioritized import (
     TorchPrioritizedSampler,
     native_prioritized_sampler_available,
+    normalize_device,
     prioritized_sampler,
 )
 from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
@@ -17,5 +19,6 @@ __all__ = [
     "SumSegmentTree",
     "TorchPrioritizedSampler",
     "native_prioritized_sampler_available",
+    "normalize_device",
     "prioritized_sampler",
 ]

@@ -24,9 +24,33 @@ from torchrl.data.replay_buffers.utils import unravel_index
 
 from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
 
-__all__ = ["TorchPrioritizedSampler", "native_prioritized_sampler_available", "prioritized_sampler"]
+__all__ = ["TorchPrioritizedSampler", "native_prioritized_sampler_available", "normalize_device", "prioritized_sampler"]
 
 _EMPTY_STORAGE_ERROR = "Cannot sample from an empty storage."
+_NON_POSITIVE = (
+    "non-positive priorities: sum {sum}, min {min} over {n} stored items (were priorities set for the stored items?)."
+)
+
+
+def normalize_device(device: torch.device | str | None) -> torch.device | None:
+    """``device`` in the form tensors report: ``"cpu:0"`` -> ``cpu``, ``"cuda"`` -> ``cuda:<current index>``.
+
+    ``torch.device("cuda") != torch.device("cuda:0")`` and ``torch.device("cpu:0") !=
+    torch.device("cpu")``, while a tensor created on either reports the second: compare
+    devices only after this.
+
+    Example:
+        >>> normalize_device("cpu:0")
+        device(type='cpu')
+    """
+    if device is None:
+        return None
+    device = torch.device(device)
+    if device.type == "cpu":
+        return torch.device("cpu")
+    if device.index is None and device.type == "cuda":
+        return torch.device("cuda", torch.cuda.current_device())
+    return device
 
 
 def native_prioritized_sampler_available(device: torch.device | str | None = None) -> bool:
@@ -104,7 +128,7 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         self.reduction = reduction
         self.dtype = dtype
         self._max_priority_within_buffer = max_priority_within_buffer
-        self._device = torch.device(device) if device is not None else None
+        self._device = normalize_device(device)
         self._init()
 
     def _init(self) -> None:
@@ -123,7 +147,15 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         # Follow a CUDA storage only until priorities exist: moving later would drop them.
         if self._device is not None or self._sum_tree._written:
             return self._device
-        return super()._tree_device_from_storage(storage)
+        return normalize_device(super()._tree_device_from_storage(storage))
+
+    def _maybe_init_from_storage(self, storage: Storage | None) -> None:
+        # TorchRL compares the devices as given ("cuda" != "cuda:0"), which rebuilt empty
+        # trees on every call; compare normalized ones.
+        device = self._tree_device_from_storage(storage)
+        if device is not None and normalize_device(device) != normalize_device(self.device):
+            self._device = normalize_device(device)
+            self._init()
 
     def sample(self, storage: Storage, batch_size: int) -> tuple[torch.Tensor, dict]:
         self._maybe_init_from_storage(storage)
@@ -132,11 +164,12 @@ class TorchPrioritizedSampler(PrioritizedSampler):
             raise RuntimeError(_EMPTY_STORAGE_ERROR)
         p_sum = self._sum_tree.query(0, n)
         p_min = self._min_tree.query(0, n)
-        if self.device.type == "cpu" and (p_sum <= 0 or not torch.isfinite(p_min) or p_min <= 0):
-            raise RuntimeError(
-                f"non-positive priorities: sum {float(p_sum)}, min {float(p_min)} over {n} stored items "
-                "(were priorities set for the stored items?)."
-            )
+        if self.device.type == "cpu":
+            if p_sum <= 0 or not torch.isfinite(p_min) or p_min <= 0:
+                raise RuntimeError(_NON_POSITIVE.format(sum=float(p_sum), min=float(p_min), n=n))
+        else:  # the same guard without a host synchronisation: a device-side assert
+            torch._assert_async((p_sum > 0) & torch.isfinite(p_min) & (p_min > 0),
+                                _NON_POSITIVE.format(sum="?", min="?", n=n))
         rng = self._rng
         u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
         mass = u.to(device=self.device, dtype=self.dtype) * p_sum

@@ -186,3 +186,38 @@ def test_multi_dimensional_storage():
     flat = index[:, 0] * stored.shape[1] + index[:, 1]
     last = {int(f): float(p) for f, p in zip(flat, sample["td_error"])}
     torch.testing.assert_close(rb.sampler._sum_tree[torch.tensor(list(last))], torch.tensor(list(last.values())))
+
+
+# ---------------------------------------------------------------- device spellings (issue: "cuda" != "cuda:0")
+SPELLINGS = ["cpu", "cpu:0"] + (["cuda", "cuda:0"] if torch.cuda.is_available() else [])
+
+
+@pytest.mark.parametrize("device", SPELLINGS)
+def test_priorities_survive_every_device_spelling(device):
+    # With an unnormalized device TorchRL's storage check rebuilt empty trees on every call
+    # (sum 0, min inf): importance weights became inf and the Envelope loss NaN.
+    torch.manual_seed(0)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(64, device=device),
+                                sampler=TorchPrioritizedSampler(64, alpha=1.0, beta=0.4, device=device),
+                                batch_size=16, priority_key="td_error")
+    rb.extend(TensorDict({"obs": torch.arange(32.0)}, [32], device=device))
+    sample = rb.sample()
+    sample["td_error"] = torch.where(sample["obs"] < 8, 4.0, 1.0)
+    rb.update_tensordict_priority(sample)
+    sampler = rb._sampler
+    assert sampler._sum_tree._written, "the trees kept their priorities"
+    total = float(sampler._sum_tree.query(0, 32))
+    assert total > 0 and float(sampler._min_tree.query(0, 32)) > 0
+    for _ in range(3):
+        weights = rb.sample()["priority_weight"]
+        assert torch.isfinite(weights).all() and (weights > 0).all() and float(weights.max()) <= 1.0 + 1e-6
+    assert float(sampler._sum_tree.query(0, 32)) == pytest.approx(total)
+
+
+def test_normalize_device():
+    from morl_trl.data import normalize_device
+
+    assert normalize_device("cpu:0") == torch.device("cpu") == normalize_device(torch.device("cpu"))
+    assert normalize_device(None) is None
+    if torch.cuda.is_available():
+        assert normalize_device("cuda") == torch.device("cuda", torch.cuda.current_device())
