@@ -21,7 +21,6 @@ from morl_trl.objectives.networks import (
     make_vector_critic,
     make_vector_q_network,
 )
-from morl_trl.objectives.preferences import sample_preferences
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
 
 __all__ = [
@@ -37,6 +36,5 @@ __all__ = [
     "make_gaussian_actor",
     "make_vector_critic",
     "make_vector_q_network",
-    "sample_preferences",
     "vector_td0_return_estimate",
 ]
