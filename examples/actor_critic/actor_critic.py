@@ -19,7 +19,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 from torchrl.objectives import SoftUpdate
 
-from morl_trl.collectors import MultiContextEvaluator
+from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.envs import domain_of
 from morl_trl.objectives import CAPQLLoss, MOSACLoss, make_gaussian_actor, make_vector_critic
 from morl_trl.trainers import resolve_config

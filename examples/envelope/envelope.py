@@ -20,7 +20,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
-from morl_trl.collectors import MultiContextEvaluator
+from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.data import prioritized_sampler
 from morl_trl.envs import domain_of
 from morl_trl.objectives import EnvelopeQLoss, make_vector_q_network

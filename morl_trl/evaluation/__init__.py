@@ -1,6 +1,6 @@
-"""Preference-aware collection and the multi-context evaluator."""
+"""Evaluation: a policy on every (context, weight, episode) of a suite, and its results."""
 
-from morl_trl.collectors.evaluator import MultiContextEvaluator
-from morl_trl.collectors.results import ContextResult, EvaluationResult
+from morl_trl.evaluation.evaluator import MultiContextEvaluator
+from morl_trl.evaluation.results import ContextResult, EvaluationResult
 
 __all__ = ["MultiContextEvaluator", "EvaluationResult", "ContextResult"]

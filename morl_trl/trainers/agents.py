@@ -102,12 +102,12 @@ class Agent:
         )
 
     def make_evaluator(self, transform, spec):
-        from morl_trl.collectors import MultiContextEvaluator
+        from morl_trl.evaluation import MultiContextEvaluator
 
         cfg = self.cfg
         reference = None
         if cfg.reference_dir:
-            from morl_trl.metrics.reference import load_domain_reference
+            from morl_trl.reporting.reference import load_domain_reference
 
             reference = load_domain_reference(cfg.reference_dir, spec.train_id)
         self.reference = reference
