@@ -42,13 +42,13 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from morl_trl.collectors import MultiContextEvaluator  # noqa: E402
+from morl_trl.evaluation import MultiContextEvaluator  # noqa: E402
 
 
 def _reference(path: Path, domain: str):
     if not (path / "minmax_values").is_dir():
         return None
-    from morl_trl.metrics import load_domain_reference
+    from morl_trl.reporting import load_domain_reference
 
     return load_domain_reference(path, domain)
 

@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     )
 
     if (args.reference / "minmax_values").is_dir():
-        from morl_trl.metrics.table import reference_table
+        from morl_trl.reporting.table import reference_table
 
         t, rows = best_of(lambda: reference_table(args.reference, eugr=True), 1)
         n_fronts = sum(r.nhgr.size for r in rows)

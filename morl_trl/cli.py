@@ -125,10 +125,48 @@ def demo_main(argv: list[str]) -> int:
 
 
 # ---------------------------------------------------------------------- the paper's table
-def reference_table_main(argv: list[str]) -> int:
-    from morl_trl.metrics.table import main
+def reference_table_main(argv: list[str] | None = None) -> int:
+    """``morl-trl reference-table DATA_DIR``: the paper's NHGR table from the published fronts
+    (:func:`morl_trl.reporting.table.reference_table`)."""
+    import csv
+    from pathlib import Path
 
-    return main(argv)
+    from morl_trl.reporting.table import format_table, reference_table
+
+    parser = argparse.ArgumentParser(
+        prog="morl-trl reference-table",
+        description="Recompute the paper's NHGR table (mean ± pooled std, IQM, optimality gap) from published fronts.",
+    )
+    parser.add_argument("data_dir", help="reference folder with minmax_values/, specialist_fronts/, generalist_fronts/")
+    parser.add_argument("--domain", action="append", help="restrict to this domain id (repeatable)")
+    parser.add_argument("--ci", action="store_true", help="add stratified-bootstrap 95%% CIs of IQM and optimality gap")
+    parser.add_argument("--reps", type=int, default=50_000, help="bootstrap replicates for --ci (default 50000)")
+    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
+    parser.add_argument("--no-eugr", action="store_true", help="skip EUGR")
+    parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
+    args = parser.parse_args(argv)
+    try:
+        rows = reference_table(
+            args.data_dir, args.domain, eugr=not args.no_eugr, ci_reps=args.reps if args.ci else 0, seed=args.seed
+        )
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    try:
+        print(format_table(rows), flush=True)
+    except BrokenPipeError:  # e.g. piped into `head`
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    if args.csv:
+        dicts = [r.as_dict() for r in rows]
+        keys = list(dict.fromkeys(k for d in dicts for k in d))
+        args.csv.parent.mkdir(parents=True, exist_ok=True)
+        with args.csv.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=keys)
+            w.writeheader()
+            w.writerows(dicts)
+    return 0
 
 
 # name -> (function, help)

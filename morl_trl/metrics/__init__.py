@@ -4,10 +4,12 @@ Fronts are ``[n, k]`` torch tensors or numpy arrays; every metric returns a Pyth
 
 * :func:`pareto_front`, :func:`hypervolume` (exact, ``moocore``), :func:`normalized_hypervolume`
 * :func:`eum`, :func:`nhgr`, :func:`eugr`, :func:`sparsity`, :func:`cardinality`
-* weight sets: :func:`energy_weights` (the paper's), :func:`uniform_weights`
 * aggregates over runs (rliable's definitions): :func:`interquartile_mean`,
   :func:`optimality_gap`, :func:`stratified_bootstrap_ci`
-* reference data: :class:`Bounds`, :class:`DomainReference`, :func:`load_domain_reference`
+* normalization bounds: :class:`Bounds`
+
+Weight sets live in :mod:`morl_trl.preferences`; reference data (frozen bounds and specialist
+fronts) and the paper's table in :mod:`morl_trl.reporting`.
 
 Example:
     >>> from morl_trl.metrics import hypervolume, nhgr
@@ -25,22 +27,12 @@ from morl_trl.metrics.aggregate import (
     optimality_gap,
     stratified_bootstrap_ci,
 )
+from morl_trl.metrics.bounds import Bounds
 from morl_trl.metrics.front_stats import cardinality, sparsity
 from morl_trl.metrics.generalization import eugr, nhgr
 from morl_trl.metrics.hypervolume import hypervolume, normalize, normalized_hypervolume
 from morl_trl.metrics.pareto import is_nondominated, pareto_front
-from morl_trl.metrics.reference import (
-    Bounds,
-    DomainReference,
-    list_reference_domains,
-    load_domain_reference,
-    load_generalist_fronts,
-    load_reference,
-    read_front_csv,
-    write_front_csv,
-)
 from morl_trl.metrics.utility import eum
-from morl_trl.metrics.weights import energy_weights, extreme_weights, uniform_weights
 
 __all__ = [
     "pareto_front",
@@ -53,9 +45,6 @@ __all__ = [
     "eugr",
     "sparsity",
     "cardinality",
-    "energy_weights",
-    "uniform_weights",
-    "extreme_weights",
     "interquartile_mean",
     "iqm",
     "optimality_gap",
@@ -63,11 +52,4 @@ __all__ = [
     "median",
     "stratified_bootstrap_ci",
     "Bounds",
-    "DomainReference",
-    "list_reference_domains",
-    "load_domain_reference",
-    "load_generalist_fronts",
-    "load_reference",
-    "read_front_csv",
-    "write_front_csv",
 ]

@@ -24,7 +24,6 @@ from morl_trl.objectives.networks import (
     make_vector_critic,
     make_vector_q_network,
 )
-from morl_trl.objectives.preferences import sample_preferences
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
 
@@ -42,7 +41,6 @@ __all__ = [
     "make_gaussian_actor",
     "make_vector_critic",
     "make_vector_q_network",
-    "sample_preferences",
     "scalarized_argmax",
     "vector_td0_return_estimate",
 ]

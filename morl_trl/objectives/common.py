@@ -10,8 +10,8 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators
 from torchrl.objectives.value import ValueEstimatorBase
 
-from morl_trl.objectives.preferences import PREFERENCE_DISTRIBUTIONS, sample_preferences
 from morl_trl.objectives.value import VectorTD0Estimator
+from morl_trl.preferences import PREFERENCE_DISTRIBUTIONS, check_simplex, sample_preferences
 
 __all__ = ["MultiObjectiveLossModule"]
 
@@ -27,30 +27,16 @@ def module_output(net, tensordict: TensorDictBase, out_key: NestedKey) -> torch.
         return net.module(*(tensordict.get(key) for key in net.in_keys))
     return net(tensordict.copy()).get(out_key)
 
-_SIMPLEX_ATOL = 1e-3
-
-
 def _fmt_key(key: NestedKey) -> str:
     return repr(key if isinstance(key, str) else tuple(key))
 
 
 def check_preference(w: torch.Tensor, num_objectives: int, *, name: str = "preference") -> None:
-    """Raises ``ValueError`` unless ``w`` is ``[..., num_objectives]``, finite and on the simplex."""
-    if w.ndim == 0 or w.shape[-1] != num_objectives:
-        raise ValueError(
-            f"{name} has shape {tuple(w.shape)}; its last dimension must equal the number of "
-            f"objectives, {num_objectives}."
-        )
-    if not torch.is_floating_point(w):
+    """Raises ``ValueError`` unless ``w`` is a floating point ``[..., num_objectives]`` tensor on the
+    simplex (:func:`morl_trl.preferences.check_simplex`)."""
+    if w.ndim > 0 and w.shape[-1] == num_objectives and not torch.is_floating_point(w):
         raise ValueError(f"{name} must be a floating point tensor, got dtype {w.dtype}.")
-    bad = ~torch.isfinite(w).all(-1) | (w < -_SIMPLEX_ATOL).any(-1) | ((w.sum(-1) - 1).abs() > _SIMPLEX_ATOL)
-    if bad.any():
-        first = bad.nonzero()[0].tolist()
-        row = w[tuple(first)] if w.ndim > 1 else w
-        raise ValueError(
-            f"{name} must lie on the probability simplex (entries >= 0 summing to 1); "
-            f"{int(bad.sum())} of {bad.numel()} rows do not, e.g. index {first}: {row.tolist()}."
-        )
+    check_simplex(w, num_objectives, name=name)
 
 
 class MultiObjectiveLossModule(LossModule):
@@ -60,7 +46,8 @@ class MultiObjectiveLossModule(LossModule):
       preference width and simplex membership), raising ``ValueError`` with shapes;
     * :meth:`make_value_estimator` building a :class:`VectorTD0Estimator`
       (TorchRL's TD(0) rejects ``[*B, k]`` rewards);
-    * preference sampling from :func:`~morl_trl.objectives.preferences.sample_preferences`.
+    * preference sampling from :func:`~morl_trl.preferences.sample_preferences` (torch's
+      global RNG: ``torch.manual_seed`` makes it reproducible).
 
     Subclasses set ``self.num_objectives`` and define ``_AcceptedKeys`` with at
     least ``reward``, ``done``, ``terminated``, ``preference``, ``priority`` and

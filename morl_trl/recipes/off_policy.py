@@ -100,7 +100,7 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
 def _load_reference(cfg: TrainConfig, spec: DomainSpec):
     if not cfg.reference_dir:
         return None
-    from morl_trl.metrics.reference import load_domain_reference
+    from morl_trl.reporting.reference import load_domain_reference
 
     return load_domain_reference(cfg.reference_dir, spec.train_id)
 

@@ -121,7 +121,7 @@ class RunLog:
 
     # ------------------------------------------------------------------ evaluation
     def evaluation(self, frames: int, result) -> dict:
-        """Log one :class:`~morl_trl.collectors.EvaluationResult`; returns a small summary."""
+        """Log one :class:`~morl_trl.evaluation.EvaluationResult`; returns a small summary."""
         self.last_result = result
         rows = [{"frames": frames, **r} for r in result.metric_rows()]
         _append_rows(self.out_dir / "eval" / "metrics.csv", rows)
@@ -140,7 +140,7 @@ class RunLog:
     # ------------------------------------------------------------------ report
     def report(self, summary: dict, fps: float | None) -> Path:
         """Write ``report.md`` and plots for the last evaluation; print the NHGR table."""
-        from morl_trl.trainers.report import write_report
+        from morl_trl.reporting.report import write_report
 
         return write_report(self, summary, fps)
 

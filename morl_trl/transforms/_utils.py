@@ -1,4 +1,4 @@
-"""Helpers shared by the transforms: reset masks, seeding, simplex checks."""
+"""Helpers shared by the transforms: reset masks, seeding, value formatting."""
 
 from __future__ import annotations
 
@@ -7,7 +7,9 @@ from tensordict import TensorDictBase
 from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.transforms import Transform
 
-__all__ = ["reset_mask", "SeededTransform", "check_simplex", "fmt", "innermost_env"]
+from morl_trl.preferences.simplex import format_values as fmt
+
+__all__ = ["reset_mask", "SeededTransform", "fmt", "innermost_env"]
 
 _UNSET = object()
 
@@ -99,39 +101,3 @@ class SeededTransform(Transform):
                 self.set_seed(env_seed)
         if self._seed is None:
             self.set_seed(int(torch.randint(0, 2**62, (1,)).item()))
-
-
-def fmt(values) -> str:
-    """A tensor's values as a short list for error messages (float32 noise removed)."""
-    values = torch.as_tensor(values)
-    if values.is_floating_point():
-        return str([float(f"{x:.6g}") for x in values.reshape(-1).tolist()])
-    return str(values.reshape(-1).tolist())
-
-
-def check_simplex(w: torch.Tensor, k: int, what: str = "preference", atol: float = 1e-4) -> torch.Tensor:
-    """Check that every row of ``w`` ``[..., k]`` lies on the probability simplex; return it as float32."""
-    w = torch.as_tensor(w)
-    if not w.is_floating_point():
-        w = w.to(torch.float32)
-    if w.ndim == 0 or w.shape[-1] != k:
-        raise ValueError(
-            f"{what} has shape {tuple(w.shape)}; expected [..., {k}] (one weight per objective): {fmt(w)}"
-        )
-    flat = w.reshape(-1, k)
-    bad = ~torch.isfinite(flat).all(-1)
-    if bad.any():
-        row = flat[bad.nonzero()[0, 0]]
-        raise ValueError(f"{what} {fmt(row)} is not finite; weights must be finite, >= 0 and sum to 1")
-    bad = (flat < 0).any(-1)
-    if bad.any():
-        row = flat[bad.nonzero()[0, 0]]
-        raise ValueError(f"{what} {fmt(row)} has a negative weight; weights must be >= 0 and sum to 1")
-    sums = flat.sum(-1)
-    bad = (sums - 1).abs() > atol
-    if bad.any():
-        i = bad.nonzero()[0, 0]
-        raise ValueError(
-            f"{what} {fmt(flat[i])} sums to {sums[i].item():.6g}; weights must be >= 0 and sum to 1"
-        )
-    return w.to(torch.float32)

@@ -6,45 +6,12 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.data import Bounded, Composite
 
-from morl_trl.transforms._utils import SeededTransform, check_simplex, reset_mask
+from morl_trl.preferences import check_simplex, sample_preferences
+from morl_trl.transforms._utils import SeededTransform, reset_mask
 
-__all__ = ["PreferenceConditioning", "sample_dirichlet"]
+__all__ = ["PreferenceConditioning"]
 
 _MODES = ("dirichlet", "cycle", "random", "given")
-
-
-def _standard_gamma(alpha: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """Gamma(alpha, 1) draws from ``generator`` (Marsaglia & Tsang, 2000; boosted for alpha < 1)."""
-    boost = alpha < 1
-    a = torch.where(boost, alpha + 1, alpha)
-    d = a - 1.0 / 3.0
-    c = 1.0 / torch.sqrt(9.0 * d)
-    out = torch.empty_like(a)
-    todo = torch.ones_like(a, dtype=torch.bool)
-    while todo.any():
-        x = torch.randn(a.shape, generator=generator, dtype=a.dtype)
-        u = torch.rand(a.shape, generator=generator, dtype=a.dtype)
-        v = (1 + c * x) ** 3
-        ok = (v > 0) & (torch.log(u) < 0.5 * x * x + d - d * v + d * torch.log(v.clamp(min=1e-30)))
-        accept = todo & ok
-        out = torch.where(accept, d * v, out)
-        todo &= ~ok
-    if boost.any():
-        u = torch.rand(a.shape, generator=generator, dtype=a.dtype)
-        out = torch.where(boost, out * u.pow(1.0 / alpha), out)
-    return out
-
-
-def sample_dirichlet(n: int, alpha: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """``n`` draws ``[n, k]`` from Dirichlet(``alpha``) using ``generator`` (uniform on the simplex for ones)."""
-    alpha = alpha.to(torch.float64)
-    k = alpha.numel()
-    if torch.all(alpha == 1):
-        g = torch.empty(n, k, dtype=torch.float64).exponential_(generator=generator)
-    else:
-        g = _standard_gamma(alpha.expand(n, k).clone(), generator)
-    w = g / g.sum(-1, keepdim=True)
-    return w.to(torch.float32)
 
 
 class PreferenceConditioning(SeededTransform):
@@ -58,7 +25,7 @@ class PreferenceConditioning(SeededTransform):
     Modes (how a sub-env being reset gets its ``w``):
 
     * ``"dirichlet"`` (default without ``weights``): ``w ~ Dirichlet(alpha)``; ``alpha=1`` is
-      uniform on the simplex.
+      uniform on the simplex (:func:`morl_trl.preferences.sample_preferences`).
     * ``"cycle"`` (default with ``weights``): the rows of ``weights`` ``[m, k]`` in turn, in
       sub-env order, continuing from one reset to the next (``m`` sub-envs reset together
       get the ``m`` rows: the evaluation weights).
@@ -118,7 +85,7 @@ class PreferenceConditioning(SeededTransform):
                 raise ValueError(f"weights must be a non-empty [m, k] weight set, got shape {tuple(weights.shape)}")
             if num_objectives is None:
                 num_objectives = weights.shape[1]
-            weights = check_simplex(weights, num_objectives, what="weight set row")
+            weights = check_simplex(weights, num_objectives, name="weight set")
         elif mode in ("cycle", "random"):
             raise ValueError(f"mode={mode!r} draws from a weight set: pass weights=[[...], ...]")
         self.weights = weights
@@ -183,8 +150,7 @@ class PreferenceConditioning(SeededTransform):
         """Draw ``n`` preferences ``[n, k]`` (CPU) in the ``"dirichlet"``, ``"cycle"`` or ``"random"`` mode."""
         k = self.num_objectives
         if self.mode == "dirichlet":
-            alpha = self.alpha.expand(k) if self.alpha.ndim == 0 else self.alpha
-            return sample_dirichlet(n, alpha, self.generator)
+            return sample_preferences(n, k, alpha=self.alpha, generator=self.generator)
         if self.weights.shape[1] != k:
             raise ValueError(f"the weight set has {self.weights.shape[1]} objectives; the env has {k}")
         m = self.weights.shape[0]
@@ -202,8 +168,7 @@ class PreferenceConditioning(SeededTransform):
         if w is None:
             return None
         k = self.num_objectives
-        w = torch.as_tensor(w, device=device)
-        w = check_simplex(w, k)
+        w = check_simplex(torch.as_tensor(w, device=device), k).to(torch.float32)
         if w.shape != (*batch, k):
             try:
                 w = w.expand(*batch, k)

@@ -7,10 +7,8 @@ import torch
 from morl_trl.metrics import (
     Bounds,
     cardinality,
-    energy_weights,
     eugr,
     eum,
-    extreme_weights,
     hypervolume,
     interquartile_mean,
     nhgr,
@@ -20,9 +18,7 @@ from morl_trl.metrics import (
     pareto_front,
     sparsity,
     stratified_bootstrap_ci,
-    uniform_weights,
 )
-from morl_trl.metrics.weights import pymoo_energy_weights
 
 
 # ----------------------------------------------------------------------------- pareto front
@@ -107,41 +103,6 @@ def test_sparsity_pgmorl_definition_and_cardinality():
     assert cardinality(front + [[0.5, 0.5], [1.0, 1.0]]) == 3
 
 
-# ----------------------------------------------------------------------------- weights
-def test_energy_weights_are_the_papers_and_cover_the_corners():
-    w = energy_weights(2, 100)
-    assert w.shape == (100, 2) and w.dtype == torch.float64
-    # rows of pymoo's get_reference_directions("energy", 2, 100, seed=42)
-    np.testing.assert_allclose(w[:2].numpy(), [[0.0, 1.0], [0.00997283524824734, 0.9900271647517526]], atol=1e-12)
-    torch.testing.assert_close(w.sum(-1), torch.ones(100, dtype=torch.float64))
-    assert (w == 1.0).any(dim=0).all()  # both corners are in
-    np.testing.assert_allclose(energy_weights(3, 32)[1].numpy(), [0.0, 0.17458524, 0.82541476], atol=1e-8)
-
-
-@pytest.mark.slow  # pymoo's energy optimization takes seconds per shape
-@pytest.mark.parametrize("k, n", [(2, 100), (3, 32), (3, 100), (4, 100), (5, 100), (6, 100)])
-def test_precomputed_energy_weights_match_pymoo(k, n):
-    np.testing.assert_allclose(energy_weights(k, n).numpy(), pymoo_energy_weights(k, n, 42), atol=1e-12)
-
-
-@pytest.mark.slow
-def test_energy_weights_of_other_shapes_come_from_pymoo():
-    w = energy_weights(3, 6)  # not shipped: computed by pymoo
-    np.testing.assert_allclose(w.numpy(), pymoo_energy_weights(3, 6, 42), atol=1e-12)
-    np.testing.assert_allclose(w[:2].numpy(), [[0.0, 0.0, 1.0], [0.0, 0.5, 0.5]], atol=1e-6)
-
-
-def test_uniform_weights_seeded_on_simplex():
-    a, b = uniform_weights(4, 1000, seed=3), uniform_weights(4, 1000, seed=3)
-    torch.testing.assert_close(a, b)
-    assert (a >= 0).all()
-    torch.testing.assert_close(a.sum(-1), torch.ones(1000, dtype=torch.float64))
-    # flat Dirichlet: each marginal has mean 1/k
-    torch.testing.assert_close(a.mean(0), torch.full((4,), 0.25, dtype=torch.float64), atol=0.02, rtol=0)
-    assert not torch.equal(a, uniform_weights(4, 1000, seed=4))
-    assert torch.equal(extreme_weights(3), torch.eye(3, dtype=torch.float64))
-
-
 # ----------------------------------------------------------------------------- aggregates
 def test_iqm_matches_scipy_trim_mean():
     scipy_stats = pytest.importorskip("scipy.stats")
@@ -195,7 +156,7 @@ GOOD = [[1.0, 2.0], [2.0, 1.0]]
         (lambda: nhgr(GOOD, np.zeros((0, 2)), [0, 0], [3, 3]), "empty"),
         (lambda: nhgr(GOOD, [[1.0, 2.0, 3.0]], [0, 0], [3, 3]), "objectives"),
         (lambda: nhgr(GOOD, [[0.0, 0.0]], [0, 0], [3, 3]), "zero normalized hypervolume"),
-        (lambda: eum(GOOD, [[0.5, 0.6]]), "simplex"),
+        (lambda: eum(GOOD, [[0.5, 0.6]]), r"weights row 0 = \[0.5, 0.6\] sums to 1.1; weights must lie on the simplex"),
         (lambda: eum(GOOD, [[1.5, -0.5]]), "negative"),
         (lambda: eum(GOOD, [[1.0, 0.0, 0.0]]), "objectives"),
         (lambda: eum(GOOD, [[float("nan"), 1.0]]), "finite"),
@@ -204,9 +165,6 @@ GOOD = [[1.0, 2.0], [2.0, 1.0]]
         (lambda: cardinality([[float("inf"), 0.0]]), "finite"),
         (lambda: pareto_front([[1.0, float("nan")]]), "finite"),
         (lambda: Bounds([0.0, 1.0], [1.0, 1.0]), "upper must be > lower"),
-        (lambda: energy_weights(0, 10), "num_objectives"),
-        (lambda: energy_weights(4, 3), "n >= num_objectives"),
-        (lambda: uniform_weights(2, 0), "positive"),
         (lambda: interquartile_mean([]), "empty"),
         (lambda: optimality_gap([[0.5, float("nan")]]), "NaN"),
         (lambda: stratified_bootstrap_ci([[0.5]], "nope"), "unknown statistic"),

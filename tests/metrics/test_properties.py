@@ -6,7 +6,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from morl_trl.metrics import eum, hypervolume, nhgr, normalized_hypervolume, pareto_front, uniform_weights
+from morl_trl.metrics import eum, hypervolume, nhgr, normalized_hypervolume, pareto_front
+from morl_trl.preferences import uniform_weights
 
 SETTINGS = settings(max_examples=60, deadline=None)
 coord = st.floats(min_value=0.0, max_value=10.0, allow_nan=False, width=32)

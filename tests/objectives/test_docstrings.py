@@ -5,7 +5,7 @@ import importlib
 
 import pytest
 
-MODULES = ["capql", "common", "envelope", "mosac", "networks", "preferences", "value"]
+MODULES = ["capql", "common", "envelope", "mosac", "networks", "value"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -7,7 +7,7 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from morl_trl.transforms import DomainRandomization, PreferenceConditioning
-from morl_trl.transforms.preference import sample_dirichlet
+from morl_trl.preferences import sample_preferences
 from tests.mocks import TOY_CONTEXT, ToyContextEnv
 from tests.transforms.helpers import ScriptedPolicy, episode_starts
 
@@ -50,22 +50,8 @@ def test_seeded_and_follows_env_seed_and_independent_of_contexts():
     assert torch.equal(env.reset()["preference"], make(3, seed=8).reset()["preference"])
     # same seed for contexts and preferences: the two streams are not the same uniforms
     g = torch.Generator().manual_seed(7)
-    plain = sample_dirichlet(3, torch.ones(2), g)
+    plain = sample_preferences(3, 2, generator=g)
     assert not torch.allclose(plain, a)
-
-
-def test_dirichlet_statistics():
-    g = torch.Generator().manual_seed(0)
-    uniform = sample_dirichlet(40000, torch.ones(3), g)
-    # Dir(1,1,1): each marginal is Beta(1, 2): mean 1/3, P(w < 1/2) = 3/4
-    assert torch.allclose(uniform.mean(0), torch.full((3,), 1 / 3), atol=0.01)
-    assert abs((uniform[:, 0] < 0.5).float().mean().item() - 0.75) < 0.01
-    skewed = sample_dirichlet(40000, torch.tensor([1.0, 2.0, 3.0]), g)
-    assert torch.allclose(skewed.mean(0), torch.tensor([1 / 6, 2 / 6, 3 / 6]), atol=0.01)
-    sparse = sample_dirichlet(40000, torch.full((2,), 0.2), g)  # alpha < 1: mass near the corners
-    assert torch.allclose(sparse.mean(0), torch.full((2,), 0.5), atol=0.01)
-    assert (sparse.max(-1).values > 0.95).float().mean() > 0.5
-    assert torch.allclose(sparse.sum(-1), torch.ones(40000))
 
 
 def test_alpha_option_changes_the_spread():
@@ -115,9 +101,9 @@ def test_given_mode_uses_the_reset_tensordict_and_keeps_it_over_auto_resets():
     "w, match",
     [
         (torch.tensor([[0.2, 0.3, 0.5]] * 2), r"shape \(2, 3\); expected \[\.\.\., 2\]"),
-        (torch.tensor([[0.5, 0.5], [1.5, -0.5]]), r"preference \[1.5, -0.5\] has a negative weight"),
-        (torch.tensor([[0.5, 0.6], [0.5, 0.5]]), r"preference \[0.5, 0.6\] sums to 1.1"),
-        (torch.tensor([[float("nan"), 1.0]] * 2), r"preference \[nan, 1.0\] is not finite"),
+        (torch.tensor([[0.5, 0.5], [1.5, -0.5]]), r"preference row 1 = \[1.5, -0.5\] has a negative weight -0.5"),
+        (torch.tensor([[0.5, 0.6], [0.5, 0.5]]), r"preference row 0 = \[0.5, 0.6\] sums to 1.1"),
+        (torch.tensor([[float("nan"), 1.0]] * 2), r"preference row 0 = \[nan, 1.0\] is not finite"),
     ],
 )
 def test_given_mode_rejects_off_simplex_preferences_and_changes_nothing(w, match):
@@ -133,9 +119,9 @@ def test_given_mode_rejects_off_simplex_preferences_and_changes_nothing(w, match
 
 
 def test_bad_constructor_arguments():
-    with pytest.raises(ValueError, match=r"weight set row \[0.5, 0.6\] sums to 1.1"):
+    with pytest.raises(ValueError, match=r"weight set row 1 = \[0.5, 0.6\] sums to 1.1"):
         PreferenceConditioning(weights=[[1.0, 0.0], [0.5, 0.6]])
-    with pytest.raises(ValueError, match=r"weight set row \[-0.5, 1.5\] has a negative weight"):
+    with pytest.raises(ValueError, match=r"weight set row 0 = \[-0.5, 1.5\] has a negative weight"):
         PreferenceConditioning(weights=[[-0.5, 1.5]])
     with pytest.raises(ValueError, match="pass weights="):
         PreferenceConditioning(2, mode="cycle")

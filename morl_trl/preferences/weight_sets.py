@@ -1,4 +1,4 @@
-"""Preference weight sets on the simplex: evenly spread ("energy") and uniformly random."""
+"""Evaluation weight sets on the simplex: evenly spread ("energy"), uniformly random, the corners."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-__all__ = ["energy_weights", "uniform_weights", "extreme_weights"]
+from morl_trl.preferences.sampling import sample_preferences
+
+__all__ = ["energy_weights", "uniform_weights", "extreme_weights", "pymoo_energy_weights"]
 
 
 def _check(num_objectives: int, n: int) -> None:
@@ -78,7 +80,7 @@ def uniform_weights(
     seed: int | None = None,
     dtype=torch.float64,
 ) -> torch.Tensor:
-    """``n`` weights drawn uniformly on the simplex (flat Dirichlet), ``[n, k]``.
+    """``n`` weights drawn uniformly on the simplex (flat Dirichlet, :func:`sample_preferences`), ``[n, k]``.
 
     Pass a ``generator`` or a ``seed`` for reproducibility.
 
@@ -90,12 +92,16 @@ def uniform_weights(
     if generator is None:
         generator = torch.Generator()
         generator.manual_seed(int(seed) if seed is not None else int(torch.randint(0, 2**31 - 1, (1,))))
-    # -log(U) ~ Exp(1); normalized exponentials are uniform on the simplex
-    e = -torch.log1p(-torch.rand((n, num_objectives), generator=generator, dtype=torch.float64))
-    return (e / e.sum(-1, keepdim=True)).to(dtype)
+    return sample_preferences(n, num_objectives, generator=generator, dtype=dtype)
 
 
 def extreme_weights(num_objectives: int, dtype=torch.float64) -> torch.Tensor:
-    """The ``k`` corners of the simplex (one objective at a time), ``[k, k]``."""
+    """The ``k`` corners of the simplex (one objective at a time), ``[k, k]``.
+
+    Example:
+        >>> extreme_weights(2)
+        tensor([[1., 0.],
+                [0., 1.]], dtype=torch.float64)
+    """
     _check(num_objectives, 1)
     return torch.eye(num_objectives, dtype=dtype)

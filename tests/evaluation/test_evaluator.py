@@ -17,9 +17,10 @@ from tensordict.nn import TensorDictModule
 from torchrl.envs import StepCounter
 from torchrl.envs.utils import ExplorationType, exploration_type
 
-from morl_trl.collectors import MultiContextEvaluator
+from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.envs.registry import DomainSpec, register_domain
-from morl_trl.metrics import Bounds, DomainReference, hypervolume
+from morl_trl.metrics import Bounds, hypervolume
+from morl_trl.reporting import DomainReference
 from tests.mocks import TOY_CONTEXT, ToyContextEnv
 
 G = 0.9
@@ -251,8 +252,8 @@ def test_rows_for_csv_logging_name_every_objective(tmp_path):
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(weights=torch.tensor([[0.5, 0.6]])), "simplex"),
-        (dict(weights=torch.tensor([[1.0, 0.0, 0.0]])), "objectives"),
+        (dict(weights=torch.tensor([[0.5, 0.6]])), r"weights row 0 = \[0.5, 0.6\] sums to 1.1; weights must lie on the simplex"),
+        (dict(weights=torch.tensor([[1.0, 0.0, 0.0]])), r"weights has shape \(1, 3\); expected \[\.\.\., 2\]"),
         (dict(weights=torch.tensor([[float("nan"), 1.0]])), "finite"),
         (dict(eum_weights=torch.tensor([[2.0, -1.0]])), "negative"),
         (dict(episodes=0), "episodes"),

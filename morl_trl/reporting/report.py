@@ -21,8 +21,8 @@ def _fmt(v) -> str:
 
 def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dict[str, float]]:
     """``{algorithm label: {context: mean NHGR over seeds}}`` recomputed from the published fronts."""
-    from morl_trl.metrics.reference import load_domain_reference, load_generalist_fronts
-    from morl_trl.metrics.table import domain_rows
+    from morl_trl.reporting.reference import load_domain_reference, load_generalist_fronts
+    from morl_trl.reporting.table import domain_rows
 
     ref = load_domain_reference(reference_dir, domain)
     rows = domain_rows(ref, load_generalist_fronts(reference_dir, domain, ref.contexts), eugr=False)

@@ -18,10 +18,9 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from morl_trl.collectors.results import ContextResult, EvaluationResult
+from morl_trl.evaluation.results import ContextResult, EvaluationResult
 from morl_trl.metrics import (
     Bounds,
-    DomainReference,
     cardinality,
     eum,
     hypervolume,
@@ -32,8 +31,7 @@ from morl_trl.metrics import (
     pareto_front,
     sparsity,
 )
-from morl_trl.metrics.utility import check_weights
-from morl_trl.metrics.weights import energy_weights
+from morl_trl.preferences import check_simplex, energy_weights
 
 __all__ = ["MultiContextEvaluator"]
 
@@ -54,7 +52,7 @@ class MultiContextEvaluator:
     that do not dominate it count for nothing, as in the paper), ``eum`` (over ``eum_weights``),
     ``sparsity`` and ``cardinality``; with bounds (``bounds`` or ``reference``)
     ``normalized_hypervolume`` and ``normalized_eum``; with a ``reference`` (frozen bounds and
-    specialist fronts, :class:`~morl_trl.metrics.DomainReference`) ``nhgr`` and ``eugr``.
+    specialist fronts, :class:`~morl_trl.reporting.DomainReference`) ``nhgr`` and ``eugr``.
 
     Args:
         policy: a callable ``TensorDict -> TensorDict`` writing ``"action"`` (a
@@ -67,7 +65,7 @@ class MultiContextEvaluator:
             env ids of one domain, or a mapping ``name -> context vector [c]`` (then pass
             ``env_factory``).
         weights: ``[W, k]`` preferences on the simplex, or an int ``W`` for
-            :func:`~morl_trl.metrics.energy_weights` (default 100, the paper's).
+            :func:`~morl_trl.preferences.energy_weights` (default 100, the paper's).
         episodes: episodes per (context, weight) pair.
         gamma: discount (default: the domain's).
         env_factory: ``env_factory(num_envs=..., seed=...)`` building the batched env
@@ -101,7 +99,7 @@ class MultiContextEvaluator:
             running then are cut, with a warning.
 
     Example:
-        >>> from morl_trl.collectors import MultiContextEvaluator
+        >>> from morl_trl.evaluation import MultiContextEvaluator
         >>> ev = MultiContextEvaluator("random", "MOLunarLanderDR-v0", weights=4, seed=0)
         >>> result = ev.evaluate()            # 8 contexts x 4 weights, one batched env of 32
         >>> result.returns.shape              # [contexts, weights, episodes, objectives]
@@ -120,7 +118,7 @@ class MultiContextEvaluator:
         gamma: float | None = None,
         env_factory: Callable[..., EnvBase] | None = None,
         transform: Callable[[], object] | None = None,
-        reference: DomainReference | None = None,
+        reference=None,
         bounds: Mapping[str, object] | None = None,
         ref_point: Sequence[float] | None = None,
         eum_weights: torch.Tensor | np.ndarray | None = None,
@@ -172,9 +170,9 @@ class MultiContextEvaluator:
             weights = 100
         if isinstance(weights, int):
             weights = energy_weights(k, weights)
-        self.weights = torch.as_tensor(check_weights(weights, k), dtype=torch.float64)
+        self.weights = torch.as_tensor(check_simplex(_as_2d(weights), k, name="weights"), dtype=torch.float64)
         self.eum_weights = (
-            self.weights if eum_weights is None else torch.as_tensor(check_weights(eum_weights, k), dtype=torch.float64)
+            self.weights if eum_weights is None else torch.as_tensor(check_simplex(_as_2d(eum_weights), k, name="eum_weights"), dtype=torch.float64)
         )
 
         if gamma is None:
@@ -450,6 +448,13 @@ class MultiContextEvaluator:
             f"episodes={self.episodes}, gamma={self.gamma}, chunk_size={self.chunk_size}, "
             f"reference={'yes' if self.reference is not None else 'no'})"
         )
+
+
+def _as_2d(weights):
+    w = weights if isinstance(weights, torch.Tensor) else np.asarray(weights, dtype=np.float64)
+    if w.ndim != 2 or w.shape[0] == 0:
+        raise ValueError(f"weights must be a non-empty [W, k] weight set, got shape {tuple(w.shape)}")
+    return w
 
 
 def _as_tuple(key) -> tuple:

@@ -1,6 +1,6 @@
-"""The paper's NHGR table recomputed from published (or our own) fronts: ``morl-trl reference-table``.
+"""The paper's NHGR table recomputed from published (or our own) fronts (``morl-trl reference-table``).
 
-For every domain under a reference folder (layout in :mod:`morl_trl.metrics.reference`) and
+For every domain under a reference folder (layout in :mod:`morl_trl.reporting.reference`) and
 every algorithm with final fronts there, build the ``[seeds, contexts]`` matrix of NHGR
 (frozen bounds with clipping, origin reference, specialist combined front as denominator,
 capped at 1) and report its mean ± population std over all entries, IQM and optimality gap
@@ -13,34 +13,31 @@ Example:
 
 from __future__ import annotations
 
-import argparse
-import csv
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from morl_trl.metrics.aggregate import interquartile_mean, optimality_gap, stratified_bootstrap_ci
-from morl_trl.metrics.reference import (
+from morl_trl.metrics import interquartile_mean, optimality_gap, stratified_bootstrap_ci
+from morl_trl.preferences import energy_weights
+from morl_trl.reporting.reference import (
     DomainReference,
     list_reference_domains,
     load_domain_reference,
     load_generalist_fronts,
 )
-from morl_trl.metrics.weights import energy_weights
 
-__all__ = ["TableRow", "DOMAIN_NAMES", "PAPER_NHGR", "reference_table", "format_table", "main"]
+__all__ = ["TableRow", "PAPER_ORDER", "PAPER_NHGR", "domain_name", "domain_rows", "reference_table", "format_table"]
 
-# paper order; display names
-DOMAIN_NAMES = {
-    "MOLunarLanderDR-v0": "MO-LunarLander",
-    "MOHopperDR-v5": "MO-Hopper",
-    "MOHalfCheetahDR-v5": "MO-HalfCheetah",
-    "MOHumanoidDR-v5": "MO-Humanoid",
-    "MOSuperMarioBrosZeroShot-v2": "MO-SuperMarioBros",
-    "MOLavaGridDR-v0": "MO-LavaGrid",
-}
+# the paper's order of the domains (their names come from the registry's DomainSpec)
+PAPER_ORDER = (
+    "MOLunarLanderDR-v0",
+    "MOHopperDR-v5",
+    "MOHalfCheetahDR-v5",
+    "MOHumanoidDR-v5",
+    "MOSuperMarioBrosZeroShot-v2",
+    "MOLavaGridDR-v0",
+)
 
 _ALGO_LABELS = {
     "MORL-D(MOSACDiscrete)-SB": "MORL/D SB",
@@ -152,8 +149,23 @@ class TableRow:
 
 
 def _ordered(domains: list[str]) -> list[str]:
-    known = [d for d in DOMAIN_NAMES if d in domains]
-    return known + sorted(d for d in domains if d not in DOMAIN_NAMES)
+    known = [d for d in PAPER_ORDER if d in domains]
+    return known + sorted(d for d in domains if d not in PAPER_ORDER)
+
+
+def domain_name(domain: str) -> str:
+    """The display name of a domain id: its :class:`~morl_trl.envs.DomainSpec` ``name`` (the id if unregistered).
+
+    Example:
+        >>> domain_name("MOHopperDR-v5"), domain_name("NoSuchDomain-v0")
+        ('MO-Hopper', 'NoSuchDomain-v0')
+    """
+    from morl_trl.envs import domain_of
+
+    try:
+        return domain_of(domain).name
+    except ValueError:
+        return domain
 
 
 def _eval_weights(domain: str) -> int:
@@ -247,7 +259,7 @@ def format_table(rows: list[TableRow]) -> str:
             domain = r.domain
             n_ctx = len(r.contexts)
             out.append("")
-            out.append(f"{DOMAIN_NAMES.get(domain, domain)} ({domain}): {n_ctx} contexts, NHGR over seeds x contexts")
+            out.append(f"{domain_name(domain)} ({domain}): {n_ctx} contexts, NHGR over seeds x contexts")
             head = f"  {'algorithm':<15} {'NHGR mean ± std':<16} {'IQM':>6} {'OG':>6}"
             if has_ci:
                 head += f"  {'IQM 95% CI':<15} {'OG 95% CI':<15}"
@@ -276,44 +288,3 @@ def format_table(rows: list[TableRow]) -> str:
             "used other (random) weights, so it can differ by a few hundredths."
         )
     return "\n".join(out).lstrip("\n")
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="morl-trl reference-table",
-        description="Recompute the paper's NHGR table (mean ± pooled std, IQM, optimality gap) from published fronts.",
-    )
-    parser.add_argument("data_dir", help="reference folder with minmax_values/, specialist_fronts/, generalist_fronts/")
-    parser.add_argument("--domain", action="append", help="restrict to this domain id (repeatable)")
-    parser.add_argument("--ci", action="store_true", help="add stratified-bootstrap 95%% CIs of IQM and optimality gap")
-    parser.add_argument("--reps", type=int, default=50_000, help="bootstrap replicates for --ci (default 50000)")
-    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
-    parser.add_argument("--no-eugr", action="store_true", help="skip EUGR")
-    parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
-    args = parser.parse_args(argv)
-    try:
-        rows = reference_table(
-            args.data_dir, args.domain, eugr=not args.no_eugr, ci_reps=args.reps if args.ci else 0, seed=args.seed
-        )
-    except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    try:
-        print(format_table(rows), flush=True)
-    except BrokenPipeError:  # e.g. piped into `head`
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    if args.csv:
-        dicts = [r.as_dict() for r in rows]
-        keys = list(dict.fromkeys(k for d in dicts for k in d))
-        args.csv.parent.mkdir(parents=True, exist_ok=True)
-        with args.csv.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=keys)
-            w.writeheader()
-            w.writerows(dicts)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

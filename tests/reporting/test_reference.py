@@ -5,16 +5,16 @@ import json
 import numpy as np
 import pytest
 
-from morl_trl.metrics import (
-    Bounds,
+from morl_trl.cli import reference_table_main as main
+from morl_trl.metrics import Bounds, hypervolume
+from morl_trl.reporting import (
     DomainReference,
-    hypervolume,
     load_domain_reference,
     load_generalist_fronts,
     read_front_csv,
     write_front_csv,
 )
-from morl_trl.metrics.table import PAPER_NHGR, main, reference_table
+from morl_trl.reporting.table import PAPER_NHGR, reference_table
 
 
 # ----------------------------------------------------------------------------- our own data
