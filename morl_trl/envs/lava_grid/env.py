@@ -13,6 +13,7 @@ from tensordict import TensorDictBase
 from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.lava_grid.context import (
     AGENT_DIR,
     AGENT_X,
@@ -95,6 +96,7 @@ class MOLavaGridEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         max_episode_steps: int = 256,
         randomize: bool = False,
         context_space: LavaGridContextSpace = LAVA_GRID_CONTEXT,
@@ -106,6 +108,7 @@ class MOLavaGridEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         self.randomize = bool(randomize)
         dev = self.device

@@ -12,6 +12,7 @@ import torch
 from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.mario._nes import RGB_CHANNELS, SCREEN_HEIGHT, SCREEN_WIDTH, require_emulator
 from morl_trl.envs.mario.frames import FramePipeline
 from morl_trl.envs.mario.game import REWARD_SCALE, SIMPLE_MOVEMENT, SIMPLE_MOVEMENT_BUTTONS, MarioStage
@@ -161,6 +162,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         max_episode_steps: int = 500,
         frame_skip: int = 4,
         num_threads: int | None = None,
@@ -181,6 +183,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         self.frame_skip = frame_skip
         self.num_threads = min(num_threads, num_envs)
