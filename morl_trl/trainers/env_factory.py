@@ -11,7 +11,7 @@ __all__ = ["make_train_env", "make_eval_transform"]
 
 
 def make_train_env(cfg, device: torch.device) -> TransformedEnv:
-    """``make_env(cfg.env_id)`` (domain-randomized for a DR id) + history + preferences + returns.
+    """``make_env(cfg.env_id)`` (which draws its own contexts for a DR id) + history + preferences + returns.
 
     Transforms, in order: :class:`~morl_trl.transforms.StateActionHistory` (if
     ``cfg.history_len``), :class:`~morl_trl.transforms.PreferenceConditioning` (a uniform
@@ -21,9 +21,7 @@ def make_train_env(cfg, device: torch.device) -> TransformedEnv:
     from morl_trl.transforms import DiscountedVectorReturn, PreferenceConditioning, StateActionHistory
 
     spec = domain_of(cfg.env_id)
-    env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
-    if not isinstance(env, TransformedEnv):
-        env = TransformedEnv(env)
+    env = TransformedEnv(make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed))
     if cfg.history_len:
         env.append_transform(StateActionHistory(cfg.history_len))
     env.append_transform(PreferenceConditioning(spec.num_objectives, seed=cfg.seed + 1))
