@@ -71,10 +71,12 @@ def test_toy_env_matches_torchrl_path_with_hand_checked_reset_rows():
 
 
 def test_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     assert _run_both(lambda: make_env("MOLunarLanderDefault-v0", num_envs=4, seed=3), steps=300) >= 4
 
 
 def test_continuous_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     assert _run_both(lambda: make_env("MOLunarLanderContinuousDefault-v0", num_envs=3, seed=1), steps=200) >= 2
 
 
@@ -125,12 +127,15 @@ def test_dr_env_matches_torchrl_path_and_draws_the_same_contexts():
 
 
 def test_dr_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     env = make_env("MOLunarLanderDR-v0", num_envs=4, seed=2)
     assert isinstance(env, ContextualMOEnv) and env.context_sampler is not None
     assert _run_both(lambda: make_env("MOLunarLanderDR-v0", num_envs=4, seed=2), steps=300) >= 4
 
 
 def test_dr_env_with_more_transforms_matches_torchrl_path():
+    pytest.importorskip("Box2D")
+
     def make():
         return make_env("MOLunarLanderDR-v0", num_envs=2, seed=0).append_transform(StateActionHistory(2))
 

@@ -46,7 +46,7 @@ def test_every_id_is_a_contextual_env_with_a_sampler_only_under_dr():
         assert type(env.append_transform(DomainRandomization(env.context_space))) is TransformedEnv
         env.close()
         built += 1
-    assert built >= 29  # LunarLander (20) and LavaGrid (9) at least
+    assert built >= 9  # LavaGrid's 9 need no extra; LunarLander adds 20, MuJoCo 19, Mario 33
 
 
 def test_readme_transforms_snippet_on_a_fixed_and_a_dr_id():
@@ -104,6 +104,7 @@ def test_dr_first_reset_draws_exactly_the_seeded_stream(env_id):
 
 
 def test_dr_id_gives_the_same_rollout_as_the_old_transform_layout():
+    pytest.importorskip("Box2D")
     from morl_trl.envs.lunar_lander import MOLunarLanderEnv
 
     space = context_space("MOLunarLanderDR-v0")
@@ -144,6 +145,7 @@ def test_serial_env_workers_follow_their_seeds():
 
 # ---------------------------------------------------------------- the reset-context rule
 def test_explicit_reset_context_is_used_exactly_under_a_dr_id():
+    pytest.importorskip("Box2D")
     env = make_env("MOLunarLanderDR-v0", num_envs=2, seed=0)
     given = torch.tensor([[-11.5, 3.0, 0.5, 12.5, 0.45, 0.55, 0.8], [-8.0, 0.0, 0.0, 15.0, 0.7, 0.3, 0.9]])
     td = env.reset(TensorDict(context=given, batch_size=[2]))
@@ -164,6 +166,7 @@ def test_explicit_reset_context_on_a_domain_with_its_own_reset():
 
 @pytest.mark.parametrize("bad", [torch.zeros(2, 6), torch.ones(2, 8)])
 def test_wrong_width_context_raises_the_same_error_on_dr_and_fixed_ids(bad):
+    pytest.importorskip("Box2D")
     messages = []
     for env_id in ("MOLunarLanderDR-v0", "MOLunarLanderHard-v0"):
         env = make_env(env_id, num_envs=2, seed=0)
@@ -177,6 +180,7 @@ def test_wrong_width_context_raises_the_same_error_on_dr_and_fixed_ids(bad):
 
 
 def test_bad_context_value_leaves_a_dr_env_unchanged():
+    pytest.importorskip("Box2D")
     env = make_env("MOLunarLanderDR-v0", num_envs=2, seed=0)
     env.reset()
     before, state = env.context, env.context_sampler.get_state()
