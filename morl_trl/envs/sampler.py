@@ -6,7 +6,7 @@ sampling function and its own :class:`torch.Generator`. A
 :class:`~morl_trl.envs.ContextualMOEnv` built with one draws a context for every sub-env it
 resets (unless the reset TensorDict gives one); ``make_env`` of a ``*DR-*`` id builds the
 domain's env with ``ContextSampler(space, fixed=overrides, seed=seed)``. The
-:class:`~morl_trl.transforms.DomainRandomization` transform draws through one too.
+``DomainRandomization`` transform (in the transforms package) draws through one too.
 """
 
 from __future__ import annotations

@@ -72,8 +72,8 @@ class MOLavaGridEnv(ContextualMOEnv):
         randomize: draw a fresh randomized map (the paper's domain randomization, on
             ``device`` with the env's own generator) for every sub-env at each of its resets,
             ignoring any context in the reset TensorDict. ``make_env("MOLavaGridDR-v0")`` does
-            the same through the :class:`~morl_trl.transforms.DomainRandomization` transform
-            instead (its CPU generator; the same distribution).
+            the same with a :class:`~morl_trl.envs.ContextSampler` over this space instead
+            (its CPU generator; the same distribution), which honours an explicit context.
 
     Example:
         >>> import torch

@@ -101,7 +101,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     """Multi-objective Super Mario Bros.: N emulators, one stage each, stepped as a batch.
 
     * context ``[*B, 2]``: the stage ``[world, level]`` (:class:`MarioStageSpace`); set it
-      through a reset TensorDict or :class:`~morl_trl.transforms.DomainRandomization`
+      through a reset TensorDict or a ``ContextSampler`` (``context_sampler=``)
       (``make_env("MOSuperMarioBrosZeroShot-v2")`` draws among the 31 training stages);
     * action ``[*B]``: one of the 7 ``SIMPLE_MOVEMENT`` button sets, held for
       ``frame_skip`` raw frames;
