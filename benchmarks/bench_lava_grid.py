@@ -11,7 +11,7 @@ Measures, in one run, sub-env steps per second of
 
   - ``MOLavaGridRoom-v0`` (a fixed evaluation map),
   - ``MOLavaGridDR-v0`` (a new random map per sub-env at each of its resets, drawn by the
-    ``DomainRandomization`` transform on the CPU),
+    env's ``ContextSampler`` on the CPU),
   - ``MOLavaGridRoom-v0, randomize=True`` (the same randomization drawn inside the env, on
     ``--device``);
 

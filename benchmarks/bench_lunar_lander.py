@@ -134,11 +134,10 @@ def breakdown(env_id: str, num_envs: int) -> None:
     from morl_trl.envs.lunar_lander import physics
 
     env = make_env(env_id, num_envs=num_envs, seed=0)
-    base = getattr(env, "base_env", env)
     noop = torch.zeros(num_envs, dtype=torch.long)
     calls = 30  # no-op steps from a fresh reset: every lander is still in the air, none finishes
-    box2d = _cpu_us(lambda: [w.world.Step(physics.TIME_STEP, 180, 60) for w in base._worlds], calls, env.reset)
-    domain = _cpu_us(lambda: base._step_subenvs(noop), calls, env.reset)
+    box2d = _cpu_us(lambda: [w.world.Step(physics.TIME_STEP, 180, 60) for w in env._worlds], calls, env.reset)
+    domain = _cpu_us(lambda: env._step_subenvs(noop), calls, env.reset)
     state = {}
 
     def fresh() -> None:
@@ -154,11 +153,11 @@ def breakdown(env_id: str, num_envs: int) -> None:
     generic_us = _cpu_us(generic, calls, fresh)
     one = torch.zeros(num_envs, dtype=torch.bool)
     one[0] = True
-    reset_lean = _cpu_us(lambda: base._auto_reset(one), calls)
+    reset_lean = _cpu_us(lambda: env._auto_reset(one), calls)
     td = env.reset()
     td["done"] = one[:, None].clone()
     reset_generic = _cpu_us(lambda: env.maybe_reset(td.clone()), calls)
-    world = _cpu_us(lambda: base._reset_subenvs(torch.tensor([0]), base._context[:1]), calls)
+    world = _cpu_us(lambda: env._reset_subenvs(torch.tensor([0]), env._context[:1]), calls)
     rows = [
         (f"Box2D world.Step x{num_envs}", box2d),
         ("domain step (_step_subenvs, incl. those Steps)", domain),

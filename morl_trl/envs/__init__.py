@@ -11,7 +11,6 @@ Example:
 from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.registry import (
-    DomainSpec,
     context_space,
     domain_of,
     evaluation_suite,
@@ -21,8 +20,11 @@ from morl_trl.envs.registry import (
     make_env,
     register_domain,
 )
+from morl_trl.envs.sampler import ContextSampler
+from morl_trl.envs.spec import DomainSpec
 
 __all__ = [
+    "ContextSampler",
     "ContextSpace",
     "ContextualMOEnv",
     "DomainSpec",

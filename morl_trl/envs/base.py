@@ -7,6 +7,8 @@ its physics:
 * the per-sub-env ``context`` (``[*B, c]``), in the observation *and* state specs so that a
   reset TensorDict can set it (``env.reset(TensorDict(context=...))``); partial resets through
   ``"_reset"`` only touch the selected sub-envs;
+* an optional :class:`~morl_trl.envs.ContextSampler` (domain randomization) drawing the
+  contexts of the sub-envs being reset (see :class:`ContextualMOEnv` for the rule);
 * the vector reward ``[*B, k]`` with ``objective_names``, and the domain's original scalar
   reward (the paper's single-objective reward) under ``"original_reward"`` ``[*B, 1]``;
 * truncation after ``max_episode_steps``; action checking; seeding;
@@ -35,7 +37,6 @@ and may override ``_seed_subenvs(seed)`` to seed its own random generators.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import torch
@@ -44,6 +45,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.sampler import ContextSampler
 
 __all__ = ["ContextualMOEnv"]
 
@@ -54,15 +56,47 @@ _ZERO_AFTER_RESET = ("original_reward", "terminated", "truncated", "done")
 class ContextualMOEnv(EnvBase):
     """Base class of the batched contextual MO domains (see the module docstring).
 
+    The context of a sub-env being reset (``reset``, a partial reset through ``"_reset"``, or
+    an auto-reset in ``step_and_maybe_reset``) is, in this order:
+
+    1. the ``context`` entry of the TensorDict given to ``env.reset(td)``, validated (a bad
+       one raises a ``ValueError`` naming the parameter and leaves the env unchanged), on
+       every env, domain-randomized or not;
+    2. else a draw of ``context_sampler`` (one row per sub-env being reset, with the current
+       contexts as ``previous``);
+    3. else the sub-env's current context.
+
+    Only an explicit ``env.reset(td)`` passes a ``context``: auto-resets never do. TorchRL's
+    ``maybe_reset`` resets with ``select_reset_only=True`` (the reset TensorDict holds only
+    ``"_reset"``, not the ``context`` carried from the last step), and the lean
+    ``step_and_maybe_reset`` below draws directly; so a domain-randomized env draws at every
+    auto-reset. To redraw in a manual partial reset, pass only ``"_reset"`` (e.g.
+    ``env.reset(td.select("_reset"))``); a TensorDict with the current ``context`` keeps it.
+
     Args:
         context_space: the domain's :class:`~morl_trl.envs.ContextSpace`.
         num_envs: number of sub-environments stepped by one ``step``.
         context: initial context, ``[c]`` (shared) or ``[num_envs, c]``; default context if
-            ``None``.
+            ``None`` (the contexts until the first reset).
         device: where the TensorDicts live.
         seed: seed of the sub-envs' random generators (sub-env ``i`` is seeded with
-            ``seed + i``, Gymnasium's vector-env convention).
+            ``seed + i``, Gymnasium's vector-env convention) and of an unseeded
+            ``context_sampler``; ``set_seed(s)`` re-seeds both.
         max_episode_steps: truncation horizon.
+        context_sampler: a :class:`~morl_trl.envs.ContextSampler` drawing the contexts of
+            the sub-envs being reset (domain randomization); ``None``: contexts are kept.
+
+    Example:
+        >>> import torch
+        >>> from tensordict import TensorDict
+        >>> from morl_trl.envs import ContextSampler
+        >>> from morl_trl.envs.toy import ToyContextEnv, TOY_CONTEXT
+        >>> env = ToyContextEnv(num_envs=2, seed=0, context_sampler=ContextSampler(TOY_CONTEXT))
+        >>> TOY_CONTEXT.contains(env.reset()["context"])   # drawn
+        True
+        >>> env.reset(TensorDict(context=torch.tensor([[1.5, 0.0]] * 2), batch_size=[2]))["context"]
+        tensor([[1.5000, 0.0000],
+                [1.5000, 0.0000]])
     """
 
     objective_names: tuple[str, ...] = ()
@@ -81,6 +115,7 @@ class ContextualMOEnv(EnvBase):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         max_episode_steps: int = 1000,
+        context_sampler: ContextSampler | None = None,
     ) -> None:
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
@@ -99,7 +134,19 @@ class ContextualMOEnv(EnvBase):
         self._seed = None
         self._active: torch.Tensor | None = None
         self._action_bounds: tuple[torch.Tensor, torch.Tensor] | None = None
+        if context_sampler is not None:
+            if not isinstance(context_sampler, ContextSampler):
+                raise ValueError(f"context_sampler must be a ContextSampler, got {type(context_sampler).__name__}")
+            if context_sampler.context_space.dim != context_space.dim:
+                raise ValueError(
+                    f"the context sampler draws {context_sampler.context_space.dim} parameters; the env's "
+                    f"context has {context_space.dim} ({list(context_space.names)})"
+                )
+        self._context_sampler = None
         self._set_seed(seed)
+        if context_sampler is not None and context_sampler.seed is None:  # a seeded sampler keeps its seed
+            context_sampler.set_seed(self._seed)
+        self._context_sampler = context_sampler
 
     # ------------------------------------------------------------------ specs
     @property
@@ -139,6 +186,11 @@ class ContextualMOEnv(EnvBase):
         """The current context of every sub-env, ``[num_envs, c]`` (a copy)."""
         return self._context.clone()
 
+    @property
+    def context_sampler(self) -> ContextSampler | None:
+        """The :class:`~morl_trl.envs.ContextSampler` drawing reset contexts (``None``: kept)."""
+        return self._context_sampler
+
     def context_dict(self, i: int = 0) -> dict[str, float]:
         """The named context of sub-env ``i``."""
         return self.context_space.as_dict(self._context[i])
@@ -155,18 +207,20 @@ class ContextualMOEnv(EnvBase):
         mask = self._reset_mask(tensordict)
         idx = mask.nonzero().squeeze(-1)
         new_context = None if tensordict is None else tensordict.get("context", None)
-        if new_context is not None:
+        if new_context is not None:  # an explicit context (see the class docstring)
             new_context = torch.as_tensor(new_context, device=self.device)
             if new_context.shape != self._context.shape:
                 new_context = self.context_space.validate(new_context)  # names the expected width
                 new_context = new_context.expand_as(self._context)
             # validated before any state changes: a bad context leaves the env untouched
             chosen = self.context_space.validate(new_context[idx]).to(torch.float32)
+        elif self._context_sampler is not None and idx.numel():
+            chosen = self._draw_contexts(idx)  # drawn (and checked) before any state changes
         else:
-            chosen = self._context[idx]
+            chosen = None
         if idx.numel():
-            self._reset_subenvs(idx, chosen)
-            if new_context is not None:
+            self._reset_subenvs(idx, self._context[idx] if chosen is None else chosen)
+            if chosen is not None:
                 # out of place: step outputs share self._context without copying it every step
                 context = self._context.clone()
                 context[idx] = chosen
@@ -174,6 +228,12 @@ class ContextualMOEnv(EnvBase):
             self._step_count[idx] = 0
         no = torch.zeros(2, self.num_envs, dtype=torch.bool, device=self.device)  # (two rows: no shared views)
         return self._make_output(self._observe(), reward=None, original=None, terminated=no[0], truncated=no[1])
+
+    def _draw_contexts(self, idx: torch.Tensor) -> torch.Tensor:
+        """The sampler's contexts ``[n, c]`` for the sub-envs ``idx``, on the env's device."""
+        sampler = self._context_sampler
+        previous = self._context[idx] if sampler.takes_previous else None
+        return sampler.draw(idx.numel(), previous).to(self.device)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = self._check_action(tensordict.get("action", None))
@@ -208,14 +268,6 @@ class ContextualMOEnv(EnvBase):
         """
         if not self._lean_step_applies(tensordict):
             return super()._step_and_maybe_reset(tensordict)
-        return self._lean_step_and_maybe_reset(tensordict)
-
-    def _lean_step_and_maybe_reset(
-        self, tensordict: TensorDictBase, draw_contexts: Callable[[torch.Tensor], torch.Tensor | None] | None = None
-    ) -> tuple[TensorDictBase, TensorDictBase]:
-        """The lean path (see ``_step_and_maybe_reset``). ``draw_contexts(mask)`` (``[N]``
-        bool -> ``[n, c]``, one row per sub-env being reset) gives the reset contexts, as a
-        context-drawing transform does in a reset; without it they are kept."""
         next_td = self._step(tensordict)
         tensordict.set("next", next_td)
         entries = self._step_mdp_entries(tensordict, next_td)
@@ -224,7 +276,7 @@ class ContextualMOEnv(EnvBase):
             return tensordict, self.maybe_reset(self._step_mdp(tensordict))
         if done.any():
             mask = done.view(self.num_envs)
-            reset = self._auto_reset(mask, None if draw_contexts is None else draw_contexts(mask))
+            reset = self._auto_reset(mask)
             if mask.all():  # as maybe_reset: a full reset updates, keeping the entries it does not produce
                 entries.update(reset)
                 for key in _ZERO_AFTER_RESET:
@@ -245,23 +297,18 @@ class ContextualMOEnv(EnvBase):
                     entries[key] = new.masked_fill(~mask.view(-1, *(1,) * (new.ndim - 1)), 0)
         return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
 
-    def _auto_reset(self, mask: torch.Tensor, context: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
-        """Reset the sub-envs ``mask`` (``[N]`` bool), with the contexts ``context`` (``[n, c]``,
-        one row per sub-env in ``mask``) or their current ones; return the entries ``_reset``
-        would (rows outside ``mask`` are to be ignored), but for those that a reset zeroes
-        (``_ZERO_AFTER_RESET``), which may be left out."""
+    def _auto_reset(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Reset the sub-envs ``mask`` (``[N]`` bool) as ``_reset`` does for a reset TensorDict
+        without ``context`` (contexts drawn by the sampler, else kept); return the entries
+        ``_reset`` would (rows outside ``mask`` are to be ignored), but for those that a reset
+        zeroes (``_ZERO_AFTER_RESET``), which may be left out."""
         if type(self)._reset is not ContextualMOEnv._reset:  # a domain with its own reset
-            request = self._reset_request(mask.view(-1, 1))
-            if context is not None:
-                full = self._context.clone()
-                full[mask] = context.to(self.device, full.dtype)
-                request.set("context", full)
-            return dict(self._reset(request).items())
+            return dict(self._reset(self._reset_request(mask.view(-1, 1))).items())
         idx = mask.nonzero().squeeze(-1)
-        if context is None:
+        if self._context_sampler is None:
             self._reset_subenvs(idx, self._context[idx])
-        else:  # validated before any state changes, as in _reset
-            chosen = self.context_space.validate(context.to(self.device)).to(torch.float32)
+        else:
+            chosen = self._draw_contexts(idx)  # drawn and checked before any state changes
             self._reset_subenvs(idx, chosen)
             new_context = self._context.clone()  # out of place: earlier outputs share the old one
             new_context[idx] = chosen
@@ -400,6 +447,9 @@ class ContextualMOEnv(EnvBase):
             seed = int(torch.randint(0, 2**31 - 1, (1,)).item())
         self._seed = int(seed)
         self._seed_subenvs(self._seed)
+        sampler = self.__dict__.get("_context_sampler")
+        if sampler is not None:  # the context stream follows the env's seed
+            sampler.set_seed(self._seed)
 
     def _seed_subenvs(self, seed: int) -> None:
         """Seed the domain's own random generators (override in subclasses)."""

@@ -1,9 +1,11 @@
 """The environment registry: ids, domains, evaluation suites and ``make_env``.
 
-Every domain is described by a :class:`DomainSpec` (data: the env class to build, its
-context space, the named fixed contexts of the paper's tables and which of them form the
-evaluation suite). Domain specs live in :mod:`morl_trl.envs.specs` and are imported lazily,
-so that importing :mod:`morl_trl.envs` pulls in no simulator.
+Every domain is described by a :class:`~morl_trl.envs.spec.DomainSpec` (data: the env class
+to build, its context space, the named fixed contexts of the paper's tables and which of them
+form the evaluation suite). The built-in domains' specs live in their own folders
+(``morl_trl/envs/<domain>/spec.py``, each a tuple ``SPECS``); the registry imports them at its
+first lookup (they import no simulator, and not the registry), and ``register_domain`` adds
+user domains. No simulator is imported until an env is built.
 """
 
 from __future__ import annotations
@@ -11,13 +13,13 @@ from __future__ import annotations
 import difflib
 import importlib
 import inspect
-from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import Any
 
 import torch
 
 from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.sampler import ContextSampler
+from morl_trl.envs.spec import DomainSpec
 
 __all__ = [
     "DomainSpec",
@@ -31,74 +33,16 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class DomainSpec:
-    """A contextual multi-objective domain as data.
-
-    Args:
-        name: human name, e.g. ``"MO-LunarLander"``.
-        train_id: the domain-randomized training id, e.g. ``"MOLunarLanderDR-v0"``.
-        env_class: ``"module:Class"`` of the batched :class:`~torchrl.envs.EnvBase`; imported
-            only when an env is built. The class takes ``num_envs``, ``context``, ``device``,
-            ``seed`` and the ``env_kwargs`` below.
-        context_space: the domain's :class:`ContextSpace`.
-        contexts: every fixed-context id of the domain mapped to its parameter overrides
-            (the rest stays at the default).
-        evaluation_ids: the paper's evaluation suite for ``train_id`` (a subset of ``contexts``).
-        env_kwargs: extra constructor arguments (e.g. ``continuous=True``).
-        gamma: the discount the paper evaluates with.
-        hv_ref_point: the paper's unnormalized hypervolume reference point.
-        objective_names: names of the reward entries, in order.
-        max_episode_steps: the truncation horizon.
-        history_len: the paper's state-action history length (``StateActionHistory``; 0: none).
-        train_frames: the paper's training length in environment frames.
-        eval_interval: the paper's evaluation period in frames.
-        eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
-    """
-
-    name: str
-    train_id: str
-    env_class: str
-    context_space: ContextSpace
-    contexts: Mapping[str, Mapping[str, Any]]
-    evaluation_ids: tuple[str, ...]
-    objective_names: tuple[str, ...]
-    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    gamma: float = 0.99
-    hv_ref_point: tuple[float, ...] | None = None
-    max_episode_steps: int = 1000
-    # the paper's training and evaluation protocol (SPEC §2, §4)
-    history_len: int = 0
-    train_frames: int = 1_000_000
-    eval_interval: int = 50_000
-    eval_weights: int = 100
-
-    def __post_init__(self) -> None:
-        missing = [e for e in self.evaluation_ids if e not in self.contexts]
-        if missing:
-            raise ValueError(f"{self.name}: evaluation ids {missing} have no context")
-
-    @property
-    def num_objectives(self) -> int:
-        return len(self.objective_names)
-
-    def ids(self) -> list[str]:
-        return [self.train_id, *self.contexts]
-
-    def env_cls(self) -> type:
-        module, _, cls = self.env_class.partition(":")
-        return getattr(importlib.import_module(module), cls)
-
-    def context_of(self, env_id: str) -> torch.Tensor:
-        """The fixed context of ``env_id`` (the default context for the training id)."""
-        if env_id == self.train_id:
-            return self.context_space.default_tensor()
-        return self.context_space.make(self.contexts[env_id])
-
-
 _DOMAINS: dict[str, DomainSpec] = {}  # train id -> spec
 _IDS: dict[str, DomainSpec] = {}  # every id -> spec
 _LOADED = False
+# the built-in domains' spec modules, in registration order (each defines SPECS)
+_BUILTIN_SPECS = (
+    "morl_trl.envs.lava_grid.spec",
+    "morl_trl.envs.lunar_lander.spec",
+    "morl_trl.envs.mario.spec",
+    "morl_trl.envs.mujoco.spec",
+)
 
 
 def register_domain(spec: DomainSpec, *, replace: bool = False) -> DomainSpec:
@@ -116,7 +60,9 @@ def _ensure_loaded() -> None:
     global _LOADED
     if not _LOADED:
         _LOADED = True
-        importlib.import_module("morl_trl.envs.specs")
+        for module in _BUILTIN_SPECS:
+            for spec in importlib.import_module(module).SPECS:
+                register_domain(spec)
 
 
 def _lookup(env_id: str) -> DomainSpec:
@@ -170,14 +116,19 @@ def make_env(
     seed: int | None = None,
     **overrides: Any,
 ):
-    """Build a batched environment by id.
+    """Build a batched environment by id: the domain's :class:`~morl_trl.envs.ContextualMOEnv`.
 
-    A ``*DR-*`` (training) id gives the fixed env wrapped in
-    :class:`~morl_trl.transforms.DomainRandomization` (a new context per sub-env at each of
-    its resets), as a :class:`~morl_trl.transforms.DomainRandomizedEnv` (a ``TransformedEnv``
-    whose auto-resets take the env's lean path); any other id gives its fixed context. Keyword ``overrides`` that name
-    context parameters fix those parameters (also under domain randomization); other
-    keywords go to the env constructor.
+    Every id gives the same kind of object (no transform), so ``env.append_transform(t)``
+    returns a new ``TransformedEnv`` for every id. A ``*DR-*`` (training) id gives the env
+    with a :class:`~morl_trl.envs.ContextSampler` (``ContextSampler(space, fixed=overrides,
+    seed=seed)``): a new context per sub-env at each of its resets, drawn inside the env
+    (auto-resets included), unless ``env.reset(td)`` gives one in ``td["context"]``. Any
+    other id gives its fixed context. Keyword ``overrides`` that name context parameters fix
+    those parameters (also under domain randomization); other keywords go to the env
+    constructor.
+
+    Seeding: ``seed`` seeds the sub-envs and the context stream (the same ``seed`` gives the
+    same contexts, ``env.set_seed(s)`` re-seeds both).
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -198,17 +149,15 @@ def make_env(
     context = space.make(base)
     cls = spec.env_cls()
     params = inspect.signature(cls.__init__).parameters
+    reserved = ("self", "num_envs", "context", "device", "seed", "context_sampler")
     if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
-        accepted = [p for p in params if p not in ("self", "num_envs", "context", "device", "seed")]
+        accepted = [p for p in params if p not in reserved]
         unknown = sorted(set(kwargs) - set(accepted))
         if unknown:
             raise ValueError(
                 f"{env_id}: unknown keyword(s) {unknown}; valid are the context parameters "
                 f"{list(space.names)} and the env options {accepted}"
             )
-    env = cls(num_envs=num_envs, context=context, device=device, seed=seed, **kwargs)
-    if env_id != spec.train_id:
-        return env
-    from morl_trl.transforms.domain_randomization import DomainRandomization, DomainRandomizedEnv
-
-    return DomainRandomizedEnv(env, DomainRandomization(space, seed=seed, fixed=ctx_over))
+    if env_id == spec.train_id:
+        kwargs["context_sampler"] = ContextSampler(space, fixed=ctx_over, seed=seed)
+    return cls(num_envs=num_envs, context=context, device=device, seed=seed, **kwargs)

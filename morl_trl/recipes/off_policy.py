@@ -80,7 +80,8 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
     device = agent.device
 
     def env_factory(num_envs: int, seed: int):
-        return compose_policy_env(make_env(spec.evaluation_ids[0], num_envs=num_envs, seed=seed, device=device),
+        # the training id: the evaluator's contexts, given at every reset, replace the env's draws
+        return compose_policy_env(make_env(cfg.env_id, num_envs=num_envs, seed=seed, device=device),
                                   history_len=cfg.history_len)
 
     return MultiContextEvaluator(
@@ -120,6 +121,13 @@ def _transform_generators(env) -> dict[int, torch.Generator]:
     """The random generators of the env's transforms (domain randomization, preferences), by position."""
     transforms = list(env.transform) if hasattr(env.transform, "__iter__") else [env.transform]
     return {i: t.generator for i, t in enumerate(transforms) if isinstance(getattr(t, "generator", None), torch.Generator)}
+
+
+def _context_sampler(env):
+    """The context sampler of the env under the transforms (domain randomization), if any."""
+    while hasattr(env, "base_env"):
+        env = env.base_env
+    return getattr(env, "context_sampler", None)
 
 
 def _eval_line(summary: dict) -> str:
@@ -180,6 +188,9 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
         env.set_seed(cfg.seed + frames)
         for i, gen in _transform_generators(env).items():
             gen.set_state(state["transform_generators"][i])
+        sampler = _context_sampler(env)
+        if sampler is not None and state.get("context_sampler") is not None:
+            sampler.set_state(state["context_sampler"])  # the checkpoint's context stream continues
         set_rng_state(state["rng"])
         agent.on_frames(frames)
         log.note(f"resumed from {ckpt.name} at {frames} frames")
@@ -188,6 +199,7 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
         state = dict(
             agent=agent.state_dict(), env_transforms=env.state_dict(),
             transform_generators={i: g.get_state() for i, g in _transform_generators(env).items()},
+            context_sampler=None if _context_sampler(env) is None else _context_sampler(env).get_state(),
             frames=frames, updates=updates,
             next_eval=next_eval, next_ckpt=next_ckpt, rng=rng_state(), config=cfg.to_dict(),
         )

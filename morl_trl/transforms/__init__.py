@@ -8,8 +8,9 @@ work inside and outside ``SerialEnv``/``ParallelEnv``.
 transform                  writes
 =========================  ===================================================================
 DomainRandomization        ``"context"`` in the reset TensorDict: a new context per sub-env
-                           at each of its resets (the env reads it); ``make_env`` of a DR id
-                           gives ``DomainRandomizedEnv(env, DomainRandomization(...))``
+                           at each of its resets (the env reads it), for envs you compose
+                           yourself; ``make_env`` of a DR id needs none (its env draws
+                           with its own :class:`~morl_trl.envs.ContextSampler`)
 StateActionHistory         ``(s_{t-2}, a_{t-2}, s_{t-1}, a_{t-1}, s_t)`` into ``"observation"``
                            (default, replacing it) or ``out_key``
 ContextObservation         ``[obs, c]`` (``c`` optionally normalized) into ``"observation"``
@@ -43,7 +44,7 @@ Example:
 
 from morl_trl.transforms.compose import compose_policy_env, compose_training_env
 from morl_trl.transforms.context_observation import ContextObservation
-from morl_trl.transforms.domain_randomization import DomainRandomization, DomainRandomizedEnv
+from morl_trl.transforms.domain_randomization import DomainRandomization
 from morl_trl.transforms.history import StateActionHistory
 from morl_trl.transforms.preference import PreferenceConditioning
 from morl_trl.transforms.returns import DiscountedVectorReturn
@@ -53,7 +54,6 @@ __all__ = [
     "ContextObservation",
     "DiscountedVectorReturn",
     "DomainRandomization",
-    "DomainRandomizedEnv",
     "LinearScalarization",
     "PreferenceConditioning",
     "StateActionHistory",

@@ -1,46 +1,47 @@
-"""Domain randomization: a new context for each sub-env at each of its resets."""
+"""Domain randomization as a transform: a new context for each sub-env at each of its resets.
+
+The env-level mechanism is :class:`~morl_trl.envs.ContextSampler` (what ``make_env`` gives a
+``*DR-*`` id); :class:`DomainRandomization` is its public face for users composing their own
+envs (a :class:`~morl_trl.envs.ContextualMOEnv` built directly, inside ``SerialEnv`` /
+``ParallelEnv``, ...).
+"""
 
 from __future__ import annotations
 
-import inspect
+import copy
 from collections.abc import Callable, Mapping
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.envs import TransformedEnv
-from torchrl.envs.transforms import Transform
 
 from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.transforms._utils import SeededTransform, innermost_env, reset_mask
 
-__all__ = ["DomainRandomization", "DomainRandomizedEnv"]
+__all__ = ["DomainRandomization"]
 
 Sampler = Callable[..., torch.Tensor]
-
-
-def _accepts_previous(fn: Callable) -> bool:
-    try:
-        params = inspect.signature(fn).parameters.values()
-    except (TypeError, ValueError):
-        return False
-    return any(p.name == "previous" or p.kind is p.VAR_KEYWORD for p in params)
 
 
 class DomainRandomization(SeededTransform):
     """Draws a fresh context for every sub-env being reset, before the base env resets.
 
     The context is written to the reset TensorDict under ``context_key``, which the base env
-    reads (see :class:`~morl_trl.envs.base.ContextualMOEnv`); sub-envs that are not being reset
-    (``"_reset"`` false) keep theirs. ``make_env`` of a ``*DR-*`` id returns the fixed env
-    wrapped in this transform. It works inside and outside ``SerialEnv``/``ParallelEnv``.
+    reads (see :class:`~morl_trl.envs.ContextualMOEnv`); sub-envs that are not being reset
+    (``"_reset"`` false) keep theirs. A ``context`` already in the reset TensorDict is
+    replaced by the draw. It works inside and outside ``SerialEnv``/``ParallelEnv``. The
+    draws, their checks and the fixed values are those of a
+    :class:`~morl_trl.envs.ContextSampler` (``self.context_sampler``); ``make_env`` of a
+    ``*DR-*`` id puts that sampler in the env itself instead of adding this transform.
 
     Contexts come from ``context_space.sample`` (independent uniform in the ranges; domains
     with procedural contexts override it), or from ``sampler``. When the sampling function
     takes a ``previous`` keyword, it receives the current contexts ``[n, c]`` of the sub-envs
-    being reset. Every draw is checked with ``context_space.validate(..., check_range=True)``
-    before ``fixed`` parameters are written over it, so a sampler returning values outside the
-    space raises a ``ValueError`` (naming the parameter and value) and nothing is reset.
+    being reset. Every custom draw is checked with ``context_space.validate(...,
+    check_range=True)`` before ``fixed`` parameters are written over it, so a sampler
+    returning values outside the space raises a ``ValueError`` (naming the parameter and
+    value) and nothing is reset.
 
     Seeding: ``seed`` seeds the transform's own generator; without it, the generator follows
     the env's seed (see :class:`~morl_trl.transforms._utils.SeededTransform`), so
@@ -74,54 +75,51 @@ class DomainRandomization(SeededTransform):
         context_key: str = "context",
     ) -> None:
         super().__init__(in_keys=[], out_keys=[])
-        if not isinstance(context_space, ContextSpace):
-            raise ValueError(f"context_space must be a ContextSpace, got {type(context_space).__name__}")
-        if sampler is not None and not callable(sampler):
-            raise ValueError(f"sampler must be callable sampler(n, generator) -> [n, c], got {sampler!r}")
-        self.context_space = context_space
-        self.sampler = sampler
+        self.context_sampler = ContextSampler(context_space, fixed=fixed, sampler=sampler)
         self.context_key = context_key
-        self.fixed = {context_space.names[context_space.index(k)]: float(v) for k, v in (fixed or {}).items()}
-        context_space.make(self.fixed)  # NaN / non-positive fixed values fail here, not at the first reset
-        self._fixed_idx = torch.tensor([context_space.index(k) for k in self.fixed], dtype=torch.long)
-        self._fixed_val = torch.tensor(list(self.fixed.values()), dtype=torch.float32)
-        fn = sampler if sampler is not None else context_space.sample
-        self._pass_previous = _accepts_previous(fn)
-        # ContextSpace.sample draws inside the ranges by construction; custom draws are checked
-        self._check_draws = sampler is not None or type(context_space).sample is not ContextSpace.sample
         self._checked_parent = False
         self._init_seed(seed)
+        self.context_sampler.generator = self.generator  # one stream, seeded by SeededTransform's rules
+        self.context_sampler._seed = self._seed
+
+    @property
+    def context_space(self) -> ContextSpace:
+        return self.context_sampler.context_space
+
+    @property
+    def fixed(self) -> dict[str, float]:
+        return self.context_sampler.fixed
+
+    @property
+    def sampler(self) -> Sampler | None:
+        return self.context_sampler.sampler
+
+    @sampler.setter
+    def sampler(self, fn: Sampler | None) -> None:
+        self.context_sampler.sampler = fn
+
+    @property
+    def _pass_previous(self) -> bool:
+        return self.context_sampler.takes_previous
+
+    def set_seed(self, seed: int) -> None:
+        super().set_seed(seed)
+        sampler = self.__dict__.get("context_sampler")
+        if sampler is not None:
+            sampler._seed = self._seed
+
+    def clone(self):
+        other = super().clone()  # (a shallow copy with a copy of the generator)
+        sampler = other.context_sampler = copy.copy(self.context_sampler)
+        sampler.generator = other.generator
+        return other
 
     # ------------------------------------------------------------------ sampling
     def sample(self, n: int, previous: torch.Tensor | None = None) -> torch.Tensor:
         """Draw ``n`` validated contexts ``[n, c]`` (CPU); ``previous`` is passed on if the sampler takes it."""
-        space = self.context_space
-        kwargs = {}
-        if self._pass_previous:
-            if previous is None:
-                previous = space.default_tensor().expand(n, space.dim)
-            kwargs["previous"] = previous.detach().to("cpu", torch.float32)
-        if self.sampler is None:
-            ctx = space.sample(n, generator=self.generator, **kwargs)
-        else:
-            ctx = self.sampler(n, self.generator, **kwargs)
-        ctx = torch.as_tensor(ctx)
-        if ctx.shape != (n, space.dim):
-            raise ValueError(
-                f"the context sampler returned shape {tuple(ctx.shape)}; expected ({n}, {space.dim}) "
-                f"with parameters {list(space.names)}"
-            )
-        ctx = ctx.to("cpu", torch.float32)
-        if self._check_draws:
-            try:
-                space.validate(ctx, check_range=True)
-            except ValueError as err:
-                raise ValueError(f"the context sampler returned an invalid context: {err}") from None
-        if self.fixed:
-            ctx = ctx.clone()
-            ctx[:, self._fixed_idx] = self._fixed_val
-            space.validate(ctx)
-        return ctx
+        if self._seed is None:
+            self.set_seed(int(torch.randint(0, 2**62, (1,)).item()))
+        return self.context_sampler.draw(n, previous)
 
     # ------------------------------------------------------------------ env hooks
     def _check_parent(self, parent) -> None:
@@ -184,54 +182,3 @@ class DomainRandomization(SeededTransform):
         extra = f", fixed={self.fixed}" if self.fixed else ""
         sampler = f", sampler={getattr(self.sampler, '__name__', self.sampler)}" if self.sampler else ""
         return f"{type(self).__name__}({self.context_space!r}{sampler}{extra}, seed={self._seed})"
-
-
-class DomainRandomizedEnv(TransformedEnv):
-    """``TransformedEnv(env, DomainRandomization(...))`` whose auto-resets skip TorchRL's
-    per-call bookkeeping: what ``make_env`` returns for a ``*DR-*`` id.
-
-    While the transform is a lone :class:`DomainRandomization` over a
-    :class:`~morl_trl.envs.base.ContextualMOEnv`, ``step_and_maybe_reset`` (what collectors
-    call) takes the env's lean path, with the reset contexts drawn by the transform exactly
-    as in a reset: the same TensorDicts as TorchRL's generic path, at a fraction of its cost
-    per call. With more transforms (``append_transform``) it is a plain ``TransformedEnv``.
-
-    Example:
-        >>> from morl_trl.envs.toy import ToyContextEnv, TOY_CONTEXT
-        >>> env = DomainRandomizedEnv(ToyContextEnv(num_envs=2), DomainRandomization(TOY_CONTEXT, seed=0))
-        >>> td = env.reset().set("action", torch.ones(2, dtype=torch.long))
-        >>> out, td = env.step_and_maybe_reset(td)
-        >>> out["next", "reward"].shape, TOY_CONTEXT.contains(td["context"])
-        (torch.Size([2, 2]), True)
-    """
-
-    def _step_and_maybe_reset(self, tensordict: TensorDictBase) -> tuple[TensorDictBase, TensorDictBase]:
-        transform = self.transform
-        lean = self.__dict__.get("_lean_base")
-        if lean is None or lean[0] is not transform:  # (re)checked whenever the transform changes
-            lean = self.__dict__["_lean_base"] = (transform, self._lean_base_env(transform))
-        base = lean[1]
-        if (
-            base is not None
-            and not self.run_type_checks
-            and not self.__dict__.get("_torchrl_native_autoreset", False)
-            and base._lean_step_applies(tensordict)
-        ):
-            return base._lean_step_and_maybe_reset(tensordict, draw_contexts=self._draw_contexts)
-        return super()._step_and_maybe_reset(tensordict)
-
-    def _lean_base_env(self, transform) -> ContextualMOEnv | None:
-        """The base env when its lean path applies with ``transform`` alone, else ``None``."""
-        base = self.base_env
-        if (
-            type(transform) is DomainRandomization
-            and transform.context_key == "context"
-            and isinstance(base, ContextualMOEnv)
-            and type(transform)._post_step_mdp_hooks is Transform._post_step_mdp_hooks
-        ):
-            return base
-        return None
-
-    def _draw_contexts(self, mask: torch.Tensor) -> torch.Tensor | None:
-        transform, base = self.__dict__["_lean_base"]
-        return transform.draw(mask, base._context)

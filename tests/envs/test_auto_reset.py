@@ -12,7 +12,8 @@ from tensordict import TensorDict
 from torchrl.envs import EnvBase
 
 from morl_trl.envs import make_env
-from morl_trl.transforms import DomainRandomization, DomainRandomizedEnv, StateActionHistory
+from morl_trl.envs import ContextSampler, ContextualMOEnv
+from morl_trl.transforms import StateActionHistory
 from tests.mocks import TOY_CONTEXT, ToyContextEnv
 
 
@@ -70,10 +71,12 @@ def test_toy_env_matches_torchrl_path_with_hand_checked_reset_rows():
 
 
 def test_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     assert _run_both(lambda: make_env("MOLunarLanderDefault-v0", num_envs=4, seed=3), steps=300) >= 4
 
 
 def test_continuous_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     assert _run_both(lambda: make_env("MOLunarLanderContinuousDefault-v0", num_envs=3, seed=1), steps=200) >= 2
 
 
@@ -105,46 +108,56 @@ def test_mujoco_matches_torchrl_path(env_id):
 
 
 # ---------------------------------------------------------------- domain randomization
+def _toy_dr(seed=0, sampler_seed=5, num_envs=3):
+    return ToyContextEnv(num_envs=num_envs, seed=seed, context_sampler=ContextSampler(TOY_CONTEXT, seed=sampler_seed))
+
+
 def test_dr_env_matches_torchrl_path_and_draws_the_same_contexts():
-    make = lambda: DomainRandomizedEnv(ToyContextEnv(num_envs=3, seed=0), DomainRandomization(TOY_CONTEXT, seed=5))  # noqa: E731
-    assert _run_both(make, steps=40) >= 10
+    assert _run_both(_toy_dr, steps=40) >= 10
+    # the lean path drew exactly the stream of ContextSampler(TOY_CONTEXT, seed=5)
+    env, stream = _toy_dr(), torch.Generator().manual_seed(5)
+    td = env.reset()
+    torch.testing.assert_close(td["context"], TOY_CONTEXT.sample(3, generator=stream))
+    td["action"] = torch.ones(3, dtype=torch.long)
+    for _ in range(3):  # every sub-env reaches position 3 at the third step
+        out, td = env.step_and_maybe_reset(td.set("action", torch.ones(3, dtype=torch.long)))
+    assert out["next", "done"].all()
+    torch.testing.assert_close(td["context"], TOY_CONTEXT.sample(3, generator=stream))
+    torch.testing.assert_close(out["next", "context"], out["context"])  # the ended episodes' contexts
 
 
 def test_dr_lunar_lander_matches_torchrl_path():
+    pytest.importorskip("Box2D")
     env = make_env("MOLunarLanderDR-v0", num_envs=4, seed=2)
-    assert isinstance(env, DomainRandomizedEnv)
+    assert isinstance(env, ContextualMOEnv) and env.context_sampler is not None
     assert _run_both(lambda: make_env("MOLunarLanderDR-v0", num_envs=4, seed=2), steps=300) >= 4
 
 
-def test_dr_env_with_more_transforms_is_a_plain_transformed_env():
-    def make():
-        env = make_env("MOLunarLanderDR-v0", num_envs=2, seed=0)
-        env.append_transform(StateActionHistory(2))
-        return env
+def test_dr_env_with_more_transforms_matches_torchrl_path():
+    pytest.importorskip("Box2D")
 
-    env = make()
-    calls = []
-    env.base_env._lean_step_and_maybe_reset = lambda *a, **k: calls.append(1)
-    td = env.reset().set("action", torch.zeros(2, dtype=torch.long))
-    env.step_and_maybe_reset(td)
-    assert calls == []  # TorchRL's path: the history transform sees every step and reset
+    def make():
+        return make_env("MOLunarLanderDR-v0", num_envs=2, seed=0).append_transform(StateActionHistory(2))
+
     assert _run_both(make, steps=150) >= 1
 
 
 def test_dr_bad_draw_raises_and_resets_nothing():
     bad = torch.tensor([[3.0, 0.0]] * 2)
-    env = DomainRandomizedEnv(ToyContextEnv(num_envs=2), DomainRandomization(TOY_CONTEXT, sampler=lambda n, g: bad[:n]))
-    env.transform.sampler = None  # the first reset draws from the space
-    td = env.reset()
-    env.transform.sampler = lambda n, g: bad[:n]
+    sampler = ContextSampler(TOY_CONTEXT)
+    env = ToyContextEnv(num_envs=2, context_sampler=sampler)
+    td = env.reset()  # the first reset draws from the space
+    sampler.sampler = lambda n, g: bad[:n]
     td["action"] = torch.ones(2, dtype=torch.long)
     for _ in range(2):
         _, td = env.step_and_maybe_reset(td)
     td["action"] = torch.ones(2, dtype=torch.long)
-    context = env.base_env.context
-    with pytest.raises(ValueError, match="'speed' is 3.0"):
+    context, pos = env.context, env._pos.clone()
+    with pytest.raises(ValueError, match=r"'speed' is 3.0 \(row 0\), outside its range"):
         env.step_and_maybe_reset(td)  # third step: position 3, both done; the draw is rejected
-    assert torch.equal(env.base_env.context, context)
+    assert torch.equal(env.context, context)
+    assert env._pos.tolist() == [3.0, 3.0] and env._step_count.tolist() == [3, 3]  # nothing reset
+    assert torch.equal(pos + 1, env._pos)
 
 
 @pytest.mark.parametrize("env_id, steps", [("MOLavaGridDR-v0", 300), ("MOHopperDR-v5", 120)])
@@ -152,7 +165,7 @@ def test_dr_ids_of_other_domains_match_torchrl_path(env_id, steps):
     if "Hopper" in env_id:
         pytest.importorskip("mujoco")
     make = lambda: make_env(env_id, num_envs=4, seed=1)  # noqa: E731
-    assert isinstance(make(), DomainRandomizedEnv)
+    assert isinstance(make(), ContextualMOEnv) and make().context_sampler is not None
     assert _run_both(make, steps=steps) >= 1
 
 

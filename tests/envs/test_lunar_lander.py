@@ -23,7 +23,7 @@ pytest.importorskip("Box2D")
 from morl_trl.envs import make_env  # noqa: E402
 from morl_trl.envs.lunar_lander import MOLunarLanderEnv  # noqa: E402
 from morl_trl.envs.lunar_lander.random_streams import BlockUniformStreams  # noqa: E402
-from morl_trl.envs.specs.lunar_lander import LUNAR_LANDER_CONTEXT  # noqa: E402
+from morl_trl.envs.lunar_lander.spec import LUNAR_LANDER_CONTEXT  # noqa: E402
 
 NOOP, LEFT, MAIN, RIGHT = range(4)
 FPS = 50
@@ -77,8 +77,8 @@ def test_spaces_and_names():
     assert cont.action_spec.shape == (3, 2)
     assert cont.action_spec.space.low.min() == -1 and cont.action_spec.space.high.max() == 1
     assert make_env("MOLunarLanderContinuousHard-v0").continuous
-    assert make_env("MOLunarLanderContinuousDR-v0").base_env.continuous
-    assert not make_env("MOLunarLanderDR-v0").base_env.continuous
+    assert make_env("MOLunarLanderContinuousDR-v0").continuous
+    assert not make_env("MOLunarLanderDR-v0").continuous
     assert make_env("MOLunarLanderDefault-v0", max_episode_steps=7).max_episode_steps == 7
 
 

@@ -335,10 +335,9 @@ def test_zero_shot_env_draws_training_stages_and_loads_them():
     env = make_env("MOSuperMarioBrosZeroShot-v2", num_envs=2, seed=5)
     for _ in range(2):
         ctx = env.reset()["context"]
-        base = env.base_env
         for i, stage in enumerate(map(tuple, ctx.long().tolist())):
             assert stage in TRAIN_STAGES
-            assert base._games[i].loaded_stage() == stage
+            assert env._games[i].loaded_stage() == stage
     check_env_specs(env)
     env.close()
 

@@ -17,9 +17,6 @@ from morl_trl.envs.mujoco.base import load_model  # noqa: E402
 DOMAIN_IDS = [e for e in list_envs() if e.startswith(("MOHopper", "MOHalfCheetah", "MOHumanoid"))]
 
 
-def base_of(env):
-    return getattr(env, "base_env", env)
-
 
 def actions(env, steps: int, seed: int = 0) -> torch.Tensor:
     """``[steps, num_envs, nu]`` uniform actions in the env's bounds."""
@@ -208,13 +205,18 @@ def test_dr_gives_a_context_per_subenv_and_per_episode():
     first = td["context"].clone()
     assert space.contains(first)
     assert len({tuple(c.tolist()) for c in first}) == 4
-    models = base_of(env).mj_models
+    models = env.mj_models
     for i in range(4):  # the models carry the sampled contexts
         np.testing.assert_allclose(models[i].body_mass[1:5], first[i, :4].numpy(), rtol=1e-6)
         np.testing.assert_allclose(models[i].pair_friction[0, :2], first[i, 7].item(), rtol=1e-6)
-    second = env.reset(td.set("_reset", torch.tensor([[True], [False], [False], [True]])))["context"]
+    # a partial reset without a context entry draws for the reset sub-envs only
+    env.reset(td.set("_reset", torch.tensor([[True], [False], [False], [True]])).select("_reset"))
+    second = env.context  # (TorchRL zeroes the rows not reset in the returned TensorDict: they were not given)
     assert not torch.equal(second[0], first[0]) and not torch.equal(second[3], first[3])
     assert torch.equal(second[1:3], first[1:3])
+    # one with the current contexts in the reset TensorDict keeps them (an explicit context)
+    third = env.reset(td.set("context", second).set("_reset", torch.tensor([[True], [True], [False], [False]])))
+    assert torch.equal(third["context"], second)
 
 
 def test_same_seed_same_contexts_and_returns():

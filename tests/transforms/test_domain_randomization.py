@@ -8,6 +8,7 @@ from torchrl.envs.utils import check_env_specs
 
 from morl_trl.envs import registry
 from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.transforms import DomainRandomization
 from tests.mocks import TOY_CONTEXT, ToyContextEnv
 from tests.transforms.helpers import ScriptedPolicy, episode_starts
@@ -161,7 +162,7 @@ def test_pickle_round_trip_keeps_the_stream():
     assert clone.fixed == {"bias": 0.5}
 
 
-def test_make_env_of_a_dr_id_is_the_fixed_env_plus_the_transform(monkeypatch):
+def test_make_env_of_a_dr_id_is_the_fixed_env_with_a_context_sampler(monkeypatch):
     registry._ensure_loaded()
     monkeypatch.setattr(registry, "_IDS", dict(registry._IDS))
     monkeypatch.setattr(registry, "_DOMAINS", dict(registry._DOMAINS))
@@ -171,11 +172,13 @@ def test_make_env_of_a_dr_id_is_the_fixed_env_plus_the_transform(monkeypatch):
         objective_names=("progress", "time"),
     ))
     env = registry.make_env("ToyTestDR-v0", num_envs=3, seed=6, bias=0.25)
-    assert isinstance(env, TransformedEnv) and isinstance(env.transform, DomainRandomization)
+    assert type(env) is ToyContextEnv and isinstance(env.context_sampler, ContextSampler)
+    assert env.context_sampler.fixed == {"bias": 0.25}
     expected = first_draws(6, 3)
     expected[:, 1] = 0.25
     torch.testing.assert_close(env.reset()["context"], expected)
     fixed = registry.make_env("ToyTestFast-v0", num_envs=2)
+    assert type(fixed) is ToyContextEnv and fixed.context_sampler is None
     assert fixed.reset()["context"].tolist() == [[2.0, 0.0]] * 2
 
 

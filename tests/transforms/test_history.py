@@ -182,7 +182,7 @@ def test_paper_history_widths_on_the_real_domains(env_id, simulator, width):
         env = make_env(env_id, num_envs=2, seed=0)
     except (ImportError, AttributeError) as err:  # the domain is not in this checkout
         pytest.skip(f"{env_id} unavailable: {err}")
-    env.append_transform(StateActionHistory(2))
+    env = env.append_transform(StateActionHistory(2))
     assert env.observation_spec["observation"].shape == (2, width)
     td = env.rollout(3, break_when_any_done=False)
     assert td["next", "observation"].shape == (2, 3, width)

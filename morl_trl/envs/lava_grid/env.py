@@ -13,6 +13,7 @@ from tensordict import TensorDictBase
 from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.lava_grid.context import (
     AGENT_DIR,
     AGENT_X,
@@ -71,8 +72,8 @@ class MOLavaGridEnv(ContextualMOEnv):
         randomize: draw a fresh randomized map (the paper's domain randomization, on
             ``device`` with the env's own generator) for every sub-env at each of its resets,
             ignoring any context in the reset TensorDict. ``make_env("MOLavaGridDR-v0")`` does
-            the same through the :class:`~morl_trl.transforms.DomainRandomization` transform
-            instead (its CPU generator; the same distribution).
+            the same with a :class:`~morl_trl.envs.ContextSampler` over this space instead
+            (its CPU generator; the same distribution), which honours an explicit context.
 
     Example:
         >>> import torch
@@ -95,6 +96,7 @@ class MOLavaGridEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         max_episode_steps: int = 256,
         randomize: bool = False,
         context_space: LavaGridContextSpace = LAVA_GRID_CONTEXT,
@@ -106,6 +108,7 @@ class MOLavaGridEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         self.randomize = bool(randomize)
         dev = self.device

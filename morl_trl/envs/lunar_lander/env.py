@@ -17,9 +17,10 @@ from Box2D import _Box2D
 from torchrl.data import Bounded, Categorical, Unbounded
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.lunar_lander import physics as P
 from morl_trl.envs.lunar_lander.random_streams import BlockUniformStreams
-from morl_trl.envs.specs.lunar_lander import LUNAR_LANDER_CONTEXT, OBJECTIVES
+from morl_trl.envs.lunar_lander.spec import LUNAR_LANDER_CONTEXT, OBJECTIVES
 
 __all__ = ["MOLunarLanderEnv"]
 
@@ -173,6 +174,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         continuous: bool = False,
         max_episode_steps: int = 1000,
     ) -> None:
@@ -185,6 +187,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         n = num_envs
         self._all = np.arange(n)

@@ -12,6 +12,7 @@ import torch
 from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.mario._nes import RGB_CHANNELS, SCREEN_HEIGHT, SCREEN_WIDTH, require_emulator
 from morl_trl.envs.mario.frames import FramePipeline
 from morl_trl.envs.mario.game import REWARD_SCALE, SIMPLE_MOVEMENT, SIMPLE_MOVEMENT_BUTTONS, MarioStage
@@ -100,7 +101,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     """Multi-objective Super Mario Bros.: N emulators, one stage each, stepped as a batch.
 
     * context ``[*B, 2]``: the stage ``[world, level]`` (:class:`MarioStageSpace`); set it
-      through a reset TensorDict or :class:`~morl_trl.transforms.DomainRandomization`
+      through a reset TensorDict or a ``ContextSampler`` (``context_sampler=``)
       (``make_env("MOSuperMarioBrosZeroShot-v2")`` draws among the 31 training stages);
     * action ``[*B]``: one of the 7 ``SIMPLE_MOVEMENT`` button sets, held for
       ``frame_skip`` raw frames;
@@ -161,6 +162,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         max_episode_steps: int = 500,
         frame_skip: int = 4,
         num_threads: int | None = None,
@@ -181,6 +183,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         self.frame_skip = frame_skip
         self.num_threads = min(num_threads, num_envs)

@@ -1,7 +1,9 @@
 """MO-Hopper, MO-HalfCheetah and MO-Humanoid as batched contextual TorchRL environments.
 
-Importing this package needs the ``mujoco`` extra (``pip install morl-trl[mujoco]``). The XML
-assets beside it derive from Gymnasium's (MIT); see ``assets/GYMNASIUM_LICENSE.txt``.
+The envs need the ``mujoco`` extra (``pip install morl-trl[mujoco]``); importing this package
+loads no simulator (the envs import ``mujoco`` on first use; :mod:`.spec`, the context spaces
+and ids, is data only). The XML assets beside it derive from Gymnasium's (MIT); see
+``assets/GYMNASIUM_LICENSE.txt``.
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -10,9 +12,24 @@ Example:
     torch.Size([8, 4, 3])
 """
 
-from morl_trl.envs.mujoco.base import MujocoContextEnv
-from morl_trl.envs.mujoco.half_cheetah import MOHalfCheetahEnv
-from morl_trl.envs.mujoco.hopper import MOHopperEnv
-from morl_trl.envs.mujoco.humanoid import MOHumanoidEnv
-
 __all__ = ["MOHalfCheetahEnv", "MOHopperEnv", "MOHumanoidEnv", "MujocoContextEnv"]
+
+_MODULES = {
+    "MujocoContextEnv": "base",
+    "MOHalfCheetahEnv": "half_cheetah",
+    "MOHopperEnv": "hopper",
+    "MOHumanoidEnv": "humanoid",
+}
+
+
+def __getattr__(name: str):
+    module = _MODULES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(f"morl_trl.envs.mujoco.{module}"), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)

@@ -33,6 +33,7 @@ from mujoco.batch import Batch
 from torchrl.data import Bounded, Unbounded
 
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.context import ContextSpace
 
 __all__ = ["MujocoContextEnv", "load_model"]
@@ -109,6 +110,7 @@ class MujocoContextEnv(ContextualMOEnv):
         context: torch.Tensor | None = None,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        context_sampler: ContextSampler | None = None,
         max_episode_steps: int = 1000,
         num_threads: int | None = None,
     ) -> None:
@@ -120,6 +122,7 @@ class MujocoContextEnv(ContextualMOEnv):
             device=device,
             seed=seed,
             max_episode_steps=max_episode_steps,
+            context_sampler=context_sampler,
         )
         if num_threads is None:
             num_threads = min(num_envs, _usable_cpus())

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 
 from morl_trl.envs.mujoco.base import MujocoContextEnv
-from morl_trl.envs.specs.mujoco import CHEETAH_CONTEXT
+from morl_trl.envs.mujoco.spec import CHEETAH_CONTEXT
 
 __all__ = ["MOHalfCheetahEnv"]
 

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 
 from morl_trl.envs.mujoco.base import MujocoContextEnv
-from morl_trl.envs.specs.mujoco import HOPPER_CONTEXT
+from morl_trl.envs.mujoco.spec import HOPPER_CONTEXT
 
 __all__ = ["MOHopperEnv"]
 

@@ -1,17 +1,17 @@
 """MO-SuperMarioBros (SPEC §1.4): 32 stage ids, the zero-shot training id, 8 evaluation stages.
 
-Data only: imports no emulator (nes-py / gym).
+Data only: imports no emulator (nes-py / gym) and not the registry, which reads :data:`SPECS`.
 """
 
 from morl_trl.envs.mario.stages import EVAL_STAGES, MARIO_STAGE_SPACE, STAGES
-from morl_trl.envs.registry import DomainSpec, register_domain
+from morl_trl.envs.spec import DomainSpec
 
 
 def _stage_id(world: int, level: int) -> str:
     return f"MOSuperMarioBros-{world}-{level}-v2"
 
 
-register_domain(
+SPECS = (
     DomainSpec(
         name="MO-SuperMarioBros",
         train_id="MOSuperMarioBrosZeroShot-v2",  # every stage but 3-3, uniformly per episode
@@ -27,5 +27,5 @@ register_domain(
         train_frames=3_000_000,
         eval_interval=100_000,
         eval_weights=32,
-    )
+    ),
 )

@@ -1,13 +1,16 @@
-"""MO-LavaGrid (SPEC section 1.3): procedural maps for training, eight hand-drawn maps for evaluation."""
+"""MO-LavaGrid (SPEC section 1.3): procedural maps for training, eight hand-drawn maps for evaluation.
+
+Data only: imports not the registry, which reads :data:`SPECS`.
+"""
 
 from morl_trl.envs.lava_grid.context import LAVA_GRID_CONTEXT, evaluation_maps
-from morl_trl.envs.registry import DomainSpec, register_domain
+from morl_trl.envs.spec import DomainSpec
 
 # the order of SPEC's id list
 _SUITE = ("CheckerBoard", "Smiley", "Snake", "Islands", "Labyrinth", "Maze", "Corridor", "Room")
 _MAPS = evaluation_maps()
 
-register_domain(
+SPECS = (
     DomainSpec(
         name="MO-LavaGrid",
         train_id="MOLavaGridDR-v0",
@@ -24,5 +27,5 @@ register_domain(
         history_len=0,
         train_frames=5_000_000,
         eval_interval=50_000,
-    )
+    ),
 )

@@ -1,7 +1,10 @@
-"""MO-Hopper, MO-HalfCheetah, MO-Humanoid (SPEC §1.2): contexts are masses, damping, friction."""
+"""MO-Hopper, MO-HalfCheetah, MO-Humanoid (SPEC §1.2): contexts are masses, damping, friction.
+
+Data only: imports no simulator (``mujoco``) and not the registry, which reads :data:`SPECS`.
+"""
 
 from morl_trl.envs.context import ContextSpace
-from morl_trl.envs.registry import DomainSpec, register_domain
+from morl_trl.envs.spec import DomainSpec
 
 # ---------------------------------------------------------------- Hopper
 _HOPPER_MASS = ("torso", "thigh", "leg", "foot")
@@ -97,25 +100,25 @@ _HUMANOID = {
     "Hard": _humanoid((8.9075, 2.2619, 6.6162, 0.7, 0.6, 0.5, 8.0, 7.0, 6.0, 0.1, 0.1, 5.0, 5.0), _LOW_DAMPING),
 }
 
-for _name, _space, _contexts, _objectives, _ref, _frames in (
-    ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3, 3_000_000),
-    ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0), 5_000_000),
-    ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0), 10_000_000),
-):
-    register_domain(
-        DomainSpec(
-            name=f"MO-{_name}",
-            train_id=f"MO{_name}DR-v5",
-            env_class=f"morl_trl.envs.mujoco:MO{_name}Env",
-            context_space=_space,
-            contexts={f"MO{_name}{k}-v5": v for k, v in _contexts.items()},
-            evaluation_ids=tuple(f"MO{_name}{k}-v5" for k in _contexts),
-            objective_names=_objectives,
-            gamma=0.99,
-            hv_ref_point=_ref,
-            max_episode_steps=1000,
-            history_len=2,
-            train_frames=_frames,
-            eval_interval=100_000,
-        )
+SPECS = tuple(
+    DomainSpec(
+        name=f"MO-{_name}",
+        train_id=f"MO{_name}DR-v5",
+        env_class=f"morl_trl.envs.mujoco:MO{_name}Env",
+        context_space=_space,
+        contexts={f"MO{_name}{k}-v5": v for k, v in _contexts.items()},
+        evaluation_ids=tuple(f"MO{_name}{k}-v5" for k in _contexts),
+        objective_names=_objectives,
+        gamma=0.99,
+        hv_ref_point=_ref,
+        max_episode_steps=1000,
+        history_len=2,
+        train_frames=_frames,
+        eval_interval=100_000,
     )
+    for _name, _space, _contexts, _objectives, _ref, _frames in (
+        ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3, 3_000_000),
+        ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0), 5_000_000),
+        ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0), 10_000_000),
+    )
+)

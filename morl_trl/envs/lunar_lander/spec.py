@@ -1,7 +1,10 @@
-"""MO-LunarLander (SPEC §1.1): 7 context parameters, 8 (+2) evaluation contexts, 4 objectives."""
+"""MO-LunarLander (SPEC §1.1): 7 context parameters, 8 (+2) evaluation contexts, 4 objectives.
+
+Data only: imports no simulator (Box2D) and not the registry, which reads :data:`SPECS`.
+"""
 
 from morl_trl.envs.context import ContextSpace
-from morl_trl.envs.registry import DomainSpec, register_domain
+from morl_trl.envs.spec import DomainSpec
 
 LUNAR_LANDER_CONTEXT = ContextSpace(
     names=(
@@ -43,22 +46,22 @@ _CONTEXTS = {
 _SUITE = ("Default", "HighGravity", "Windy", "Turbulent", "Hard", "LowMainEngine", "LowSideEngine", "StartRight")
 OBJECTIVES = ("landing", "shaping", "main_fuel", "side_fuel")
 
-for _prefix, _continuous in (("MOLunarLander", False), ("MOLunarLanderContinuous", True)):
-    register_domain(
-        DomainSpec(
-            name="MO-LunarLander" + ("-Continuous" if _continuous else ""),
-            train_id=f"{_prefix}DR-v0",
-            env_class="morl_trl.envs.lunar_lander:MOLunarLanderEnv",
-            context_space=LUNAR_LANDER_CONTEXT,
-            contexts={f"{_prefix}{k}-v0": v for k, v in _CONTEXTS.items()},
-            evaluation_ids=tuple(f"{_prefix}{k}-v0" for k in _SUITE),
-            objective_names=OBJECTIVES,
-            env_kwargs={"continuous": _continuous},
-            gamma=0.99,
-            hv_ref_point=(-101.0, -1001.0, -101.0, -101.0),
-            max_episode_steps=1000,
-            history_len=2,
-            train_frames=3_000_000,
-            eval_interval=50_000,
-        )
+SPECS = tuple(
+    DomainSpec(
+        name="MO-LunarLander" + ("-Continuous" if _continuous else ""),
+        train_id=f"{_prefix}DR-v0",
+        env_class="morl_trl.envs.lunar_lander:MOLunarLanderEnv",
+        context_space=LUNAR_LANDER_CONTEXT,
+        contexts={f"{_prefix}{k}-v0": v for k, v in _CONTEXTS.items()},
+        evaluation_ids=tuple(f"{_prefix}{k}-v0" for k in _SUITE),
+        objective_names=OBJECTIVES,
+        env_kwargs={"continuous": _continuous},
+        gamma=0.99,
+        hv_ref_point=(-101.0, -1001.0, -101.0, -101.0),
+        max_episode_steps=1000,
+        history_len=2,
+        train_frames=3_000_000,
+        eval_interval=50_000,
     )
+    for _prefix, _continuous in (("MOLunarLander", False), ("MOLunarLanderContinuous", True))
+)

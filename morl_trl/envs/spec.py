@@ -1,0 +1,84 @@
+"""A contextual multi-objective domain as data: :class:`DomainSpec`.
+
+Each built-in domain describes itself in a ``spec`` module inside its own folder
+(``morl_trl/envs/<domain>/spec.py``, a tuple ``SPECS`` of :class:`DomainSpec`), which imports
+neither the registry nor a simulator; :mod:`morl_trl.envs.registry` reads those tuples.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from morl_trl.envs.context import ContextSpace
+
+__all__ = ["DomainSpec"]
+
+
+@dataclass(frozen=True)
+class DomainSpec:
+    """A contextual multi-objective domain as data.
+
+    Args:
+        name: human name, e.g. ``"MO-LunarLander"``.
+        train_id: the domain-randomized training id, e.g. ``"MOLunarLanderDR-v0"``.
+        env_class: ``"module:Class"`` of the batched :class:`~torchrl.envs.EnvBase`; imported
+            only when an env is built. The class takes ``num_envs``, ``context``, ``device``,
+            ``seed`` and the ``env_kwargs`` below.
+        context_space: the domain's :class:`ContextSpace`.
+        contexts: every fixed-context id of the domain mapped to its parameter overrides
+            (the rest stays at the default).
+        evaluation_ids: the paper's evaluation suite for ``train_id`` (a subset of ``contexts``).
+        env_kwargs: extra constructor arguments (e.g. ``continuous=True``).
+        gamma: the discount the paper evaluates with.
+        hv_ref_point: the paper's unnormalized hypervolume reference point.
+        objective_names: names of the reward entries, in order.
+        max_episode_steps: the truncation horizon.
+        history_len: the paper's state-action history length (``StateActionHistory``; 0: none).
+        train_frames: the paper's training length in environment frames.
+        eval_interval: the paper's evaluation period in frames.
+        eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
+    """
+
+    name: str
+    train_id: str
+    env_class: str
+    context_space: ContextSpace
+    contexts: Mapping[str, Mapping[str, Any]]
+    evaluation_ids: tuple[str, ...]
+    objective_names: tuple[str, ...]
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    gamma: float = 0.99
+    hv_ref_point: tuple[float, ...] | None = None
+    max_episode_steps: int = 1000
+    # the paper's training and evaluation protocol (SPEC §2, §4)
+    history_len: int = 0
+    train_frames: int = 1_000_000
+    eval_interval: int = 50_000
+    eval_weights: int = 100
+
+    def __post_init__(self) -> None:
+        missing = [e for e in self.evaluation_ids if e not in self.contexts]
+        if missing:
+            raise ValueError(f"{self.name}: evaluation ids {missing} have no context")
+
+    @property
+    def num_objectives(self) -> int:
+        return len(self.objective_names)
+
+    def ids(self) -> list[str]:
+        return [self.train_id, *self.contexts]
+
+    def env_cls(self) -> type:
+        module, _, cls = self.env_class.partition(":")
+        return getattr(importlib.import_module(module), cls)
+
+    def context_of(self, env_id: str) -> torch.Tensor:
+        """The fixed context of ``env_id`` (the default context for the training id)."""
+        if env_id == self.train_id:
+            return self.context_space.default_tensor()
+        return self.context_space.make(self.contexts[env_id])
