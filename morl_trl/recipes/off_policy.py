@@ -148,9 +148,13 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, 
         raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
     saved_cfg = TrainConfig.load(saved)
     cfg = saved_cfg if cfg is None else resume_config(saved_cfg, cfg.to_dict(), "the given config")
-    cfg.run_dir = str(run_dir)
+    cfg.run_dir = saved_cfg.run_dir
+    changed = {k: (getattr(saved_cfg, k), getattr(cfg, k)) for k in saved_cfg.to_dict()
+               if getattr(saved_cfg, k) != getattr(cfg, k)}
     ckpt, skipped = find_checkpoint(run_dir)
     notes = [f"warning: skipped damaged checkpoint {p.name}: {why}" for p, why in skipped]
+    if changed:
+        notes.append("resumed with " + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changed.items()))
     if ckpt is None:
         what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
         raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
@@ -255,6 +259,8 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
     log.reference = reference
     for note in notes:
         log.note(note)
+    if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
+        cfg.save(run_dir / "config.json")  # what the run continues with (e.g. a larger frames)
     if state is not None:
         cut = log.truncate(frames)
         log.note(f"resumed from {ckpt.name} at {frames} frames (logs cut back to it: {cut} rows/files removed)")
