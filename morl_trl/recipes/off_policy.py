@@ -180,7 +180,7 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
       with a warning; none intact: ``ValueError``). ``cfg`` (optional) may change only the keys
       of :data:`~morl_trl.recipes.config.RESUME_MAY_CHANGE`; a run that already reached
       ``frames`` is left as it is. Every log is first cut back to the checkpoint's frame; for
-      domains that can snapshot their simulator (MO-LavaGrid) the run continues exactly as an
+      domains that can snapshot their simulator (MO-LavaGrid, MuJoCo) the run continues exactly as an
       uninterrupted one, others restart their episodes.
     * A non-finite loss stops the run: the last good state is checkpointed, log.txt and
       report.md say so, and :class:`NonFiniteLossError` is raised.

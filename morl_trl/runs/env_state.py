@@ -3,7 +3,7 @@
 :func:`env_state` captures what a batched env stack carries between two collector batches
 (besides the TensorDict the collector holds): the simulator state of the base env when it
 can snapshot it (:meth:`~morl_trl.envs.base.ContextualMOEnv.simulator_state`, opt-in per
-domain: MO-LavaGrid can, Box2D's MO-LunarLander and Mario cannot), and every transform's
+domain: MO-LavaGrid and the MuJoCo domains can, Box2D's MO-LunarLander and Mario cannot), and every transform's
 running state: its random generator, seed bookkeeping, and the attributes some transforms
 keep outside the TensorDict (``StateActionHistory``'s history, ``PreferenceConditioning``'s
 current preferences and cursor) plus any registered buffers.
