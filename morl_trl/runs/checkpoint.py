@@ -70,7 +70,8 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
     root.mkdir(parents=True, exist_ok=True)
     final = root / f"frames_{frames:012d}"
     tmp = root / f".tmp_frames_{frames:012d}"
-    shutil.rmtree(tmp, ignore_errors=True)
+    for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
+        shutil.rmtree(stale, ignore_errors=True)
     tmp.mkdir()
     torch.save(state, tmp / "state.pt")
     if replay_buffer is not None:
@@ -87,7 +88,10 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
     tmp_link = root / ".latest_tmp"
     tmp_link.write_text(final.name)
     os.replace(tmp_link, latest)
-    for old in sorted(p for p in root.glob("frames_*") if p.is_dir())[:-keep]:
+    # prune the older ones (newer ones can only be damaged checkpoints a resume skipped: they are
+    # left for inspection and replaced when the run reaches their frame)
+    older = sorted(p for p in root.glob("frames_*") if p.is_dir() and p.name < final.name)
+    for old in older[: max(len(older) - (keep - 1), 0)]:
         shutil.rmtree(old, ignore_errors=True)
     return final
 

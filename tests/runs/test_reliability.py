@@ -179,6 +179,9 @@ def test_resume_falls_back_to_the_newest_intact_checkpoint(run, finished_run, cl
     log = (run / "log.txt").read_text()
     assert warning in log and "resumed from frames_000000000256 at 256 frames" in log
     assert _outputs(run) == _outputs(finished_run)  # continued exactly: the same files as the run before the damage
+    ckpts = sorted(p for p in (run / "checkpoints").glob("frames_*"))
+    assert [p.name for p in ckpts] == ["frames_000000000256", "frames_000000000512"]  # the damaged one replaced
+    assert all(verify_checkpoint(p) is None for p in ckpts)
 
 
 def test_resume_refuses_when_no_checkpoint_is_intact(run, cli):
