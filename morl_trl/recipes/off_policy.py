@@ -165,10 +165,14 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, 
 def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
     if run_dir.exists() and not run_dir.is_dir():
         raise ValueError(f"run directory {str(run_dir)!r} is a file")
-    if run_dir.is_dir() and any(run_dir.iterdir()) and not overwrite:
+    if run_dir.is_dir() and any(run_dir.iterdir()):
         held = sorted(p.name for p in run_dir.iterdir())
-        raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                         f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+        if not overwrite:
+            raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
+                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+        if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
+            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another --run-dir")
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:

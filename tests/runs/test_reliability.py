@@ -245,6 +245,14 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["frames_000000000000", "frames_000000000128",
                                                                         "latest"]
     assert not (run / "fronts" / "frames_000000000512.csv").exists()
+    # --overwrite deletes run directories only
+    other = tmp_path / "not_a_run"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", other, "--overwrite")
+    assert out.returncode == 2
+    assert f"--overwrite replaces run directories only; '{other}' has no config.json" in out.stderr
+    assert (other / "notes.txt").read_text() == "keep me"
 
 
 def test_a_failed_start_leaves_no_run_dir_and_loses_nothing(run, tmp_path, monkeypatch, cli):
