@@ -42,15 +42,25 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--reference", help="the published data (bounds, specialist fronts) for NHGR; "
                    "default $MORL_TRL_REFERENCE or ../shared/reference if present")
     p.add_argument("--logger", choices=("csv", "tensorboard", "wandb", "none"))
-    p.add_argument("--resume", metavar="RUN_DIR", help="continue a killed run from its last checkpoint")
+    p.add_argument("--resume", metavar="RUN_DIR",
+                   help="continue a run from its newest intact checkpoint (damaged ones are skipped with a "
+                   "warning); logs are first cut back to that checkpoint. algo, env id, --seed, --config and "
+                   "--quick values must match the run's config.json (a difference is an error); --frames "
+                   "(total frames: extend the run), --device, --logger and --no-progress may change. A run that "
+                   "already reached its frames is left as it is")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the contents of a non-empty --run-dir (without it, a non-empty run dir is an error)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
     args = p.parse_args(argv)
     from morl_trl.recipes import resolve_config, train
 
     if args.resume:
-        train(None, resume=args.resume)
-        return 0
+        cfg = _resume_config(args)
+        if args.print_config:
+            print(cfg.to_toml())
+            return 0
+        return _run_training(lambda: train(cfg, resume=args.resume))
     reference = args.reference or _default_reference()
     cfg = resolve_config(
         args.algo, args.env_id, quick=args.quick, config_file=args.config, frames=args.frames, seed=args.seed,
@@ -60,7 +70,41 @@ def train_main(argv: list[str]) -> int:
     if args.print_config:
         print(cfg.to_toml())
         return 0
-    train(cfg)
+    return _run_training(lambda: train(cfg, overwrite=args.overwrite))
+
+
+def _resume_config(args):
+    """The run's config.json, checked against what the command line gives (see ``--resume``)."""
+    from morl_trl.recipes.config import TrainConfig, load_config_file, quick_preset, resume_config
+
+    run_dir = Path(args.resume)
+    if args.overwrite:
+        raise ValueError("--resume continues a run and --overwrite replaces it: choose one")
+    if args.run_dir and Path(args.run_dir).resolve() != run_dir.resolve():
+        raise ValueError(f"--run-dir {args.run_dir!r} and --resume {args.resume!r} name different directories")
+    if not (run_dir / "config.json").is_file():
+        raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
+    cfg = TrainConfig.load(run_dir / "config.json")
+    from_file = load_config_file(args.config) if args.config else {}
+    cfg = resume_config(cfg, {"algo": args.algo, "env_id": from_file.get("env_id", args.env_id)}, "the command line")
+    if args.quick:
+        cfg = resume_config(cfg, {k: v for k, v in quick_preset().items() if k != "frames"}, "the --quick preset")
+    if from_file:
+        cfg = resume_config(cfg, from_file, f"config file {args.config!r}")
+    flags = dict(frames=args.frames, seed=args.seed, device=args.device, logger=args.logger,
+                 reference_dir=args.reference, progress=False if args.no_progress else None)
+    return resume_config(cfg, {k: v for k, v in flags.items() if v is not None}, "the command line")
+
+
+def _run_training(run) -> int:
+    from morl_trl.recipes import NonFiniteLossError
+    from morl_trl.recipes.off_policy import EXIT_NON_FINITE_LOSS
+
+    try:
+        run()
+    except NonFiniteLossError as err:  # the run stopped cleanly: its last good state is checkpointed
+        print(f"morl-trl train: stopped: {err}", file=sys.stderr)
+        return EXIT_NON_FINITE_LOSS
     return 0
 
 

@@ -464,6 +464,41 @@ class ContextualMOEnv(EnvBase):
     def _observe(self) -> dict[str, torch.Tensor]:
         raise NotImplementedError
 
+    # ------------------------------------------------------------------ snapshots (opt-in)
+    def can_snapshot(self) -> bool:
+        """Whether this domain can capture and restore its simulator state
+        (:meth:`simulator_state`): it implements ``_snapshot_subenvs``."""
+        return type(self)._snapshot_subenvs is not ContextualMOEnv._snapshot_subenvs
+
+    def simulator_state(self) -> dict[str, Any]:
+        """A copy of the state of every sub-env (contexts, step counts, seed and the domain's
+        own state), for :meth:`load_simulator_state`; checkpoints use it to resume episodes
+        exactly. ``NotImplementedError`` for domains that cannot snapshot (:meth:`can_snapshot`)."""
+        if not self.can_snapshot():
+            raise NotImplementedError(f"{type(self).__name__} cannot snapshot its simulator state")
+        return {"context": self._context.clone(), "step_count": self._step_count.clone(), "seed": self._seed,
+                "domain": self._snapshot_subenvs()}
+
+    def load_simulator_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`simulator_state` of an env of the same class and ``num_envs``."""
+        if not self.can_snapshot():
+            raise NotImplementedError(f"{type(self).__name__} cannot snapshot its simulator state")
+        if tuple(state["context"].shape) != tuple(self._context.shape):
+            raise ValueError(f"the snapshot has contexts of shape {tuple(state['context'].shape)}; "
+                             f"this env has {tuple(self._context.shape)}")
+        self.__dict__["_context"] = state["context"].to(self.device).clone()
+        self._step_count.copy_(state["step_count"])
+        self._seed = state["seed"]
+        self._load_snapshot_subenvs(state["domain"])
+
+    def _snapshot_subenvs(self) -> dict[str, Any]:
+        """Hook (opt-in): a copy of the domain's own state of every sub-env."""
+        raise NotImplementedError
+
+    def _load_snapshot_subenvs(self, state: dict[str, Any]) -> None:
+        """Hook (opt-in): restore what ``_snapshot_subenvs`` returned."""
+        raise NotImplementedError
+
     def __repr__(self) -> str:
         return (
             f"{type(self).__name__}(num_envs={self.num_envs}, objectives={list(self.objective_names)}, "

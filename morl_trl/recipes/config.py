@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-__all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "resolve_config", "load_config_file"]
+__all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
+           "resume_config", "quick_preset"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
@@ -378,3 +379,37 @@ def resolve_config(
     values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
     return TrainConfig(**_coerce(values)).validate()
+
+
+def quick_preset() -> dict[str, Any]:
+    """The values ``--quick`` sets."""
+    return dict(_QUICK)
+
+
+#: the keys a resume may change (``morl-trl train ... --resume``): where and how fast it runs,
+#: how long (``frames``: extend a run, or stop it earlier), what it logs to. Every other key
+#: must equal the run's ``config.json``.
+RESUME_MAY_CHANGE = ("frames", "device", "num_threads", "logger", "progress", "run_dir")
+
+
+def resume_config(saved: TrainConfig, given: dict[str, Any], source: str) -> TrainConfig:
+    """The config a resumed run continues with: ``saved`` (the run's ``config.json``) with the
+    keys of ``given`` that a resume may change (:data:`RESUME_MAY_CHANGE`, but ``run_dir``)
+    applied. Any other key of ``given`` whose value differs from the run's raises a
+    ``ValueError`` naming the key and both values (``source`` says where ``given`` came from)."""
+    given = _coerce(dict(given))
+    changes = {}
+    for key, value in given.items():
+        if key == "run_dir":
+            continue
+        if key in RESUME_MAY_CHANGE:
+            changes[key] = value
+            continue
+        old = getattr(saved, key)
+        if value != old:
+            raise ValueError(
+                f"cannot resume: {key} is {value!r} in {source} but {old!r} in the run's config.json; "
+                f"a resume continues the run as it was (only {list(RESUME_MAY_CHANGE[:-1])} may change): "
+                f"drop {key} or start a new run"
+            )
+    return dataclasses.replace(saved, **changes).validate()

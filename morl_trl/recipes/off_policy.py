@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import random
+import shutil
 import time
 from pathlib import Path
 
@@ -28,12 +29,20 @@ from morl_trl.data import prioritized_sampler
 from morl_trl.envs import DomainSpec, domain_of, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
-from morl_trl.recipes.config import TrainConfig
-from morl_trl.runs.checkpoint import latest_checkpoint, load_checkpoint, rng_state, save_checkpoint, set_rng_state
-from morl_trl.runs.run_log import RunLog
+from morl_trl.recipes.config import TrainConfig, resume_config
+from morl_trl.runs.checkpoint import (
+    checkpoint_frames,
+    find_checkpoint,
+    load_checkpoint,
+    rng_state,
+    save_checkpoint,
+    set_rng_state,
+)
+from morl_trl.runs.env_state import env_state, load_context_sampler_state, load_env_state, transforms_of
+from morl_trl.runs.run_log import RunLog, check_logger
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
-__all__ = ["train", "evaluate_run", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
+__all__ = ["train", "evaluate_run", "EXIT_NON_FINITE_LOSS", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
 
 
 # ---------------------------------------------------------------------- the pieces of a run
@@ -117,19 +126,6 @@ def _seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-def _transform_generators(env) -> dict[int, torch.Generator]:
-    """The random generators of the env's transforms (domain randomization, preferences), by position."""
-    transforms = list(env.transform) if hasattr(env.transform, "__iter__") else [env.transform]
-    return {i: t.generator for i, t in enumerate(transforms) if isinstance(getattr(t, "generator", None), torch.Generator)}
-
-
-def _context_sampler(env):
-    """The context sampler of the env under the transforms (domain randomization), if any."""
-    while hasattr(env, "base_env"):
-        env = env.base_env
-    return getattr(env, "context_sampler", None)
-
-
 def _eval_line(summary: dict) -> str:
     agg = summary["aggregate"]
     parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
@@ -141,25 +137,84 @@ def _default_run_dir(cfg: TrainConfig) -> Path:
     return Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
 
 
-def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
+#: what ``morl-trl train`` exits with when a non-finite loss stopped the run (after it wrote
+#: a checkpoint of the last good state); 2 is bad input, 1 an unexpected error.
+EXIT_NON_FINITE_LOSS = 3
+
+
+def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, Path, list[str]]:
+    """The config to continue with and the newest intact checkpoint (with notes on skipped ones)."""
+    saved = run_dir / "config.json"
+    if not saved.is_file():
+        raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
+    saved_cfg = TrainConfig.load(saved)
+    cfg = saved_cfg if cfg is None else resume_config(saved_cfg, cfg.to_dict(), "the given config")
+    cfg.run_dir = saved_cfg.run_dir
+    changed = {k: (getattr(saved_cfg, k), getattr(cfg, k)) for k in saved_cfg.to_dict()
+               if getattr(saved_cfg, k) != getattr(cfg, k)}
+    ckpt, skipped = find_checkpoint(run_dir)
+    notes = [f"warning: skipped damaged checkpoint {p.name}: {why}" for p, why in skipped]
+    if changed:
+        notes.append("resumed with " + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changed.items()))
+    if ckpt is None:
+        what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
+        raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
+                         f"start it again with --overwrite")
+    return cfg, ckpt, notes
+
+
+def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
+    if run_dir.exists() and not run_dir.is_dir():
+        raise ValueError(f"run directory {str(run_dir)!r} is a file")
+    if run_dir.is_dir() and any(run_dir.iterdir()):
+        held = sorted(p.name for p in run_dir.iterdir())
+        if not overwrite:
+            raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
+                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+        if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
+            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another --run-dir")
+
+
+def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:
     """Run (or resume) a training run; returns the last evaluation summary.
+
+    * A new run refuses a non-empty ``cfg.run_dir`` unless ``overwrite`` (which replaces its
+      contents once everything is built); a failed start leaves no run directory behind.
+    * ``resume=run_dir`` continues from the newest intact checkpoint (damaged ones are skipped
+      with a warning; none intact: ``ValueError``). ``cfg`` (optional) may change only the keys
+      of :data:`~morl_trl.recipes.config.RESUME_MAY_CHANGE`; a run that already reached
+      ``frames`` is left as it is. Every log is first cut back to the checkpoint's frame; for
+      domains that can snapshot their simulator (MO-LavaGrid, MuJoCo) the run continues exactly as an
+      uninterrupted one, others restart their episodes.
+    * A non-finite loss stops the run: the last good state is checkpointed, log.txt and
+      report.md say so, and :class:`NonFiniteLossError` is raised.
 
     Example:
         >>> from morl_trl.recipes import resolve_config, train
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
+    notes: list[str] = []
     if resume is not None:
+        if overwrite:
+            raise ValueError("resume continues a run and overwrite replaces it: choose one")
         run_dir = Path(resume)
-        saved = run_dir / "config.json"
-        if not saved.is_file():
-            raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
-        cfg = TrainConfig.load(saved)
+        cfg, ckpt, notes = _resume_point(cfg, run_dir)
+        done = checkpoint_frames(ckpt)
+        if done >= cfg.frames:
+            msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
+                   f"pass a larger --frames to extend it")
+            print(msg, flush=True)
+            return {"frames": done, "finished": True}
     else:
+        if cfg is None:
+            raise ValueError("train() needs a config (or resume=<run dir>)")
+        ckpt = None
+        cfg.validate()
         run_dir = Path(cfg.run_dir) if cfg.run_dir else _default_run_dir(cfg)
-        run_dir.mkdir(parents=True, exist_ok=True)
-        cfg.run_dir = str(run_dir)
-        cfg.save(run_dir / "config.json")
+        _prepare_run_dir(run_dir, overwrite)
+    check_logger(cfg.logger)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
@@ -168,55 +223,98 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
 
     from morl_trl.recipes import build_agent
 
+    # everything is built before the run directory is touched: a failed start writes nothing
     env = make_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=gamma, device=device)
     buffer = make_replay_buffer(cfg, device)
-    log = RunLog(run_dir, cfg, spec)
-    log.reference = _load_reference(cfg, spec)
-    evaluator = make_evaluator(cfg, agent, spec, log.reference)
+    reference = _load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)
 
-    frames, updates, next_eval, next_ckpt = 0, 0, 0, cfg.checkpoint_interval
-    ckpt = latest_checkpoint(run_dir) if resume is not None else None
+    frames, updates, next_eval, next_ckpt, last_eval = 0, 0, 0, cfg.checkpoint_interval, -1
+    state = None
     if ckpt is not None:
-        state = load_checkpoint(ckpt, buffer)
+        state = load_checkpoint(ckpt, buffer, map_location=device)
         agent.load_state_dict(state["agent"])
-        env.load_state_dict(state["env_transforms"])
-        frames, updates = state["frames"], state["updates"]
+        frames, updates, last_eval = state["frames"], state["updates"], state["last_eval"]
         next_eval, next_ckpt = state["next_eval"], state["next_ckpt"]
-        # episodes in flight are lost; the simulators restart from a seed derived from the
-        # checkpoint (not the run's first seed, which would replay the first episodes)
+    exact = (state is not None and state["env"]["simulator"] is not None and state["device"] == str(device))
+    if state is not None and not exact:
+        # the simulators cannot continue their episodes: they restart from a seed derived from
+        # the checkpoint (not the run's first seed, which would replay the first episodes);
+        # the transforms' generators continue their streams
         env.set_seed(cfg.seed + frames)
-        for i, gen in _transform_generators(env).items():
-            gen.set_state(state["transform_generators"][i])
-        sampler = _context_sampler(env)
-        if sampler is not None and state.get("context_sampler") is not None:
-            sampler.set_state(state["context_sampler"])  # the checkpoint's context stream continues
-        set_rng_state(state["rng"])
-        agent.on_frames(frames)
-        log.note(f"resumed from {ckpt.name} at {frames} frames")
-
-    def checkpoint(tag_frames: int) -> None:
-        state = dict(
-            agent=agent.state_dict(), env_transforms=env.state_dict(),
-            transform_generators={i: g.get_state() for i, g in _transform_generators(env).items()},
-            context_sampler=None if _context_sampler(env) is None else _context_sampler(env).get_state(),
-            frames=frames, updates=updates,
-            next_eval=next_eval, next_ckpt=next_ckpt, rng=rng_state(), config=cfg.to_dict(),
-        )
-        save_checkpoint(run_dir, tag_frames, state, buffer)
-
+        for t, saved in zip(transforms_of(env), state["env"]["transforms"]):
+            if "generator" in saved:
+                t.generator.set_state(saved["generator"])
+        load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames)
+
+    created = not run_dir.exists()
+    try:
+        if resume is None:
+            if overwrite and run_dir.exists():
+                shutil.rmtree(run_dir)
+            run_dir.mkdir(parents=True, exist_ok=True)
+            cfg.run_dir = str(run_dir)
+            cfg.save(run_dir / "config.json")
+        log = RunLog(run_dir, cfg, spec)
+    except BaseException:
+        if created:
+            shutil.rmtree(run_dir, ignore_errors=True)
+        raise
+    log.reference = reference
+    for note in notes:
+        log.note(note)
+    if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
+        cfg.save(run_dir / "config.json")  # what the run continues with (e.g. a larger frames)
+    if state is not None:
+        cut = log.truncate(frames)
+        log.note(f"resumed from {ckpt.name} at {frames} frames (logs cut back to it: {cut} rows/files removed)")
+        if exact:
+            load_env_state(env, state["env"])
+            collector._carrier = state["carrier"].to(device)
+            collector._traj_pool.load_state_dict(state["traj_pool"])
+        elif state["device"] != str(device):
+            log.note(f"resumed with fresh episodes: the device changed from {state['device']} to {device}")
+        else:
+            log.note(f"resumed with fresh episodes: {spec.name} cannot snapshot its simulator")
+        agent.on_frames(frames)
+        set_rng_state(state["rng"])  # last: nothing above draws from the global generators again
+
+    def checkpoint(tag_frames: int, **flags) -> Path:
+        state = dict(
+            agent=agent.state_dict(), env=env_state(env), carrier=collector._carrier.clone(),
+            traj_pool=collector._traj_pool.state_dict(), frames=frames, updates=updates, next_eval=next_eval,
+            next_ckpt=next_ckpt, last_eval=last_eval, rng=rng_state(), config=cfg.to_dict(), device=str(device),
+            **flags,
+        )
+        return save_checkpoint(run_dir, tag_frames, state, buffer if len(buffer) else None)  # (empty at 0)
+
+    summary: dict = {}
+
+    def evaluate() -> None:
+        nonlocal summary, last_eval, next_eval
+        summary = log.evaluation(frames, evaluator.evaluate())
+        last_eval = frames
+        while next_eval <= frames:
+            next_eval += cfg.eval_interval
+        tqdm.write(_eval_line(summary))
+
     updates_per_batch = cfg.updates_per_batch or cfg.frames_per_batch
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
-    t_start, frames_start, last_nhgr = time.perf_counter(), frames, float("nan")
-    summary: dict = {}
+    t_start, frames_start = time.perf_counter(), frames
+
+    def fps() -> float:
+        return (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
+
     try:
+        if state is None:  # a new run: the untrained policy, then a checkpoint to resume from
+            evaluate()
+            checkpoint(frames)
+        # One iteration = one batch: collect, store, update, then evaluate and checkpoint the
+        # policy trained on `frames` frames. A checkpoint is the state at the end of a batch
+        # (after its evaluation), so the batch after it is the same whether the run resumes or not.
         for batch in collector:
-            if frames >= next_eval:  # evaluate the policy the batch was collected with (frame 0 included)
-                summary = log.evaluation(frames, evaluator.evaluate())
-                last_nhgr = summary.get("nhgr_mean", float("nan"))
-                next_eval += cfg.eval_interval
-                tqdm.write(_eval_line(summary))
             buffer.extend(batch.reshape(-1))
             frames += batch.numel()
             log.training_episodes(frames, batch)
@@ -225,29 +323,45 @@ def train(cfg: TrainConfig, *, resume: str | Path | None = None) -> dict:
                     try:
                         losses = agent.update(buffer)
                     except NonFiniteLossError as err:
-                        log.note(f"stopped: {err}")
-                        raise
+                        path = _stop(log, summary, fps(), f"{err} (at {frames:,} frames, after {updates} updates)",
+                                     lambda: checkpoint(frames, stopped=str(err)))
+                        raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
                     updates += 1
                 if updates % 50 == 0 or updates_per_batch > 1:
                     log.losses(frames, losses)
             agent.on_frames(frames)
             collector.update_policy_weights_()
-            fps = (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
             bar.update(batch.numel())
-            bar.set_postfix(fps=f"{fps:,.0f}", nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
-            if frames >= next_ckpt:
-                next_ckpt += cfg.checkpoint_interval
+            last_nhgr = summary.get("nhgr_mean", float("nan"))
+            bar.set_postfix(fps=f"{fps():,.0f}", nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
+            if frames >= next_eval:
+                evaluate()
+            if frames >= next_ckpt and frames < cfg.frames:  # (the end of the run has its own)
+                while next_ckpt <= frames:
+                    next_ckpt += cfg.checkpoint_interval
                 checkpoint(frames)
-        summary = log.evaluation(frames, evaluator.evaluate())
-        checkpoint(frames)
+        if last_eval != frames:
+            evaluate()
         if cfg.eval_random_baseline:
             log.random_result = evaluator.evaluate("random")
-        log.report(summary, fps=(frames - frames_start) / max(time.perf_counter() - t_start, 1e-9))
+        if log.last_result is not None:
+            log.report(summary, fps=fps())
+        checkpoint(frames, finished=True)
     finally:
         bar.close()
         collector.shutdown()
         log.close()
     return summary
+
+
+def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint) -> Path:
+    """Stop a run cleanly: checkpoint the last good state, say so in log.txt and report.md."""
+    path = write_checkpoint()
+    log.note(f"stopped: {reason}; the last good state is checkpointed in {path}")
+    if log.last_result is not None:
+        log.report(summary, fps=fps)
+    log.report_stop(f"stopped: {reason}; the last good state is checkpointed in {path.name}")
+    return path
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None) -> dict:
@@ -260,9 +374,11 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         cfg.reference_dir = reference_dir
     if weights is not None:
         cfg.eval_weights = weights
-    ckpt = latest_checkpoint(run_dir)
+    ckpt, skipped = find_checkpoint(run_dir)
+    for path, why in skipped:
+        print(f"warning: skipped damaged checkpoint {path.name}: {why}", flush=True)
     if ckpt is None:
-        raise ValueError(f"{str(run_dir)!r} has no checkpoint to evaluate")
+        raise ValueError(f"{str(run_dir)!r} has no intact checkpoint to evaluate")
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
@@ -271,10 +387,10 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
 
     env = make_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
-    agent.load_state_dict(load_checkpoint(ckpt)["agent"])
+    agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
     log.reference = _load_reference(cfg, spec)
-    frames = int(ckpt.name.split("_")[-1])
+    frames = checkpoint_frames(ckpt)
     summary = log.evaluation(frames, make_evaluator(cfg, agent, spec, log.reference).evaluate())
     log.report(summary, fps=None)
     log.close()

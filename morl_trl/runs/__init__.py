@@ -4,7 +4,18 @@
 Recipes (:mod:`morl_trl.recipes`) use these; a custom trainer can too.
 """
 
-from morl_trl.runs.checkpoint import latest_checkpoint, load_checkpoint, rng_state, save_checkpoint, set_rng_state
-from morl_trl.runs.run_log import RunLog
+from morl_trl.runs.checkpoint import (
+    checkpoint_frames,
+    find_checkpoint,
+    latest_checkpoint,
+    load_checkpoint,
+    rng_state,
+    save_checkpoint,
+    set_rng_state,
+    verify_checkpoint,
+)
+from morl_trl.runs.env_state import env_state, load_env_state
+from morl_trl.runs.run_log import RunLog, check_logger
 
-__all__ = ["RunLog", "latest_checkpoint", "load_checkpoint", "rng_state", "save_checkpoint", "set_rng_state"]
+__all__ = ["RunLog", "check_logger", "checkpoint_frames", "env_state", "find_checkpoint", "latest_checkpoint",
+           "load_checkpoint", "load_env_state", "rng_state", "save_checkpoint", "set_rng_state", "verify_checkpoint"]

@@ -1,14 +1,21 @@
-"""Checkpoints that hold everything a run needs to continue.
+"""Checkpoints that hold everything a run needs to continue, verified before they are used.
 
 A checkpoint is a directory ``checkpoints/frames_<N>/`` with ``state.pt`` (networks,
-optimizers, target params, schedules, transform generators, RNG states, counters) and
-``buffer/`` (the replay buffer, TorchRL's own ``dumps`` format). It is written to a temporary
-directory and renamed into place, so a kill mid-write leaves the previous checkpoint intact;
-``latest`` points at the newest complete one.
+optimizers, target params, schedules, the env's and transforms' running state, the
+collector's carried TensorDict, RNG states, counters), ``buffer/`` (the replay buffer,
+TorchRL's own ``dumps`` format) and ``manifest.json`` (the size and SHA-256 of every other
+file, written last). It is written to a temporary directory and renamed into place, so a
+kill mid-write leaves the previous checkpoint intact; ``latest`` names the newest one.
+
+Before a checkpoint is used it is verified against its manifest, reading its files only
+(:func:`verify_checkpoint`); :func:`find_checkpoint` falls back to the newest intact one and
+says which it skipped and why.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import random
 import shutil
@@ -18,7 +25,10 @@ from typing import Any
 import numpy as np
 import torch
 
-__all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "rng_state", "set_rng_state"]
+__all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "find_checkpoint", "verify_checkpoint",
+           "checkpoint_frames", "rng_state", "set_rng_state", "MANIFEST"]
+
+MANIFEST = "manifest.json"
 
 
 def rng_state() -> dict[str, Any]:
@@ -37,44 +47,117 @@ def set_rng_state(state: dict[str, Any]) -> None:
         torch.cuda.set_rng_state_all(state["cuda"])
 
 
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:  # read-only: verifying never changes a checkpoint
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _files(root: Path) -> list[Path]:
+    return sorted(p for p in root.rglob("*") if p.is_file() and p.name != MANIFEST)
+
+
+def checkpoint_frames(path: str | Path) -> int:
+    """The frame count in a checkpoint directory's name (``frames_<N>``)."""
+    return int(Path(path).name.split("_")[-1])
+
+
 def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], replay_buffer=None, keep: int = 2) -> Path:
-    """Atomically write a checkpoint at ``frames`` and prune all but the ``keep`` newest."""
+    """Atomically write a checkpoint at ``frames`` (with its manifest) and prune all but the ``keep`` newest."""
     root = Path(run_dir) / "checkpoints"
     root.mkdir(parents=True, exist_ok=True)
     final = root / f"frames_{frames:012d}"
     tmp = root / f".tmp_frames_{frames:012d}"
-    shutil.rmtree(tmp, ignore_errors=True)
+    for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
+        shutil.rmtree(stale, ignore_errors=True)
     tmp.mkdir()
     torch.save(state, tmp / "state.pt")
     if replay_buffer is not None:
         replay_buffer.dumps(tmp / "buffer")
+    manifest = {
+        "frames": int(frames),
+        "files": {p.relative_to(tmp).as_posix(): {"size": p.stat().st_size, "sha256": _sha256(p)} for p in _files(tmp)},
+        "dirs": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_dir()),
+    }
+    (tmp / MANIFEST).write_text(json.dumps(manifest, indent=1, sort_keys=True))  # last: its presence = complete
     shutil.rmtree(final, ignore_errors=True)
     os.replace(tmp, final)
     latest = root / "latest"
     tmp_link = root / ".latest_tmp"
     tmp_link.write_text(final.name)
     os.replace(tmp_link, latest)
-    for old in sorted(p for p in root.glob("frames_*") if p.is_dir())[:-keep]:
+    # prune the older ones (newer ones can only be damaged checkpoints a resume skipped: they are
+    # left for inspection and replaced when the run reaches their frame)
+    older = sorted(p for p in root.glob("frames_*") if p.is_dir() and p.name < final.name)
+    for old in older[: max(len(older) - (keep - 1), 0)]:
         shutil.rmtree(old, ignore_errors=True)
     return final
 
 
-def latest_checkpoint(run_dir: str | Path) -> Path | None:
-    """The newest complete checkpoint directory of a run, or ``None``."""
-    root = Path(run_dir) / "checkpoints"
+def verify_checkpoint(path: str | Path) -> str | None:
+    """``None`` if the checkpoint matches its manifest (every file present, same size and
+    SHA-256, nothing missing), else what is wrong. Files are only read."""
+    path = Path(path)
+    manifest_file = path / MANIFEST
+    if not manifest_file.is_file():
+        return f"no {MANIFEST} (an incomplete write, or a checkpoint of an older version)"
+    try:
+        manifest = json.loads(manifest_file.read_text())
+        files = manifest["files"]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        return f"unreadable {MANIFEST}: {err}"
+    if "state.pt" not in files:
+        return f"{MANIFEST} lists no state.pt"
+    for d in manifest.get("dirs", []):
+        if not (path / d).is_dir():
+            return f"{d}/ is missing"
+    for rel, want in files.items():
+        f = path / rel
+        if not f.is_file():
+            return f"{rel} is missing"
+        size = f.stat().st_size
+        if size != want["size"]:
+            return f"{rel} has {size} bytes; {want['size']} were written"
+        if _sha256(f) != want["sha256"]:
+            return f"{rel} does not match its checksum"
+    return None
+
+
+def _candidates(run_dir: Path) -> list[Path]:
+    root = run_dir / "checkpoints"
+    found = sorted((p for p in root.glob("frames_*") if p.is_dir()), reverse=True)
     latest = root / "latest"
     if latest.is_file():
-        path = root / latest.read_text().strip()
-        if (path / "state.pt").is_file():
-            return path
-    done = sorted(p for p in root.glob("frames_*") if (p / "state.pt").is_file())
-    return done[-1] if done else None
+        named = root / latest.read_text().strip()
+        if named in found:  # the one `latest` names first, then the others newest first
+            found.remove(named)
+            found.insert(0, named)
+    return found
 
 
-def load_checkpoint(path: str | Path, replay_buffer=None) -> dict[str, Any]:
-    """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given)."""
+def find_checkpoint(run_dir: str | Path) -> tuple[Path | None, list[tuple[Path, str]]]:
+    """The newest intact checkpoint of a run (``None`` if there is none) and the damaged ones
+    skipped on the way, each with what is wrong."""
+    skipped = []
+    for cand in _candidates(Path(run_dir)):
+        problem = verify_checkpoint(cand)
+        if problem is None:
+            return cand, skipped
+        skipped.append((cand, problem))
+    return None, skipped
+
+
+def latest_checkpoint(run_dir: str | Path) -> Path | None:
+    """The newest intact checkpoint directory of a run, or ``None``."""
+    return find_checkpoint(run_dir)[0]
+
+
+def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None) -> dict[str, Any]:
+    """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given) of a verified checkpoint."""
     path = Path(path)
-    state = torch.load(path / "state.pt", weights_only=False)
-    if replay_buffer is not None and (path / "buffer").exists():
+    state = torch.load(path / "state.pt", weights_only=False, map_location=map_location)
+    if replay_buffer is not None and (path / "buffer").is_dir():  # (verified: present iff it was written)
         replay_buffer.loads(path / "buffer")
     return state

@@ -13,17 +13,24 @@ Layout of a run directory::
     reevaluation/...             the same eval/, fronts/ and report written by ``morl-trl evaluate``
 
 Nothing is averaged over objectives: every column names its objective.
+
+On resume, :meth:`RunLog.truncate` first cuts every log back to the checkpoint's frame (rows
+of the CSVs above it, fronts files after it, the TorchRL CSV logger's scalar rows above it),
+so that a resumed run's files are those of an uninterrupted run. TensorBoard event files and
+W&B runs cannot be cut: after a resume they keep what the killed process wrote past the
+checkpoint (the resumed values are logged again at the same steps).
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import os
 import time
 from pathlib import Path
 
 
-__all__ = ["RunLog"]
+__all__ = ["RunLog", "check_logger"]
 
 
 def _append_rows(path: Path, rows: list[dict]) -> None:
@@ -48,19 +55,56 @@ def _append_rows(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
+def _cut_lines(path: Path, frames: int, *, header: bool) -> int:
+    """Keep the lines of ``path`` whose first comma-separated field (a frame or step count) is
+    ``<= frames`` (and the header line); rewritten atomically, bytes of kept lines unchanged.
+    Returns the number of lines removed."""
+    data = path.read_bytes()
+    lines = data.splitlines(keepends=True)
+    keep, removed = [], 0
+    for i, line in enumerate(lines):
+        if header and i == 0:
+            keep.append(line)
+            continue
+        first = line.split(b",", 1)[0].strip()
+        try:
+            step = int(float(first))
+        except ValueError:
+            keep.append(line)
+            continue
+        if step <= frames:
+            keep.append(line)
+        else:
+            removed += 1
+    if removed or (lines and not lines[-1].endswith(b"\n")):
+        if keep and not keep[-1].endswith(b"\n"):  # a line cut mid-write by a kill
+            keep.pop()
+            removed += 1
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(b"".join(keep))
+        os.replace(tmp, path)
+    return removed
+
+
+def check_logger(kind: str) -> None:
+    """``ValueError`` unless ``kind`` is a logger this machine can write (before anything is written)."""
+    if kind in ("", "none", None, "csv"):
+        return
+    needs = {"tensorboard": "tensorboard", "wandb": "wandb"}
+    if kind not in needs:
+        raise ValueError(f"unknown logger {kind!r}; valid: csv, tensorboard, wandb, none")
+    import importlib.util
+
+    if importlib.util.find_spec(needs[kind]) is None:
+        raise ValueError(f"logger {kind!r} needs the {needs[kind]!r} package; install it or use logger='csv'")
+
+
 def _make_logger(kind: str, run_dir: Path, tag: str):
     from torchrl.record.loggers import get_logger
 
+    check_logger(kind)
     if kind in ("", "none", None):
         return None
-    needs = {"tensorboard": "tensorboard", "wandb": "wandb"}
-    if kind in needs:
-        import importlib.util
-
-        if importlib.util.find_spec(needs[kind]) is None:
-            raise ValueError(f"logger {kind!r} needs the {needs[kind]!r} package; install it or use logger='csv'")
-    elif kind != "csv":
-        raise ValueError(f"unknown logger {kind!r}; valid: csv, tensorboard, wandb, none")
     return get_logger(kind, logger_name=str(run_dir / "logs"), experiment_name=tag)
 
 
@@ -77,6 +121,28 @@ class RunLog:
         # a re-evaluation (morl-trl evaluate) writes beside the run's own outputs, not over them
         self.out_dir = self.run_dir if tag == "train" else self.run_dir / tag
         self.last_result = None
+
+    # ------------------------------------------------------------------ resume
+    def truncate(self, frames: int) -> int:
+        """Cut every log back to ``frames`` (a checkpoint's): rows of ``eval/*.csv``,
+        ``train/episodes.csv`` and the TorchRL CSV logger's scalars above it, fronts files after
+        it. Returns the number of rows and files removed. TensorBoard / W&B output is left."""
+        removed = 0
+        for rel in ("eval/metrics.csv", "eval/episodes.csv", "train/episodes.csv"):
+            path = self.run_dir / rel
+            if path.is_file():
+                removed += _cut_lines(path, frames, header=True)
+        fronts = self.run_dir / "fronts"
+        if fronts.is_dir():
+            for f in fronts.glob("frames_*.csv"):
+                if int(f.stem.split("_")[-1]) > frames:
+                    f.unlink()
+                    removed += 1
+        scalars = self.run_dir / "logs" / self.tag / "scalars"
+        if scalars.is_dir():
+            for f in scalars.rglob("*.csv"):
+                removed += _cut_lines(f, frames, header=False)
+        return removed
 
     # ------------------------------------------------------------------ notes
     def note(self, message: str) -> None:
@@ -143,6 +209,12 @@ class RunLog:
         from morl_trl.reporting.report import write_report
 
         return write_report(self, summary, fps)
+
+    def report_stop(self, message: str) -> None:
+        """Add a line saying why the run stopped early to ``report.md`` (created if missing)."""
+        path = self.out_dir / "report.md"
+        with path.open("a") as fh:
+            fh.write(f"\n**Run stopped early.** {message}\n")
 
     def close(self) -> None:
         if self.logger is not None and hasattr(self.logger, "experiment"):

@@ -202,6 +202,19 @@ class MOLavaGridEnv(ContextualMOEnv):
         terminated = self._collected.all(1)
         return self._observe(), reward, original, terminated
 
+    # ------------------------------------------------------------------ snapshots
+    _SNAPSHOT = ("_cells", "_colour", "_pos", "_dir", "_collected")
+
+    def _snapshot_subenvs(self) -> dict:
+        state = {name: getattr(self, name).clone() for name in self._SNAPSHOT}
+        state["generator"] = self.generator.get_state()
+        return state
+
+    def _load_snapshot_subenvs(self, state: dict) -> None:
+        for name in self._SNAPSHOT:
+            self.__dict__[name] = state[name].to(self.device).clone()
+        self.generator.set_state(state["generator"])
+
     # ------------------------------------------------------------------ rendering
     def render(self, index: int = 0, tile_size: int = 16) -> np.ndarray:
         """Sub-env ``index`` as an RGB ``uint8`` array ``[13 * tile_size, 13 * tile_size, 3]``.

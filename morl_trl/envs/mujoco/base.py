@@ -261,6 +261,38 @@ class MujocoContextEnv(ContextualMOEnv):
     def _to_tensor(self, array: np.ndarray) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32)).to(self.device)
 
+    # ------------------------------------------------------------------ snapshots
+    # the physics state of every sub-env (MuJoCo's mjSTATE_INTEGRATION: time, qpos, qvel, act,
+    # warm start, controls, mocap, userdata); derived fields are recomputed by mj_forward
+    _STATE_FIELDS = ("time", "qpos", "qvel", "act", "qacc_warmstart", "ctrl", "mocap_pos", "mocap_quat", "userdata")
+
+    def _snapshot_subenvs(self) -> dict:
+        # (+ the bound fields a domain reads: after a step, derived ones are those of the step's
+        # start, which a fresh mj_forward would not reproduce)
+        names = dict.fromkeys((*self._STATE_FIELDS, *self._bound_fields))
+        fields = {name: np.array(self._sim.bind(name), copy=True) for name in names}
+        return {"fields": fields, "rngs": [g.bit_generator.state for g in self._rngs],
+                "extra": {k: np.array(v, copy=True) for k, v in self._snapshot_extra().items()}}
+
+    def _load_snapshot_subenvs(self, state: dict) -> None:
+        self._apply_contexts(range(self.num_envs), self._context.cpu().numpy())
+        self._sim.set_models(self._models)
+        for name in self._STATE_FIELDS:
+            self._sim.bind(name)[...] = state["fields"][name]
+        self._sim.forward()  # the derived fields (positions, inertias) of the restored state
+        for name, value in state["fields"].items():  # then the fields as they were (warm start, bound)
+            target = self._sim.bind(name)  # (a binding of its own: derived fields bind read-only, and the
+            target.setflags(write=True)    # next call recomputes them; the domain's bindings stay as they are)
+            target[...] = value
+        for g, st in zip(self._rngs, state["rngs"]):
+            g.bit_generator.state = st
+        for k, v in state["extra"].items():
+            getattr(self, k)[...] = v
+
+    def _snapshot_extra(self) -> dict[str, np.ndarray]:
+        """Hook: domain arrays (attribute name -> array) that are state, not derived by mj_forward."""
+        return {}
+
     # ------------------------------------------------------------------ domain hooks
     def _observation(self) -> np.ndarray:
         """``[N, observation_dim]`` float64 from the bound fields."""

@@ -78,6 +78,9 @@ class MOHumanoidEnv(MujocoContextEnv):
             mujoco.mj_rnePostConstraint(self._models[i], self._scratch)
             self._cfrc_ext[i] = self._scratch.cfrc_ext
 
+    def _snapshot_extra(self) -> dict:
+        return {"_cfrc_ext": self._cfrc_ext}  # (filled after each step, not by mj_forward)
+
     def _after_reset(self, ids: np.ndarray) -> None:
         # Gymnasium's reset ends with mj_forward, which leaves cfrc_ext at zero
         self._cfrc_ext[ids] = 0.0
