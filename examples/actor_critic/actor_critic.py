@@ -19,7 +19,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 from torchrl.objectives import SoftUpdate
 
-from morl_trl.evaluation import MultiContextEvaluator
+from morl_trl.evaluation import MultiContextEvaluator, domain_env_factory
 from morl_trl.envs import domain_of
 from morl_trl.objectives import CAPQLLoss, MOSACLoss, make_gaussian_actor, make_vector_critic
 from morl_trl.trainers import resolve_config
@@ -65,7 +65,7 @@ collector = Collector(env, actor, frames_per_batch=cfg.frames_per_batch, total_f
                       auto_register_policy_transforms=False)
 buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.buffer_size), batch_size=cfg.batch_size)
 evaluator = MultiContextEvaluator(actor, spec.train_id, weights=cfg.eval_weights, gamma=gamma,
-                                  transform=make_eval_transform(cfg), seed=cfg.seed)
+                                  env_factory=domain_env_factory(spec.train_id, make_eval_transform(cfg)), seed=cfg.seed)
 
 # ---------------------------------------------------------------- the loop
 frames, next_eval = 0, cfg.eval_interval

@@ -20,7 +20,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
-from morl_trl.evaluation import MultiContextEvaluator
+from morl_trl.evaluation import MultiContextEvaluator, domain_env_factory
 from morl_trl.data import prioritized_sampler
 from morl_trl.envs import domain_of
 from morl_trl.objectives import EnvelopeQLoss, make_vector_q_network
@@ -69,7 +69,7 @@ buffer = TensorDictReplayBuffer(
     batch_size=cfg.batch_size, priority_key="td_error",
 )
 evaluator = MultiContextEvaluator(greedy, spec.train_id, weights=cfg.eval_weights, gamma=gamma,
-                                  transform=make_eval_transform(cfg), seed=cfg.seed)
+                                  env_factory=domain_env_factory(spec.train_id, make_eval_transform(cfg)), seed=cfg.seed)
 
 # ---------------------------------------------------------------- the loop
 frames, next_eval = 0, cfg.eval_interval

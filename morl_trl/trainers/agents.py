@@ -102,7 +102,7 @@ class Agent:
         )
 
     def make_evaluator(self, transform, spec):
-        from morl_trl.evaluation import MultiContextEvaluator
+        from morl_trl.evaluation import MultiContextEvaluator, domain_env_factory
 
         cfg = self.cfg
         reference = None
@@ -117,7 +117,7 @@ class Agent:
             weights=cfg.eval_weights,
             episodes=cfg.eval_episodes,
             gamma=cfg.gamma if cfg.gamma is not None else spec.gamma,
-            transform=transform,
+            env_factory=domain_env_factory(spec.train_id, transform, device=self.device),
             reference=reference,
             exploration_type=self.eval_exploration,
             device=self.device,
