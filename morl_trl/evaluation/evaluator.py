@@ -107,7 +107,9 @@ def _transitional_fixed_context(env: EnvBase) -> EnvBase:
     from morl_trl.transforms.domain_randomization import DomainRandomization
 
     if isinstance(env, TransformedEnv) and type(env.transform) is DomainRandomization:
-        env.transform = Compose()
+        base = env.base_env
+        base.__dict__["_transitional_owner"] = env  # collecting the wrapper would close ``base``
+        return base
     return env
 
 
@@ -298,7 +300,7 @@ class MultiContextEvaluator:
             raise ValueError(f"gamma must be a number in [0, 1], got {gamma!r}")
         self.gamma = float(gamma)
         for env in self._envs.values():  # the probe got its transforms before gamma was known
-            env.transform[-1].gamma = self.gamma
+            env.transform[1].gamma = self.gamma
 
         if ref_point is None and self.domain is not None:
             ref_point = self.domain.hv_ref_point
@@ -400,7 +402,8 @@ class MultiContextEvaluator:
             self._envs[(group, num_envs)] = env
         return env
 
-    def _with_evaluation_transforms(self, env: EnvBase) -> EnvBase:
+    def _with_evaluation_transforms(self, env: EnvBase) -> TransformedEnv:
+        """``TransformedEnv(env, Compose(PreferenceConditioning(k, mode="given"), DiscountedVectorReturn(gamma)))``."""
         if self.preference_key in env.full_observation_spec.keys(True, True):
             raise ValueError(
                 f"the env from env_factory already writes {self.preference_key!r} (a training "
@@ -411,22 +414,21 @@ class MultiContextEvaluator:
         if reward.ndim < 2:
             raise ValueError(f"the env's reward has shape {tuple(reward.shape)}; the evaluator needs a vector reward [*B, k]")
         k = int(reward.shape[-1])
-        transforms = [
-            PreferenceConditioning(k, mode="given", preference_key=self.preference_key),
-            DiscountedVectorReturn(
-                getattr(self, "gamma", 1.0),
-                in_key=env.reward_key,
-                return_key=_RETURN,
-                discounted_key=_DISCOUNTED,
-                discount_key=_DISCOUNT,
-                dtype=torch.float64,
+        return TransformedEnv(
+            env,
+            Compose(
+                PreferenceConditioning(k, mode="given", preference_key=self.preference_key),
+                DiscountedVectorReturn(
+                    getattr(self, "gamma", 1.0),
+                    in_key=env.reward_key,
+                    return_key=_RETURN,
+                    discounted_key=_DISCOUNTED,
+                    discount_key=_DISCOUNT,
+                    dtype=torch.float64,
+                ),
             ),
-        ]
-        if not isinstance(env, TransformedEnv):
-            return TransformedEnv(env, Compose(*transforms))
-        for t in transforms:
-            env.append_transform(t)
-        return env
+            auto_unwrap=False,  # keep the factory's env whole: the loop steps it
+        )
 
     # ------------------------------------------------------------------ running
     def evaluate(self, policy: Policy | str | None = None) -> EvaluationResult:
@@ -467,18 +469,26 @@ class MultiContextEvaluator:
                 "otherwise be labelled with contexts they did not run"
             )
 
-    def _run_pool(self, policy, env: EnvBase, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor):
+    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor):
         """Run every row as one episode on the pool ``env`` (``chunk_size`` sub-envs).
 
         Sub-env ``i`` starts on row ``i``; whenever a sub-env finishes its episode it is
         partially reset with the context and preference of the next pending row (so a pool
         smaller than the grid streams through it without waiting for the slowest episode).
+
+        ``env`` is the factory's env under ``Compose(PreferenceConditioning, DiscountedVectorReturn)``.
+        The loop steps and resets the factory's env and applies the two transforms' ``_step`` /
+        ``_reset`` to its outputs -- what ``TransformedEnv.step``/``reset`` do, without their
+        per-call bookkeeping (which costs as much as the physics of a few hundred Box2D sub-envs).
         """
+        inner = env.base_env
+        prefs, returns = env.transform[0], env.transform[1]
         n_rows = pref_rows.shape[0]
-        m = int(env.batch_size[0])
+        batch_size = inner.batch_size
+        m = int(batch_size[0])
         k = len(self.objective_names)
         pref_key = self.preference_key
-        env.set_seed(self.seed)
+        inner.set_seed(self.seed)
 
         row = torch.arange(m)  # the grid row each sub-env runs (-1: idle)
         next_row = m
@@ -487,21 +497,28 @@ class MultiContextEvaluator:
         disc = torch.zeros(n_rows, k, dtype=torch.float64)
         und = torch.zeros(n_rows, k, dtype=torch.float64)
         lengths = torch.zeros(n_rows, dtype=torch.long)
-        reward_key = _as_tuple(env.reward_key)[:-1]
-        disc_key, und_key = (*reward_key, _DISCOUNTED), (*reward_key, _RETURN)
-        action_key = env.action_key
-        action_spec = env.full_action_spec[action_key] if policy == "random" else None
+        reward_key = _as_tuple(inner.reward_key)[:-1]
+        disc_key, und_key = ("next", *reward_key, _DISCOUNTED), ("next", *reward_key, _RETURN)
+        action_key = inner.action_key
+        action_spec = inner.full_action_spec[action_key] if policy == "random" else None
         everyone = torch.ones(m, dtype=torch.bool)
 
-        horizon = self.max_steps or _static(env, "max_episode_steps") or 100_000
+        def reset(td_in: TensorDictBase) -> TensorDictBase:
+            # what the transforms read (the reset mask, the preferences given and the running
+            # returns), taken before the env's reset consumes the mask and merges its output
+            carried = td_in.select(pref_key, _RETURN, _DISCOUNTED, _DISCOUNT, "_reset", strict=False).clone()
+            out = inner.reset(td_in)
+            return returns._reset(carried, prefs._reset(carried, out))
+
+        horizon = self.max_steps or _static(inner, "max_episode_steps") or 100_000
         dev = self.device
         rng_devices = [dev.index or 0] if dev.type == "cuda" else []
         with torch.random.fork_rng(devices=rng_devices), torch.no_grad(), set_exploration_type(self.exploration_type):
             torch.manual_seed(self.seed)
-            first = TensorDict({pref_key: pref_rows[row]}, batch_size=env.batch_size, device=dev)
+            first = TensorDict({pref_key: pref_rows[row]}, batch_size=batch_size, device=dev)
             if ctx_rows is not None:
                 first.set("context", ctx_rows[row])
-            td = env.reset(first)
+            td = reset(first)
             out_dev = td.get("done").device
             if ctx_rows is not None:
                 self._check_contexts(td, everyone.to(out_dev), ctx_rows[row].to(out_dev), row)
@@ -513,9 +530,10 @@ class MultiContextEvaluator:
                 active = row >= 0
                 if not bool(active.all()):
                     # TorchRL partial step: domains that can (Box2D, MuJoCo) skip the idle sub-envs
-                    td.set("_step", active.to(out_dev).reshape(env.batch_size))
-                td = env.step(td)
+                    td.set("_step", active.to(out_dev).reshape(batch_size))
+                td = inner.step(td)
                 nxt = td.get("next")
+                returns._step(td, prefs._step(td, nxt))
                 run_len += active
                 done = nxt.get("done").reshape(m).cpu()
                 cut = active & (run_len >= horizon) & ~done
@@ -527,14 +545,14 @@ class MultiContextEvaluator:
                     )
                 finished = active & (done | cut)
                 td_next = env.step_mdp(td)
-                reset = done.clone() if self.reset_finished else torch.zeros_like(done)
+                resetting = done.clone() if self.reset_finished else torch.zeros_like(done)
                 fresh = None
                 if bool(finished.any()):
                     idx = finished.nonzero().squeeze(-1)
                     r = row[idx]
                     idx_d = idx.to(out_dev)
-                    disc[r] = nxt.get(disc_key)[idx_d].to("cpu", torch.float64)
-                    und[r] = nxt.get(und_key)[idx_d].to("cpu", torch.float64)
+                    disc[r] = td.get(disc_key)[idx_d].to("cpu", torch.float64)
+                    und[r] = td.get(und_key)[idx_d].to("cpu", torch.float64)
                     lengths[r] = run_len[idx]
                     run_len[idx] = 0
                     # hand the next pending rows to the sub-envs that just finished
@@ -552,12 +570,12 @@ class MultiContextEvaluator:
                             ctx = td_next.get("context").clone()
                             ctx[fresh_d] = ctx_rows[row[fresh]].to(out_dev, ctx.dtype)
                             td_next.set("context", ctx)
-                        reset[fresh] = True
+                        resetting[fresh] = True
                     if not bool((row >= 0).any()):
                         break
-                if bool(reset.any()):
-                    td_next.set("_reset", reset.to(out_dev).reshape(td_next.get("done").shape))
-                    td_next = env.reset(td_next)
+                if bool(resetting.any()):
+                    td_next.set("_reset", resetting.to(out_dev).reshape(td_next.get("done").shape))
+                    td_next = reset(td_next)
                     if fresh is not None and ctx_rows is not None:
                         self._check_contexts(td_next, fresh.to(out_dev), ctx_rows[row[fresh]].to(out_dev), row[fresh])
                 td = td_next

@@ -164,11 +164,16 @@ class PreferenceConditioning(SeededTransform):
         return self.weights[rows]
 
     def _given(self, tensordict: TensorDictBase | None, batch, device) -> torch.Tensor | None:
+        """The preference in ``tensordict`` as ``[*batch, k]`` float32 (its width checked; its rows
+        are checked on the simplex, for the sub-envs being reset only, in ``_reset_env_preprocess``)."""
         w = None if tensordict is None else tensordict.get(self.preference_key, None)
         if w is None:
             return None
         k = self.num_objectives
-        w = check_simplex(torch.as_tensor(w, device=device), k).to(torch.float32)
+        w = torch.as_tensor(w, device=device)
+        if w.ndim == 0 or w.shape[-1] != k:
+            check_simplex(w, k)  # raises, naming the shape
+        w = w.to(torch.float32)
         if w.shape != (*batch, k):
             try:
                 w = w.expand(*batch, k)
