@@ -416,10 +416,13 @@ def test_mo_gymnasium_lunar_lander_in_a_serial_env():
     mo_gym = pytest.importorskip("mo_gymnasium")
     from torchrl.envs import GymWrapper, SerialEnv
 
-    def factory(num_envs, seed):
+    def one():
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return SerialEnv(num_envs, lambda: GymWrapper(mo_gym.make("mo-lunar-lander-v3")))
+            warnings.simplefilter("ignore")  # Gymnasium's float64 Box bounds
+            return GymWrapper(mo_gym.make("mo-lunar-lander-v3"))
+
+    def factory(num_envs, seed):
+        return SerialEnv(num_envs, one)  # no device given: the evaluator must not need env.device
 
     weights = torch.tensor([[1.0, 0.0, 0.0, 0.0], [0.25, 0.25, 0.25, 0.25], [0.0, 0.5, 0.5, 0.0]])
     runs = []
