@@ -204,13 +204,14 @@ class PreferenceConditioning(SeededTransform):
             current = self._current
         if current is None or current.shape != (*batch, k):
             current = self.equal_weights(device).expand(*batch, k)
-        new = current.to(device=device, dtype=torch.float32).clone()
-        n = int(mask.sum())
-        if n:
-            if self.mode == "given":
-                if given is not None:  # otherwise the sub-envs keep what they had
-                    new[mask] = given[mask]
-            else:
+        current = current.to(device=device, dtype=torch.float32)
+        if self.mode == "given":
+            # otherwise (nothing given) the sub-envs keep what they had; no host sync on this path
+            new = current.clone() if given is None else torch.where(mask.unsqueeze(-1), given, current)
+        else:
+            new = current.clone()
+            n = int(mask.sum())
+            if n:
                 new[mask] = self.sample(n).to(device)
         self._current = new
         tensordict_reset.set(self.preference_key, new)
