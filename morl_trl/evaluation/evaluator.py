@@ -1,21 +1,26 @@
 """The multi-context evaluator: a policy on every (context, weight, episode) of an evaluation suite.
 
-The whole grid runs as *one* batched environment whose sub-envs each get their context at
-reset (the reset TensorDict's ``"context"``, read by
-:class:`~morl_trl.envs.base.ContextualMOEnv`) and their preference in the TensorDict, so an
-evaluation of ``C`` contexts × ``W`` weights × ``E`` episodes costs one ``step`` call per time
-step (``chunk_size`` bounds the batch, and the memory, when the grid is large).
+The whole grid runs as *one* batched environment (a pool of ``chunk_size`` sub-envs) built by
+``env_factory(num_envs=..., seed=...)`` -- the training composition minus its training-only
+parts. Every sub-env gets its context in the reset TensorDict's ``"context"`` (the rule of
+every contextual env: a context given at reset is used; the evaluator checks that the env
+reports it back) and its preference through the library's own
+:class:`~morl_trl.transforms.PreferenceConditioning` (``mode="given"``); the library's
+:class:`~morl_trl.transforms.DiscountedVectorReturn` sums the returns. An evaluation of ``C``
+contexts x ``W`` weights x ``E`` episodes costs one ``step`` call per time step.
 """
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.envs import Compose, EnvBase, TransformedEnv
+from torchrl.envs.transforms import Transform
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.evaluation.results import ContextResult, EvaluationResult
@@ -32,10 +37,56 @@ from morl_trl.metrics import (
     sparsity,
 )
 from morl_trl.preferences import check_simplex, energy_weights
+from morl_trl.transforms import DiscountedVectorReturn, PreferenceConditioning
 
 __all__ = ["MultiContextEvaluator"]
 
 Policy = Callable[[TensorDictBase], TensorDictBase]
+EnvFactory = Callable[..., EnvBase]
+
+# the evaluator's own return keys (a training stack may carry DiscountedVectorReturn's defaults)
+_RETURN = "eval_episode_return"
+_DISCOUNTED = "eval_episode_discounted_return"
+_DISCOUNT = "eval_episode_discount"
+_FACTORY_HELP = (
+    "env_factory must be a callable (num_envs, seed) -> env; got {what}: compose it in your factory, e.g. "
+    "env_factory=lambda num_envs, seed: compose_policy_env(make_env(\"MOLunarLanderDR-v0\", num_envs=num_envs, "
+    "seed=seed), history_len=2)"
+)
+
+
+def _check_factory(factory, what: str = "env_factory") -> EnvFactory:
+    if isinstance(factory, Transform):
+        raise ValueError(_FACTORY_HELP.format(what=f"a Transform ({type(factory).__name__})"))
+    if isinstance(factory, EnvBase):
+        raise ValueError(_FACTORY_HELP.format(what=f"an env instance ({type(factory).__name__}), not a function building one"))
+    if not callable(factory):
+        raise ValueError(_FACTORY_HELP.format(what=f"{what}={factory!r}"))
+    return factory
+
+
+def _domain_env_factory(env_id: str, device) -> EnvFactory:
+    """The default env factory of a registered domain: ``make_env`` of its training id (the env
+    of training; the evaluator's contexts, given at every reset, replace its draws)."""
+    from morl_trl.envs import make_env
+
+    def factory(num_envs: int, seed: int) -> EnvBase:
+        return make_env(env_id, num_envs=num_envs, device=device, seed=seed)
+
+    return factory
+
+
+def _static(env: EnvBase, name: str):
+    """An attribute of ``env`` or of the env under its transforms, read without triggering a
+    batched env's attribute forwarding (which starts workers, or recurses before they start)."""
+    while env is not None:
+        value = inspect.getattr_static(env, name, None)
+        if isinstance(value, property):
+            value = getattr(env, name)
+        if value is not None:
+            return value
+        env = env.base_env if isinstance(env, TransformedEnv) else None
+    return None
 
 
 class MultiContextEvaluator:
@@ -43,10 +94,17 @@ class MultiContextEvaluator:
 
     For each context ``c``, weight ``w`` and episode ``e`` one sub-environment runs exactly one
     episode with context ``c`` while the policy reads ``w`` under ``preference_key``
-    (``[*B, k]``). The discounted vector return of that episode is accumulated until its first
-    ``done`` (terminated or truncated); the sub-env is masked afterwards and the loop stops when
-    every sub-env is done. The value of ``(c, w)`` is the mean over episodes; the front of ``c``
-    is the non-dominated subset of its ``W`` values (the paper's protocol, SPEC §2).
+    (``[*B, k]``). The discounted vector return of that episode is read at its first
+    ``done`` (terminated or truncated); the value of ``(c, w)`` is the mean over episodes; the
+    front of ``c`` is the non-dominated subset of its ``W`` values (the paper's protocol, SPEC §2).
+
+    The env is ``env_factory(num_envs=..., seed=...)`` -- build the same composition as in
+    training minus what only training needs (e.g. ``make_env(train_id, ...)`` plus
+    ``StateActionHistory(2)``, without the training ``PreferenceConditioning``). The evaluator
+    appends ``PreferenceConditioning(k, mode="given")`` and ``DiscountedVectorReturn(gamma)``,
+    passes each sub-env's context in the reset TensorDict, and raises ``ValueError`` if the env
+    then reports other contexts (e.g. a ``DomainRandomization`` left in the stack), so results
+    are never labelled with contexts they did not run.
 
     Per context it reports ``hypervolume`` (against ``ref_point``, default the domain's; points
     that do not dominate it count for nothing, as in the paper), ``eum`` (over ``eum_weights``),
@@ -61,20 +119,24 @@ class MultiContextEvaluator:
             baseline) works as is. Deterministic or stochastic actions are chosen with
             ``exploration_type`` (default deterministic: the mode/mean of a probabilistic
             actor; the paper evaluated MORL/D and SAC with ``ExplorationType.RANDOM``).
-        contexts: a training id (its evaluation suite, e.g. ``"MOLunarLanderDR-v0"``), a list of
-            env ids of one domain, or a mapping ``name -> context vector [c]`` (then pass
-            ``env_factory``).
+        contexts: what to evaluate on:
+
+            * a training id (its evaluation suite, e.g. ``"MOLunarLanderDR-v0"``) or a list of
+              env ids of one domain;
+            * a mapping ``name -> context vector [c]`` (with ``env_factory``);
+            * a mapping ``name -> env_factory`` for envs without a context vector (one env per
+              context, e.g. MO-Gymnasium envs in a ``SerialEnv``);
+            * ``None``: one context, ``"default"``, on ``env_factory``'s env as it is.
         weights: ``[W, k]`` preferences on the simplex, or an int ``W`` for
             :func:`~morl_trl.preferences.energy_weights` (default 100, the paper's).
         episodes: episodes per (context, weight) pair.
         gamma: discount (default: the domain's).
-        env_factory: ``env_factory(num_envs=..., seed=...)`` building the batched env
-            (default: the domain's env class on ``device``). It must read per-sub-env contexts
-            from the reset TensorDict's ``"context"``.
-        transform: a callable returning a TorchRL ``Transform`` (e.g. the
-            ``StateActionHistory`` used in training); applied to every env built.
-        reference: frozen bounds and specialist fronts for every context: adds NHGR, EUGR,
-            normalized HV and EUM.
+        env_factory: ``env_factory(num_envs=..., seed=...)`` building the batched env (batch
+            size ``[num_envs]``, a vector reward). Default for a registered domain:
+            ``make_env`` of its training id; compose what the policy observes with
+            :func:`~morl_trl.transforms.compose_policy_env`).
+        reference: frozen bounds and specialist fronts for every context
+            (:class:`~morl_trl.reporting.DomainReference`): adds NHGR, EUGR, normalized HV and EUM.
         bounds: ``name -> Bounds`` (or ``(lower, upper)``) for normalized HV and EUM without
             specialist fronts (``reference``'s bounds are used when not given).
         ref_point: unnormalized hypervolume reference point (default: the domain's).
@@ -82,15 +144,15 @@ class MultiContextEvaluator:
         chunk_size: number of sub-envs of the batched env (default: the whole grid, one
             sub-env per row). A smaller pool bounds memory: its sub-envs stream through the
             grid, each taking the next pending (context, weight, episode) as soon as its
-            episode ends. For envs whose cost is per sub-env (Box2D, MuJoCo), a pool of a
-            few times fewer sub-envs than rows is also faster, since finished sub-envs no
-            longer wait, being stepped, for the longest episode.
+            episode ends (a partial reset). For envs whose cost is per sub-env (Box2D,
+            MuJoCo), a pool of a few times fewer sub-envs than rows is also faster, since
+            finished sub-envs no longer wait, being stepped, for the longest episode.
         exploration_type: TorchRL exploration type used while acting.
-        device: device of the default env.
-        seed: seed of everything random in the evaluation: the env (sub-env ``i`` is seeded
-            with ``seed + i``) and torch's RNG while acting (stochastic policies); the global
-            RNG state is restored afterwards. Results are reproducible for a given seed and
-            ``chunk_size``.
+        device: device of the default env (and of the reset TensorDicts).
+        seed: seed of everything random in the evaluation: the env (built with ``seed`` and
+            re-seeded with it before each run) and torch's RNG while acting (stochastic
+            policies); the global RNG state is restored afterwards. Results are reproducible
+            for a given seed and ``chunk_size``.
         reset_finished: partially reset sub-envs once they are done even when no row is
             left for them, so that they keep stepping from valid states while masked (set
             ``False`` for domains that tolerate being stepped past their end).
@@ -111,13 +173,12 @@ class MultiContextEvaluator:
     def __init__(
         self,
         policy: Policy | str,
-        contexts: str | Sequence[str] | Mapping[str, object],
+        contexts: str | Sequence[str] | Mapping[str, object] | None = None,
         weights: torch.Tensor | np.ndarray | int | None = None,
         *,
         episodes: int = 1,
         gamma: float | None = None,
-        env_factory: Callable[..., EnvBase] | None = None,
-        transform: Callable[[], object] | None = None,
+        env_factory: EnvFactory | None = None,
         reference=None,
         bounds: Mapping[str, object] | None = None,
         ref_point: Sequence[float] | None = None,
@@ -134,7 +195,6 @@ class MultiContextEvaluator:
             raise ValueError(f"policy must be a callable TensorDict -> TensorDict or 'random', got {policy!r}")
         self.policy = policy
         self.device = torch.device(device)
-        self.transform = transform
         self.preference_key = preference_key
         self.exploration_type = exploration_type
         self.reset_finished = bool(reset_finished)
@@ -142,29 +202,48 @@ class MultiContextEvaluator:
         if not isinstance(episodes, int) or episodes < 1:
             raise ValueError(f"episodes must be a positive int, got {episodes!r}")
         self.episodes = episodes
+        if env_factory is not None:
+            _check_factory(env_factory)
 
         self.domain = None
-        self.context_names, self.contexts = self._resolve_contexts(contexts)
-        if env_factory is None and self.domain is None:
-            raise ValueError("contexts given as vectors need an env_factory(num_envs=..., seed=...)")
-        self.env_factory = env_factory or self._domain_env
-        self._envs: dict[int, EnvBase] = {}
+        self.context_factories: dict[str, EnvFactory] | None = None
+        self.context_names, self.contexts = self._resolve_contexts(contexts, env_factory)
+        if env_factory is None and self.domain is None and self.context_factories is None:
+            raise ValueError(
+                "contexts given as vectors (or none) need an env_factory(num_envs=..., seed=...); "
+                "or give contexts as {name: env_factory}"
+            )
+        if env_factory is None and self.domain is not None:
+            env_factory = _domain_env_factory(self.domain.train_id, self.device)
+        self.env_factory = env_factory
+        self._envs: dict[tuple[str | None, int], EnvBase] = {}
 
-        probe = self._build_env(1) if self.domain is None else None
+        n_weights = weights if isinstance(weights, int) else (100 if weights is None else len(weights))
+        if isinstance(n_weights, bool) or not isinstance(n_weights, int) or n_weights < 1:
+            raise ValueError(f"weights must be a [W, k] weight set or a positive int, got {weights!r}")
+        self._n_weights = n_weights
+        n_total = len(self.context_names) * n_weights * episodes
+        if chunk_size is None:
+            chunk_size = n_total
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+            raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
+        self.chunk_size = chunk_size
+
+        probe = None
         if self.domain is not None:
             self.objective_names = tuple(self.domain.objective_names)
         else:
+            probe = self._env(self.context_names[0] if self.context_factories else None)
             k = int(probe.full_reward_spec[probe.reward_key].shape[-1])
-            names = getattr(probe, "objective_names", None) or ()
+            names = _static(probe, "objective_names") or ()
             self.objective_names = tuple(names) if len(names) == k else tuple(f"objective_{i}" for i in range(k))
+        space = _static(probe, "context_space") if probe is not None else None
         self.context_parameters = (
             tuple(self.domain.context_space.names)
             if self.domain is not None
-            else tuple(getattr(getattr(probe, "context_space", None), "names", ()))
+            else tuple(getattr(space, "names", ())) if self.contexts is not None else ()
         )
         k = len(self.objective_names)
-        if probe is not None and not probe.is_closed:
-            probe.close()
 
         if weights is None:
             weights = 100
@@ -172,7 +251,9 @@ class MultiContextEvaluator:
             weights = energy_weights(k, weights)
         self.weights = torch.as_tensor(check_simplex(_as_2d(weights), k, name="weights"), dtype=torch.float64)
         self.eum_weights = (
-            self.weights if eum_weights is None else torch.as_tensor(check_simplex(_as_2d(eum_weights), k, name="eum_weights"), dtype=torch.float64)
+            self.weights
+            if eum_weights is None
+            else torch.as_tensor(check_simplex(_as_2d(eum_weights), k, name="eum_weights"), dtype=torch.float64)
         )
 
         if gamma is None:
@@ -182,6 +263,8 @@ class MultiContextEvaluator:
         if not (isinstance(gamma, (int, float)) and 0.0 <= gamma <= 1.0):
             raise ValueError(f"gamma must be a number in [0, 1], got {gamma!r}")
         self.gamma = float(gamma)
+        for env in self._envs.values():  # the probe got its transforms before gamma was known
+            env.transform[1].gamma = self.gamma
 
         if ref_point is None and self.domain is not None:
             ref_point = self.domain.hv_ref_point
@@ -202,25 +285,26 @@ class MultiContextEvaluator:
             if reference.num_objectives != k:
                 raise ValueError(f"the reference has {reference.num_objectives} objectives, the env {k}")
         self.bounds = self._resolve_bounds(bounds, k)
-
-        n_total = len(self.context_names) * len(self.weights) * episodes
-        if chunk_size is None:
-            chunk_size = n_total
-        if not isinstance(chunk_size, int) or chunk_size < 1:
-            raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
-        self.chunk_size = min(chunk_size, n_total)
         self.max_steps = max_steps
 
     # ------------------------------------------------------------------ setup helpers
-    def _resolve_contexts(self, contexts) -> tuple[tuple[str, ...], torch.Tensor]:
+    def _resolve_contexts(self, contexts, env_factory) -> tuple[tuple[str, ...], torch.Tensor | None]:
         from morl_trl.envs.registry import domain_of, evaluation_suite, is_randomized
 
+        if contexts is None:
+            return ("default",), None
         if isinstance(contexts, str):
             contexts = evaluation_suite(contexts) if is_randomized(contexts) else [contexts]
         if isinstance(contexts, Mapping):
             if not contexts:
                 raise ValueError("contexts is empty")
             names = tuple(str(n) for n in contexts)
+            values = list(contexts.values())
+            if any(callable(v) or isinstance(v, (Transform, EnvBase)) for v in values):
+                if env_factory is not None:
+                    raise ValueError("contexts given as {name: env_factory} take no separate env_factory")
+                self.context_factories = {n: _check_factory(v, f"contexts[{n!r}]") for n, v in zip(names, values)}
+                return names, None
             vecs = []
             for n, v in contexts.items():
                 v = torch.as_tensor(v, dtype=torch.float32)
@@ -259,31 +343,56 @@ class MultiContextEvaluator:
             out[c] = b
         return out
 
-    def _domain_env(self, num_envs: int, seed: int) -> EnvBase:
-        spec = self.domain
-        cls = spec.env_cls()
-        return cls(
-            num_envs=num_envs,
-            context=spec.context_space.default_tensor(),
-            device=self.device,
-            seed=seed,
-            **dict(spec.env_kwargs),
-        )
+    def _pool_size(self, group: str | None) -> int:
+        rows = self._n_weights * self.episodes * (1 if group is not None else len(self.context_names))
+        return min(self.chunk_size, rows)
 
-    def _build_env(self, num_envs: int) -> EnvBase:
-        env = self.env_factory(num_envs=num_envs, seed=self.seed)
-        if tuple(env.batch_size) != (num_envs,):
-            raise ValueError(f"env_factory(num_envs={num_envs}) built an env of batch size {tuple(env.batch_size)}")
-        if self.transform is not None:
-            env = TransformedEnv(env, self.transform())
-        return env
-
-    def _env(self, num_envs: int) -> EnvBase:
-        # one env per batch size (the last chunk may be smaller), kept for later evaluations
-        env = self._envs.get(num_envs)
+    def _env(self, group: str | None) -> EnvBase:
+        """The pool env of ``group`` (a context name for ``{name: env_factory}``, else ``None``):
+        built once with the evaluation transforms appended, kept for later evaluations."""
+        num_envs = self._pool_size(group)
+        env = self._envs.get((group, num_envs))
         if env is None:
-            env = self._envs[num_envs] = self._build_env(num_envs)
+            factory = self.env_factory if group is None else self.context_factories[group]
+            env = factory(num_envs=num_envs, seed=self.seed)
+            if not isinstance(env, EnvBase):
+                raise ValueError(f"env_factory returned {type(env).__name__}; it must return a TorchRL EnvBase")
+            if tuple(env.batch_size) != (num_envs,):
+                raise ValueError(
+                    f"env_factory(num_envs={num_envs}) built an env of batch size {tuple(env.batch_size)}; "
+                    f"expected ({num_envs},)"
+                )
+            env = self._with_evaluation_transforms(env)
+            self._envs[(group, num_envs)] = env
         return env
+
+    def _with_evaluation_transforms(self, env: EnvBase) -> TransformedEnv:
+        """``TransformedEnv(env, Compose(PreferenceConditioning(k, mode="given"), DiscountedVectorReturn(gamma)))``."""
+        if self.preference_key in env.full_observation_spec.keys(True, True):
+            raise ValueError(
+                f"the env from env_factory already writes {self.preference_key!r} (a training "
+                "PreferenceConditioning?); leave it out: the evaluator adds PreferenceConditioning(mode='given') "
+                "with its weights"
+            )
+        reward = env.full_reward_spec[env.reward_key]
+        if reward.ndim < 2:
+            raise ValueError(f"the env's reward has shape {tuple(reward.shape)}; the evaluator needs a vector reward [*B, k]")
+        k = int(reward.shape[-1])
+        return TransformedEnv(
+            env,
+            Compose(
+                PreferenceConditioning(k, mode="given", preference_key=self.preference_key),
+                DiscountedVectorReturn(
+                    getattr(self, "gamma", 1.0),
+                    in_key=env.reward_key,
+                    return_key=_RETURN,
+                    discounted_key=_DISCOUNTED,
+                    discount_key=_DISCOUNT,
+                    dtype=torch.float64,
+                ),
+            ),
+            auto_unwrap=False,  # keep the factory's env whole: the loop steps it
+        )
 
     # ------------------------------------------------------------------ running
     def evaluate(self, policy: Policy | str | None = None) -> EvaluationResult:
@@ -292,67 +401,109 @@ class MultiContextEvaluator:
         C, W, E = len(self.context_names), len(self.weights), self.episodes
         k = len(self.objective_names)
         # grid row r = (c * W + w) * E + e
-        ctx_rows = self.contexts.repeat_interleave(W * E, dim=0)
-        pref_rows = self.weights.repeat_interleave(E, dim=0).repeat(C, 1)
-        disc, und, lengths = self._run_pool(policy, ctx_rows, pref_rows)
+        pref_rows = self.weights.repeat_interleave(E, dim=0)
+        if self.context_factories is None:
+            ctx_rows = None if self.contexts is None else self.contexts.repeat_interleave(W * E, dim=0)
+            disc, und, lengths = self._run_pool(policy, self._env(None), ctx_rows, pref_rows.repeat(C, 1))
+        else:
+            runs = [self._run_pool(policy, self._env(name), None, pref_rows) for name in self.context_names]
+            disc, und, lengths = (torch.cat(parts) for parts in zip(*runs))
         return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E))
 
     __call__ = evaluate
 
-    def _run_pool(self, policy, ctx_rows: torch.Tensor, pref_rows: torch.Tensor):
-        """Run every grid row as one episode on a pool of ``chunk_size`` sub-envs.
+    def _check_contexts(self, td: TensorDictBase, which: torch.Tensor, wanted: torch.Tensor, rows: torch.Tensor) -> None:
+        """Raise unless the env reports the contexts it was given for the sub-envs ``which``."""
+        got = td.get("context", None)
+        if got is None:
+            raise ValueError(
+                "the env from env_factory does not report a 'context' entry, so the evaluator cannot force "
+                "its contexts; give contexts as {name: env_factory} (one env per context) or None"
+            )
+        got = got[which].to(wanted.device, wanted.dtype)
+        off = (got - wanted).abs() > 1e-6 + 1e-5 * wanted.abs()
+        if bool(off.any()):
+            ok = ~off.any(-1)
+            i = int((~ok).nonzero()[0, 0])
+            name = self.context_names[int(rows[i]) // (len(self.weights) * self.episodes)]
+            raise ValueError(
+                f"the env from env_factory reset a sub-env to context {got[i].tolist()} where the evaluator "
+                f"gave {name!r} = {wanted[i].tolist()} in the reset TensorDict: something in its stack "
+                "draws its own contexts at reset (e.g. a DomainRandomization transform). Build the "
+                "evaluation env without it (a context given at reset must be used); results would "
+                "otherwise be labelled with contexts they did not run"
+            )
+
+    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor):
+        """Run every row as one episode on the pool ``env`` (``chunk_size`` sub-envs).
 
         Sub-env ``i`` starts on row ``i``; whenever a sub-env finishes its episode it is
-        partially reset with the context of the next pending row (so a pool smaller than the
-        grid streams through it without waiting for the slowest episode of a batch). With
-        the default pool (the whole grid) every row has its own sub-env, seeded ``seed + r``.
+        partially reset with the context and preference of the next pending row (so a pool
+        smaller than the grid streams through it without waiting for the slowest episode).
+
+        ``env`` is the factory's env under ``Compose(PreferenceConditioning, DiscountedVectorReturn)``.
+        The loop steps and resets the factory's env and applies the two transforms' ``_step`` /
+        ``_reset`` to its outputs -- what ``TransformedEnv.step``/``reset`` do, without their
+        per-call bookkeeping (which costs as much as the physics of a few hundred Box2D sub-envs).
         """
-        n_rows = ctx_rows.shape[0]
-        m = self.chunk_size
-        env = self._env(m)
-        dev = env.device
+        inner = env.base_env
+        prefs, returns = env.transform[0], env.transform[1]
+        n_rows = pref_rows.shape[0]
+        batch_size = inner.batch_size
+        m = int(batch_size[0])
         k = len(self.objective_names)
-        env.set_seed(self.seed)
+        pref_key = self.preference_key
+        inner.set_seed(self.seed)
 
-        row = torch.arange(m, device=dev)  # the grid row each sub-env runs (-1: idle)
+        row = torch.arange(m)  # the grid row each sub-env runs (-1: idle)
         next_row = m
-        ctx_rows, pref_rows = ctx_rows.to(dev), pref_rows.to(dev, torch.float32)
-        pref = pref_rows[row]
-        factor = torch.ones(m, dtype=torch.float64, device=dev)
-        run_disc = torch.zeros(m, k, dtype=torch.float64, device=dev)
-        run_und = torch.zeros(m, k, dtype=torch.float64, device=dev)
-        run_len = torch.zeros(m, dtype=torch.long, device=dev)
-        disc = torch.zeros(n_rows, k, dtype=torch.float64, device=dev)
-        und = torch.zeros(n_rows, k, dtype=torch.float64, device=dev)
-        lengths = torch.zeros(n_rows, dtype=torch.long, device=dev)
-        reward_key = ("next", *_as_tuple(env.reward_key))
+        pref_rows = pref_rows.to(torch.float32)
+        run_len = torch.zeros(m, dtype=torch.long)
+        disc = torch.zeros(n_rows, k, dtype=torch.float64)
+        und = torch.zeros(n_rows, k, dtype=torch.float64)
+        lengths = torch.zeros(n_rows, dtype=torch.long)
+        reward_key = _as_tuple(inner.reward_key)[:-1]
+        disc_key, und_key = ("next", *reward_key, _DISCOUNTED), ("next", *reward_key, _RETURN)
+        action_key = inner.action_key
+        action_spec = inner.full_action_spec[action_key] if policy == "random" else None
+        everyone = torch.ones(m, dtype=torch.bool)
 
-        horizon = self.max_steps or getattr(env, "max_episode_steps", None) or 100_000
+        def reset(td_in: TensorDictBase) -> TensorDictBase:
+            # what the transforms read (the reset mask, the preferences given and the running
+            # returns), taken before the env's reset pops the mask and merges its output into
+            # td_in (it sets new tensors there, so these references keep the values read)
+            carried = td_in.select(pref_key, _RETURN, _DISCOUNTED, _DISCOUNT, "_reset", strict=False)
+            out = inner.reset(td_in)
+            return returns._reset(carried, prefs._reset(carried, out))
+
+        horizon = self.max_steps or _static(inner, "max_episode_steps") or 100_000
+        dev = self.device
         rng_devices = [dev.index or 0] if dev.type == "cuda" else []
         with torch.random.fork_rng(devices=rng_devices), torch.no_grad(), set_exploration_type(self.exploration_type):
             torch.manual_seed(self.seed)
-            td = env.reset(
-                TensorDict({"context": ctx_rows[row], self.preference_key: pref}, batch_size=env.batch_size, device=dev)
-            )
+            first = TensorDict({pref_key: pref_rows[row]}, batch_size=batch_size, device=dev)
+            if ctx_rows is not None:
+                first.set("context", ctx_rows[row])
+            td = reset(first)
+            out_dev = td.get("done").device
+            if ctx_rows is not None:
+                self._check_contexts(td, everyone.to(out_dev), ctx_rows[row].to(out_dev), row)
             while True:
-                td.set(self.preference_key, pref)
-                if policy == "random":
-                    td.set(env.action_key, env.full_action_spec[env.action_key].rand())
+                if action_spec is not None:
+                    td.set(action_key, action_spec.rand())
                 else:
                     td = policy(td)
                 active = row >= 0
                 if not bool(active.all()):
                     # TorchRL partial step: domains that can (Box2D, MuJoCo) skip the idle sub-envs
-                    td.set("_step", active.reshape(env.batch_size))
-                td = env.step(td)
-                reward = td.get(reward_key).reshape(m, k).to(torch.float64)
-                run_disc += torch.where(active.unsqueeze(-1), factor.unsqueeze(-1) * reward, 0.0)
-                run_und += torch.where(active.unsqueeze(-1), reward, 0.0)
+                    td.set("_step", active.to(out_dev).reshape(batch_size))
+                td = inner.step(td)
+                nxt = td.get("next")
+                returns._step(td, prefs._step(td, nxt))
                 run_len += active
-                factor *= self.gamma
-                done = td.get(("next", "done")).reshape(m)
+                done = nxt.get("done").reshape(m).cpu()
                 cut = active & (run_len >= horizon) & ~done
-                if cut.any():
+                if bool(cut.any()):
                     warnings.warn(
                         f"{int(cut.sum())} episodes were still running after max_steps={horizon}; "
                         "their returns are cut there",
@@ -360,31 +511,41 @@ class MultiContextEvaluator:
                     )
                 finished = active & (done | cut)
                 td_next = env.step_mdp(td)
-                reset = done.clone() if self.reset_finished else torch.zeros_like(done)
-                if finished.any():
+                resetting = done.clone() if self.reset_finished else torch.zeros_like(done)
+                fresh = None
+                if bool(finished.any()):
                     idx = finished.nonzero().squeeze(-1)
                     r = row[idx]
-                    disc[r], und[r], lengths[r] = run_disc[idx], run_und[idx], run_len[idx]
-                    run_disc[idx], run_und[idx], run_len[idx], factor[idx] = 0.0, 0.0, 0, 1.0
+                    idx_d = idx.to(out_dev)
+                    disc[r] = td.get(disc_key)[idx_d].to("cpu", torch.float64)
+                    und[r] = td.get(und_key)[idx_d].to("cpu", torch.float64)
+                    lengths[r] = run_len[idx]
+                    run_len[idx] = 0
                     # hand the next pending rows to the sub-envs that just finished
                     take = min(len(idx), n_rows - next_row)
                     row[idx] = -1
                     if take:
                         fresh = idx[:take]
-                        row[fresh] = torch.arange(next_row, next_row + take, device=dev)
+                        row[fresh] = torch.arange(next_row, next_row + take)
                         next_row += take
-                        pref = pref_rows[row.clamp(min=0)]
-                        ctx = td_next.get("context").clone()
-                        ctx[fresh] = ctx_rows[row[fresh]]
-                        td_next.set("context", ctx)
-                        reset[fresh] = True
-                    if not (row >= 0).any():
+                        fresh_d = fresh.to(out_dev)
+                        pref = td_next.get(pref_key).clone()
+                        pref[fresh_d] = pref_rows[row[fresh]].to(out_dev)
+                        td_next.set(pref_key, pref)
+                        if ctx_rows is not None:
+                            ctx = td_next.get("context").clone()
+                            ctx[fresh_d] = ctx_rows[row[fresh]].to(out_dev, ctx.dtype)
+                            td_next.set("context", ctx)
+                        resetting[fresh] = True
+                    if not bool((row >= 0).any()):
                         break
-                if reset.any():
-                    td_next.set("_reset", reset.reshape(td_next.get("done").shape))
-                    td_next = env.reset(td_next)
+                if bool(resetting.any()):
+                    td_next.set("_reset", resetting.to(out_dev).reshape(td_next.get("done").shape))
+                    td_next = reset(td_next)
+                    if fresh is not None and ctx_rows is not None:
+                        self._check_contexts(td_next, fresh.to(out_dev), ctx_rows[row[fresh]].to(out_dev), row[fresh])
                 td = td_next
-        return disc.cpu(), und.cpu(), lengths.cpu()
+        return disc, und, lengths
 
     # ------------------------------------------------------------------ metrics
     def _result(self, disc, und, lengths) -> EvaluationResult:
@@ -411,7 +572,8 @@ class MultiContextEvaluator:
                     m["eugr"] = self.reference.eugr(name, front, eum_w)
                 except ValueError:  # specialist EUM <= 0: the ratio means nothing
                     m["eugr"] = None
-            per_context[name] = ContextResult(name, self.contexts[i].clone(), values[i], front, m)
+            ctx = None if self.contexts is None else self.contexts[i].clone()
+            per_context[name] = ContextResult(name, ctx, values[i], front, m)
         aggregate: dict[str, float] = {}
         for metric in next(iter(per_context.values())).metrics:
             vals = [r.metrics.get(metric) for r in per_context.values()]
@@ -423,7 +585,7 @@ class MultiContextEvaluator:
             aggregate["nhgr_optimality_gap"] = optimality_gap(nh)
         return EvaluationResult(
             context_names=self.context_names,
-            contexts=self.contexts.clone(),
+            contexts=torch.zeros(len(self.context_names), 0) if self.contexts is None else self.contexts.clone(),
             context_parameters=self.context_parameters,
             objective_names=self.objective_names,
             weights=self.weights.clone(),

@@ -39,7 +39,7 @@ class EvaluationResult:
 
     Attributes:
         context_names: ``C`` names, in order.
-        contexts: ``[C, c]`` the context vectors.
+        contexts: ``[C, c]`` the context vectors (``[C, 0]`` for envs without one).
         context_parameters: the names of the ``c`` context parameters (may be empty).
         objective_names: the ``k`` objective names.
         weights: ``[W, k]`` the preferences the policy was conditioned on.

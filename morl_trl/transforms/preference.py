@@ -164,11 +164,16 @@ class PreferenceConditioning(SeededTransform):
         return self.weights[rows]
 
     def _given(self, tensordict: TensorDictBase | None, batch, device) -> torch.Tensor | None:
+        """The preference in ``tensordict`` as ``[*batch, k]`` float32 (its width checked; its rows
+        are checked on the simplex, for the sub-envs being reset only, in ``_reset_env_preprocess``)."""
         w = None if tensordict is None else tensordict.get(self.preference_key, None)
         if w is None:
             return None
         k = self.num_objectives
-        w = check_simplex(torch.as_tensor(w, device=device), k).to(torch.float32)
+        w = torch.as_tensor(w, device=device)
+        if w.ndim == 0 or w.shape[-1] != k:
+            check_simplex(w, k)  # raises, naming the shape
+        w = w.to(torch.float32)
         if w.shape != (*batch, k):
             try:
                 w = w.expand(*batch, k)
@@ -199,13 +204,14 @@ class PreferenceConditioning(SeededTransform):
             current = self._current
         if current is None or current.shape != (*batch, k):
             current = self.equal_weights(device).expand(*batch, k)
-        new = current.to(device=device, dtype=torch.float32).clone()
-        n = int(mask.sum())
-        if n:
-            if self.mode == "given":
-                if given is not None:  # otherwise the sub-envs keep what they had
-                    new[mask] = given[mask]
-            else:
+        current = current.to(device=device, dtype=torch.float32)
+        if self.mode == "given":
+            # otherwise (nothing given) the sub-envs keep what they had; no host sync on this path
+            new = current.clone() if given is None else torch.where(mask.unsqueeze(-1), given, current)
+        else:
+            new = current.clone()
+            n = int(mask.sum())
+            if n:
                 new[mask] = self.sample(n).to(device)
         self._current = new
         tensordict_reset.set(self.preference_key, new)

@@ -27,6 +27,8 @@ class DiscountedVectorReturn(Transform):
         gamma: the discount, in ``[0, 1]`` (the paper: 0.99, 0.995 for MO-LavaGrid).
         in_key: the vector reward.
         return_key, discounted_key, discount_key: output keys.
+        dtype: of the running sums (default: the reward's); ``torch.float64`` keeps long
+            episodes' sums exact to float32 rewards (the evaluator uses it).
 
     Example:
         >>> import torch
@@ -46,6 +48,7 @@ class DiscountedVectorReturn(Transform):
         return_key: str = "episode_return",
         discounted_key: str = "episode_discounted_return",
         discount_key: str = "episode_discount",
+        dtype: torch.dtype | None = None,
     ) -> None:
         try:
             ok = 0.0 <= float(gamma) <= 1.0
@@ -58,6 +61,9 @@ class DiscountedVectorReturn(Transform):
         self.return_key = return_key
         self.discounted_key = discounted_key
         self.discount_key = discount_key
+        if dtype is not None and not (isinstance(dtype, torch.dtype) and dtype.is_floating_point):
+            raise ValueError(f"dtype must be a floating point torch.dtype, got {dtype!r}")
+        self.dtype = dtype
 
     @property
     def in_key(self):
@@ -70,8 +76,9 @@ class DiscountedVectorReturn(Transform):
     def _specs(self) -> dict:
         r = self._reward_spec()
         batch = r.shape[:-1]
-        vec = Unbounded(shape=r.shape, dtype=r.dtype, device=r.device)
-        disc = Bounded(0.0, 1.0, shape=(*batch, 1), dtype=r.dtype, device=r.device)
+        dtype = self.dtype or r.dtype
+        vec = Unbounded(shape=r.shape, dtype=dtype, device=r.device)
+        disc = Bounded(0.0, 1.0, shape=(*batch, 1), dtype=dtype, device=r.device)
         return {self.return_key: vec, self.discounted_key: vec.clone(), self.discount_key: disc}
 
     def transform_observation_spec(self, observation_spec: Composite) -> Composite:
@@ -92,8 +99,9 @@ class DiscountedVectorReturn(Transform):
         spec = self._reward_spec()
         batch, device = tensordict_reset.batch_size, tensordict_reset.device
         keep = ~reset_mask(tensordict, batch, device).unsqueeze(-1)
-        zeros = torch.zeros(spec.shape, dtype=spec.dtype, device=device)
-        ones = torch.ones(*batch, 1, dtype=spec.dtype, device=device)
+        dtype = self.dtype or spec.dtype
+        zeros = torch.zeros(spec.shape, dtype=dtype, device=device)
+        ones = torch.ones(*batch, 1, dtype=dtype, device=device)
         for key, fresh in ((self.return_key, zeros), (self.discounted_key, zeros), (self.discount_key, ones)):
             old = tensordict.get(key, None)
             value = fresh if old is None or old.shape != fresh.shape else torch.where(keep, old, fresh)
@@ -102,6 +110,8 @@ class DiscountedVectorReturn(Transform):
 
     def _step(self, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
         reward = next_tensordict.get(self.in_key)
+        if self.dtype is not None:
+            reward = reward.to(self.dtype)
         ret = tensordict.get(self.return_key, None)
         disc_ret = tensordict.get(self.discounted_key, None)
         discount = tensordict.get(self.discount_key, None)

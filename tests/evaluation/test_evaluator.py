@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import torch
 from tensordict.nn import TensorDictModule
-from torchrl.envs import StepCounter
+from torchrl.envs import StepCounter, TransformedEnv
 from torchrl.envs.utils import ExplorationType, exploration_type
 
 from morl_trl.evaluation import MultiContextEvaluator
@@ -59,7 +59,8 @@ def expected_returns():
 def make(**kw):
     kw.setdefault("weights", WEIGHTS)
     kw.setdefault("gamma", G)
-    return MultiContextEvaluator(kw.pop("policy", policy), kw.pop("contexts", CONTEXTS), env_factory=toy_factory, **kw)
+    kw.setdefault("env_factory", toy_factory)
+    return MultiContextEvaluator(kw.pop("policy", policy), kw.pop("contexts", CONTEXTS), **kw)
 
 
 # ----------------------------------------------------------------------------- returns
@@ -108,7 +109,7 @@ def test_a_smaller_pool_streams_through_the_grid_with_the_same_returns(chunk_siz
     r = ev.evaluate()
     np.testing.assert_allclose(r.returns.numpy(), np.repeat(expected_returns()[:, :, None], 3, 2), rtol=1e-6)
     assert r.lengths[:, :, 0].tolist() == [[6, 3, 6], [6, 3, 6]]
-    assert list(ev._envs) == [chunk_size]  # one batched env of that size
+    assert list(ev._envs) == [(None, chunk_size)]  # one batched env of that size
 
 
 def test_policy_ignoring_the_preference_single_objective_baseline():
@@ -121,14 +122,58 @@ def test_policy_ignoring_the_preference_single_objective_baseline():
         assert r.per_context[r.context_names[c]].metrics["cardinality"] == 1
 
 
-def test_transform_factory_is_applied_to_the_evaluation_env():
+def test_the_env_factory_composes_the_policy_transforms():
     def by_step_count(td):  # reads StepCounter's output instead of the observation
         t = td["step_count"].squeeze(-1)
         td["action"] = torch.where(td["preference"][..., 1] > 0.5, torch.ones_like(t), (t % 2 == 0).long())
         return td
 
-    r = make(policy=by_step_count, transform=lambda: StepCounter()).evaluate()
+    def factory(num_envs, seed):
+        return TransformedEnv(ToyContextEnv(num_envs=num_envs, seed=seed), StepCounter())
+
+    r = make(policy=by_step_count, env_factory=factory).evaluate()
     np.testing.assert_allclose(r.returns[:, :, 0].numpy(), expected_returns(), rtol=1e-6)
+
+
+def test_returns_equal_a_hand_rolled_loop_on_lava_grid():
+    # the library transforms (PreferenceConditioning(mode="given"), DiscountedVectorReturn) give
+    # the numbers of a plain loop: step the fixed-context env, sum gamma^t r_t until the first done
+    from morl_trl.envs import domain_of, make_env
+
+    spec = domain_of("MOLavaGridDR-v0")
+    names = list(spec.evaluation_ids[:2])
+    weights = torch.tensor([[1.0, 0.0], [0.3, 0.7], [0.0, 1.0]])
+
+    def fixed(td):  # a deterministic policy reading position, step and preference
+        obs = td["observation"].flatten(1).float()
+        score = obs.sum(-1) + 7 * td["preference"][:, 0] + 3 * td["preference"][:, 1]
+        td["action"] = (score * 13).long() % 3
+        return td
+
+    ev = MultiContextEvaluator(fixed, names, weights, gamma=0.995, seed=3)
+    r = ev.evaluate()
+    for c, name in enumerate(names):
+        env = make_env(name, num_envs=len(weights), seed=3)
+        td = env.reset()
+        td["preference"] = weights.clone()
+        ret = torch.zeros(len(weights), 2, dtype=torch.float64)
+        und = torch.zeros_like(ret)
+        alive = torch.ones(len(weights), dtype=torch.bool)
+        length = torch.zeros(len(weights), dtype=torch.long)
+        t = 0
+        while alive.any():
+            td = env.step(fixed(td))
+            rew = td["next", "reward"].double()
+            ret += torch.where(alive[:, None], 0.995**t * rew, 0.0)
+            und += torch.where(alive[:, None], rew, 0.0)
+            length += alive
+            alive &= ~td["next", "done"].squeeze(-1)
+            td = env.step_mdp(td).set("preference", weights.clone())
+            t += 1
+        torch.testing.assert_close(r.returns[c, :, 0], ret, rtol=1e-9, atol=1e-9)
+        torch.testing.assert_close(r.undiscounted_returns[c, :, 0], und, rtol=1e-9, atol=1e-9)
+        assert r.lengths[c, :, 0].tolist() == length.tolist()
+    assert r.lengths.min() > 1  # the episodes did something
 
 
 def test_exploration_type_is_set_while_acting():
@@ -292,3 +337,103 @@ def test_max_steps_cuts_with_a_warning():
         r = make(max_steps=2).evaluate()
     assert any("still running" in str(x.message) for x in w)
     assert (r.lengths == 2).all()
+
+
+# ----------------------------------------------------------------------------- the env factory
+def test_a_stack_that_redraws_contexts_is_refused_not_mislabelled():
+    from morl_trl.transforms import DomainRandomization
+
+    def training_stack(num_envs, seed):
+        return TransformedEnv(ToyContextEnv(num_envs=num_envs, seed=seed), DomainRandomization(TOY_CONTEXT, seed=0))
+
+    ev = make(env_factory=training_stack)
+    with pytest.raises(ValueError, match=r"gave 'a' = \[0.5, 1.0\] in the reset TensorDict: something in its stack "
+                                         r"draws its own contexts at reset \(e.g. a DomainRandomization"):
+        ev.evaluate()
+
+
+def test_the_pool_checks_the_contexts_of_later_partial_resets_too():
+    class FirstResetOnly(ToyContextEnv):  # honours the given context at the first reset only
+        def _reset(self, tensordict=None, **kwargs):
+            if getattr(self, "_seen", False) and tensordict is not None and "context" in tensordict.keys():
+                tensordict = tensordict.clone().set("context", torch.zeros_like(tensordict["context"]) + 0.25)
+            self._seen = True
+            return super()._reset(tensordict, **kwargs)
+
+    ev = make(env_factory=lambda num_envs, seed: FirstResetOnly(num_envs=num_envs, seed=seed), chunk_size=2)
+    with pytest.raises(ValueError, match=r"reset a sub-env to context \[0.25, 0.25\]"):
+        ev.evaluate()
+
+
+@pytest.mark.parametrize(
+    "factory, match",
+    [
+        (StepCounter(), r"env_factory must be a callable \(num_envs, seed\) -> env; got a Transform \(StepCounter\): "
+                        r"compose it in your factory, e.g."),
+        (ToyContextEnv(num_envs=2), r"got an env instance \(ToyContextEnv\), not a function building one"),
+        (42, r"env_factory must be a callable .* got env_factory=42"),
+        (lambda num_envs, seed: 42, "env_factory returned int; it must return a TorchRL EnvBase"),
+        (lambda num_envs, seed: ToyContextEnv(num_envs=1), r"built an env of batch size \(1,\); expected \(18,\)"),
+    ],
+)
+def test_bad_env_factories_raise_clearly(factory, match):
+    with pytest.raises(ValueError, match=match):
+        make(env_factory=factory, episodes=3).evaluate()
+
+
+def test_a_training_preference_in_the_stack_is_refused():
+    from morl_trl.transforms import PreferenceConditioning
+
+    def factory(num_envs, seed):
+        return TransformedEnv(ToyContextEnv(num_envs=num_envs, seed=seed), PreferenceConditioning(seed=0))
+
+    with pytest.raises(ValueError, match=r"already writes 'preference' \(a training PreferenceConditioning\?\)"):
+        make(env_factory=factory).evaluate()
+
+
+def test_the_transform_keyword_is_gone():
+    with pytest.raises(TypeError, match="transform"):
+        make(transform=lambda: StepCounter())
+
+
+def test_contexts_as_env_factories_and_a_single_default_context():
+    # no context vector: one env per named context, or the env as it is
+    per_ctx = {
+        name: (lambda num_envs, seed, c=c: ToyContextEnv(num_envs=num_envs, seed=seed, context=c))
+        for name, c in CONTEXTS.items()
+    }
+    r = MultiContextEvaluator(policy, per_ctx, WEIGHTS, gamma=G).evaluate()
+    assert r.context_names == ("a", "b") and r.context_parameters == ()
+    np.testing.assert_allclose(r.returns[:, :, 0].numpy(), expected_returns(), rtol=1e-6)
+    single = MultiContextEvaluator(
+        policy, None, WEIGHTS, gamma=G, env_factory=lambda num_envs, seed: per_ctx["b"](num_envs, seed)
+    ).evaluate()
+    assert single.context_names == ("default",)
+    np.testing.assert_allclose(single.returns[0, :, 0].numpy(), expected_returns()[1], rtol=1e-6)
+
+
+def test_mo_gymnasium_lunar_lander_in_a_serial_env():
+    mo_gym = pytest.importorskip("mo_gymnasium")
+    from torchrl.envs import GymWrapper, SerialEnv
+
+    def one():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # Gymnasium's float64 Box bounds
+            return GymWrapper(mo_gym.make("mo-lunar-lander-v3"))
+
+    def factory(num_envs, seed):
+        return SerialEnv(num_envs, one)  # no device given: the evaluator must not need env.device
+
+    weights = torch.tensor([[1.0, 0.0, 0.0, 0.0], [0.25, 0.25, 0.25, 0.25], [0.0, 0.5, 0.5, 0.0]])
+    runs = []
+    for _ in range(2):
+        ev = MultiContextEvaluator("random", {"default": factory}, weights, gamma=0.99, seed=5)
+        runs.append(ev.evaluate())
+        ev.close()
+    r = runs[0]
+    assert r.returns.shape == (1, 3, 1, 4) and torch.isfinite(r.returns).all()
+    assert ((r.lengths >= 40) & (r.lengths <= 1000)).all()  # random landers crash or drift off
+    front = r.front("default")
+    assert 1 <= len(front) <= 3 and np.isfinite(front).all()
+    assert r.per_context["default"].metrics["cardinality"] == len(front)
+    torch.testing.assert_close(runs[1].returns, r.returns)  # deterministic for a seed
