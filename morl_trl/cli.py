@@ -213,6 +213,21 @@ def reference_table_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def reference_pack_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(
+        prog="morl-trl reference-pack",
+        description="Copy the bounds and specialist fronts from a folder in the published layout into the "
+                    "package (the constants NHGR uses on any install), or into --out.")
+    p.add_argument("source", help="folder with minmax_values/ and specialist_fronts/ (e.g. ../shared/reference)")
+    p.add_argument("--out", help="destination folder (default: the package's own copy)")
+    args = p.parse_args(argv)
+    from morl_trl.reporting.reference import PACKAGED_REFERENCE, pack_reference
+
+    written = pack_reference(args.source, args.out or PACKAGED_REFERENCE)
+    print(f"wrote {len(written)} files to {args.out or PACKAGED_REFERENCE}")
+    return 0
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
@@ -220,6 +235,7 @@ COMMANDS = {
     "demo": (demo_main, "build every domain, step it under random contexts, print vector returns"),
     "envs": (envs_main, "list domains, their contexts and evaluation suites"),
     "reference-table": (reference_table_main, "reproduce the paper's NHGR table from the published fronts"),
+    "reference-pack": (reference_pack_main, "ship the bounds and specialist fronts of a reference folder in the package"),
 }
 
 

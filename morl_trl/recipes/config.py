@@ -192,7 +192,8 @@ class TrainConfig:
     eval_episodes: int = _key("eval", 1, "episodes per (context, weight)", _int(1, 10_000))
     eval_contexts: tuple[str, ...] | None = _key("eval", None, "evaluation env ids (null: the domain's suite)",
                                                  _contexts)
-    reference_dir: str | None = _key("eval", None, "the published data (bounds, specialist fronts) for NHGR/EUGR",
+    reference_dir: str | None = _key("eval", None, "the published data for NHGR/EUGR and the paper's baselines (null: the bounds and "
+                                     "specialist fronts shipped with the package, no baselines)",
                                      _str(optional=True))
     eval_random_baseline: bool = _key("eval", True, "also evaluate a uniformly random policy at the end",
                                       _bool)

@@ -108,11 +108,14 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
 
 
 def _load_reference(cfg: TrainConfig, spec: DomainSpec):
-    if not cfg.reference_dir:
-        return None
-    from morl_trl.reporting.reference import load_domain_reference
+    """The bounds and specialist fronts for NHGR/EUGR: ``cfg.reference_dir``'s, else the copies
+    shipped with the package; ``None`` for a domain without published data."""
+    from morl_trl.reporting.reference import PACKAGED_REFERENCE, list_reference_domains, load_domain_reference
 
-    return load_domain_reference(cfg.reference_dir, spec.train_id)
+    root = cfg.reference_dir or PACKAGED_REFERENCE
+    if spec.train_id not in list_reference_domains(root) and not cfg.reference_dir:
+        return None
+    return load_domain_reference(root, spec.train_id)
 
 
 def _set_threads(cfg: TrainConfig) -> None:

@@ -16,21 +16,25 @@ Example:
 """
 
 from morl_trl.reporting.reference import (
+    PACKAGED_REFERENCE,
     DomainReference,
     list_reference_domains,
     load_domain_reference,
     load_generalist_fronts,
     load_reference,
+    pack_reference,
     read_front_csv,
     write_front_csv,
 )
 
 __all__ = [
+    "PACKAGED_REFERENCE",
     "DomainReference",
     "list_reference_domains",
     "load_domain_reference",
     "load_generalist_fronts",
     "load_reference",
+    "pack_reference",
     "read_front_csv",
     "write_front_csv",
 ]

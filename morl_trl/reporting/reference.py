@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import json
 import re
+import shutil
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +38,8 @@ __all__ = [
     "load_domain_reference",
     "load_reference",
     "load_generalist_fronts",
+    "pack_reference",
+    "PACKAGED_REFERENCE",
 ]
 
 
@@ -192,18 +195,31 @@ def _root(root: str | Path) -> Path:
     return root
 
 
+#: the metric's constants shipped with the package: bounds and specialist fronts (data/SOURCE.txt)
+PACKAGED_REFERENCE = Path(__file__).with_name("data")
+
+
 def list_reference_domains(root: str | Path) -> list[str]:
     """The domain ids that have bounds under ``root``."""
     return sorted(p.stem for p in _root(root).joinpath("minmax_values").glob("*.json"))
 
 
-def load_domain_reference(root: str | Path, domain: str) -> DomainReference:
+def load_domain_reference(root: str | Path | None, domain: str | None = None) -> DomainReference:
     """Read the frozen bounds and specialist fronts of ``domain`` from ``root``.
 
-    The evaluation contexts are the keys of the bounds file, in its order (the specialist
-    folder may hold extra contexts, e.g. LunarLander's StartLow, which are not loaded).
+    ``load_domain_reference(domain)`` (or ``root=None``) reads the copies shipped with the
+    package (:data:`PACKAGED_REFERENCE`), so NHGR works on any install. The evaluation
+    contexts are the keys of the bounds file, in its order (the specialist folder may hold
+    extra contexts, e.g. LunarLander's StartLow, which are not loaded).
+
+    Example:
+        >>> ref = load_domain_reference("MOLunarLanderDR-v0")      # the shipped constants
+        >>> len(ref.contexts), ref.num_objectives
+        (8, 4)
     """
-    root = _root(root)
+    if domain is None:
+        root, domain = None, root
+    root = _root(PACKAGED_REFERENCE if root is None else root)
     path = root / "minmax_values" / f"{domain}.json"
     if not path.is_file():
         raise ValueError(f"no bounds for domain {domain!r} under {root}; available: {list_reference_domains(root)}")
@@ -217,6 +233,28 @@ def load_domain_reference(root: str | Path, domain: str) -> DomainReference:
             raise ValueError(f"{domain}: missing specialist front {p}")
         fronts[c] = read_front_csv(p)
     return DomainReference(domain, bounds, fronts)
+
+
+def pack_reference(source: str | Path, destination: str | Path = PACKAGED_REFERENCE) -> list[Path]:
+    """Copy the bounds and the evaluation contexts' specialist fronts of every domain under
+    ``source`` (the published layout) to ``destination`` (default: the package's own copy);
+    every domain is loaded first, so a damaged source changes nothing. Returns the files written."""
+    source = _root(source)
+    domains = list_reference_domains(source)
+    refs = [load_domain_reference(source, d) for d in domains]  # validates before anything is written
+    destination = Path(destination)
+    written = []
+    for domain, ref in zip(domains, refs):
+        out = destination / "minmax_values" / f"{domain}.json"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source / "minmax_values" / f"{domain}.json", out)
+        written.append(out)
+        for c in ref.contexts:
+            out = destination / "specialist_fronts" / domain / f"{c}.csv"
+            out.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(source / "specialist_fronts" / domain / f"{c}.csv", out)
+            written.append(out)
+    return written
 
 
 def load_reference(root: str | Path) -> dict[str, DomainReference]:
