@@ -14,8 +14,12 @@ class CAPQLLoss(MOSACLoss):
 
     A preference-conditioned actor :math:`\pi(a | s, w)` and two vector critics
     :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at
-    once. Each sampled transition gets a fresh preference :math:`w` (uniform on
-    the simplex) at every call; the critics regress onto
+    once. Each transition is trained on the preference :math:`w` stored with it
+    (the one its action was chosen with: the authors' runs draw a new one every
+    env step from a 22.5-degree cone, see
+    :func:`~morl_trl.preferences.sample_cone_preferences`); with
+    ``resample_preferences=True`` it gets a fresh one (uniform on the simplex) at
+    every call instead. The critics regress onto
 
     .. math::
 
@@ -28,9 +32,10 @@ class CAPQLLoss(MOSACLoss):
     :math:`\alpha` (0.2 in the paper's runs).
 
     This is :class:`~morl_trl.objectives.mosac.MOSACLoss` with
-    ``critic_min="elementwise"``, ``critic_loss="vector"``, ``fixed_alpha=True``
-    and ``resample_preferences=True``; pass ``resample_preferences=False`` to train
-    on the preferences stored in the batch instead (MORL-Baselines' variant).
+    ``critic_min="elementwise"``, ``critic_loss="vector"`` and ``fixed_alpha=True``,
+    reading the batch's ``"preference"`` as the authors' runs do; pass
+    ``resample_preferences=True`` to train on fresh preferences per sample instead
+    (morl_trl's former default: every update covers the whole simplex).
 
     Args:
         actor_network: e.g. :func:`~morl_trl.objectives.networks.make_gaussian_actor`.
@@ -38,7 +43,8 @@ class CAPQLLoss(MOSACLoss):
 
     Keyword Args:
         alpha (float): entropy coefficient. Defaults to 0.2.
-        resample_preferences (bool): fresh preferences per sample. Defaults to ``True``.
+        resample_preferences (bool): fresh preferences per sample instead of the batch's
+            stored ones. Defaults to ``False`` (stored, as the authors).
         **kwargs: any other :class:`MOSACLoss` keyword.
 
     Examples:
@@ -52,7 +58,7 @@ class CAPQLLoss(MOSACLoss):
         >>> updater = SoftUpdate(loss, tau=0.005)
         >>> B = 8
         >>> data = TensorDict({
-        ...     "observation": torch.randn(B, 7), "action": spec.rand((B,)),
+        ...     "observation": torch.randn(B, 7), "action": spec.rand((B,)), "preference": torch.full((B, 2), 0.5),
         ...     ("next", "observation"): torch.randn(B, 7), ("next", "reward"): torch.randn(B, 2),
         ...     ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
         ...     ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
@@ -66,7 +72,7 @@ class CAPQLLoss(MOSACLoss):
         qvalue_network: TensorDictModule,
         *,
         alpha: float = 0.2,
-        resample_preferences: bool = True,
+        resample_preferences: bool = False,
         **kwargs,
     ) -> None:
         kwargs.setdefault("critic_min", "elementwise")

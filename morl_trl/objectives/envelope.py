@@ -81,10 +81,16 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
             :class:`~torchrl.objectives.HardUpdate` or ``SoftUpdate``). Defaults to ``True``.
         reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
         use_prioritized_weights (bool or "auto"): weight samples by the importance
-            weights a prioritized sampler writes under ``"priority_weight"``.
+            weights a prioritized sampler writes under ``"priority_weight"`` (MORL-Baselines
+            applies none: the Envelope recipe passes ``False`` unless ``per_importance_weights``).
+        priority (str): the per-transition TD error written for prioritized replay:
+            ``"first"`` (the default, as MORL-Baselines and the paper's runs):
+            :math:`|w_0^\top (Q(s_j, a_j, w_0) - y_{0j})|`, the scalarised error under the
+            *first* sampled preference only; ``"mean"``: the mean over the ``N`` preferences,
+            :math:`\frac1N\sum_i |w_i^\top (Q(s_j, a_j, w_i) - y_{ij})|`.
 
-    The per-transition TD error :math:`\frac1N\sum_i |w_i^\top (Q(s_j, a_j, w_i) - y_{ij})|`
-    is written into the input under the ``priority`` key (``"td_error"``) for
+    The per-transition TD error (``priority``) is written into the input under the
+    ``priority`` key (``"td_error"``) for
     :meth:`TensorDictReplayBuffer.update_tensordict_priority`.
 
     Examples:
@@ -165,6 +171,7 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         delay_value: bool = True,
         reduction: str = "mean",
         use_prioritized_weights: str | bool = "auto",
+        priority: str = "first",
     ) -> None:
         self._in_keys = None
         super().__init__()
@@ -179,6 +186,9 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
                 raise ValueError(f"{name} must lie in [0, 1], got {lam}.")
         if reduction not in ("mean", "sum", "none"):
             raise ValueError(f"reduction={reduction!r}; valid values are 'mean', 'sum', 'none'.")
+        if priority not in ("first", "mean"):
+            raise ValueError(f"priority={priority!r}; valid values are 'first', 'mean'.")
+        self.priority = priority
         self.num_objectives = self._resolve_num_objectives(num_objectives, value_network)
         self.num_preference_samples = int(num_preference_samples)
         self.shared_preferences = shared_preferences
@@ -297,7 +307,8 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         lam = self.homotopy_lambda
         per_sample = ((1 - lam) * vector_loss + lam * scalarized_loss).mean(-1)
 
-        td_error = (scalar_q - scalar_target).detach().abs().mean(-1)
+        scalar_td = (scalar_q - scalar_target).detach().abs()  # [B, N]
+        td_error = scalar_td[:, 0] if self.priority == "first" else scalar_td.mean(-1)
         tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
 
         weights = self._maybe_get_priority_weight(data)

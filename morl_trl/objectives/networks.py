@@ -2,7 +2,8 @@
 
 Every network here maps ``[obs, w]`` (and, for critics, the action) to its
 output through one concatenation and a plain MLP, optionally after a pixel
-encoder (:class:`NatureCNN`). They accept any number of leading batch
+encoder (:class:`NatureCNN`); the concatenation is at the input by default and
+may come after the first hidden layers (``preference_layer``). They accept any number of leading batch
 dimensions, have no data-dependent control flow and capture as one graph under
 ``torch.compile(fullgraph=True)``.
 
@@ -31,7 +32,11 @@ __all__ = [
     "make_gaussian_actor",
     "make_vector_critic",
     "make_vector_q_network",
+    "orthogonal_init_",
 ]
+
+INITS = ("default", "orthogonal")
+SCALE_PARAMETERIZATIONS = ("softplus", "clamped_log_std")
 
 DEFAULT_NUM_CELLS: tuple[int, ...] = (256, 256, 256, 256)
 
@@ -91,6 +96,30 @@ def _mlp(in_features: int, out_features: int, num_cells: Sequence[int], activati
     return nn.Sequential(*layers)
 
 
+def orthogonal_init_(module: nn.Module, gain: float = 1.0) -> nn.Module:
+    """Orthogonal weights (``gain``) and zero biases on every ``nn.Linear`` of ``module``, in place.
+
+    MORL-Baselines' ``layer_init(method="orthogonal", weight_gain=1, bias_const=0)``.
+
+    Example:
+        >>> lin = orthogonal_init_(nn.Linear(8, 4))
+        >>> torch.allclose(lin.weight @ lin.weight.T, torch.eye(4), atol=1e-5), bool((lin.bias == 0).all())
+        (True, True)
+    """
+    for m in module.modules():
+        if isinstance(m, nn.Linear):
+            nn.init.orthogonal_(m.weight, gain=gain)
+            if m.bias is not None:
+                nn.init.zeros_(m.bias)
+    return module
+
+
+def _check_init(init: str) -> str:
+    if init not in INITS:
+        raise ValueError(f"init={init!r}; valid values are {INITS}")
+    return init
+
+
 class PreferenceConditionedMLP(nn.Module):
     """``cat([encoder(obs), *rest], -1) -> MLP -> [*B, *out_shape]``.
 
@@ -99,17 +128,28 @@ class PreferenceConditionedMLP(nn.Module):
     :class:`NatureCNN` for pixels); all inputs must share their leading batch
     shape.
 
+    With ``preference_layer = L > 0`` the first input alone goes through the first
+    ``L`` hidden layers and ``rest`` is concatenated to their output:
+    ``cat([h_L(encoder(obs)), *rest]) -> the remaining layers``
+    (``preference_layer=1``: after the first hidden layer).
+
     Args:
         in_features: width of the concatenated input (encoder output + the rest).
         out_shape: trailing output shape, e.g. ``(num_actions, k)``.
         num_cells: hidden layer widths. Defaults to four layers of 256, the paper's ``net_arch``.
         activation: activation class. Defaults to ``nn.ReLU``.
         encoder: optional module applied to the first input.
+        preference_layer: hidden layers before the concatenation, in ``[0, len(num_cells)]``.
+            Defaults to 0 (at the input).
+        rest_features: total width of ``rest``; required when ``preference_layer > 0``.
 
     Examples:
         >>> net = PreferenceConditionedMLP(8 + 2, (4, 2), num_cells=(32, 32))
         >>> net(torch.randn(5, 8), torch.rand(5, 2)).shape
         torch.Size([5, 4, 2])
+        >>> late = PreferenceConditionedMLP(8 + 2, (4, 2), num_cells=(32, 32), preference_layer=1, rest_features=2)
+        >>> late.trunk[0].in_features, late.mlp[0].in_features
+        (8, 34)
     """
 
     def __init__(
@@ -120,15 +160,40 @@ class PreferenceConditionedMLP(nn.Module):
         num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
         activation: type[nn.Module] = nn.ReLU,
         encoder: nn.Module | None = None,
+        preference_layer: int = 0,
+        rest_features: int | None = None,
     ) -> None:
         super().__init__()
         self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
         self.encoder = encoder
-        self.mlp = _mlp(int(in_features), math.prod(self.out_shape), tuple(num_cells), activation)
+        num_cells = tuple(num_cells)
+        if isinstance(preference_layer, bool) or not isinstance(preference_layer, int) \
+                or not 0 <= preference_layer <= len(num_cells):
+            raise ValueError(f"preference_layer must be an int in [0, {len(num_cells)}] (the number of hidden "
+                             f"layers), got {preference_layer!r}")
+        self.preference_layer = preference_layer
+        if preference_layer == 0:
+            self.trunk = None
+            self.mlp = _mlp(int(in_features), math.prod(self.out_shape), num_cells, activation)
+        else:
+            if rest_features is None or not 0 <= rest_features < in_features:
+                raise ValueError(f"preference_layer={preference_layer} needs rest_features (the width of the "
+                                 f"inputs after the first) in [0, {in_features}), got {rest_features!r}")
+            first = int(in_features) - int(rest_features)
+            layers: list[nn.Module] = []
+            width = first
+            for cells in num_cells[:preference_layer]:
+                layers += [nn.Linear(width, cells), activation()]
+                width = cells
+            self.trunk = nn.Sequential(*layers)
+            self.mlp = _mlp(width + int(rest_features), math.prod(self.out_shape), num_cells[preference_layer:],
+                            activation)
 
     def forward(self, first: torch.Tensor, *rest: torch.Tensor) -> torch.Tensor:
         if self.encoder is not None:
             first = self.encoder(first)
+        if self.trunk is not None:
+            first = self.trunk(first)
         x = torch.cat([first, *rest], dim=-1) if rest else first
         out = self.mlp(x)
         return out.reshape(*out.shape[:-1], *self.out_shape)
@@ -154,6 +219,8 @@ def make_vector_q_network(
     num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
     activation: type[nn.Module] = nn.ReLU,
     features_dim: int = 512,
+    preference_layer: int = 0,
+    init: str = "default",
     observation_key: NestedKey = "observation",
     preference_key: NestedKey | None = "preference",
     out_key: NestedKey = "action_value",
@@ -164,19 +231,41 @@ def make_vector_q_network(
     unconditioned discrete MOSAC critic). ``obs_shape=(C, H, W)`` puts a
     :class:`NatureCNN` in front of the MLP.
 
+    Two forms of the Envelope network: ``preference_layer=0, init="default"`` concatenates ``w``
+    at the input with PyTorch's default init (as the public MORL-Baselines ``QNet`` does:
+    ``mlp(obs_dim + k, ...)``); ``preference_layer=1, init="orthogonal"`` concatenates ``w``
+    after the first hidden layer with orthogonal weights (gain 1) and zero biases, which is
+    what the paper authors' copy of MORL-Baselines does according to the line-by-line
+    comparison of their code (the Envelope recipe's default, ``envelope_network="authors"``).
+
+    Args:
+        preference_layer: hidden layers the observation goes through before ``w`` is
+            concatenated (0: at the input; 1: after the first hidden layer). Defaults to 0.
+        init: ``"default"`` (PyTorch's) or ``"orthogonal"`` (every ``nn.Linear``: orthogonal
+            weights with gain 1, zero biases; :func:`orthogonal_init_`).
+
     Examples:
         >>> from tensordict import TensorDict
         >>> q = make_vector_q_network(8, 4, 2, num_cells=(32,))
         >>> td = TensorDict({"observation": torch.randn(3, 8), "preference": torch.full((3, 2), 0.5)}, [3])
         >>> q(td)["action_value"].shape
         torch.Size([3, 4, 2])
+        >>> authors = make_vector_q_network(8, 4, 2, num_cells=(32, 32), preference_layer=1, init="orthogonal")
+        >>> authors(td)["action_value"].shape, authors.module.trunk[0].in_features
+        (torch.Size([3, 4, 2]), 8)
     """
+    _check_init(init)
     encoder, width = _encoder_and_width(obs_shape, features_dim)
     in_keys = [observation_key]
+    rest = 0
     if preference_key is not None:
         in_keys.append(preference_key)
         width += num_objectives
-    net = PreferenceConditionedMLP(width, (num_actions, num_objectives), num_cells=num_cells, activation=activation, encoder=encoder)
+        rest = num_objectives
+    net = PreferenceConditionedMLP(width, (num_actions, num_objectives), num_cells=num_cells, activation=activation,
+                                   encoder=encoder, preference_layer=preference_layer, rest_features=rest)
+    if init == "orthogonal":
+        orthogonal_init_(net)
     net.num_objectives = num_objectives
     net.num_actions = num_actions
     return TensorDictModule(net, in_keys=in_keys, out_keys=[out_key])
@@ -215,7 +304,7 @@ def make_vector_critic(
 
 
 class _LocScale(nn.Module):
-    """Splits an MLP's ``2 * d`` outputs into a location and a positive scale."""
+    """Splits an MLP's ``2 * d`` outputs into a location and a positive scale (biased softplus)."""
 
     def __init__(self, net: nn.Module) -> None:
         super().__init__()
@@ -226,6 +315,22 @@ class _LocScale(nn.Module):
         return self.extractor(self.net(*inputs))
 
 
+class _LocClampedLogStd(nn.Module):
+    """Splits an MLP's ``2 * d`` outputs into a location and ``exp(clamp(log_std, lo, hi))``.
+
+    MORL-Baselines' CAPQL ``GaussianPolicy`` (``LOG_SIG_MIN = -20``, ``LOG_SIG_MAX = 2``).
+    """
+
+    def __init__(self, net: nn.Module, log_std_min: float = -20.0, log_std_max: float = 2.0) -> None:
+        super().__init__()
+        self.net = net
+        self.log_std_min, self.log_std_max = float(log_std_min), float(log_std_max)
+
+    def forward(self, *inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        loc, log_std = self.net(*inputs).chunk(2, -1)
+        return loc, log_std.clamp(self.log_std_min, self.log_std_max).exp()
+
+
 def make_gaussian_actor(
     obs_dim: int,
     action_spec: Bounded,
@@ -233,11 +338,20 @@ def make_gaussian_actor(
     *,
     num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
     activation: type[nn.Module] = nn.ReLU,
+    scale: str = "softplus",
+    log_std_bounds: tuple[float, float] = (-20.0, 2.0),
     observation_key: NestedKey = "observation",
     preference_key: NestedKey | None = "preference",
     action_key: NestedKey = "action",
 ) -> ProbabilisticActor:
     """Preference-conditioned tanh-Gaussian actor ``pi(a | s, w)`` within ``action_spec``'s bounds.
+
+    Args:
+        scale: how the second half of the MLP's output becomes the Gaussian's scale:
+            ``"softplus"`` (TorchRL's biased softplus, the default) or ``"clamped_log_std"``
+            (``exp(clamp(log_std, *log_std_bounds))``, MORL-Baselines' CAPQL policy; the CAPQL
+            recipe's default).
+        log_std_bounds: ``(min, max)`` of the clamped log-std. Defaults to ``(-20, 2)``.
 
     Examples:
         >>> from tensordict import TensorDict
@@ -246,14 +360,23 @@ def make_gaussian_actor(
         >>> td = TensorDict({"observation": torch.randn(4, 5), "preference": torch.full((4, 3), 1 / 3)}, [4])
         >>> actor(td)["action"].shape
         torch.Size([4, 2])
+        >>> clamped = make_gaussian_actor(5, Bounded(-1.0, 1.0, (2,)), 3, num_cells=(16,), scale="clamped_log_std")
+        >>> clamped(td)["action"].shape
+        torch.Size([4, 2])
     """
+    if scale not in SCALE_PARAMETERIZATIONS:
+        raise ValueError(f"scale={scale!r}; valid values are {SCALE_PARAMETERIZATIONS}")
+    lo, hi = (float(b) for b in log_std_bounds)
+    if not lo < hi:
+        raise ValueError(f"log_std_bounds must be (min, max) with min < max, got {log_std_bounds!r}")
     action_dim = action_spec.shape[-1]
     in_keys = [observation_key]
     width = obs_dim
     if preference_key is not None:
         in_keys.append(preference_key)
         width += num_objectives
-    net = _LocScale(PreferenceConditionedMLP(width, 2 * action_dim, num_cells=num_cells, activation=activation))
+    mlp = PreferenceConditionedMLP(width, 2 * action_dim, num_cells=num_cells, activation=activation)
+    net = _LocScale(mlp) if scale == "softplus" else _LocClampedLogStd(mlp, lo, hi)
     module = TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"])
     return ProbabilisticActor(
         module,

@@ -1,17 +1,92 @@
-"""Drawing preference vectors on the simplex: Dirichlet(alpha) and MORL-Baselines' "gaussian"."""
+"""Drawing preference vectors on the simplex: Dirichlet(alpha), MORL-Baselines' "gaussian" and the
+angle-cone sampler of the authors' CAPQL runs ("cone")."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
 
-__all__ = ["PREFERENCE_DISTRIBUTIONS", "sample_preferences"]
+__all__ = ["PREFERENCE_DISTRIBUTIONS", "CONE_ANGLE_DEGREES", "sample_preferences", "sample_cone_preferences"]
 
 #: ``"dirichlet"``: Dirichlet(``alpha``), uniform on the simplex for ``alpha=1``.
 #: ``"gaussian"``: ``|N(0, I)|`` normalised to sum one, MORL-Baselines'
 #: ``random_weights(dist="gaussian")``, which the paper's Envelope runs used.
-PREFERENCE_DISTRIBUTIONS = ("dirichlet", "gaussian")
+#: ``"cone"``: a weight within :data:`CONE_ANGLE_DEGREES` of a random direction
+#: (:func:`sample_cone_preferences`), the authors' CAPQL acting preferences.
+PREFERENCE_DISTRIBUTIONS = ("dirichlet", "gaussian", "cone")
+
+#: Half-angle of the authors' CAPQL preference cone, in degrees.
+CONE_ANGLE_DEGREES = 22.5
+
+
+def sample_cone_preferences(
+    shape: Sequence[int] | int,
+    num_objectives: int,
+    *,
+    angle: float = CONE_ANGLE_DEGREES,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+    dtype: torch.dtype = torch.float32,
+    return_centre: bool = False,
+) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
+    r"""Draw ``[*shape, k]`` preferences, each within ``angle`` degrees of its own random direction.
+
+    The authors' CAPQL acting preferences (a new one every env step). Precisely, per row:
+
+    1. a centre direction :math:`c = |g| / \lVert g \rVert_2`, :math:`g \sim N(0, I_k)`: a random
+       direction in the non-negative orthant (a random point of the simplex seen as a ray);
+    2. a unit vector :math:`u = \cos\theta\, c + \sin\theta\, v` with
+       :math:`\cos\theta \sim U[\cos(\text{angle}), 1]` (uniform on the spherical cap when ``k = 3``)
+       and :math:`v` a uniformly random unit vector orthogonal to :math:`c` (a standard Gaussian
+       with its component along ``c`` removed, normalised);
+    3. :math:`w = \max(u, 0) / \sum_i \max(u_i, 0)`: negative entries (the cap can leave the
+       orthant near a face of the simplex) are clipped to zero, then the row is scaled to sum one.
+
+    Clipping only brings ``u`` closer to ``c`` (``c >= 0``, so dropping negative entries raises
+    :math:`u \cdot c` and lowers :math:`\lVert u \rVert`), and scaling keeps the direction, so every
+    draw has :math:`\angle(w, c) \le` ``angle``, :math:`w \ge 0` and :math:`\sum_i w_i = 1`. With
+    ``k = 1`` every draw is ``[1]``.
+
+    Args:
+        shape: leading (batch) shape.
+        num_objectives: ``k``.
+        angle: half-angle of the cone in degrees, in ``[0, 90]``. Defaults to 22.5.
+        generator: a :class:`torch.Generator` on ``device``; the global RNG when ``None``.
+        device: where the draws are made.
+        dtype: of the output.
+        return_centre: also return the unit centre directions ``c`` ``[*shape, k]``.
+
+    Example:
+        >>> g = torch.Generator().manual_seed(0)
+        >>> w = sample_cone_preferences(5, 3, generator=g)
+        >>> bool((w >= 0).all()), bool(torch.allclose(w.sum(-1), torch.ones(5)))
+        (True, True)
+    """
+    if isinstance(shape, int):
+        shape = (shape,)
+    shape = tuple(int(s) for s in shape)
+    if isinstance(num_objectives, bool) or not isinstance(num_objectives, int) or num_objectives < 1:
+        raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
+    if not 0.0 <= float(angle) <= 90.0:
+        raise ValueError(f"angle must lie in [0, 90] degrees, got {angle!r}")
+    if generator is not None and device is None:
+        device = generator.device
+    size = (*shape, num_objectives)
+    f64 = torch.float64
+    g = torch.randn(size, generator=generator, device=device, dtype=f64).abs().clamp_min(torch.finfo(f64).tiny)
+    c = g / g.norm(dim=-1, keepdim=True)
+    cos_max = math.cos(math.radians(float(angle)))
+    cos_t = 1.0 - torch.rand((*shape, 1), generator=generator, device=device, dtype=f64) * (1.0 - cos_max)
+    sin_t = (1.0 - cos_t**2).clamp_min(0.0).sqrt()
+    v = torch.randn(size, generator=generator, device=device, dtype=f64)
+    v = v - (v * c).sum(-1, keepdim=True) * c
+    norm = v.norm(dim=-1, keepdim=True)
+    v = torch.where(norm > 1e-12, v / norm.clamp_min(1e-12), torch.zeros_like(v))  # k = 1: no room
+    u = (cos_t * c + sin_t * v).clamp_min(0.0)
+    w = (u / u.sum(-1, keepdim=True)).to(dtype)
+    return (w, c.to(dtype)) if return_centre else w
 
 
 def _standard_gamma(alpha: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
@@ -57,6 +132,8 @@ def sample_preferences(
 ) -> torch.Tensor:
     """Draw ``[*shape, num_objectives]`` preference vectors on the probability simplex.
 
+    ``distribution="cone"`` is :func:`sample_cone_preferences` with its default 22.5 degrees.
+
     Draws come from ``generator`` (on ``device``) or torch's global RNG, so a seed makes them
     reproducible. The Dirichlet draws normalise Exp(1) variates (``exponential_`` in
     float64) for ``alpha = 1`` and Marsaglia–Tsang Gamma(alpha) variates otherwise; they are
@@ -91,6 +168,10 @@ def sample_preferences(
     if generator is not None and device is None:
         device = generator.device
     size = (*shape, k)
+    if distribution == "cone":
+        if not bool((torch.as_tensor(alpha) == 1).all()):
+            raise ValueError(f"alpha={alpha!r} applies to distribution='dirichlet' only")
+        return sample_cone_preferences(shape, k, generator=generator, device=device, dtype=dtype)
     if distribution == "gaussian":
         if not bool((torch.as_tensor(alpha) == 1).all()):
             raise ValueError(f"alpha={alpha!r} applies to distribution='dirichlet' only")

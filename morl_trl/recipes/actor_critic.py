@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 
 import torch
-from torchrl.envs.utils import ExplorationType
 
 from morl_trl.objectives import (
     CAPQLLoss,
@@ -36,6 +35,7 @@ from morl_trl.recipes.agent import (
     Agent,
     action_spec,
     actor_critic_optimizers,
+    eval_exploration,
     is_discrete,
     num_objectives,
     obs_shape,
@@ -51,7 +51,7 @@ def _continuous(cfg, env, device):
         raise ValueError(f"{cfg.algo} needs continuous actions; {cfg.env_id} is discrete: use envelope or mosac_discrete")
     (obs_dim,) = obs_shape(env)
     k = num_objectives(env)
-    actor = make_gaussian_actor(obs_dim, spec.to(device), k, num_cells=cfg.hidden).to(device)
+    actor = make_gaussian_actor(obs_dim, spec.to(device), k, num_cells=cfg.hidden, scale=cfg.actor_scale).to(device)
     critic = make_vector_critic(obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
     return spec, actor, critic
 
@@ -59,19 +59,32 @@ def _continuous(cfg, env, device):
 def _agent(cfg, loss, actor, gamma, device, **kwargs) -> Agent:
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
-                 device=device, **kwargs)
+                 device=device, eval_exploration=eval_exploration(cfg), **kwargs)
+
+
+def _loss_kwargs(cfg) -> dict:
+    return dict(resample_preferences=cfg.loss_fresh_preferences, use_prioritized_weights=cfg.per_importance_weights)
 
 
 def make_capql_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
-    """CAPQL: fresh preferences per sample, per-objective min of the critics, fixed temperature."""
+    """CAPQL: per-objective min of the critics, fixed temperature.
+
+    As the authors by default: the acting preference is redrawn every step from the 22.5-degree
+    cone and stored with the transition (``preference_distribution="cone"``,
+    ``preference_resample="step"``, set on the training env), the loss trains on the stored
+    preference (``loss_fresh_preferences=true``: fresh uniform ones per sample) and the actor's
+    log-std is clamped to [-20, 2] (``actor_scale="softplus"``: TorchRL's biased softplus).
+    """
     _, actor, critic = _continuous(cfg, env, device)
-    return _agent(cfg, CAPQLLoss(actor, critic, alpha=cfg.alpha), actor, gamma, device)
+    return _agent(cfg, CAPQLLoss(actor, critic, alpha=cfg.alpha, **_loss_kwargs(cfg)), actor, gamma, device)
 
 
 def make_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
-    """MOSAC: the episode's preference from the batch, scalarized critic min, learned temperature."""
+    """MOSAC: the episode's preference from the batch, scalarized critic min, learned temperature;
+    evaluated with sampled actions as the paper's MORL/D (``eval_exploration="deterministic"``: the mean)."""
     spec, actor, critic = _continuous(cfg, env, device)
-    loss = MOSACLoss(actor, critic, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+    loss = MOSACLoss(actor, critic, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha, action_spec=spec,
+                     **_loss_kwargs(cfg))
     return _agent(cfg, loss, actor, gamma, device)
 
 
@@ -84,5 +97,6 @@ def make_discrete_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -
     actor = make_categorical_actor(obs, n, k, num_cells=cfg.hidden, action_spec=spec).to(device)
     critic = make_vector_q_network(obs, n, k, num_cells=cfg.hidden).to(device)
     loss = DiscreteMOSACLoss(actor, critic, num_actions=n, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha,
-                             target_entropy=cfg.target_entropy_scale * math.log(n))
-    return _agent(cfg, loss, actor, gamma, device, eval_exploration=ExplorationType.RANDOM)
+                             target_entropy=cfg.target_entropy_scale * math.log(n),
+                             use_prioritized_weights=cfg.per_importance_weights)
+    return _agent(cfg, loss, actor, gamma, device)

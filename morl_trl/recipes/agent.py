@@ -15,7 +15,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.objectives import HardUpdate, SoftUpdate
 
 __all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers"]
+           "target_updater", "actor_critic_optimizers", "eval_exploration"]
 
 
 class NonFiniteLossError(RuntimeError):
@@ -27,7 +27,8 @@ class Agent:
 
     Attributes:
         explore_policy: acts during collection (epsilon-greedy / stochastic).
-        eval_policy: acts during evaluation (greedy / mean action unless ``eval_stochastic``).
+        eval_policy: acts during evaluation, under ``eval_exploration`` (``cfg.eval_exploration``:
+            greedy / mean action, or sampled actions).
         loss: the :class:`~torchrl.objectives.LossModule`.
         optimizers: name -> optimizer; stepped together after one backward of the summed losses.
         target_updater: TorchRL ``SoftUpdate`` / ``HardUpdate`` (stepped after every update).
@@ -48,7 +49,12 @@ class Agent:
 
     # ------------------------------------------------------------------ learning
     def update(self, buffer) -> TensorDictBase:
-        """One gradient step on a sampled batch; raises :class:`NonFiniteLossError` before stepping on NaNs."""
+        """One gradient step on a sampled batch; raises :class:`NonFiniteLossError` before stepping on NaNs.
+
+        With ``cfg.max_grad_norm`` the gradient norm of each optimizer's parameters is clipped to
+        it (``torch.nn.utils.clip_grad_norm_``) before stepping, as MORL-Baselines clips each
+        network's (Envelope: 1.0).
+        """
         batch = buffer.sample().to(self.device)
         out = self.loss(batch)
         total = sum(out[k] for k in self.loss_keys)
@@ -58,6 +64,11 @@ class Agent:
         for opt in self.optimizers.values():
             opt.zero_grad(set_to_none=True)
         total.backward()
+        max_norm = getattr(self.cfg, "max_grad_norm", None)
+        if max_norm is not None:
+            for opt in self.optimizers.values():
+                params = [p for group in opt.param_groups for p in group["params"]]
+                torch.nn.utils.clip_grad_norm_(params, max_norm)
         for opt in self.optimizers.values():
             opt.step()
         self.target_updater.step()
@@ -112,6 +123,11 @@ def action_spec(env):
 
 def is_discrete(spec) -> bool:
     return isinstance(spec, (Categorical, OneHot))
+
+
+def eval_exploration(cfg) -> ExplorationType:
+    """``cfg.eval_exploration`` as TorchRL's ``ExplorationType`` (``RANDOM`` samples the actor's actions)."""
+    return ExplorationType.RANDOM if cfg.eval_exploration == "random" else ExplorationType.DETERMINISTIC
 
 
 def target_updater(cfg, loss):

@@ -151,16 +151,25 @@ class TrainConfig:
                             _int(0, 64))
     gamma: float | None = _key("env", None, "discount (null: the domain's evaluation discount)",
                                _float(0.0, 1.0, optional=True))
+    preference_distribution: str = _key("env", "dirichlet", "training preferences: 'dirichlet' (uniform on the "
+                                        "simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or "
+                                        "'cone' (22.5 degrees around a random direction; the authors' CAPQL)",
+                                        _choice(("dirichlet", "gaussian", "cone")))
+    preference_resample: str = _key("env", "episode", "a new training preference per 'episode' or per 'step' "
+                                    "(the authors' CAPQL: step)", _choice(("episode", "step")))
     # collector
     frames: int = _key("collector", 1_000_000, "environment frames to train for", _int(1))
     frames_per_batch: int = _key("collector", 64, "frames per collector batch (all sub-envs)", _int(1))
-    init_random_frames: int = _key("collector", 1_000, "uniformly random actions before learning starts", _int(0))
+    init_random_frames: int = _key("collector", 1_000, "uniformly random actions before learning starts "
+                                   "(MORL-Baselines' learning_starts)", _int(0))
     # replay buffer
     buffer_size: int = _key("replay_buffer", 1_000_000, "transitions kept", _int(1))
     batch_size: int = _key("replay_buffer", 128, "transitions per update", _int(1))
     prioritized: bool = _key("replay_buffer", True, "prioritized replay (keyed by the loss's td_error)", _bool)
     per_alpha: float = _key("replay_buffer", 0.6, "priority exponent", _float(0.0, 1.0))
     per_beta: float = _key("replay_buffer", 0.4, "importance-sampling exponent", _float(0.0, 1.0))
+    per_importance_weights: bool = _key("replay_buffer", True, "weight the loss by PER's importance-sampling "
+                                        "weights (the authors' Envelope: false)", _bool)
     # optim
     lr: float = _key("optim", 3e-4, "Adam learning rate", _float(0.0, 1.0, open_low=True))
     updates_per_batch: int = _key("optim", 0, "gradient updates per collected batch (0: one per frame)", _int(0))
@@ -168,6 +177,9 @@ class TrainConfig:
                                      _int(1))
     tau: float | None = _key("optim", None, "Polyak coefficient of the targets (null: hard copies)",
                              _float(0.0, 1.0, optional=True, open_low=True))
+    max_grad_norm: float | None = _key("optim", None, "clip each optimizer's gradient norm to this (null: no "
+                                       "clipping; the authors' Envelope: 1.0)",
+                                       _float(0.0, 1e12, optional=True, open_low=True))
     # network
     hidden: tuple[int, ...] = _key("network", (256, 256, 256, 256), "hidden layer widths of every MLP", _hidden)
     # exploration (epsilon-greedy)
@@ -177,19 +189,35 @@ class TrainConfig:
     # envelope
     num_sampled_prefs: int = _key("envelope", 8, "preferences sampled per transition in the loss", _int(1))
     homotopy_lambda0: float = _key("envelope", 0.95, "initial homotopy lambda", _float(0.0, 1.0))
-    homotopy_frames: int | None = _key("envelope", None, "frames of the homotopy schedule (null: the whole run)",
-                                       _int(1, optional=True))
+    homotopy_final: float | None = _key("envelope", None, "anneal lambda linearly to this value (null: lambda "
+                                        "stays at homotopy_lambda0, as the authors)",
+                                        _float(0.0, 1.0, optional=True))
+    homotopy_frames: int | None = _key("envelope", None, "frames of the homotopy schedule when homotopy_final is "
+                                       "set (null: the whole run)", _int(1, optional=True))
+    envelope_priority: str = _key("envelope", "first", "PER priority: |w.TD| under the 'first' sampled preference "
+                                  "(the authors) or the 'mean' over all of them", _choice(("first", "mean")))
+    envelope_network: str = _key("envelope", "authors", "Q-network form: 'authors' (w concatenated after the first "
+                                 "hidden layer, orthogonal init) or 'input' (w at the input, PyTorch's init)",
+                                 _choice(("authors", "input")))
     # actor-critic (CAPQL, MOSAC)
     alpha: float = _key("actor_critic", 0.2, "entropy temperature (initial value when learned)",
                         _float(0.0, 1e6))
     learn_alpha: bool = _key("actor_critic", False, "learn the temperature", _bool)
     target_entropy_scale: float = _key("actor_critic", 0.3, "discrete MOSAC: target entropy as a fraction of "
                                        "the maximum", _float(0.0, 1.0))
+    actor_scale: str = _key("actor_critic", "softplus", "Gaussian actor's scale: 'softplus' or 'clamped_log_std' "
+                            "(exp of the log-std clamped to [-20, 2]; the authors' CAPQL)",
+                            _choice(("softplus", "clamped_log_std")))
+    loss_fresh_preferences: bool = _key("actor_critic", False, "CAPQL/MOSAC losses draw fresh preferences per "
+                                        "sample instead of the stored ones (the authors: false)", _bool)
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
                              _int(1, 100_000))
     eval_episodes: int = _key("eval", 1, "episodes per (context, weight)", _int(1, 10_000))
+    eval_exploration: str = _key("eval", "deterministic", "evaluation actions: 'deterministic' (greedy / mean) "
+                                 "or 'random' (sampled; the paper's MORL/D and SAC)",
+                                 _choice(("deterministic", "random")))
     eval_contexts: tuple[str, ...] | None = _key("eval", None, "evaluation env ids (null: the domain's suite)",
                                                  _contexts)
     reference_dir: str | None = _key("eval", None, "the published data for NHGR/EUGR and the paper's baselines (null: the bounds and "
@@ -290,7 +318,8 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
         if k in ("hidden", "eval_contexts") and isinstance(v, list):
             v = tuple(v)
         elif k in ("lr", "gamma", "tau", "per_alpha", "per_beta", "alpha", "eps_start", "eps_end",
-                   "homotopy_lambda0", "target_entropy_scale") and isinstance(v, int) and not isinstance(v, bool):
+                   "homotopy_lambda0", "homotopy_final", "max_grad_norm", "target_entropy_scale") \
+                and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
         out[k] = v
     return out
@@ -299,17 +328,28 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
 # --------------------------------------------------------------------------- defaults
 # The paper's settings (SPEC §4): the domain's protocol comes from its DomainSpec, then the
 # algorithm's defaults, then (algorithm, domain) overrides.
+# Where SPEC is silent the authors' code (MORL-Generalization, i.e. MORL-Baselines' defaults) decides:
+# Envelope: lambda fixed (no homotopy decay), gradient norm clipped at 1, PER without importance
+# weights and priorities from the first sampled preference, learning_starts=100, |N(0, I)|
+# training preferences, num_sample_w=4 (SPEC: 8 on LunarLander and Mario); CAPQL: a new
+# preference every step from the 22.5-degree cone, stored and reused by the loss, log-std
+# clamped to [-20, 2]; MORL/D's MOSAC is evaluated with sampled actions (SPEC §2).
 _ALGO = {
     "envelope": dict(batch_size=128, target_update_period=1000, prioritized=True, homotopy_lambda0=0.95,
-                     num_sampled_prefs=8, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
-    "capql": dict(batch_size=256, tau=0.005, alpha=0.2, init_random_frames=1_000, prioritized=False),
+                     homotopy_final=None, num_sampled_prefs=8, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000,
+                     init_random_frames=100, max_grad_norm=1.0, per_importance_weights=False,
+                     envelope_priority="first", envelope_network="authors", preference_distribution="gaussian",
+                     preference_resample="episode"),
+    "capql": dict(batch_size=256, tau=0.005, alpha=0.2, init_random_frames=1_000, prioritized=False,
+                  preference_distribution="cone", preference_resample="step", loss_fresh_preferences=False,
+                  actor_scale="clamped_log_std"),
     "mosac": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=10_000,
-                  prioritized=False),
+                  prioritized=False, eval_exploration="random"),
     "mosac_discrete": dict(batch_size=128, target_update_period=2000, learn_alpha=True,
-                           target_entropy_scale=0.3, prioritized=False),
+                           target_entropy_scale=0.3, prioritized=False, eval_exploration="random"),
 }
 _ALGO_DOMAIN = {
-    ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200),
+    ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200, num_sampled_prefs=4),
     ("envelope", "MOSuperMarioBrosZeroShot-v2"): dict(batch_size=64, init_random_frames=25_000, buffer_size=100_000,
                                                       eps_start=0.2, eps_end=0.01, hidden=(512, 512)),
     ("capql", "MOHumanoidDR-v5"): dict(init_random_frames=25_000),

@@ -5,6 +5,15 @@ A vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its greedy policy
 epsilon-greedy exploration on top, :class:`~morl_trl.objectives.EnvelopeQLoss` with a hard
 target copy, Adam. The loop that drives it is :mod:`morl_trl.recipes.off_policy`.
 
+Faithful to the authors' runs by default (config keys in brackets, ours as options):
+``w`` concatenated after the first hidden layer with orthogonal init
+(``envelope_network="authors"``; ``"input"``: at the input, PyTorch's init), homotopy
+``lambda`` fixed at ``homotopy_lambda0`` (``homotopy_final=1.0`` anneals it over
+``homotopy_frames``), PER priorities from the first sampled preference without
+importance weights (``envelope_priority="mean"``, ``per_importance_weights=true``), gradient
+norm clipped at 1 (``max_grad_norm``) and ``|N(0, I)|`` training preferences
+(``preference_distribution="dirichlet"``).
+
 Example:
     >>> from morl_trl.envs import make_env
     >>> from morl_trl.recipes import resolve_config
@@ -23,7 +32,15 @@ from tensordict.nn import TensorDictSequential
 from torchrl.modules import EGreedyModule
 
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
-from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape, target_updater
+from morl_trl.recipes.agent import (
+    Agent,
+    action_spec,
+    eval_exploration,
+    is_discrete,
+    num_objectives,
+    obs_shape,
+    target_updater,
+)
 
 __all__ = ["make_envelope_agent"]
 
@@ -33,15 +50,21 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
     spec = action_spec(env)
     if not is_discrete(spec):
         raise ValueError(f"envelope needs discrete actions; {cfg.env_id} has {type(spec).__name__}: use capql or mosac")
-    qnet = make_vector_q_network(obs_shape(env), spec.space.n, num_objectives(env), num_cells=cfg.hidden).to(device)
+    authors = cfg.envelope_network == "authors"
+    qnet = make_vector_q_network(obs_shape(env), spec.space.n, num_objectives(env), num_cells=cfg.hidden,
+                                 preference_layer=1 if authors else 0,
+                                 init="orthogonal" if authors else "default").to(device)
     greedy = TensorDictSequential(qnet, MOQValueModule())
     egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
                             annealing_num_steps=max(1, cfg.eps_frames))
+    anneal = cfg.homotopy_final is not None
     loss = EnvelopeQLoss(
         qnet, num_preference_samples=cfg.num_sampled_prefs, homotopy_lambda=cfg.homotopy_lambda0,
-        final_homotopy_lambda=1.0, homotopy_steps=cfg.homotopy_frames or cfg.frames,
+        final_homotopy_lambda=cfg.homotopy_final if anneal else cfg.homotopy_lambda0,
+        homotopy_steps=(cfg.homotopy_frames or cfg.frames) if anneal else None,
+        priority=cfg.envelope_priority, use_prioritized_weights=cfg.per_importance_weights,
     )
     loss.make_value_estimator(gamma=gamma)
     optimizers = {"qvalue": torch.optim.Adam(loss.parameters(), lr=cfg.lr)}
     return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
-                 device=device, exploration_module=egreedy)
+                 device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg))

@@ -52,7 +52,8 @@ def make_training_env(cfg: TrainConfig, device: torch.device):
     spec = domain_of(cfg.env_id)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
-    return compose_training_env(env, gamma=gamma, history_len=cfg.history_len, preference_seed=cfg.seed + 1)
+    return compose_training_env(env, gamma=gamma, history_len=cfg.history_len, preference_seed=cfg.seed + 1,
+                                preference_mode=cfg.preference_distribution, preference_resample=cfg.preference_resample)
 
 
 def make_replay_buffer(cfg: TrainConfig, device: torch.device) -> TensorDictReplayBuffer:

@@ -48,9 +48,11 @@ def compose_training_env(
     history_len: int = 0,
     preference_seed: int | None = None,
     preference_mode: str = "dirichlet",
+    preference_resample: str = "episode",
 ) -> TransformedEnv:
     """The policy stack plus :class:`PreferenceConditioning` (a new ``w`` per sub-env and episode,
-    ``preference_mode``) and :class:`DiscountedVectorReturn` (the episode's vector returns).
+    or per step with ``preference_resample="step"``, drawn as ``preference_mode``) and
+    :class:`DiscountedVectorReturn` (the episode's vector returns).
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -61,6 +63,6 @@ def compose_training_env(
     """
     env = compose_policy_env(env, history_len=history_len)
     k = int(env.full_reward_spec[env.reward_key].shape[-1])
-    env.append_transform(PreferenceConditioning(k, mode=preference_mode, seed=preference_seed))
+    env.append_transform(PreferenceConditioning(k, mode=preference_mode, resample=preference_resample, seed=preference_seed))
     env.append_transform(DiscountedVectorReturn(gamma))
     return env

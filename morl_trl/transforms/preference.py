@@ -1,6 +1,8 @@
-"""Preference conditioning: a weight vector per sub-env and episode, carried in the TensorDict."""
+"""Preference conditioning: a weight vector per sub-env and episode (or step), carried in the TensorDict."""
 
 from __future__ import annotations
+
+import math
 
 import torch
 from tensordict import TensorDictBase
@@ -11,14 +13,15 @@ from morl_trl.transforms._utils import SeededTransform, reset_mask
 
 __all__ = ["PreferenceConditioning"]
 
-_MODES = ("dirichlet", "cycle", "random", "given")
+_MODES = ("dirichlet", "gaussian", "cone", "cycle", "random", "given")
+_RESAMPLE = ("episode", "step")
 
 
 class PreferenceConditioning(SeededTransform):
-    """Gives every sub-env a weight vector ``w`` on the simplex at each of its resets.
+    """Gives every sub-env a weight vector ``w`` on the simplex at each of its resets (or steps).
 
     ``w`` is written under ``preference_key`` (``[*B, k]``) at reset and copied to every step
-    of the episode, so the policy, the loss (through the replay buffer) and
+    of the episode (``resample="episode"``, the default), so the policy, the loss (through the replay buffer) and
     :class:`LinearScalarization` all see it. The key is also in the env's state spec, so it
     reaches the reset and travels through ``SerialEnv``/``ParallelEnv`` like the context.
 
@@ -26,6 +29,10 @@ class PreferenceConditioning(SeededTransform):
 
     * ``"dirichlet"`` (default without ``weights``): ``w ~ Dirichlet(alpha)``; ``alpha=1`` is
       uniform on the simplex (:func:`morl_trl.preferences.sample_preferences`).
+    * ``"gaussian"``: ``|N(0, I)|`` normalised (MORL-Baselines' ``random_weights(dist="gaussian")``,
+      the authors' Envelope training preferences).
+    * ``"cone"``: within 22.5 degrees of a random direction
+      (:func:`morl_trl.preferences.sample_cone_preferences`, the authors' CAPQL preferences).
     * ``"cycle"`` (default with ``weights``): the rows of ``weights`` ``[m, k]`` in turn, in
       sub-env order, continuing from one reset to the next (``m`` sub-envs reset together
       get the ``m`` rows: the evaluation weights).
@@ -35,6 +42,11 @@ class PreferenceConditioning(SeededTransform):
       ``w`` ``[*B, k]`` must be on the simplex (``ValueError`` naming the value otherwise, before
       anything is reset). A sub-env keeps its ``w`` over later resets (the TensorDict carries
       it); before any is given, sub-envs get equal weights ``1/k``.
+
+    With ``resample="step"`` every sub-env also gets a fresh ``w`` (same mode) at every step:
+    the ``w`` a step writes under ``"next"`` is the one the policy acts on at the following
+    step, so each stored transition carries the preference its action was chosen with (the
+    authors' CAPQL). ``"given"`` cannot be resampled.
 
     In the sampling modes a preference in the reset TensorDict is ignored (TorchRL's
     auto-resets carry the previous one there). Seeding follows
@@ -46,6 +58,8 @@ class PreferenceConditioning(SeededTransform):
         weights: a fixed weight set ``[m, k]`` for ``"cycle"``/``"random"``.
         mode: one of the modes above.
         alpha: Dirichlet concentration, a float or ``[k]``.
+        resample: ``"episode"`` (a new ``w`` at each reset; the default) or ``"step"`` (also a new
+            ``w`` at every step).
         seed: seed of the transform's generator.
         preference_key: where ``w`` goes.
 
@@ -68,6 +82,7 @@ class PreferenceConditioning(SeededTransform):
         weights=None,
         mode: str | None = None,
         alpha: float | torch.Tensor = 1.0,
+        resample: str = "episode",
         seed: int | None = None,
         preference_key: str = "preference",
     ) -> None:
@@ -76,6 +91,13 @@ class PreferenceConditioning(SeededTransform):
             mode = "dirichlet" if weights is None else "cycle"
         if mode not in _MODES:
             raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
+        if resample not in _RESAMPLE:
+            raise ValueError(f"resample must be one of {_RESAMPLE}, got {resample!r}")
+        if resample == "step" and mode == "given":
+            raise ValueError("mode='given' keeps the preference it is given: use resample='episode'")
+        if mode in ("gaussian", "cone") and not bool((torch.as_tensor(alpha) == 1).all()):
+            raise ValueError(f"alpha={alpha!r} applies to mode='dirichlet' only")
+        self.resample = resample
         if num_objectives is not None and (isinstance(num_objectives, bool) or not isinstance(num_objectives, int)
                                            or num_objectives < 1):
             raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
@@ -147,10 +169,12 @@ class PreferenceConditioning(SeededTransform):
         return torch.full((k,), 1.0 / k, device=device)
 
     def sample(self, n: int) -> torch.Tensor:
-        """Draw ``n`` preferences ``[n, k]`` (CPU) in the ``"dirichlet"``, ``"cycle"`` or ``"random"`` mode."""
+        """Draw ``n`` preferences ``[n, k]`` (CPU) in a sampling mode (all but ``"given"``)."""
         k = self.num_objectives
         if self.mode == "dirichlet":
             return sample_preferences(n, k, alpha=self.alpha, generator=self.generator)
+        if self.mode in ("gaussian", "cone"):
+            return sample_preferences(n, k, distribution=self.mode, generator=self.generator)
         if self.weights.shape[1] != k:
             raise ValueError(f"the weight set has {self.weights.shape[1]} objectives; the env has {k}")
         m = self.weights.shape[0]
@@ -223,6 +247,10 @@ class PreferenceConditioning(SeededTransform):
             w = self._current
             if w is None:
                 raise RuntimeError("PreferenceConditioning: the env was stepped before it was reset")
+        if self.resample == "step":
+            batch = next_tensordict.batch_size
+            n = math.prod(batch)
+            w = self.sample(n).reshape(*batch, self.num_objectives).to(device=w.device, dtype=torch.float32)
         self._current = w
         next_tensordict.set(self.preference_key, w.clone())
         return next_tensordict
@@ -234,4 +262,6 @@ class PreferenceConditioning(SeededTransform):
         extra = f", weights={tuple(self.weights.shape)}" if self.weights is not None else ""
         if self.mode == "dirichlet":
             extra = f", alpha={self.alpha.tolist()}"
+        if self.resample != "episode":
+            extra += f", resample={self.resample!r}"
         return f"{type(self).__name__}(mode={self.mode!r}{extra}, key={self.preference_key!r}, seed={self._seed})"

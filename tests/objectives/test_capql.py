@@ -31,12 +31,14 @@ def test_defaults_are_the_paper_settings():
     loss = make_loss()
     assert float(loss._alpha) == pytest.approx(0.2)
     assert not isinstance(loss.log_alpha, torch.nn.Parameter)
-    assert (loss.critic_min, loss.critic_loss, loss.resample_preferences) == ("elementwise", "vector", True)
+    # the authors train on the preference stored with each transition (fresh per-sample draws: an option)
+    assert (loss.critic_min, loss.critic_loss, loss.resample_preferences) == ("elementwise", "vector", False)
+    assert "preference" in loss.in_keys
     assert loss.num_qvalue_nets == 2
 
 
 def test_output_keys_finite_without_a_stored_preference():
-    loss = make_loss()
+    loss = make_loss(resample_preferences=True)
     data = random_batch(B, OBS, K, action_dim=ACT, preference=False)
     out = loss(data)
     assert sorted(out.keys()) == sorted(loss.out_keys) == ["alpha", "entropy", "loss_actor", "loss_qvalue"]
@@ -46,7 +48,7 @@ def test_output_keys_finite_without_a_stored_preference():
 
 
 def test_fresh_preferences_per_sample_and_per_call():
-    loss = make_loss()
+    loss = make_loss(resample_preferences=True)
     data = random_batch(B, OBS, K, action_dim=ACT)
     w1, w2 = loss._batch_preferences(data), loss._batch_preferences(data)
     assert w1.shape == (B, K)
@@ -54,13 +56,13 @@ def test_fresh_preferences_per_sample_and_per_call():
     assert (w1 >= 0).all()
     assert len({tuple(row.tolist()) for row in w1}) == B  # one draw per sample
     assert not torch.equal(w1, w2)  # a new draw at every call
-    stored = make_loss(resample_preferences=False)
+    stored = make_loss()
     assert torch.equal(stored._batch_preferences(data), data["preference"])
 
 
 def test_gradients_reach_exactly_the_right_parameters():
     loss = make_loss()
-    data = random_batch(B, OBS, K, action_dim=ACT, preference=False)
+    data = random_batch(B, OBS, K, action_dim=ACT)
     zero_grads(loss)
     loss(data.clone())["loss_qvalue"].backward()
     assert all(grads_of(loss.qvalue_network_params).values())
@@ -99,10 +101,11 @@ def test_set_keys_renames():
     critic = make_vector_critic(OBS, ACT, K, num_cells=(16,), observation_key="obs", action_key="u", preference_key="pref", out_key="qv")
     loss = CAPQLLoss(actor, critic)
     loss.set_keys(action="u", state_action_value="qv", preference="pref", reward="vec_r", terminated="term", done="dn", priority="p")
-    base = random_batch(B, OBS, K, action_dim=ACT, preference=False)
+    base = random_batch(B, OBS, K, action_dim=ACT)
     data = TensorDict(
         {
             "obs": base["observation"],
+            "pref": base["preference"],
             "u": base["action"],
             ("next", "obs"): base["next", "observation"],
             ("next", "vec_r"): base["next", "reward"],
@@ -152,7 +155,7 @@ def test_learns_preference_dependent_actions_on_a_convex_front():
     data = continuous_bandit_dataset().exclude("preference")
     actor = make_gaussian_actor(2, Bounded(-1.0, 1.0, (1,)), 2, num_cells=(64, 64))
     critic = make_vector_critic(2, 1, 2, num_cells=(64, 64))
-    loss = CAPQLLoss(actor, critic)
+    loss = CAPQLLoss(actor, critic, resample_preferences=True)
     loss.make_value_estimator(gamma=0.9)
     updater = SoftUpdate(loss, tau=0.05)
     optim = torch.optim.Adam(loss.parameters(), lr=3e-3)

@@ -191,6 +191,10 @@ def test_envelope_target_matches_brute_force(shared):
     loss.homotopy_lambda = 1.0
     scalar = ((w * (q_taken - y)).sum(-1) ** 2).mean()
     torch.testing.assert_close(loss(data)["loss_qvalue"], scalar, rtol=1e-5, atol=1e-6)
+    # the priority is the first sampled preference's scalarised TD error (MORL-Baselines) by default
+    torch.testing.assert_close(data["td_error"], (w * (q_taken - y)).sum(-1).abs()[:, 0], rtol=1e-5, atol=1e-6)
+    loss.priority = "mean"
+    loss(data)
     torch.testing.assert_close(data["td_error"], (w * (q_taken - y)).sum(-1).abs().mean(-1), rtol=1e-5, atol=1e-6)
 
 
@@ -369,3 +373,55 @@ def test_state_dict_round_trip():
     torch.manual_seed(9)
     b = other(data.clone())["loss_qvalue"]
     torch.testing.assert_close(a, b)
+
+
+# ---------------------------------------------------------------- the authors' PER priority
+class _TableQ(nn.Module):
+    """``Q(s, a, w) = s.view(|A|=2, k=2)`` whatever ``w``: hand-checkable values."""
+
+    def __init__(self):
+        super().__init__()
+        self.zero = nn.Parameter(torch.zeros(()))
+
+    def forward(self, obs, w):
+        return obs.reshape(*obs.shape[:-1], 2, 2) + self.zero
+
+
+def test_envelope_priority_uses_the_first_sampled_preference_as_the_authors():
+    loss = EnvelopeQLoss(_TableQ(), num_objectives=2, num_preference_samples=2, homotopy_lambda=0.95)
+    loss.make_value_estimator(gamma=0.9)
+    assert loss.priority == "first"
+    w = torch.tensor([[0.25, 0.75], [0.5, 0.5]]).expand(2, 2, 2)  # w_0, w_1 shared by the batch
+    loss._preferences = lambda _: w
+    done = torch.ones(2, 1, dtype=torch.bool)  # terminal: y = r
+    data = TensorDict({
+        "observation": torch.tensor([[1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 2.0, -6.0]]),
+        "action": torch.tensor([0, 1]),
+        ("next", "observation"): torch.zeros(2, 4),
+        ("next", "reward"): torch.tensor([[0.0, 0.0], [1.0, 1.0]]),
+        ("next", "done"): done, ("next", "terminated"): done.clone(),
+    }, [2])
+    # transition 0: Q(s, 0) - y = (1, 2)  -> |w_0 . (1, 2)| = 1.75, |w_1 . (1, 2)| = 1.5
+    # transition 1: Q(s, 1) - y = (1, -7) -> |w_0 . (1, -7)| = 5.0,  |w_1 . (1, -7)| = 3.0
+    loss(data)
+    torch.testing.assert_close(data["td_error"], torch.tensor([1.75, 5.0]))
+    ours = EnvelopeQLoss(_TableQ(), num_objectives=2, num_preference_samples=2, priority="mean")
+    ours.make_value_estimator(gamma=0.9)
+    ours._preferences = lambda _: w
+    ours(data)
+    torch.testing.assert_close(data["td_error"], torch.tensor([1.625, 4.0]))
+    with pytest.raises(ValueError, match="priority='max'; valid values are 'first', 'mean'"):
+        EnvelopeQLoss(_TableQ(), num_objectives=2, priority="max")
+
+
+def test_envelope_per_applies_no_importance_weights_when_told_as_the_authors():
+    data = random_batch(B, OBS, K, num_actions=A, preference=False)
+    data["priority_weight"] = torch.linspace(0.1, 3.0, B)
+    torch.manual_seed(1)
+    plain = make_loss(use_prioritized_weights=False)(data.clone())["loss_qvalue"]
+    torch.manual_seed(1)
+    unweighted = make_loss(use_prioritized_weights=False)(data.exclude("priority_weight"))["loss_qvalue"]
+    torch.manual_seed(1)
+    weighted = make_loss()(data.clone())["loss_qvalue"]
+    torch.testing.assert_close(plain, unweighted)
+    assert not torch.allclose(plain, weighted)

@@ -2,6 +2,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 from torchrl.data import Bounded, OneHot
+from torch import nn
 from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import (
@@ -88,3 +89,63 @@ def test_networks_capture_as_one_graph_under_torch_compile():
     torch._dynamo.reset()
     torch.testing.assert_close(torch.compile(mlp, fullgraph=True, backend="eager")(obs, w), mlp(obs, w))
     torch.testing.assert_close(torch.compile(cnn_net, fullgraph=True, backend="eager")(pixels, w), cnn_net(pixels, w))
+
+
+# ---------------------------------------------------------------- the authors' forms
+def test_envelope_network_concatenates_w_after_the_first_hidden_layer_as_the_authors():
+    from tensordict import TensorDict
+
+    obs_dim, k, actions = 26, 4, 4
+    authors = make_vector_q_network(obs_dim, actions, k, num_cells=(64, 64, 64), preference_layer=1)
+    net = authors.module
+    assert net.trunk[0].in_features == obs_dim  # the first layer sees the observation only
+    assert net.mlp[0].in_features == 64 + k  # w joins the first hidden layer's output
+    td = TensorDict({"observation": torch.randn(5, obs_dim), "preference": torch.full((5, k), 0.25)}, [5])
+    assert authors(td)["action_value"].shape == (5, actions, k)
+    x = td["observation"]
+    manual = net.mlp(torch.cat([torch.relu(net.trunk[0](x)), td["preference"]], -1)).reshape(5, actions, k)
+    torch.testing.assert_close(authors(td)["action_value"], manual)
+    # ours: at the input
+    ours = make_vector_q_network(obs_dim, actions, k, num_cells=(64, 64, 64))
+    assert ours.module.trunk is None and ours.module.mlp[0].in_features == obs_dim + k
+    # the same number of layers; after the last hidden layer is allowed, beyond is not
+    assert len([m for m in net.modules() if isinstance(m, nn.Linear)]) == 4
+    make_vector_q_network(obs_dim, actions, k, num_cells=(8, 8), preference_layer=2)
+    with pytest.raises(ValueError, match=r"preference_layer must be an int in \[0, 2\]"):
+        make_vector_q_network(obs_dim, actions, k, num_cells=(8, 8), preference_layer=3)
+
+
+def test_envelope_network_orthogonal_init_gain_1_as_the_authors():
+    q = make_vector_q_network(26, 4, 4, num_cells=(64, 32), preference_layer=1, init="orthogonal")
+    linears = [m for m in q.modules() if isinstance(m, nn.Linear)]
+    assert len(linears) == 3
+    for lin in linears:
+        w = lin.weight.detach()
+        gram = w @ w.T if w.shape[0] <= w.shape[1] else w.T @ w  # the smaller Gram matrix is the identity
+        torch.testing.assert_close(gram, torch.eye(min(w.shape)), atol=1e-5, rtol=0)
+        assert torch.equal(lin.bias.detach(), torch.zeros_like(lin.bias))
+    default = make_vector_q_network(26, 4, 4, num_cells=(64, 32))
+    assert not all(bool((m.bias == 0).all()) for m in default.modules() if isinstance(m, nn.Linear))
+    with pytest.raises(ValueError, match=r"init='xavier'; valid values are \('default', 'orthogonal'\)"):
+        make_vector_q_network(26, 4, 4, init="xavier")
+
+
+def test_capql_actor_log_std_clamped_to_minus20_2_as_the_authors():
+    from tensordict import TensorDict
+    from torchrl.data import Bounded
+
+    actor = make_gaussian_actor(5, Bounded(-1.0, 1.0, (2,)), 3, num_cells=(16,), scale="clamped_log_std")
+    head = actor.module[0].module.net.mlp[-1]  # the last Linear: [loc (2), log_std (2)]
+    td = TensorDict({"observation": torch.randn(4, 5), "preference": torch.full((4, 3), 1 / 3)}, [4])
+    with torch.no_grad():
+        head.weight.zero_()
+        head.bias.copy_(torch.tensor([0.1, -0.2, 5.0, -30.0]))  # log-std beyond both bounds
+        out = actor.module[0](td.clone())
+        torch.testing.assert_close(out["loc"], torch.tensor([[0.1, -0.2]] * 4))
+        torch.testing.assert_close(out["scale"], torch.tensor([[2.0, -20.0]] * 4).exp().expand(4, 2))
+        head.bias.copy_(torch.tensor([0.0, 0.0, -1.0, 0.5]))  # inside: exp(log_std)
+        torch.testing.assert_close(actor.module[0](td.clone())["scale"], torch.tensor([[-1.0, 0.5]] * 4).exp())
+    ours = make_gaussian_actor(5, Bounded(-1.0, 1.0, (2,)), 3, num_cells=(16,))
+    assert type(ours.module[0].module).__name__ == "_LocScale"  # the biased softplus stays the default
+    with pytest.raises(ValueError, match="scale='exp'; valid values"):
+        make_gaussian_actor(5, Bounded(-1.0, 1.0, (2,)), 3, scale="exp")

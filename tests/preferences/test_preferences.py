@@ -110,14 +110,14 @@ def test_dirichlet_statistics():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(distribution="beta"), r"distribution='beta'; valid values are \('dirichlet', 'gaussian'\)"),
+        (dict(distribution="beta"), r"distribution='beta'; valid values are \('dirichlet', 'gaussian', 'cone'\)"),
         (dict(alpha=-1.0), "alpha must be a positive"),
         (dict(alpha=[1.0, 2.0]), r"alpha has 2 entries; expected 3"),
         (dict(distribution="gaussian", alpha=2.0), "dirichlet' only"),
     ],
 )
 def test_bad_sampling_arguments(kwargs, match):
-    assert PREFERENCE_DISTRIBUTIONS == ("dirichlet", "gaussian")
+    assert PREFERENCE_DISTRIBUTIONS == ("dirichlet", "gaussian", "cone")
     with pytest.raises(ValueError, match=match):
         sample_preferences(2, 3, **kwargs)
     with pytest.raises(ValueError, match="num_objectives must be a positive int, got 0"):
@@ -177,3 +177,34 @@ def test_the_energy_weights_file_ships_with_the_package():
     from importlib.resources import files
 
     assert files("morl_trl.preferences").joinpath("energy_weights.json").is_file()
+
+
+# ---------------------------------------------------------------- the authors' CAPQL cone
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_capql_cone_sampler_stays_within_22_5_degrees_of_its_centre(k):
+    from morl_trl.preferences import CONE_ANGLE_DEGREES, sample_cone_preferences
+
+    g = torch.Generator().manual_seed(k)
+    w, c = sample_cone_preferences(20_000, k, generator=g, return_centre=True)
+    assert CONE_ANGLE_DEGREES == 22.5
+    assert w.shape == c.shape == (20_000, k)
+    assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(20_000), atol=1e-6)
+    assert (c >= 0).all() and torch.allclose(c.norm(dim=-1), torch.ones(20_000), atol=1e-6)
+    angle = torch.rad2deg(torch.arccos(((w * c).sum(-1) / w.norm(dim=-1)).clamp(max=1.0).double()))
+    assert angle.max() <= 22.5 + 1e-3
+    assert angle.max() > 20.0  # the cone is used up to its edge
+    # the centres are spread over the whole simplex (every objective dominates some draws)
+    assert torch.bincount(w.argmax(-1), minlength=k).min() > 20_000 / k / 2
+    # the same generator state gives the same draws; sample_preferences(distribution="cone") is this sampler
+    again = sample_preferences(20_000, k, distribution="cone", generator=torch.Generator().manual_seed(k))
+    assert torch.equal(again, w)
+
+
+def test_cone_sampler_narrow_angle_and_bad_arguments():
+    from morl_trl.preferences import sample_cone_preferences
+
+    w, c = sample_cone_preferences(100, 3, angle=0.0, generator=torch.Generator().manual_seed(0), return_centre=True)
+    torch.testing.assert_close(w, c / c.sum(-1, keepdim=True))  # angle 0: the centre itself, on the simplex
+    assert torch.equal(sample_cone_preferences(4, 1), torch.ones(4, 1))
+    with pytest.raises(ValueError, match=r"angle must lie in \[0, 90\]"):
+        sample_cone_preferences(2, 3, angle=120.0)

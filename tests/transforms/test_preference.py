@@ -155,3 +155,69 @@ def test_works_with_domain_randomization_and_pickles():
     t.sample(2)
     clone = pickle.loads(pickle.dumps(t))
     torch.testing.assert_close(clone.sample(3), t.sample(3))
+
+
+# ---------------------------------------------------------------- the authors' training preferences
+def _copy(generator: torch.Generator) -> torch.Generator:
+    g = torch.Generator()
+    g.set_state(generator.get_state())
+    return g
+
+
+@pytest.mark.parametrize("mode", ["dirichlet", "gaussian"])
+def test_sampling_modes_draw_exactly_the_samplers_stream(mode):
+    # "dirichlet" keeps the stream it always had; "gaussian" is MORL-Baselines' |N(0, I)| normalised
+    env = make(4, seed=3, mode=mode)
+    env.transform._sync_seed()
+    expected = sample_preferences(4, 2, distribution=mode, generator=_copy(env.transform.generator))
+    assert torch.equal(env.reset()["preference"], expected)
+
+
+def test_envelope_training_preferences_are_gaussian_per_episode_as_the_authors():
+    n, steps = 3, 12
+    env = make(n, seed=0, mode="gaussian")
+    td = env.rollout(steps, ScriptedPolicy((n,), steps, seed=1), break_when_any_done=False)
+    w = td["preference"]
+    assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(n, steps))
+    same = (w[:, 1:] == w[:, :-1]).all(-1)
+    assert torch.equal(same, ~episode_starts(td)[:, 1:])  # constant within an episode
+
+
+def test_capql_acting_preference_changes_every_step_within_the_cone():
+    from morl_trl.preferences import sample_cone_preferences
+
+    n, steps, k = 3, 6, 2
+    env = make(n, seed=0, mode="cone", resample="step")
+    td = env.reset()
+    angles, seen = [], []
+    for _ in range(steps):
+        g = _copy(env.transform.generator)
+        acting = td["preference"].clone()
+        td = env.step(td.set("action", env.action_spec.rand()))
+        fresh, centre = sample_cone_preferences(n, k, generator=g, return_centre=True)
+        # the w written under "next" is this step's fresh cone draw: the policy acts on it next step
+        assert torch.equal(td["next", "preference"], fresh)
+        assert torch.equal(td["preference"], acting)  # the transition keeps the w its action was chosen with
+        cos = (fresh * centre).sum(-1) / fresh.norm(dim=-1)
+        angles.append(torch.rad2deg(torch.arccos(cos.clamp(max=1.0))))
+        seen.append(fresh)
+        td = env.step_mdp(td) if hasattr(env, "step_mdp") else td["next"]
+    seen = torch.stack(seen)  # [steps, n, k]
+    # a new draw every step (two draws clipped onto the same vertex of the simplex can coincide)
+    assert (seen[1:] != seen[:-1]).any(-1).any(-1).all()
+    assert all(len({tuple(r.tolist()) for r in seen[:, i]}) >= steps - 1 for i in range(n))
+    assert (seen >= 0).all() and torch.allclose(seen.sum(-1), torch.ones(steps, n))
+    assert torch.stack(angles).max() <= 22.5 + 1e-3
+
+
+def test_step_resampling_is_stored_in_rollouts_and_rejects_given():
+    n, steps = 2, 5
+    env = make(n, seed=1, mode="cone", resample="step")
+    td = env.rollout(steps, ScriptedPolicy((n,), steps, seed=1), break_when_any_done=False)
+    assert torch.equal(td["next", "preference"][:, :-1], td["preference"][:, 1:])
+    assert (td["preference"][:, 1:] != td["preference"][:, :-1]).any(-1).any(0).all()
+    with pytest.raises(ValueError, match="mode='given' keeps the preference"):
+        PreferenceConditioning(2, mode="given", resample="step")
+    with pytest.raises(ValueError, match="resample must be one of"):
+        PreferenceConditioning(2, resample="always")
+    assert "resample='step'" in repr(env.transform)
