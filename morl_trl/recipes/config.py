@@ -315,6 +315,8 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
         raise ValueError(f"unknown config key(s) {unknown}; valid keys: {sorted(_FIELDS)}")
     out = {}
     for k, v in values.items():
+        if v == "null":  # TOML has no null: a file or a key=value flag writes the string
+            v = None
         if k in ("hidden", "eval_contexts") and isinstance(v, list):
             v = tuple(v)
         elif k in ("lr", "gamma", "tau", "per_alpha", "per_beta", "alpha", "eps_start", "eps_end",

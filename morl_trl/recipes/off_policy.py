@@ -48,7 +48,8 @@ __all__ = ["train", "evaluate_run", "EXIT_NON_FINITE_LOSS", "make_training_env",
 # ---------------------------------------------------------------------- the pieces of a run
 def make_training_env(cfg: TrainConfig, device: torch.device):
     """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
-    policy's history + a Dirichlet preference per sub-env and episode + vector returns."""
+    policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
+    episode or, with ``preference_resample="step"``, every step) + vector returns."""
     spec = domain_of(cfg.env_id)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
