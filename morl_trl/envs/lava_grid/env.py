@@ -97,6 +97,7 @@ class MOLavaGridEnv(ContextualMOEnv):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         context_sampler: ContextSampler | None = None,
+        allow_extrapolation: bool = False,
         max_episode_steps: int = 256,
         randomize: bool = False,
         context_space: LavaGridContextSpace = LAVA_GRID_CONTEXT,
@@ -109,6 +110,7 @@ class MOLavaGridEnv(ContextualMOEnv):
             seed=seed,
             max_episode_steps=max_episode_steps,
             context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         self.randomize = bool(randomize)
         dev = self.device
