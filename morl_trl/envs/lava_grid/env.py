@@ -138,6 +138,10 @@ class MOLavaGridEnv(ContextualMOEnv):
         self._reset_subenvs(torch.arange(n, device=dev), self._context)
 
     # ------------------------------------------------------------------ specs
+    # the observation is a grid of small integers (tile colours, direction, weights in [0, 1]):
+    # it cannot diverge, so the per-step non-finite check covers the reward only
+    finite_check_keys = ()
+
     def _domain_observation_spec(self):
         return {"observation": Bounded(low=0.0, high=5.0, shape=(OBS_SIZE,), dtype=torch.float32)}
 
