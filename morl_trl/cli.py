@@ -188,10 +188,14 @@ def reference_table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed")
     parser.add_argument("--no-eugr", action="store_true", help="skip EUGR")
     parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
+    parser.add_argument("--no-manifest", action="store_true",
+                        help="read data in the published layout without checking it against the published "
+                        "files' manifest (row counts, SHA-256)")
     args = parser.parse_args(argv)
     try:
         rows = reference_table(
-            args.data_dir, args.domain, eugr=not args.no_eugr, ci_reps=args.reps if args.ci else 0, seed=args.seed
+            args.data_dir, args.domain, eugr=not args.no_eugr, ci_reps=args.reps if args.ci else 0, seed=args.seed,
+            manifest=None if args.no_manifest else "published",
         )
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
@@ -228,6 +232,37 @@ def reference_pack_main(argv: list[str]) -> int:
     return 0
 
 
+def reference_manifest_main(argv: list[str] | None = None) -> int:
+    """``morl-trl reference-manifest DIR``: check a reference folder against the shipped
+    manifest (row count and SHA-256 of every published file), or ``--write`` it from DIR."""
+    from morl_trl.reporting.reference import MANIFEST_PATH, build_manifest, verify_reference, write_manifest
+
+    parser = argparse.ArgumentParser(
+        prog="morl-trl reference-manifest",
+        description="Check a reference data folder against the manifest of the published files (row counts, "
+        "SHA-256), or write that manifest from a folder (--write).",
+    )
+    parser.add_argument("data_dir", help="reference folder with minmax_values/, specialist_fronts/, generalist_fronts/")
+    parser.add_argument("--write", action="store_true", help=f"write the manifest of DATA_DIR (default to {MANIFEST_PATH})")
+    parser.add_argument("--output", type=Path, help="where --write writes (default: the package's manifest)")
+    args = parser.parse_args(argv)
+    if args.write:
+        manifest = build_manifest(args.data_dir)
+        path = write_manifest(manifest, args.output or MANIFEST_PATH)
+        print(f"wrote the manifest of {len(manifest['files'])} files under {args.data_dir} to {path}")
+        return 0
+    problems = verify_reference(args.data_dir)
+    if problems:
+        for line in problems[:20]:
+            print(line, file=sys.stderr)
+        more = f" (first 20 shown)" if len(problems) > 20 else ""
+        print(f"morl-trl reference-manifest: error: {args.data_dir}: {len(problems)} difference(s) from the "
+              f"published data{more}", file=sys.stderr)
+        return 2
+    print(f"{args.data_dir}: every file matches the manifest of the published data")
+    return 0
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
@@ -236,6 +271,8 @@ COMMANDS = {
     "envs": (envs_main, "list domains, their contexts and evaluation suites"),
     "reference-table": (reference_table_main, "reproduce the paper's NHGR table from the published fronts"),
     "reference-pack": (reference_pack_main, "ship the bounds and specialist fronts of a reference folder in the package"),
+    "reference-manifest": (reference_manifest_main, "check reference data against the published files' manifest "
+                           "(or --write it)"),
 }
 
 

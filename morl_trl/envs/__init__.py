@@ -8,7 +8,7 @@ Example:
     ['MOHopperDefault-v5', 'MOHopperLight-v5']
 """
 
-from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.base import ContextualMOEnv, NonFiniteStepError
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.registry import (
     context_space,
@@ -28,6 +28,7 @@ __all__ = [
     "ContextSpace",
     "ContextualMOEnv",
     "DomainSpec",
+    "NonFiniteStepError",
     "context_space",
     "domain_of",
     "evaluation_suite",

@@ -17,8 +17,9 @@ from typing import Any
 
 import torch
 
+from morl_trl.envs.base import check_num_envs
 from morl_trl.envs.context import ContextSpace
-from morl_trl.envs.sampler import ContextSampler
+from morl_trl.envs.sampler import ContextSampler, check_seed
 from morl_trl.envs.spec import DomainSpec
 
 __all__ = [
@@ -114,6 +115,8 @@ def make_env(
     num_envs: int = 1,
     device: torch.device | str = "cpu",
     seed: int | None = None,
+    *,
+    allow_extrapolation: bool = False,
     **overrides: Any,
 ):
     """Build a batched environment by id: the domain's :class:`~morl_trl.envs.ContextualMOEnv`.
@@ -127,8 +130,16 @@ def make_env(
     those parameters (also under domain randomization); other keywords go to the env
     constructor.
 
-    Seeding: ``seed`` seeds the sub-envs and the context stream (the same ``seed`` gives the
-    same contexts, ``env.set_seed(s)`` re-seeds both).
+    Seeding: ``seed`` (an int in ``[0, 2**63 - 1]``) seeds the sub-envs and the context
+    stream (the same ``seed`` gives the same contexts, ``env.set_seed(s)`` re-seeds both).
+
+    Bounds: a context parameter outside the domain's declared bounds (the range its physics
+    is valid in, ``context_space(env_id).valid_low/valid_high``; wider than the
+    randomization range) raises a ``ValueError`` naming it, its value and the bounds, here
+    and at every later ``reset`` given a context. ``allow_extrapolation=True`` accepts them
+    (extrapolation studies; values must still be finite, and positive where the physics
+    needs it); a step whose physics then diverges raises
+    :class:`~morl_trl.envs.base.NonFiniteStepError` naming the sub-env and its context.
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -139,17 +150,21 @@ def make_env(
         tensor([0., 0.])
     """
     spec = _lookup(env_id)
-    if not isinstance(num_envs, int) or num_envs < 1:
-        raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+    num_envs = check_num_envs(num_envs)
+    if seed is not None:
+        seed = check_seed(seed)
     space = spec.context_space
     ctx_over = {k: v for k, v in overrides.items() if k in space.names}
     kwargs = {**spec.env_kwargs, **{k: v for k, v in overrides.items() if k not in space.names}}
     base = dict(spec.contexts.get(env_id, {}))
     base.update(ctx_over)
-    context = space.make(base)
+    try:
+        context = space.make(base, allow_extrapolation=allow_extrapolation)
+    except ValueError as err:
+        raise ValueError(f"{env_id}: {err}") from None
     cls = spec.env_cls()
     params = inspect.signature(cls.__init__).parameters
-    reserved = ("self", "num_envs", "context", "device", "seed", "context_sampler")
+    reserved = ("self", "num_envs", "context", "device", "seed", "context_sampler", "allow_extrapolation")
     if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
         accepted = [p for p in params if p not in reserved]
         unknown = sorted(set(kwargs) - set(accepted))
@@ -159,5 +174,9 @@ def make_env(
                 f"{list(space.names)} and the env options {accepted}"
             )
     if env_id == spec.train_id:
-        kwargs["context_sampler"] = ContextSampler(space, fixed=ctx_over, seed=seed)
+        kwargs["context_sampler"] = ContextSampler(
+            space, fixed=ctx_over, seed=seed, allow_extrapolation=allow_extrapolation
+        )
+    if allow_extrapolation:  # (domains without the option keep their signature)
+        kwargs["allow_extrapolation"] = True
     return cls(num_envs=num_envs, context=context, device=device, seed=seed, **kwargs)

@@ -18,9 +18,23 @@ import torch
 
 from morl_trl.envs.context import ContextSpace
 
-__all__ = ["ContextSampler"]
+__all__ = ["ContextSampler", "check_seed", "MAX_SEED"]
 
 Sampler = Callable[..., torch.Tensor]
+
+#: the largest seed accepted anywhere (envs of every domain, context samplers): seeds are ints in
+#: ``[0, 2**63 - 1]``, the non-negative range of a signed 64-bit integer (torch's and NumPy's seeds)
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(seed, name: str = "seed") -> int:
+    """``seed`` as an int if it is one in ``[0, 2**63 - 1]`` (bools rejected), else a ``ValueError``."""
+    if isinstance(seed, bool) or not hasattr(seed, "__index__"):
+        raise ValueError(f"{name} must be an int in [0, 2**63 - 1], got {seed!r} ({type(seed).__name__})")
+    value = seed.__index__()
+    if not 0 <= value <= MAX_SEED:
+        raise ValueError(f"{name} must be an int in [0, 2**63 - 1], got {value}")
+    return value
 
 
 def _accepts_previous(fn: Callable) -> bool:
@@ -51,11 +65,14 @@ class ContextSampler:
     Args:
         context_space: the space to draw from.
         fixed: parameters held at a given value instead of drawn, e.g.
-            ``{"wind_power": 0.0}`` (these may lie outside the randomization range).
+            ``{"wind_power": 0.0}`` (these may lie outside the randomization range, but not
+            outside the declared bounds unless ``allow_extrapolation``).
         sampler: optional ``sampler(n, generator[, previous=...]) -> [n, c]`` drawing full
             contexts inside ``context_space``.
-        seed: seed of the generator (``None``: unseeded until :meth:`set_seed`, or until an
-            env seeds it).
+        seed: seed of the generator, an int in ``[0, 2**63 - 1]`` (``None``: unseeded until
+            :meth:`set_seed`, or until an env seeds it).
+        allow_extrapolation: accept ``fixed`` values outside the context space's declared
+            bounds (extrapolation studies; the env must allow them too).
 
     Example:
         >>> import torch
@@ -79,14 +96,17 @@ class ContextSampler:
         fixed: Mapping[str, float] | None = None,
         sampler: Sampler | None = None,
         seed: int | None = None,
+        allow_extrapolation: bool = False,
     ) -> None:
         if not isinstance(context_space, ContextSpace):
             raise ValueError(f"context_space must be a ContextSpace, got {type(context_space).__name__}")
         if sampler is not None and not callable(sampler):
             raise ValueError(f"sampler must be callable sampler(n, generator) -> [n, c], got {sampler!r}")
         self.context_space = context_space
+        self.allow_extrapolation = bool(allow_extrapolation)
+        # NaN, non-positive or out-of-bounds fixed values fail here, not at the first reset
+        context_space.make(fixed or {}, allow_extrapolation=self.allow_extrapolation)
         self.fixed = {context_space.names[context_space.index(k)]: float(v) for k, v in (fixed or {}).items()}
-        context_space.make(self.fixed)  # NaN / non-positive fixed values fail here, not at the first reset
         self._fixed_idx = torch.tensor([context_space.index(k) for k in self.fixed], dtype=torch.long)
         self._fixed_val = torch.tensor(list(self.fixed.values()), dtype=torch.float32)
         self.generator = torch.Generator()
@@ -118,11 +138,9 @@ class ContextSampler:
         return self._seed
 
     def set_seed(self, seed: int) -> None:
-        """Re-seed the generator with ``seed`` (an int; taken modulo 2**64)."""
-        if isinstance(seed, bool) or not isinstance(seed, int):
-            raise ValueError(f"seed must be an int, got {seed!r}")
-        self._seed = int(seed)
-        self.generator.manual_seed(int(seed) % (1 << 64))
+        """Re-seed the generator with ``seed`` (an int in ``[0, 2**63 - 1]``)."""
+        self._seed = check_seed(seed)
+        self.generator.manual_seed(self._seed)
 
     def get_state(self) -> dict:
         """The generator state and seed (for checkpoints; see :meth:`set_state`)."""
@@ -167,7 +185,7 @@ class ContextSampler:
         if self.fixed:
             ctx = ctx.clone()
             ctx[:, self._fixed_idx] = self._fixed_val
-            space.validate(ctx)
+            space.validate(ctx, allow_extrapolation=self.allow_extrapolation)
         return ctx
 
     def __repr__(self) -> str:

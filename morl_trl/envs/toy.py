@@ -30,10 +30,12 @@ class ToyContextEnv(ContextualMOEnv):
 
     objective_names = ("progress", "time")
 
-    def __init__(self, num_envs=1, context=None, device="cpu", seed=None, max_episode_steps=6, context_sampler=None):
+    def __init__(self, num_envs=1, context=None, device="cpu", seed=None, max_episode_steps=6, context_sampler=None,
+                 allow_extrapolation=False):
         super().__init__(
             context_space=TOY_CONTEXT, num_envs=num_envs, context=context, device=device,
             seed=seed, max_episode_steps=max_episode_steps, context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         self._pos = torch.zeros(num_envs, device=self.device)
 

@@ -11,11 +11,22 @@ bounds and the specialist front of every evaluation context) and :func:`load_gen
 the final fronts of the published runs. The same types are built from our own runs
 (:meth:`DomainReference.from_fronts`) and written back in the same layout
 (:meth:`DomainReference.save`), so new domains get reference data the same way.
+
+Every file the loaders read is checked: a malformed file raises a ``ValueError`` naming the
+file and what is wrong, and a file whose path (relative to the folder) is listed in the
+reference manifest (``reference_manifest.json``, shipped with the package: the row count and
+SHA-256 of every published file, made by ``morl-trl reference-manifest DIR --write``) must
+have the listed row count and content, so a truncated or altered copy of the published data
+is an error rather than a silently different table. Pass ``manifest=None`` to read other data
+in the same layout without that check.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
+import hashlib
+import io
 import json
 import re
 import shutil
@@ -40,19 +51,54 @@ __all__ = [
     "load_generalist_fronts",
     "pack_reference",
     "PACKAGED_REFERENCE",
+    "MANIFEST_PATH",
+    "build_manifest",
+    "load_manifest",
+    "verify_reference",
 ]
+
+#: the manifest of the published reference data, shipped with the package
+MANIFEST_PATH = Path(__file__).with_name("reference_manifest.json")
+_MANIFEST_FORMAT = "morl_trl-reference-manifest/1"
+_PUBLISHED = "published"  # the default ``manifest`` argument: the shipped manifest
 
 
 # --------------------------------------------------------------------------- fronts on disk
 def read_front_csv(path: str | Path) -> np.ndarray:
     """Read a front CSV (a header row, then one point per row) as a ``[n, k]`` float64 array."""
     path = Path(path)
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(fh))
+    return _parse_front(path, _read_text(path))
+
+
+def _read_text(path: Path, data: bytes | None = None) -> str:
+    try:
+        data = path.read_bytes() if data is None else data
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: not a UTF-8 text file ({e})") from None
+    except OSError as e:
+        raise ValueError(f"{path}: cannot be read ({e.strerror or e})") from None
+
+
+def _csv_rows(text: str) -> list[list[str]]:
+    return list(csv.reader(io.StringIO(text, newline="")))
+
+
+def _parse_front(path: Path, text: str) -> np.ndarray:
+    try:
+        rows = _csv_rows(text)
+    except csv.Error as e:
+        raise ValueError(f"{path}: malformed CSV ({e})") from None
     if not rows:
         raise ValueError(f"{path} is empty (expected a header row objective_1..objective_k)")
     k = len(rows[0])
+    header = [h.strip() for h in rows[0]]
+    if header != [f"objective_{i + 1}" for i in range(k)]:
+        raise ValueError(f"{path}: the header row is {rows[0]}; expected objective_1..objective_k")
     body = [r for r in rows[1:] if r]
+    for line, r in enumerate(body, start=2):
+        if len(r) != k:
+            raise ValueError(f"{path}: row {line} has {len(r)} values, the header {k} (is the file cut short?)")
     try:
         arr = np.array(body, dtype=np.float64).reshape(-1, k)
     except ValueError as e:
@@ -184,6 +230,117 @@ def _as_front_list(fronts, name: str) -> list[np.ndarray]:
     return [as_points(fronts, name)]
 
 
+# --------------------------------------------------------------------------- the manifest
+def _rel(root: Path, path: Path) -> str:
+    return path.relative_to(root).as_posix()
+
+
+def _count_rows(path: Path, text: str) -> int:
+    """Data rows of a front CSV (non-empty rows after the header) or contexts of a bounds JSON."""
+    if path.suffix == ".json":
+        raw = _parse_json(path, text)
+        return len(raw)
+    return max(sum(1 for r in _csv_rows(text) if r) - 1, 0)
+
+
+def _manifest_files(root: Path) -> list[Path]:
+    files = sorted((root / "minmax_values").glob("*.json"))
+    for sub in ("specialist_fronts", "generalist_fronts"):
+        if (root / sub).is_dir():
+            files += sorted((root / sub).rglob("*.csv"))
+    return files
+
+
+def build_manifest(root: str | Path) -> dict:
+    """The manifest of a reference folder: for every bounds JSON and front CSV (path relative
+    to ``root``), its row count (CSV data rows; JSON contexts) and SHA-256."""
+    root = _root(root)
+    files = {}
+    for path in _manifest_files(root):
+        data = path.read_bytes()
+        files[_rel(root, path)] = {"rows": _count_rows(path, _read_text(path, data)),
+                                   "sha256": hashlib.sha256(data).hexdigest()}
+    if not files:
+        raise ValueError(f"{root}: no reference files found (looked for minmax_values/*.json, "
+                         "specialist_fronts/**/*.csv and generalist_fronts/**/*.csv)")
+    return {"format": _MANIFEST_FORMAT, "files": files}
+
+
+def write_manifest(manifest: dict, path: str | Path = MANIFEST_PATH) -> Path:
+    """Write ``manifest`` as JSON, one file per line (readable diffs)."""
+    path = Path(path)
+    lines = [f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in manifest["files"].items()]
+    path.write_text('{"format": ' + json.dumps(manifest["format"]) + ', "files": {\n' + ",\n".join(lines) + "\n}}\n")
+    return path
+
+
+@functools.lru_cache(maxsize=4)
+def _load_manifest_file(path: str) -> dict:
+    p = Path(path)
+    try:
+        raw = json.loads(_read_text(p))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{p}: the reference manifest is not valid JSON ({e})") from None
+    if not isinstance(raw, dict) or raw.get("format") != _MANIFEST_FORMAT or not isinstance(raw.get("files"), dict):
+        raise ValueError(f"{p}: not a reference manifest (expected {{'format': {_MANIFEST_FORMAT!r}, 'files': {{...}}}})")
+    return raw
+
+
+def load_manifest(manifest=_PUBLISHED) -> dict | None:
+    """The manifest named by a loader's ``manifest`` argument: ``"published"`` (the shipped
+    :data:`MANIFEST_PATH`), a path, a dict (as :func:`build_manifest` returns), or ``None``."""
+    if manifest is None or isinstance(manifest, dict):
+        return manifest
+    path = MANIFEST_PATH if manifest == _PUBLISHED else Path(manifest)
+    if manifest == _PUBLISHED and not path.is_file():  # a source tree without the generated file
+        return None
+    return _load_manifest_file(str(path))
+
+
+def _check_file(root: Path, path: Path, data: bytes, rows: int, manifest: dict | None) -> None:
+    """Compare a loaded file with its manifest entry, if any (see the module docstring)."""
+    if manifest is None:
+        return
+    entry = manifest["files"].get(_rel(root, path))
+    if entry is None:
+        return
+    unit = "contexts" if path.suffix == ".json" else "rows"
+    if rows != entry["rows"]:
+        raise ValueError(
+            f"{path}: expected {entry['rows']} {unit} (the published file, per the reference manifest), "
+            f"found {rows}: the file is truncated or altered"
+        )
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != entry["sha256"]:
+        raise ValueError(
+            f"{path}: its content differs from the published file ({rows} {unit} as expected, but SHA-256 "
+            f"{digest[:12]}... instead of {entry['sha256'][:12]}...); pass manifest=None to read other data"
+        )
+
+
+def verify_reference(root: str | Path, manifest=_PUBLISHED) -> list[str]:
+    """Every difference between the folder ``root`` and ``manifest`` (missing files, row counts,
+    contents), one line each; empty when the folder holds exactly the published data."""
+    root = _root(root)
+    manifest = load_manifest(manifest)
+    if manifest is None:
+        raise ValueError(f"no reference manifest at {MANIFEST_PATH} (generate it: morl-trl reference-manifest DIR --write)")
+    problems = []
+    for rel in manifest["files"]:
+        path = root / rel
+        if not path.is_file():
+            problems.append(f"{path}: missing")
+            continue
+        data = path.read_bytes()
+        try:
+            _check_file(root, path, data, _count_rows(path, _read_text(path, data)), manifest)
+        except ValueError as e:
+            problems.append(str(e))
+    known = set(manifest["files"])
+    problems += [f"{p}: not in the manifest" for p in _manifest_files(root) if _rel(root, p) not in known]
+    return problems
+
+
 # --------------------------------------------------------------------------- loading
 def _root(root: str | Path) -> Path:
     root = Path(root)
@@ -204,13 +361,55 @@ def list_reference_domains(root: str | Path) -> list[str]:
     return sorted(p.stem for p in _root(root).joinpath("minmax_values").glob("*.json"))
 
 
-def load_domain_reference(root: str | Path | None, domain: str | None = None) -> DomainReference:
+def _parse_json(path: Path, text: str):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: not valid JSON ({e})") from None
+
+
+def _load_bounds(root: Path, path: Path, manifest: dict | None) -> dict[str, Bounds]:
+    data = path.read_bytes()
+    raw = _parse_json(path, _read_text(path, data))
+    layout = 'an object {context: {"0": [min, max], "1": [min, max], ...}}'
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: expected {layout}, got a JSON {type(raw).__name__}")
+    if not raw:
+        raise ValueError(f"{path}: no contexts (expected {layout})")
+    _check_file(root, path, data, len(raw), manifest)
+    bounds = {}
+    for c, e in raw.items():
+        if not isinstance(e, dict):
+            raise ValueError(f"{path}: context {c!r} maps to a JSON {type(e).__name__}; expected {layout}")
+        for key, pair in e.items():
+            if not (isinstance(pair, list) and len(pair) == 2
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)):
+                raise ValueError(f"{path}: context {c!r}, objective {key!r} is {pair!r}; expected [min, max] numbers")
+        try:
+            bounds[c] = Bounds.from_json_entry(e)
+        except (ValueError, TypeError, IndexError) as err:
+            raise ValueError(f"{path}: context {c!r}: {err}") from None
+    return bounds
+
+
+def _load_front(root: Path, path: Path, manifest: dict | None) -> np.ndarray:
+    data = path.read_bytes()
+    text = _read_text(path, data)
+    front = _parse_front(path, text)
+    _check_file(root, path, data, _count_rows(path, text), manifest)
+    return front
+
+
+def load_domain_reference(
+    root: str | Path | None, domain: str | None = None, *, manifest=_PUBLISHED
+) -> DomainReference:
     """Read the frozen bounds and specialist fronts of ``domain`` from ``root``.
 
     ``load_domain_reference(domain)`` (or ``root=None``) reads the copies shipped with the
     package (:data:`PACKAGED_REFERENCE`), so NHGR works on any install. The evaluation
     contexts are the keys of the bounds file, in its order (the specialist folder may hold
-    extra contexts, e.g. LunarLander's StartLow, which are not loaded).
+    extra contexts, e.g. LunarLander's StartLow, which are not loaded). Files listed in
+    ``manifest`` (default: the published data's) are checked against it.
 
     Example:
         >>> ref = load_domain_reference("MOLunarLanderDR-v0")      # the shipped constants
@@ -220,19 +419,21 @@ def load_domain_reference(root: str | Path | None, domain: str | None = None) ->
     if domain is None:
         root, domain = None, root
     root = _root(PACKAGED_REFERENCE if root is None else root)
+    manifest = load_manifest(manifest)
     path = root / "minmax_values" / f"{domain}.json"
     if not path.is_file():
         raise ValueError(f"no bounds for domain {domain!r} under {root}; available: {list_reference_domains(root)}")
-    with path.open() as fh:
-        raw = json.load(fh)
-    bounds = {c: Bounds.from_json_entry(e) for c, e in raw.items()}
+    bounds = _load_bounds(root, path, manifest)
     fronts = {}
     for c in bounds:
         p = root / "specialist_fronts" / domain / f"{c}.csv"
         if not p.is_file():
             raise ValueError(f"{domain}: missing specialist front {p}")
-        fronts[c] = read_front_csv(p)
-    return DomainReference(domain, bounds, fronts)
+        fronts[c] = _load_front(root, p, manifest)
+    try:
+        return DomainReference(domain, bounds, fronts)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
 
 
 def pack_reference(source: str | Path, destination: str | Path = PACKAGED_REFERENCE) -> list[Path]:
@@ -257,24 +458,27 @@ def pack_reference(source: str | Path, destination: str | Path = PACKAGED_REFERE
     return written
 
 
-def load_reference(root: str | Path) -> dict[str, DomainReference]:
+def load_reference(root: str | Path, *, manifest=_PUBLISHED) -> dict[str, DomainReference]:
     """Every domain under ``root``: domain id -> :class:`DomainReference`."""
-    return {d: load_domain_reference(root, d) for d in list_reference_domains(root)}
+    return {d: load_domain_reference(root, d, manifest=manifest) for d in list_reference_domains(root)}
 
 
 _SEED = re.compile(r"^seed_(\d+)$")
 
 
 def load_generalist_fronts(
-    root: str | Path, domain: str, contexts: Iterable[str] | None = None
+    root: str | Path, domain: str, contexts: Iterable[str] | None = None, *, manifest=_PUBLISHED
 ) -> dict[str, dict[int, dict[str, np.ndarray]]]:
     """Final fronts of the published runs: ``{algorithm: {seed: {context: [n, k] front}}}``.
 
     Only the top-level algorithm folders are read (the paper's data; e.g. MuJoCo's
     ``no_history/`` folder holds other runs). ``contexts`` restricts (and orders) the
-    contexts; by default every CSV found is read.
+    contexts; by default every CSV found is read. Files listed in ``manifest`` (default: the
+    published data's) are checked against it.
     """
-    base = _root(root) / "generalist_fronts" / domain
+    root = _root(root)
+    manifest = load_manifest(manifest)
+    base = root / "generalist_fronts" / domain
     if not base.is_dir():
         raise ValueError(f"no generalist fronts for domain {domain!r} under {base.parent}")
     wanted = None if contexts is None else list(contexts)
@@ -291,7 +495,7 @@ def load_generalist_fronts(
                 p = seed_dir / f"{c}.csv"
                 if not p.is_file():
                     raise ValueError(f"{domain}/{algo_dir.name}/{seed_dir.name}: missing front for context {c!r} ({p})")
-                fronts[c] = read_front_csv(p)
+                fronts[c] = _load_front(root, p, manifest)
             seeds[int(m.group(1))] = fronts
         if seeds:
             out[algo_dir.name] = dict(sorted(seeds.items()))

@@ -224,8 +224,14 @@ def reference_table(
     eugr: bool = True,
     ci_reps: int = 0,
     seed: int = 0,
+    manifest="published",
 ) -> list[TableRow]:
     """Recompute the NHGR table from the reference folder ``root`` (see the module docstring).
+
+    Raises a ``ValueError`` when there is nothing to show (no domain with generalist fronts),
+    and for any malformed file or (``manifest``, see
+    :func:`~morl_trl.reporting.reference.load_domain_reference`) a published file that is
+    truncated or altered.
 
     Example:
         >>> rows = reference_table("../shared/reference", ["MOLunarLanderDR-v0"])   # doctest: +SKIP
@@ -242,9 +248,15 @@ def reference_table(
         available = [d for d in available if (gen / d).is_dir()]
     rows = []
     for d in _ordered(list(domains or available)):
-        ref = load_domain_reference(root, d)
-        runs = load_generalist_fronts(root, d, ref.contexts)
+        ref = load_domain_reference(root, d, manifest=manifest)
+        runs = load_generalist_fronts(root, d, ref.contexts, manifest=manifest)
         rows += domain_rows(ref, runs, eugr=eugr, ci_reps=ci_reps, seed=seed)
+    if not rows:
+        looked = f"domains {list(domains)}" if domains else f"the domains with bounds {list_reference_domains(root)}"
+        raise ValueError(
+            f"{root}: nothing to show: no generalist fronts (looked for "
+            f"generalist_fronts/<domain>/<algorithm>/seed_<n>/<context>.csv for {looked})"
+        )
     return rows
 
 

@@ -53,8 +53,11 @@ class DomainRandomization(SeededTransform):
             contexts inside ``context_space``.
         seed: seed of the transform's :class:`torch.Generator`.
         fixed: parameters held at a given value instead of sampled, e.g. ``{"wind_power": 0.0}``
-            (these may lie outside the randomization range).
+            (these may lie outside the randomization range, but outside the declared bounds
+            only with ``allow_extrapolation``).
         context_key: the key the base env reads contexts from.
+        allow_extrapolation: accept ``fixed`` values outside the declared bounds (the base
+            env must be built with ``allow_extrapolation=True`` too, or its reset rejects them).
 
     Example:
         >>> from torchrl.envs import TransformedEnv
@@ -73,9 +76,12 @@ class DomainRandomization(SeededTransform):
         seed: int | None = None,
         fixed: Mapping[str, float] | None = None,
         context_key: str = "context",
+        allow_extrapolation: bool = False,
     ) -> None:
         super().__init__(in_keys=[], out_keys=[])
-        self.context_sampler = ContextSampler(context_space, fixed=fixed, sampler=sampler)
+        self.context_sampler = ContextSampler(
+            context_space, fixed=fixed, sampler=sampler, allow_extrapolation=allow_extrapolation
+        )
         self.context_key = context_key
         self._checked_parent = False
         self._init_seed(seed)

@@ -145,9 +145,11 @@ class LavaGridContextSpace(ContextSpace):
             1,
         )
 
-    def validate(self, context, *, check_range: bool = False) -> torch.Tensor:
+    def validate(self, context, *, check_range: bool = False, allow_extrapolation: bool = False) -> torch.Tensor:
         """Check ``[..., 93]`` contexts (see the class docstring); raise ``ValueError`` naming the fault."""
-        context = super().validate(context, check_range=check_range)
+        # the structural checks below imply the declared bounds (and say more): extrapolation
+        # beyond them is not a map, so allow_extrapolation changes nothing here
+        context = super().validate(context, check_range=check_range, allow_extrapolation=True)
         flat = context.reshape(-1, self.dim)
         lava = flat[:, LAVA_SLICE]
         goals = flat[:, GOALS_SLICE].reshape(-1, NUM_GOALS, 2)
@@ -226,6 +228,11 @@ LAVA_GRID_CONTEXT = LavaGridContextSpace(
     default=(0.0,) * 81 + (10.0, 2.0, 2.0, 10.0, 10.0, 10.0) + (1 / 3,) * 3 + (2.0, 2.0, 0.0),
     low=(0.0,) * 81 + (1.0,) * 6 + (0.0,) * 3 + (1.0, 1.0, 0.0),
     high=(1.0,) * 81 + (float(INNER),) * 6 + (1.0,) * 3 + (float(INNER), float(INNER), 3.0),
+    # declared bounds = the grid's own structure (bits 0/1, cells on the 11x11, weights in
+    # [0, 1], four directions): domain randomization already covers all of it, and nothing
+    # beyond it is a map, so allow_extrapolation keeps the structural checks of `validate`
+    valid_low=(0.0,) * 81 + (1.0,) * 6 + (0.0,) * 3 + (1.0, 1.0, 0.0),
+    valid_high=(1.0,) * 81 + (float(INNER),) * 6 + (1.0,) * 3 + (float(INNER), float(INNER), 3.0),
 )
 
 

@@ -97,6 +97,7 @@ class MOLavaGridEnv(ContextualMOEnv):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         context_sampler: ContextSampler | None = None,
+        allow_extrapolation: bool = False,
         max_episode_steps: int = 256,
         randomize: bool = False,
         context_space: LavaGridContextSpace = LAVA_GRID_CONTEXT,
@@ -109,6 +110,7 @@ class MOLavaGridEnv(ContextualMOEnv):
             seed=seed,
             max_episode_steps=max_episode_steps,
             context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         self.randomize = bool(randomize)
         dev = self.device
@@ -136,6 +138,10 @@ class MOLavaGridEnv(ContextualMOEnv):
         self._reset_subenvs(torch.arange(n, device=dev), self._context)
 
     # ------------------------------------------------------------------ specs
+    # the observation is a grid of small integers (tile colours, direction, weights in [0, 1]):
+    # it cannot diverge, so the per-step non-finite check covers the reward only
+    finite_check_keys = ()
+
     def _domain_observation_spec(self):
         return {"observation": Bounded(low=0.0, high=5.0, shape=(OBS_SIZE,), dtype=torch.float32)}
 

@@ -175,6 +175,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         context_sampler: ContextSampler | None = None,
+        allow_extrapolation: bool = False,
         continuous: bool = False,
         max_episode_steps: int = 1000,
     ) -> None:
@@ -188,6 +189,7 @@ class MOLunarLanderEnv(ContextualMOEnv):
             seed=seed,
             max_episode_steps=max_episode_steps,
             context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         n = num_envs
         self._all = np.arange(n)

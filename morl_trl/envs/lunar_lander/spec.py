@@ -20,6 +20,15 @@ LUNAR_LANDER_CONTEXT = ContextSpace(
     low=(-13.0, 0.0, 0.0, 10.0, 0.3, 0.25, 0.7),
     high=(-7.0, 20.0, 3.5, 16.0, 0.9, 0.75, 1.0),
     positive=("main_engine_power", "side_engine_power", "initial_x_coeff", "initial_y_coeff"),
+    # declared bounds: where the Box2D physics stays meaningful (the DR range above is narrower).
+    # gravity: downward, at most twice the hardest DR value; -0.5 keeps a lander that still
+    #   falls (Gymnasium asserts -12 < g < 0, which the authors disabled: LowGravity is g=-3);
+    # wind / turbulence: non-negative magnitudes, up to 1.5x the DR maxima;
+    # engine powers: strictly positive (a dead engine makes its action a no-op), up to 40
+    #   (2.5x the DR maximum main power);
+    # spawn coefficients: a fraction of the viewport, (0, 1] (1.0 is Gymnasium's own spawn).
+    valid_low=(-20.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    valid_high=(-0.5, 30.0, 5.0, 40.0, 40.0, 1.0, 1.0),
 )
 
 # name -> overrides of the default context (SPEC §1.1 "Eval overrides")

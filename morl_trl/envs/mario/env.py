@@ -163,6 +163,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         context_sampler: ContextSampler | None = None,
+        allow_extrapolation: bool = False,
         max_episode_steps: int = 500,
         frame_skip: int = 4,
         num_threads: int | None = None,
@@ -184,6 +185,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             seed=seed,
             max_episode_steps=max_episode_steps,
             context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         self.frame_skip = frame_skip
         self.num_threads = min(num_threads, num_envs)

@@ -68,6 +68,10 @@ class MarioStageSpace(ContextSpace):
     default: tuple[float, ...] = (1.0, 1.0)
     low: tuple[float, ...] = (1.0, 1.0)
     high: tuple[float, ...] = (8.0, 4.0)
+    # declared bounds = the game's structure: worlds 1..8, levels 1..4 (validate requires one
+    # of the 32 stages, with or without allow_extrapolation: there is nothing in between)
+    valid_low: tuple[float, ...] | None = (1.0, 1.0)
+    valid_high: tuple[float, ...] | None = (8.0, 4.0)
     train_stages: tuple[tuple[int, int], ...] = TRAIN_STAGES
 
     def __post_init__(self) -> None:
@@ -88,8 +92,10 @@ class MarioStageSpace(ContextSpace):
         pick = torch.randint(len(self.train_stages), (n,), generator=generator, device=device)
         return table[pick]
 
-    def validate(self, context, *, check_range: bool = False) -> torch.Tensor:
-        context = super().validate(context, check_range=check_range)
+    def validate(self, context, *, check_range: bool = False, allow_extrapolation: bool = False) -> torch.Tensor:
+        # the stage check below implies the declared bounds (and lists the valid stages):
+        # there is no stage to extrapolate to, so allow_extrapolation changes nothing here
+        context = super().validate(context, check_range=check_range, allow_extrapolation=True)
         flat = context.reshape(-1, 2)
         valid = torch.tensor(STAGES, dtype=flat.dtype, device=flat.device)
         ok = (flat[:, None, :] == valid[None]).all(-1).any(-1)

@@ -111,6 +111,7 @@ class MujocoContextEnv(ContextualMOEnv):
         device: torch.device | str = "cpu",
         seed: int | None = None,
         context_sampler: ContextSampler | None = None,
+        allow_extrapolation: bool = False,
         max_episode_steps: int = 1000,
         num_threads: int | None = None,
     ) -> None:
@@ -123,6 +124,7 @@ class MujocoContextEnv(ContextualMOEnv):
             seed=seed,
             max_episode_steps=max_episode_steps,
             context_sampler=context_sampler,
+            allow_extrapolation=allow_extrapolation,
         )
         if num_threads is None:
             num_threads = min(num_envs, _usable_cpus())

@@ -6,6 +6,17 @@ Data only: imports no simulator (``mujoco``) and not the registry, which reads :
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.spec import DomainSpec
 
+# Declared bounds of the MuJoCo contexts (the range the physics is valid in; the DR ranges
+# below are narrower, and every evaluation context lies inside):
+# masses [0.01, 100] kg: 10x below the lightest evaluation body (0.1, Humanoid and Hopper) and
+#   10x above the heaviest DR mass; outside, the mass ratios of the chain make MuJoCo's
+#   integrator unstable (a 1e6 kg Hopper torso gives NaN within ~50 steps);
+# damping [0, 50]: 0 is an undamped joint, 50 is 5x the largest DR damping;
+# friction [0.01, 10]: a near-frictionless floor to far beyond rubber on concrete (~1).
+_MASS = (0.01, 100.0)
+_DAMPING = (0.0, 50.0)
+_FRICTION = (0.01, 10.0)
+
 # ---------------------------------------------------------------- Hopper
 _HOPPER_MASS = ("torso", "thigh", "leg", "foot")
 HOPPER_CONTEXT = ContextSpace(
@@ -15,6 +26,8 @@ HOPPER_CONTEXT = ContextSpace(
     low=(0.1,) * 4 + (0.1,) * 3 + (0.1,),
     high=(10.0,) * 4 + (3.0,) * 3 + (3.0,),
     positive=tuple(f"mass_{b}" for b in _HOPPER_MASS) + ("friction",),
+    valid_low=(_MASS[0],) * 4 + (_DAMPING[0],) * 3 + (_FRICTION[0],),
+    valid_high=(_MASS[1],) * 4 + (_DAMPING[1],) * 3 + (_FRICTION[1],),
 )
 
 
@@ -42,6 +55,8 @@ CHEETAH_CONTEXT = ContextSpace(
     low=(0.1,) * 7 + (0.1,),
     high=(10.0,) * 7 + (2.0,),
     positive=tuple(f"mass_{b}" for b in _CHEETAH_MASS) + ("friction",),
+    valid_low=(_MASS[0],) * 7 + (_FRICTION[0],),
+    valid_high=(_MASS[1],) * 7 + (_FRICTION[1],),
 )
 
 
@@ -81,6 +96,9 @@ HUMANOID_CONTEXT = ContextSpace(
     low=(0.5,) * 13 + _HUMANOID_DAMP_LOW,
     high=(10.0,) * 13 + _HUMANOID_DAMP_HIGH,
     positive=tuple(f"mass_{b}" for b in _HUMANOID_MASS),
+    # the evaluation masses go down to 0.1, below the DR minimum 0.5 (SPEC §1.2)
+    valid_low=(_MASS[0],) * 13 + (_DAMPING[0],) * 17,
+    valid_high=(_MASS[1],) * 13 + (_DAMPING[1],) * 17,
 )
 
 
