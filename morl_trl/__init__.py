@@ -1,3 +1,37 @@
-"""morl_trl: TorchRL-native multi-objective RL that generalizes across environments."""
+"""morl_trl: TorchRL-native multi-objective RL that generalizes across environments.
+
+The sub-packages are imported when used; ``import morl_trl`` itself imports nothing heavy.
+The top level gives the two entry points of a user who trains and then uses a policy:
+
+* :func:`train` (``morl_trl.recipes.train_policy``): train as ``morl-trl train`` does and get
+  a :class:`~morl_trl.recipes.TrainResult` (run directory, summary, config, trained policy);
+* :func:`load_policy` (``morl_trl.recipes.load_policy``): the trained policy of a run
+  directory, a TorchRL module with its env composition (``policy.make_env(...)``).
+"""
 
 __version__ = "0.1.0"
+
+__all__ = ["TrainResult", "TrainedPolicy", "load_policy", "train"]
+
+_LAZY = {
+    "train": ("morl_trl.recipes.policy", "train_policy"),
+    "load_policy": ("morl_trl.recipes.policy", "load_policy"),
+    "TrainResult": ("morl_trl.recipes.policy", "TrainResult"),
+    "TrainedPolicy": ("morl_trl.recipes.policy", "TrainedPolicy"),
+}
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'morl_trl' has no attribute {name!r}") from None
+    import importlib
+
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted([*globals(), *_LAZY])

@@ -18,6 +18,7 @@ ALLOWED = {
     "data": set(),
     "envs": set(),
     "transforms": {"envs", "preferences"},
+    "gym": {"envs"},
     "objectives": {"preferences", "data"},
     "evaluation": {"envs", "transforms", "metrics", "preferences"},
     "reporting": {"envs", "metrics", "preferences", "evaluation"},

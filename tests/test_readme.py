@@ -32,3 +32,6 @@ def test_readme_snippets_run_verbatim_from_any_directory(tmp_path, monkeypatch):
     assert namespace["env"].rollout(3)["preference"].shape == (16, 3, 3)
     assert namespace["summary"]["frames"] == 4032
     assert os.listdir(tmp_path / "runs")
+    assert namespace["vec_reward"].shape == (4,) and namespace["info"]["context"].shape == (7,)
+    assert namespace["policy"].frames == 2048 and namespace["trained"].summary["frames"] == 2048
+    assert namespace["episodes"]["next", "reward"].shape[0] == 4

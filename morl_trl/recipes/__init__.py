@@ -24,7 +24,8 @@ from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
 from morl_trl.recipes.envelope import make_envelope_agent
-from morl_trl.recipes.off_policy import evaluate_run, train
+from morl_trl.recipes.off_policy import evaluate_run, run_training, train
+from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
 __all__ = [
     "AGENT_BUILDERS",
@@ -32,10 +33,15 @@ __all__ = [
     "Agent",
     "NonFiniteLossError",
     "TrainConfig",
+    "TrainResult",
+    "TrainedPolicy",
     "build_agent",
     "evaluate_run",
+    "load_policy",
     "resolve_config",
+    "run_training",
     "train",
+    "train_policy",
 ]
 
 #: algorithm name -> ``builder(cfg, env, *, gamma, device) -> Agent``

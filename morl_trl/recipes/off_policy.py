@@ -42,7 +42,7 @@ from morl_trl.runs.env_state import env_state, load_context_sampler_state, load_
 from morl_trl.runs.run_log import RunLog, check_logger
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
-__all__ = ["train", "evaluate_run", "EXIT_NON_FINITE_LOSS", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
+__all__ = ["train", "run_training", "evaluate_run", "EXIT_NON_FINITE_LOSS", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
 
 
 # ---------------------------------------------------------------------- the pieces of a run
@@ -182,7 +182,8 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:
-    """Run (or resume) a training run; returns the last evaluation summary.
+    """Run (or resume) a training run; returns the last evaluation summary
+    (:func:`morl_trl.train` returns the run directory, summary, config and the trained policy).
 
     * A new run refuses a non-empty ``cfg.run_dir`` unless ``overwrite`` (which replaces its
       contents once everything is built); a failed start leaves no run directory behind.
@@ -200,6 +201,14 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
+    return run_training(cfg, resume=resume, overwrite=overwrite)[0]
+
+
+def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = None,
+                 overwrite: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
+    """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
+    in memory (``None`` when a resumed run had nothing left to do), where the run was written
+    and the config it ran with."""
     notes: list[str] = []
     if resume is not None:
         if overwrite:
@@ -211,7 +220,7 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
             msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
                    f"pass a larger --frames to extend it")
             print(msg, flush=True)
-            return {"frames": done, "finished": True}
+            return {"frames": done, "finished": True}, None, run_dir, cfg
     else:
         if cfg is None:
             raise ValueError("train() needs a config (or resume=<run dir>)")
@@ -356,7 +365,7 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
         bar.close()
         collector.shutdown()
         log.close()
-    return summary
+    return summary, agent, run_dir, cfg
 
 
 def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint) -> Path:

@@ -1,0 +1,231 @@
+"""A trained policy, ready to act: :func:`load_policy` (from a run directory) and
+:func:`train_policy` (``morl_trl.train``: train, then hand back the policy with the results).
+
+A run directory holds everything to rebuild its policy: ``config.json`` (the algorithm, the
+domain, the networks and the history length) and verified checkpoints (the trained weights).
+:func:`load_policy` rebuilds the run's eval policy from the config, loads the weights of the
+newest intact checkpoint (:func:`morl_trl.runs.find_checkpoint`: damaged ones are skipped)
+and returns a :class:`TrainedPolicy`, a TorchRL policy module that also knows the env
+composition it was trained with (:meth:`TrainedPolicy.make_env`).
+
+Example:
+    >>> import morl_trl
+    >>> result = morl_trl.train("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
+    >>> policy = morl_trl.load_policy(result.run_dir)                                    # doctest: +SKIP
+    >>> env = policy.make_env(num_envs=4, seed=0, preference=[0.7, 0.3])                 # doctest: +SKIP
+    >>> env.rollout(100, policy)["next", "reward"].shape                                # doctest: +SKIP
+    torch.Size([4, 100, 2])
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs import TransformedEnv
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+from morl_trl.envs import domain_of, make_env as _make_env
+from morl_trl.recipes.config import TrainConfig, resolve_config
+from morl_trl.recipes.off_policy import make_training_env, run_training
+from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
+from morl_trl.transforms import PreferenceConditioning, compose_policy_env
+
+__all__ = ["TrainedPolicy", "TrainResult", "load_policy", "train_policy"]
+
+
+class TrainedPolicy(TensorDictModuleBase):
+    """A run's eval policy with its trained weights, and the env composition it acts in.
+
+    Called on a TensorDict holding ``"observation"`` (what :meth:`make_env` gives: the
+    domain's observation, with the run's state–action history) and ``"preference"`` (``[*B,
+    k]`` on the simplex), it writes ``"action"``, under the run's evaluation exploration type
+    (greedy / the mean action; sampled for discrete MOSAC), so ``env.rollout(n, policy)`` and
+    TorchRL collectors use it as they are.
+
+    Attributes:
+        module: the eval policy module itself (``Agent.eval_policy``).
+        config: the run's :class:`~morl_trl.recipes.TrainConfig`.
+        env_id, history_len, objective_names: the training id, the history length of the
+            policy's observation and the reward's objectives.
+        preference_key: where the policy reads ``w`` (``"preference"``).
+        exploration_type: the TorchRL exploration type the policy acts under.
+        checkpoint, frames: the checkpoint the weights come from and its frame count.
+    """
+
+    preference_key = "preference"
+
+    def __init__(self, module, *, config: TrainConfig, checkpoint: Path | None = None,
+                 exploration_type: ExplorationType = ExplorationType.DETERMINISTIC, device="cpu") -> None:
+        super().__init__()
+        self.module = module
+        self.in_keys = list(module.in_keys)
+        self.out_keys = list(module.out_keys)
+        self.config = config
+        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        self.frames = None if checkpoint is None else checkpoint_frames(checkpoint)
+        self.exploration_type = exploration_type
+        self.device = torch.device(device)
+
+    @property
+    def env_id(self) -> str:
+        return self.config.env_id
+
+    @property
+    def history_len(self) -> int:
+        return self.config.history_len
+
+    @property
+    def objective_names(self) -> tuple[str, ...]:
+        return tuple(domain_of(self.env_id).objective_names)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        with set_exploration_type(self.exploration_type):
+            return self.module(tensordict)
+
+    def make_env(self, env_id: str | None = None, num_envs: int = 1, seed: int | None = None, *,
+                 preference=None, device=None, **context_overrides: Any) -> TransformedEnv:
+        """The env this policy acts in: ``compose_policy_env(make_env(env_id, ...),
+        history_len=self.history_len)`` plus :class:`~morl_trl.transforms.PreferenceConditioning`.
+
+        Args:
+            env_id: any id of the run's domain (default: the training id; e.g. one of its
+                evaluation ids for a fixed context).
+            num_envs, seed, context_overrides: as :func:`morl_trl.envs.make_env`.
+            preference: ``w`` ``[k]`` for every sub-env, or ``[m, k]`` cycled over the
+                sub-envs (``PreferenceConditioning(weights=...)``). ``None``: the preference is
+                given at reset, ``env.reset(TensorDict(preference=w, batch_size=env.batch_size))``
+                (mode ``"given"``; equal weights ``1/k`` until one is given).
+            device: the env's device (default: the policy's).
+        """
+        env_id = self.env_id if env_id is None else env_id
+        if domain_of(env_id).train_id != domain_of(self.env_id).train_id:
+            raise ValueError(f"{env_id!r} is not of the domain this policy was trained on "
+                             f"({domain_of(self.env_id).name}, {self.env_id!r})")
+        env = compose_policy_env(
+            _make_env(env_id, num_envs=num_envs, device=self.device if device is None else device, seed=seed,
+                      **context_overrides),
+            history_len=self.history_len,
+        )
+        k = len(self.objective_names)
+        if preference is None:
+            pref = PreferenceConditioning(k, mode="given", preference_key=self.preference_key)
+        else:
+            w = torch.as_tensor(preference, dtype=torch.float32)
+            pref = PreferenceConditioning(k, weights=w.reshape(-1, w.shape[-1]) if w.ndim else w, mode="cycle",
+                                          preference_key=self.preference_key)
+        env.append_transform(pref)
+        return env
+
+    def __repr__(self) -> str:
+        where = f", checkpoint={self.checkpoint.name!r}" if self.checkpoint is not None else ""
+        return (f"TrainedPolicy(algo={self.config.algo!r}, env_id={self.env_id!r}, "
+                f"history_len={self.history_len}{where})")
+
+
+def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
+    """The verified checkpoint: ``None`` -> the newest intact one; a frame count or a name or
+    path of a checkpoint directory -> that one (``ValueError`` if it is missing or damaged)."""
+    if checkpoint is None:
+        ckpt, skipped = find_checkpoint(run_dir)
+        if ckpt is None:
+            what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
+            raise ValueError(f"{str(run_dir)!r} has no intact checkpoint ({what})")
+        return ckpt
+    if isinstance(checkpoint, int) and not isinstance(checkpoint, bool):
+        path = run_dir / "checkpoints" / f"frames_{checkpoint:012d}"
+    else:
+        path = Path(checkpoint)
+        if not path.is_dir() and (run_dir / "checkpoints" / path).is_dir():
+            path = run_dir / "checkpoints" / path
+    if not path.is_dir():
+        raise ValueError(f"checkpoint {str(path)!r} does not exist")
+    problem = verify_checkpoint(path)
+    if problem is not None:
+        raise ValueError(f"checkpoint {str(path)!r} is damaged: {problem}")
+    return path
+
+
+def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
+                device: str | torch.device = "cpu") -> TrainedPolicy:
+    """The trained eval policy of a run directory (see the module docstring).
+
+    Args:
+        run_dir: a run directory (``config.json`` and ``checkpoints/``).
+        checkpoint: ``None`` for the newest intact checkpoint, else a frame count, a
+            checkpoint directory name (``"frames_000000002048"``) or path; it is verified.
+        device: where the policy's parameters go.
+
+    Raises:
+        ValueError: ``run_dir`` is not a run directory, or has no intact checkpoint (naming it).
+    """
+    run_dir = Path(run_dir)
+    if not (run_dir / "config.json").is_file():
+        raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
+    cfg = TrainConfig.load(run_dir / "config.json")
+    ckpt = _checkpoint_path(run_dir, checkpoint)
+    device = torch.device(device)
+    cfg = dataclasses.replace(cfg, device=str(device))
+    from morl_trl.recipes import build_agent
+
+    spec = domain_of(cfg.env_id)
+    env = make_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
+    agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
+    env.close()
+    state = load_checkpoint(ckpt, map_location=device)
+    agent.loss.load_state_dict(state["agent"]["loss"])
+    policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
+                           device=device)
+    return policy.eval()
+
+
+@dataclass
+class TrainResult:
+    """What :func:`train_policy` (``morl_trl.train``) returns.
+
+    Attributes:
+        run_dir: where the run was written.
+        summary: the last evaluation summary (as :func:`morl_trl.recipes.train` returns it).
+        policy: the trained policy, loaded from the run's final checkpoint (:func:`load_policy`).
+        config: the config the run ran with.
+        agent: the trained :class:`~morl_trl.recipes.Agent` in memory (loss, policies,
+            optimizers); ``None`` when a resumed run had nothing left to do.
+    """
+
+    run_dir: Path
+    summary: dict
+    policy: TrainedPolicy
+    config: TrainConfig
+    agent: Any = None
+
+
+def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
+                 config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
+                 **overrides: Any) -> TrainResult:
+    """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
+
+    ``train_policy("envelope", "MOLavaGridDR-v0", quick=True, frames=4_000, run_dir="runs/a")``
+    resolves the config as :func:`~morl_trl.recipes.resolve_config` does (``algo`` may also be
+    a ready :class:`TrainConfig`); ``resume=run_dir`` continues a run (the other arguments
+    then are optional and may change only what a resume may change).
+    """
+    if isinstance(algo, TrainConfig):
+        if env_id is not None or quick or config_file is not None or overrides:
+            raise ValueError("train_policy(cfg) takes a TrainConfig alone; put the overrides in it")
+        cfg = algo
+    elif algo is None:
+        if resume is None:
+            raise ValueError("train_policy() needs an algorithm and an env id (or resume=<run dir>)")
+        cfg = None
+    else:
+        if env_id is None:
+            raise ValueError("train_policy(algo, env_id, ...): env_id is missing")
+        cfg = resolve_config(algo, env_id, quick=quick, config_file=config_file, **overrides)
+    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite)
+    policy = load_policy(run_dir, device=cfg.device)
+    return TrainResult(run_dir=Path(run_dir), summary=summary, policy=policy, config=cfg, agent=agent)
