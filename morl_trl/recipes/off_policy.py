@@ -31,6 +31,7 @@ from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
 from morl_trl.runs.checkpoint import (
+    checkpoint_buffer,
     checkpoint_frames,
     find_checkpoint,
     load_checkpoint,
@@ -273,6 +274,9 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
     if state is not None:
         cut = log.truncate(frames)
         log.note(f"resumed from {ckpt.name} at {frames} frames (logs cut back to it: {cut} rows/files removed)")
+        if checkpoint_buffer(ckpt) == "pruned":
+            log.note(f"warning: {ckpt.name} holds no replay buffer (only the newest checkpoint keeps it): "
+                     f"the run continues with an empty replay buffer")
         if exact:
             load_env_state(env, state["env"])
             collector._carrier = state["carrier"].to(device)
@@ -291,7 +295,8 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
             next_ckpt=next_ckpt, last_eval=last_eval, rng=rng_state(), config=cfg.to_dict(), device=str(device),
             **flags,
         )
-        return save_checkpoint(run_dir, tag_frames, state, buffer if len(buffer) else None)  # (empty at 0)
+        return save_checkpoint(run_dir, tag_frames, state, buffer if len(buffer) else None,  # (empty at 0)
+                               keep=cfg.keep_checkpoints)
 
     summary: dict = {}
 
