@@ -114,10 +114,24 @@ def evaluate_main(argv: list[str]) -> int:
     p.add_argument("run_dir")
     p.add_argument("--reference", help="the published data for NHGR/EUGR (default as in train)")
     p.add_argument("--weights", type=int, help="number of evaluation weights (default: the run's)")
+    p.add_argument("--video", action="store_true",
+                   help="also record one episode per evaluation context (TorchRL VideoRecorder) into "
+                        "RUN_DIR/logs/reevaluation/videos/<context>_<frames>.gif (.mp4 when torchcodec is installed)")
+    p.add_argument("--video-weight", metavar="W1,W2,...",
+                   help="the preference of the recorded episodes (default: equal weights)")
+    p.add_argument("--video-format", choices=("auto", "gif", "mp4", "pt"), default="auto",
+                   help="clip format (default auto: mp4 if torchcodec is installed, else gif)")
     args = p.parse_args(argv)
     from morl_trl.recipes import evaluate_run
 
-    evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights)
+    weight = None
+    if args.video_weight:
+        try:
+            weight = [float(x) for x in args.video_weight.split(",")]
+        except ValueError:
+            raise ValueError(f"--video-weight {args.video_weight!r}: give comma-separated numbers, e.g. 0.5,0.5") from None
+    evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights,
+                 video=args.video, video_weight=weight, video_format=args.video_format)
     return 0
 
 

@@ -372,8 +372,15 @@ def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint)
     return path
 
 
-def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None) -> dict:
-    """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite."""
+def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,
+                 video: bool = False, video_weight=None, video_format: str = "auto") -> dict:
+    """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite.
+
+    With ``video``, also record one episode per evaluation context with ``video_weight``
+    (default equal weights) through TorchRL's ``VideoRecorder`` into
+    ``<run>/logs/reevaluation/videos/<context>_<frames>.<gif|mp4>`` (see
+    :class:`~morl_trl.runs.video.VideoCSVLogger`); the paths are in ``summary["videos"]``.
+    """
     run_dir = Path(run_dir)
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
@@ -399,7 +406,30 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
     log.reference = _load_reference(cfg, spec)
     frames = checkpoint_frames(ckpt)
-    summary = log.evaluation(frames, make_evaluator(cfg, agent, spec, log.reference).evaluate())
+    evaluator = make_evaluator(cfg, agent, spec, log.reference)
+    summary = log.evaluation(frames, evaluator.evaluate())
     log.report(summary, fps=None)
     log.close()
+    if video:
+        summary["videos"] = record_videos(cfg, agent, evaluator.context_names, run_dir, frames, weight=video_weight,
+                                          video_format=video_format)
     return summary
+
+
+def record_videos(cfg: TrainConfig, agent: Agent, contexts, run_dir: Path, frames: int, *, weight=None,
+                  video_format: str = "auto") -> list[str]:
+    """One clip per context (see :func:`evaluate_run`); returns the files written."""
+    from morl_trl.evaluation import record_context_videos
+    from morl_trl.runs.video import VideoCSVLogger
+
+    logger = VideoCSVLogger("reevaluation", str(run_dir / "logs"), video_format=video_format)
+
+    def env_factory(context: str):
+        env = make_env(context, num_envs=1, seed=cfg.seed, device=agent.device)
+        return compose_policy_env(env, history_len=cfg.history_len)
+
+    record_context_videos(agent.eval_policy, env_factory, contexts, logger, weight=weight, step=frames,
+                          exploration_type=agent.eval_exploration)
+    for path in logger.written:
+        print(f"video: {path}", flush=True)
+    return list(logger.written)
