@@ -267,6 +267,10 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
     log.reference = reference
+    if cfg.frames < cfg.init_random_frames and frames < cfg.frames:
+        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): "
+                     f"the run takes uniformly random actions only and never learns; raise frames or lower "
+                     f"init_random_frames")
     for note in notes:
         log.note(note)
     if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
@@ -340,8 +344,8 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
             agent.on_frames(frames)
             collector.update_policy_weights_()
             bar.update(batch.numel())
-            last_nhgr = summary.get("nhgr_mean", float("nan"))
-            bar.set_postfix(fps=f"{fps():,.0f}", nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
+            last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
+            bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:
                 evaluate()
             if frames >= next_ckpt and frames < cfg.frames:  # (the end of the run has its own)
