@@ -8,11 +8,63 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 from pathlib import Path
 
 __all__ = ["main", "COMMANDS"]
+
+
+def plain(text: str | None) -> str | None:
+    """Docstring reStructuredText as plain text for ``--help``: ``x`` -> x, :func:`~a.b` -> b."""
+    if not text:
+        return text
+    text = re.sub(r":\w+:`~?([^`<]*?)(?:\s*<[^>]*>)?`", lambda m: m.group(1).rsplit(".", 1)[-1] if "~" in m.group(0)
+                  else m.group(1), text)
+    return re.sub(r"``([^`]+)``", r"\1", text)
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` whose description and argument help are shown without reST markup."""
+
+    def __init__(self, *args, description: str | None = None, **kwargs) -> None:
+        super().__init__(*args, description=plain(description), **kwargs)
+
+    def add_argument(self, *args, **kwargs):
+        if isinstance(kwargs.get("help"), str):
+            kwargs["help"] = plain(kwargs["help"])
+        return super().add_argument(*args, **kwargs)
+
+
+def version() -> str:
+    """The package's version, from its installed metadata (``unknown`` when it is not installed)."""
+    from importlib.metadata import PackageNotFoundError, version as _version
+
+    try:
+        return _version("morl-trl")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def parse_overrides(items: list[str]) -> dict:
+    """``["lr=1e-3", "hidden=[64,64]", "device=cuda"]`` -> config overrides. Values are TOML
+    (numbers, booleans, lists, quoted strings); a value that is not TOML is taken as a string."""
+    import tomllib
+
+    out = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"override {item!r} is not KEY=VALUE (e.g. lr=1e-3, hidden=[64,64], prioritized=false)")
+        key = key.rsplit(".", 1)[-1]  # a grouped key (optim.lr) names the same flat key
+        try:
+            value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()
+        out[key] = value
+    return out
 
 
 def _default_reference() -> str | None:
@@ -27,12 +79,17 @@ def _default_reference() -> str | None:
 def train_main(argv: list[str]) -> int:
     from morl_trl.recipes.config import ALGORITHMS
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="morl-trl train",
         description="Train a generalist under domain randomization, evaluate it on the evaluation suite, report.",
     )
     p.add_argument("algo", choices=ALGORITHMS, help="algorithm")
     p.add_argument("env_id", help="training env id, e.g. MOLunarLanderDR-v0 (morl-trl envs lists them)")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
+                   help="config overrides, e.g. lr=1e-3 hidden=[64,64] prioritized=false (TOML values; they win "
+                        "over --config, and the flags below win over them)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="set_",
+                   help="a config override, as KEY=VALUE after the env id (repeatable)")
     p.add_argument("--frames", type=int, help="environment frames to train for")
     p.add_argument("--seed", type=int, help="one seed for contexts, preferences, networks and evaluation")
     p.add_argument("--device", help="cpu, cuda, ...")
@@ -52,7 +109,8 @@ def train_main(argv: list[str]) -> int:
                    help="replace the contents of a non-empty --run-dir (without it, a non-empty run dir is an error)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
-    args = p.parse_args(argv)
+    args = p.parse_intermixed_args(argv)
+    args.overrides = parse_overrides([*args.overrides, *args.set_])
     from morl_trl.recipes import resolve_config, train
 
     if args.resume:
@@ -62,11 +120,10 @@ def train_main(argv: list[str]) -> int:
             return 0
         return _run_training(lambda: train(cfg, resume=args.resume))
     reference = args.reference or _default_reference()
-    cfg = resolve_config(
-        args.algo, args.env_id, quick=args.quick, config_file=args.config, frames=args.frames, seed=args.seed,
-        device=args.device, run_dir=args.run_dir, reference_dir=reference, logger=args.logger,
-        progress=False if args.no_progress else None,
-    )
+    flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
+                 logger=args.logger, progress=False if args.no_progress else None)
+    overrides = {**args.overrides, **{k: v for k, v in flags.items() if v is not None}}  # flags win
+    cfg = resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
     if args.print_config:
         print(cfg.to_toml())
         return 0
@@ -91,6 +148,8 @@ def _resume_config(args):
         cfg = resume_config(cfg, {k: v for k, v in quick_preset().items() if k != "frames"}, "the --quick preset")
     if from_file:
         cfg = resume_config(cfg, from_file, f"config file {args.config!r}")
+    if args.overrides:
+        cfg = resume_config(cfg, args.overrides, "the command line's overrides")
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, logger=args.logger,
                  reference_dir=args.reference, progress=False if args.no_progress else None)
     return resume_config(cfg, {k: v for k, v in flags.items() if v is not None}, "the command line")
@@ -109,26 +168,40 @@ def _run_training(run) -> int:
 
 
 def evaluate_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="morl-trl evaluate",
+    p = _Parser(prog="morl-trl evaluate",
                                 description="Re-evaluate a run's latest checkpoint on its evaluation suite.")
     p.add_argument("run_dir")
     p.add_argument("--reference", help="the published data for NHGR/EUGR (default as in train)")
     p.add_argument("--weights", type=int, help="number of evaluation weights (default: the run's)")
+    p.add_argument("--video", action="store_true",
+                   help="also record one episode per evaluation context (TorchRL VideoRecorder) into "
+                        "RUN_DIR/logs/reevaluation/videos/<context>_<frames>.gif (.mp4 when torchcodec is installed)")
+    p.add_argument("--video-weight", metavar="W1,W2,...",
+                   help="the preference of the recorded episodes (default: equal weights)")
+    p.add_argument("--video-format", choices=("auto", "gif", "mp4", "pt"), default="auto",
+                   help="clip format (default auto: mp4 if torchcodec is installed, else gif)")
     args = p.parse_args(argv)
     from morl_trl.recipes import evaluate_run
 
-    evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights)
+    weight = None
+    if args.video_weight:
+        try:
+            weight = [float(x) for x in args.video_weight.split(",")]
+        except ValueError:
+            raise ValueError(f"--video-weight {args.video_weight!r}: give comma-separated numbers, e.g. 0.5,0.5") from None
+    evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights,
+                 video=args.video, video_weight=weight, video_format=args.video_format)
     return 0
 
 
 # ---------------------------------------------------------------------- envs / demo
 def envs_main(argv: list[str]) -> int:
-    argparse.ArgumentParser(prog="morl-trl envs", description="List domains and evaluation suites.").parse_args(argv)
+    _Parser(prog="morl-trl envs", description="List domains and evaluation suites.").parse_args(argv)
     from morl_trl.envs import list_domains
 
     for spec in list_domains():
         print(f"{spec.name}  train: {spec.train_id}  objectives: {list(spec.objective_names)}")
-        print(f"    context ({spec.context_space.dim}): {', '.join(spec.context_space.names)}")
+        print(f"    context ({spec.context_space.dim}): {', '.join(group_names(spec.context_space.names))}")
         print(f"    evaluation suite: {', '.join(spec.evaluation_ids)}")
         extra = [i for i in spec.contexts if i not in spec.evaluation_ids]
         if extra:
@@ -136,8 +209,27 @@ def envs_main(argv: list[str]) -> int:
     return 0
 
 
+def group_names(names, min_run: int = 3) -> list[str]:
+    """Runs of consecutive numbered names sharing a prefix, shortened: ``lava_x2_y2..lava_x10_y10 (81)``."""
+    def prefix(name: str) -> str | None:
+        m = re.search(r"\d", name)
+        return name[: m.start()] if m else None
+
+    out, i, names = [], 0, list(names)
+    while i < len(names):
+        j, key = i + 1, prefix(names[i])
+        while key is not None and j < len(names) and prefix(names[j]) == key:
+            j += 1
+        if j - i >= min_run:
+            out.append(f"{names[i]}..{names[j - 1]} ({j - i})")
+        else:
+            out.extend(names[i:j])
+        i = j
+    return out
+
+
 def demo_main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="morl-trl demo", description="Build every domain, step it under random contexts, print vector returns.")
     parser.add_argument("--num-envs", type=int, default=4)
     parser.add_argument("--steps", type=int, default=200)
@@ -177,7 +269,7 @@ def reference_table_main(argv: list[str] | None = None) -> int:
 
     from morl_trl.reporting.table import format_table, reference_table
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="morl-trl reference-table",
         description="Recompute the paper's NHGR table (mean ± pooled std, IQM, optimality gap) from published fronts.",
     )
@@ -218,7 +310,7 @@ def reference_table_main(argv: list[str] | None = None) -> int:
 
 
 def reference_pack_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="morl-trl reference-pack",
         description="Copy the bounds and specialist fronts from a folder in the published layout into the "
                     "package (the constants NHGR uses on any install), or into --out.")
@@ -278,10 +370,14 @@ COMMANDS = {
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog="morl-trl", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="morl-trl", description=__doc__.splitlines()[0])
     parser.add_argument("command", choices=sorted(COMMANDS), help="; ".join(f"{k}: {v[1]}" for k, v in COMMANDS.items()))
+    parser.add_argument("--version", action="version", version=f"morl-trl {version()}")
     if not argv or argv[0] in ("-h", "--help"):
         parser.print_help()
+        return 0
+    if argv[0] in ("-V", "--version"):
+        print(f"morl-trl {version()}")
         return 0
     if argv[0] not in COMMANDS:
         parser.error(f"unknown command {argv[0]!r}; valid: {sorted(COMMANDS)}")

@@ -32,13 +32,16 @@ A domain subclass implements four hooks:
 ``_observe()``
     the current observation dict of all sub-envs (used after a reset).
 
-and may override ``_seed_subenvs(seed)`` to seed its own random generators.
+and may override ``_seed_subenvs(seed)`` to seed its own random generators, and
+``_render_subenv(i, **kwargs)`` (an RGB ``uint8 [H, W, 3]`` image of sub-env ``i``) to support
+:meth:`ContextualMOEnv.render`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
@@ -137,6 +140,8 @@ class ContextualMOEnv(EnvBase):
     #: floating-point entry; a domain whose observations cannot diverge may set ``()``).
     finite_check_keys: tuple[str, ...] | None = None
     batch_locked = True
+    #: what :meth:`render` returns (Gymnasium's name): an RGB ``uint8`` array
+    render_mode: str = "rgb_array"
 
     def __init__(
         self,
@@ -600,6 +605,35 @@ class ContextualMOEnv(EnvBase):
     def _load_snapshot_subenvs(self, state: dict[str, Any]) -> None:
         """Hook (opt-in): restore what ``_snapshot_subenvs`` returned."""
         raise NotImplementedError
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, index: int | None = 0, *, mode: str | None = None, **kwargs) -> np.ndarray:
+        """An RGB ``uint8`` image ``[H, W, 3]`` of sub-env ``index`` (no window); all sub-envs
+        ``[num_envs, H, W, 3]`` with ``index=None``. ``kwargs`` go to the domain's drawing (e.g.
+        ``tile_size`` for MO-LavaGrid, ``width``/``height`` for MuJoCo).
+
+        TorchRL's ``PixelRenderTransform(index=None)`` records every sub-env as a ``"pixels"``
+        entry ``[*B, H, W, 3]``, which ``VideoRecorder`` turns into a clip.
+
+        Example:
+            >>> from morl_trl.envs import make_env
+            >>> env = make_env("MOLavaGridRoom-v0", num_envs=2, seed=0)
+            >>> _ = env.reset()
+            >>> env.render().shape, env.render(index=None).shape, env.render().dtype
+            ((208, 208, 3), (2, 208, 208, 3), dtype('uint8'))
+        """
+        mode = self.render_mode if mode is None else mode
+        if mode != "rgb_array":
+            raise ValueError(f"render mode {mode!r} is not supported; only 'rgb_array'")
+        if index is None:
+            return np.stack([self._render_subenv(i, **kwargs) for i in range(self.num_envs)])
+        if isinstance(index, bool) or not isinstance(index, int) or not -self.num_envs <= index < self.num_envs:
+            raise ValueError(f"index {index!r} is out of range for {self.num_envs} sub-envs")
+        return self._render_subenv(index % self.num_envs, **kwargs)
+
+    def _render_subenv(self, index: int, **kwargs) -> np.ndarray:
+        """Hook: the RGB ``uint8 [H, W, 3]`` image of sub-env ``index``."""
+        raise NotImplementedError(f"{type(self).__name__} does not render")
 
     def __repr__(self) -> str:
         return (

@@ -2,5 +2,6 @@
 
 from morl_trl.evaluation.evaluator import MultiContextEvaluator
 from morl_trl.evaluation.results import ContextResult, EvaluationResult
+from morl_trl.evaluation.video import record_context_videos
 
-__all__ = ["MultiContextEvaluator", "EvaluationResult", "ContextResult"]
+__all__ = ["MultiContextEvaluator", "EvaluationResult", "ContextResult", "record_context_videos"]

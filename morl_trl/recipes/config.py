@@ -143,6 +143,8 @@ class TrainConfig:
     run_dir: str | None = _key("run", None, "where the run is written (null: runs/<algo>_<env>_s<seed>_<time>)",
                                _str(optional=True))
     checkpoint_interval: int = _key("run", 50_000, "frames between checkpoints", _int(1))
+    keep_checkpoints: int = _key("run", 2, "checkpoints kept (the newest holds the replay buffer, the older "
+                                 "ones only the state)", _int(1))
     logger: str = _key("run", "csv", "TorchRL logger", _choice(LOGGERS))
     progress: bool = _key("run", True, "show a progress bar", _bool)
     # env

@@ -31,6 +31,7 @@ from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
 from morl_trl.runs.checkpoint import (
+    checkpoint_buffer,
     checkpoint_frames,
     find_checkpoint,
     load_checkpoint,
@@ -277,6 +278,10 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
     log.reference = reference
+    if cfg.frames < cfg.init_random_frames and frames < cfg.frames:
+        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): "
+                     f"the run takes uniformly random actions only and never learns; raise frames or lower "
+                     f"init_random_frames")
     for note in notes:
         log.note(note)
     if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
@@ -284,6 +289,9 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     if state is not None:
         cut = log.truncate(frames)
         log.note(f"resumed from {ckpt.name} at {frames} frames (logs cut back to it: {cut} rows/files removed)")
+        if checkpoint_buffer(ckpt) == "pruned":
+            log.note(f"warning: {ckpt.name} holds no replay buffer (only the newest checkpoint keeps it): "
+                     f"the run continues with an empty replay buffer")
         if exact:
             load_env_state(env, state["env"])
             collector._carrier = state["carrier"].to(device)
@@ -302,7 +310,8 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             next_ckpt=next_ckpt, last_eval=last_eval, rng=rng_state(), config=cfg.to_dict(), device=str(device),
             **flags,
         )
-        return save_checkpoint(run_dir, tag_frames, state, buffer if len(buffer) else None)  # (empty at 0)
+        return save_checkpoint(run_dir, tag_frames, state, buffer if len(buffer) else None,  # (empty at 0)
+                               keep=cfg.keep_checkpoints)
 
     summary: dict = {}
 
@@ -346,8 +355,8 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             agent.on_frames(frames)
             collector.update_policy_weights_()
             bar.update(batch.numel())
-            last_nhgr = summary.get("nhgr_mean", float("nan"))
-            bar.set_postfix(fps=f"{fps():,.0f}", nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
+            last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
+            bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:
                 evaluate()
             if frames >= next_ckpt and frames < cfg.frames:  # (the end of the run has its own)
@@ -378,8 +387,15 @@ def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint)
     return path
 
 
-def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None) -> dict:
-    """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite."""
+def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,
+                 video: bool = False, video_weight=None, video_format: str = "auto") -> dict:
+    """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite.
+
+    With ``video``, also record one episode per evaluation context with ``video_weight``
+    (default equal weights) through TorchRL's ``VideoRecorder`` into
+    ``<run>/logs/reevaluation/videos/<context>_<frames>.<gif|mp4>`` (see
+    :class:`~morl_trl.runs.video.VideoCSVLogger`); the paths are in ``summary["videos"]``.
+    """
     run_dir = Path(run_dir)
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
@@ -405,7 +421,30 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
     log.reference = _load_reference(cfg, spec)
     frames = checkpoint_frames(ckpt)
-    summary = log.evaluation(frames, make_evaluator(cfg, agent, spec, log.reference).evaluate())
+    evaluator = make_evaluator(cfg, agent, spec, log.reference)
+    summary = log.evaluation(frames, evaluator.evaluate())
     log.report(summary, fps=None)
     log.close()
+    if video:
+        summary["videos"] = record_videos(cfg, agent, evaluator.context_names, run_dir, frames, weight=video_weight,
+                                          video_format=video_format)
     return summary
+
+
+def record_videos(cfg: TrainConfig, agent: Agent, contexts, run_dir: Path, frames: int, *, weight=None,
+                  video_format: str = "auto") -> list[str]:
+    """One clip per context (see :func:`evaluate_run`); returns the files written."""
+    from morl_trl.evaluation import record_context_videos
+    from morl_trl.runs.video import VideoCSVLogger
+
+    logger = VideoCSVLogger("reevaluation", str(run_dir / "logs"), video_format=video_format)
+
+    def env_factory(context: str):
+        env = make_env(context, num_envs=1, seed=cfg.seed, device=agent.device)
+        return compose_policy_env(env, history_len=cfg.history_len)
+
+    record_context_videos(agent.eval_policy, env_factory, contexts, logger, weight=weight, step=frames,
+                          exploration_type=agent.eval_exploration)
+    for path in logger.written:
+        print(f"video: {path}", flush=True)
+    return list(logger.written)

@@ -139,9 +139,11 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
                          f"non-dominated in all {len(spec.objective_names)} objectives: see fronts/*.csv.)")
     path = run_dir / "report.md"
     path.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines[: lines.index("") + 1 + len(contexts) + 4]))
+    from tqdm.auto import tqdm  # (above a training run's progress bar, never through it)
+
+    tqdm.write("\n".join(lines[: lines.index("") + 1 + len(contexts) + 4]))
     if nhgr_cols:
         start = lines.index("## NHGR per context")
-        print("\n".join(lines[start : start + 4 + len(contexts) + 1]))
-    print(f"report: {path}")
+        tqdm.write("\n".join(lines[start : start + 4 + len(contexts) + 1]))
+    tqdm.write(f"report: {path}")
     return path

@@ -5,6 +5,7 @@ Recipes (:mod:`morl_trl.recipes`) use these; a custom trainer can too.
 """
 
 from morl_trl.runs.checkpoint import (
+    checkpoint_buffer,
     checkpoint_frames,
     find_checkpoint,
     latest_checkpoint,
@@ -17,5 +18,5 @@ from morl_trl.runs.checkpoint import (
 from morl_trl.runs.env_state import env_state, load_env_state
 from morl_trl.runs.run_log import RunLog, check_logger
 
-__all__ = ["RunLog", "check_logger", "checkpoint_frames", "env_state", "find_checkpoint", "latest_checkpoint",
+__all__ = ["RunLog", "check_logger", "checkpoint_buffer", "checkpoint_frames", "env_state", "find_checkpoint", "latest_checkpoint",
            "load_checkpoint", "load_env_state", "rng_state", "save_checkpoint", "set_rng_state", "verify_checkpoint"]

@@ -7,6 +7,12 @@ TorchRL's own ``dumps`` format) and ``manifest.json`` (the size and SHA-256 of e
 file, written last). It is written to a temporary directory and renamed into place, so a
 kill mid-write leaves the previous checkpoint intact; ``latest`` names the newest one.
 
+The ``keep`` newest checkpoints are kept, and only the newest holds the replay buffer (by far
+the largest part): once a newer checkpoint is complete, an older one's manifest is rewritten
+(atomically) to record ``"buffer": "pruned"`` and list its remaining files, then its
+``buffer/`` is deleted. A pruned checkpoint still verifies; loading it leaves the replay
+buffer empty (:func:`checkpoint_buffer` says which case a checkpoint is).
+
 Before a checkpoint is used it is verified against its manifest, reading its files only
 (:func:`verify_checkpoint`); :func:`find_checkpoint` falls back to the newest intact one and
 says which it skipped and why.
@@ -26,7 +32,7 @@ import numpy as np
 import torch
 
 __all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "find_checkpoint", "verify_checkpoint",
-           "checkpoint_frames", "rng_state", "set_rng_state", "MANIFEST"]
+           "checkpoint_frames", "checkpoint_buffer", "rng_state", "set_rng_state", "MANIFEST"]
 
 MANIFEST = "manifest.json"
 
@@ -64,8 +70,34 @@ def checkpoint_frames(path: str | Path) -> int:
     return int(Path(path).name.split("_")[-1])
 
 
+def _write_manifest(directory: Path, manifest: dict[str, Any]) -> None:
+    tmp = directory / f".{MANIFEST}.tmp"
+    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
+    os.replace(tmp, directory / MANIFEST)
+
+
+def _prune_buffer(ckpt: Path) -> None:
+    """Drop the replay buffer of an older checkpoint: first its manifest (atomically: it then
+    lists only what stays and records ``"buffer": "pruned"``), then ``buffer/``. A kill in
+    between leaves an intact checkpoint with a stray, unlisted ``buffer/`` that is never loaded."""
+    try:
+        manifest = json.loads((ckpt / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return  # a damaged checkpoint: left as it is for inspection
+    if manifest.get("buffer") != "pruned" and ("buffer" in manifest.get("dirs", []) or manifest.get("buffer") == "saved"):
+        manifest["files"] = {k: v for k, v in manifest["files"].items() if not k.startswith("buffer/")}
+        manifest["dirs"] = [d for d in manifest.get("dirs", []) if d != "buffer" and not d.startswith("buffer/")]
+        manifest["buffer"] = "pruned"
+        _write_manifest(ckpt, manifest)
+    if manifest.get("buffer") == "pruned":
+        shutil.rmtree(ckpt / "buffer", ignore_errors=True)
+
+
 def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], replay_buffer=None, keep: int = 2) -> Path:
-    """Atomically write a checkpoint at ``frames`` (with its manifest) and prune all but the ``keep`` newest."""
+    """Atomically write a checkpoint at ``frames`` (with its manifest), keep the ``keep`` newest
+    and the replay buffer in the newest only (see the module docstring)."""
+    if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
+        raise ValueError(f"keep must be an int >= 1, got {keep!r}")
     root = Path(run_dir) / "checkpoints"
     root.mkdir(parents=True, exist_ok=True)
     final = root / f"frames_{frames:012d}"
@@ -78,6 +110,7 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
         replay_buffer.dumps(tmp / "buffer")
     manifest = {
         "frames": int(frames),
+        "buffer": "saved" if replay_buffer is not None else "none",
         "files": {p.relative_to(tmp).as_posix(): {"size": p.stat().st_size, "sha256": _sha256(p)} for p in _files(tmp)},
         "dirs": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_dir()),
     }
@@ -91,9 +124,25 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
     # prune the older ones (newer ones can only be damaged checkpoints a resume skipped: they are
     # left for inspection and replaced when the run reaches their frame)
     older = sorted(p for p in root.glob("frames_*") if p.is_dir() and p.name < final.name)
-    for old in older[: max(len(older) - (keep - 1), 0)]:
+    drop = max(len(older) - (keep - 1), 0)
+    for old in older[:drop]:
         shutil.rmtree(old, ignore_errors=True)
+    for old in older[drop:]:  # the kept older ones: the newest checkpoint holds the buffer
+        _prune_buffer(old)
     return final
+
+
+def checkpoint_buffer(path: str | Path) -> str:
+    """What a checkpoint holds of the replay buffer: ``"saved"``, ``"pruned"`` (dropped when a
+    newer checkpoint was written) or ``"none"`` (none was given, e.g. empty at frame 0)."""
+    path = Path(path)
+    try:
+        manifest = json.loads((path / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return "none"
+    if "buffer" in manifest:
+        return manifest["buffer"]
+    return "saved" if "buffer" in manifest.get("dirs", []) else "none"  # (a manifest of an older version)
 
 
 def verify_checkpoint(path: str | Path) -> str | None:
@@ -155,9 +204,10 @@ def latest_checkpoint(run_dir: str | Path) -> Path | None:
 
 
 def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None) -> dict[str, Any]:
-    """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given) of a verified checkpoint."""
+    """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given and the checkpoint
+    holds one: see :func:`checkpoint_buffer`) of a verified checkpoint."""
     path = Path(path)
     state = torch.load(path / "state.pt", weights_only=False, map_location=map_location)
-    if replay_buffer is not None and (path / "buffer").is_dir():  # (verified: present iff it was written)
+    if replay_buffer is not None and checkpoint_buffer(path) == "saved":  # (verified: present as written)
         replay_buffer.loads(path / "buffer")
     return state

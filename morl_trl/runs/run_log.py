@@ -29,6 +29,8 @@ import os
 import time
 from pathlib import Path
 
+from tqdm.auto import tqdm
+
 
 __all__ = ["RunLog", "check_logger"]
 
@@ -149,7 +151,7 @@ class RunLog:
         line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {message}"
         with (self.run_dir / "log.txt").open("a") as fh:
             fh.write(line + "\n")
-        print(message, flush=True)
+        tqdm.write(message)  # above a progress bar, never through it
 
     def _scalar(self, name: str, value: float, step: int) -> None:
         if self.logger is not None and value is not None and math.isfinite(value):

@@ -159,3 +159,22 @@ def test_non_finite_loss_exits_3_with_one_line(tmp_path):
     assert out.stderr.startswith("morl-trl train: stopped: non-finite loss {'loss_qvalue': inf}")
     assert out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
     assert latest_checkpoint(run).name == "frames_000000000128"
+
+
+def test_evaluate_video_writes_one_clip_per_context(tmp_path, capsys):
+    from morl_trl.cli import main
+
+    run = tmp_path / "run"
+    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none",
+                         **{**TINY, "frames": 256}))
+    capsys.readouterr()
+    assert main(["evaluate", str(run), "--video", "--weights", "2", "--video-format", "gif"]) == 0
+    clips = sorted((run / "logs" / "reevaluation" / "videos").iterdir())
+    assert [c.name for c in clips] == ["MOLavaGridRoom-v0_256.gif", "MOLavaGridSnake-v0_256.gif"]
+    assert all(c.stat().st_size > 0 for c in clips)
+    out = capsys.readouterr().out
+    assert all(f"video: {c}" in out for c in clips)
+    import imageio.v2 as imageio
+
+    frames = imageio.mimread(clips[0])
+    assert len(frames) >= 2 and frames[0].shape == (208, 208, 3)

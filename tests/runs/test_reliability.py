@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from morl_trl.recipes import resolve_config, train
-from morl_trl.runs import find_checkpoint, verify_checkpoint
+from morl_trl.runs import checkpoint_buffer, checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from morl_trl.cli import main
 from tests.runs._helpers import TINY, write_config
 
@@ -170,27 +171,60 @@ def test_verify_names_the_damage_and_changes_nothing(run, damage):
     assert _snapshot(ckpt) == before  # read only: no file extended, zero-filled or touched
 
 
-def test_resume_falls_back_to_the_newest_intact_checkpoint(run, finished_run, cli):
+def test_resume_falls_back_to_the_newest_intact_checkpoint(run, cli):
     problem = _damage_truncate_memmap(run / "checkpoints" / "frames_000000000512")
+    assert checkpoint_buffer(run / "checkpoints" / "frames_000000000256") == "pruned"
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--resume", run)
     assert out.returncode == 0, out.stderr[-2000:]
     warning = f"warning: skipped damaged checkpoint frames_000000000512: {problem}"
     assert warning in out.stdout
     log = (run / "log.txt").read_text()
     assert warning in log and "resumed from frames_000000000256 at 256 frames" in log
-    assert _outputs(run) == _outputs(finished_run)  # continued exactly: the same files as the run before the damage
+    # only the newest checkpoint keeps the replay buffer: the fallback says it continues without one
+    empty = "warning: frames_000000000256 holds no replay buffer (only the newest checkpoint keeps it): " \
+            "the run continues with an empty replay buffer"
+    assert empty in out.stdout and empty in log
+    metrics = (run / "eval" / "metrics.csv").read_text().splitlines()
+    assert [line.split(",")[0] for line in metrics[1:]] == ["0", "0", "256", "256", "512", "512"]
     ckpts = sorted(p for p in (run / "checkpoints").glob("frames_*"))
     assert [p.name for p in ckpts] == ["frames_000000000256", "frames_000000000512"]  # the damaged one replaced
     assert all(verify_checkpoint(p) is None for p in ckpts)
+    assert [checkpoint_buffer(p) for p in ckpts] == ["pruned", "saved"]
+
+
+def test_only_the_newest_checkpoint_keeps_the_buffer(tmp_path):
+    run = tmp_path / "run"
+    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none",
+                         **{**TINY, "frames": 1024, "keep_checkpoints": 3}))  # checkpoints at 0, 256, ..., 1024
+    ckpts = sorted(p for p in (run / "checkpoints").glob("frames_*"))
+    assert [checkpoint_frames(p) for p in ckpts] == [512, 768, 1024]
+    assert [(p / "buffer").is_dir() for p in ckpts] == [False, False, True]
+    assert [checkpoint_buffer(p) for p in ckpts] == ["pruned", "pruned", "saved"]
+    assert all(verify_checkpoint(p) is None for p in ckpts)
+    assert find_checkpoint(run) == (ckpts[-1], [])
+    with pytest.raises(ValueError, match=r"config key 'keep_checkpoints' \(run\) is 0; valid: an int in \[1, inf\]"):
+        resolve_config("envelope", "MOLavaGridDR-v0", keep_checkpoints=0)
+
+
+def test_an_interrupted_buffer_prune_leaves_an_intact_checkpoint(run):
+    """A kill after the manifest is rewritten but before ``buffer/`` is gone: the stray buffer is never loaded."""
+    old = run / "checkpoints" / "frames_000000000256"
+    new = run / "checkpoints" / "frames_000000000512"
+    shutil.copytree(new / "buffer", old / "buffer")  # as if its deletion had not happened yet
+    assert verify_checkpoint(old) is None and checkpoint_buffer(old) == "pruned"
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(4096))
+    load_checkpoint(old, buffer)
+    assert len(buffer) == 0
 
 
 def test_resume_refuses_when_no_checkpoint_is_intact(run, cli):
     _damage_truncate_state(run / "checkpoints" / "frames_000000000512")
-    _damage_remove_buffer(run / "checkpoints" / "frames_000000000256")
+    _damage_flip_a_byte(run / "checkpoints" / "frames_000000000256")
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--resume", run)
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert (f"cannot resume '{run}': no intact checkpoint (frames_000000000512: state.pt has" in out.stderr
-            and "frames_000000000256: buffer/ is missing); start it again with --overwrite" in out.stderr)
+            and "frames_000000000256: state.pt does not match its checksum); start it again with --overwrite"
+            in out.stderr)
 
 
 def test_resume_refuses_a_run_without_checkpoints(run, cli):

@@ -222,16 +222,15 @@ class MOLavaGridEnv(ContextualMOEnv):
         self.generator.set_state(state["generator"])
 
     # ------------------------------------------------------------------ rendering
-    def render(self, index: int = 0, tile_size: int = 16) -> np.ndarray:
-        """Sub-env ``index`` as an RGB ``uint8`` array ``[13 * tile_size, 13 * tile_size, 3]``.
+    def _render_subenv(self, index: int, tile_size: int = 16) -> np.ndarray:
+        """Sub-env ``index`` as an RGB ``uint8`` array ``[13 * tile_size, 13 * tile_size, 3]``
+        (``env.render(index, tile_size=...)``).
 
         Image rows are ``y`` and columns ``x`` (north up); lava is orange, goals are green /
         yellow / blue (dimmed once collected), the agent is a red triangle pointing where it faces.
         """
         from morl_trl.envs.lava_grid.render import render_grid
 
-        if not 0 <= index < self.num_envs:
-            raise ValueError(f"index {index} is out of range for {self.num_envs} sub-envs")
         return render_grid(
             self._cells[index].reshape(GRID_SIZE, GRID_SIZE).cpu().numpy(),
             collected=self._collected[index].cpu().numpy(),

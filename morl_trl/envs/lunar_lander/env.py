@@ -385,20 +385,11 @@ class MOLunarLanderEnv(ContextualMOEnv):
         self._wind_guard[0] = len(_WIND_TABLE.values) - 1 - top  # each step (or reset) adds at most one
 
     # ------------------------------------------------------------------ rendering
-    def render(self, index: int | None = 0, *, mode: str = "rgb_array") -> np.ndarray:
-        """RGB image ``[400, 600, 3]`` (uint8) of sub-env ``index``; all of them
-        ``[num_envs, 400, 600, 3]`` with ``index=None``. Needs Pillow, opens no window.
-
-        Works with TorchRL's ``PixelRenderTransform(index=None)`` to record every sub-env.
-        """
+    def _render_subenv(self, index: int) -> np.ndarray:
+        """RGB image ``[400, 600, 3]`` (uint8) of sub-env ``index`` (``env.render(index)``; all of
+        them with ``index=None``). Needs Pillow, opens no window."""
         from morl_trl.envs.lunar_lander.render import render_world
 
-        if mode != "rgb_array":
-            raise ValueError(f"render mode {mode!r} is not supported; only 'rgb_array'")
         if not self._ready:
             raise RuntimeError("MOLunarLanderEnv: call reset() before render()")
-        if index is None:
-            return np.stack([render_world(w) for w in self._worlds])
-        if not -self.num_envs <= index < self.num_envs:
-            raise ValueError(f"index {index} is out of range for {self.num_envs} sub-envs")
         return render_world(self._worlds[index])

@@ -255,6 +255,12 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     def _observe(self) -> dict[str, torch.Tensor]:
         return {"observation": self._stack.to(self.device)}
 
+    # ------------------------------------------------------------------ rendering
+    def _render_subenv(self, index: int) -> np.ndarray:
+        """The latest raw NES screen of sub-env ``index``: RGB ``uint8 [240, 256, 3]``."""
+        latest = (self.frame_skip - 1) % 2  # the slot of the last frame of a step (both equal after a reset)
+        return np.ascontiguousarray(self._raw_np[index, latest][..., list(RGB_CHANNELS)])
+
     # ------------------------------------------------------------------ step
     def _advance(self, chunk: list[tuple[int, int]]) -> list[tuple[int, list[float], bool]]:
         """Run ``frame_skip`` frames for each ``(sub-env, buttons)``; worker-thread safe."""

@@ -101,6 +101,8 @@ class MujocoContextEnv(ContextualMOEnv):
     context_space_: ContextSpace
     objective_names: tuple[str, ...] = ()
     observation_dim: int = 0
+    #: the render camera (Gymnasium's view of the domain): a tracking camera on this body
+    render_camera: dict = {"track_body": 1, "distance": 4.0, "elevation": -20.0}
     # MuJoCo data fields the domain reads from every sub-env, bound as live [N, ...] arrays
     _bound_fields: tuple[str, ...] = ("qpos", "qvel", "ctrl")
 
@@ -262,6 +264,22 @@ class MujocoContextEnv(ContextualMOEnv):
 
     def _to_tensor(self, array: np.ndarray) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32)).to(self.device)
+
+    # ------------------------------------------------------------------ rendering
+    def _render_subenv(self, index: int, width: int = 480, height: int = 480) -> np.ndarray:
+        """RGB ``uint8 [height, width, 3]`` of sub-env ``index`` through ``mujoco.Renderer``
+        (headless: see :mod:`morl_trl.envs.mujoco.render` for the GL backend)."""
+        from morl_trl.envs.mujoco.render import MujocoFrameRenderer
+
+        renderers = self.__dict__.setdefault("_renderers", {})
+        if (width, height) not in renderers:
+            renderers[(width, height)] = MujocoFrameRenderer(load_model(self.xml_file), width=width, height=height,
+                                                             **self.render_camera)
+        data = self._sim.get_data(index)
+        import mujoco
+
+        mujoco.mj_forward(self._models[index], data)  # (positions of the state; a copy: the sim is untouched)
+        return renderers[(width, height)].render(data)
 
     # ------------------------------------------------------------------ snapshots
     # the physics state of every sub-env (MuJoCo's mjSTATE_INTEGRATION: time, qpos, qvel, act,

@@ -34,6 +34,7 @@ class MOHalfCheetahEnv(MujocoContextEnv):
         torch.Size([2, 3, 2])
     """
 
+    render_camera = {"track_body": 1, "distance": 4.0, "elevation": -20.0}
     xml_file = "half_cheetah.xml"
     frame_skip = 5
     reset_noise_scale = 0.1

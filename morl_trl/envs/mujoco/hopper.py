@@ -39,6 +39,7 @@ class MOHopperEnv(MujocoContextEnv):
         (torch.Size([4, 5, 3]), torch.Size([4, 5, 11]))
     """
 
+    render_camera = {"track_body": 2, "distance": 3.0, "elevation": -20.0}
     xml_file = "hopper.xml"
     frame_skip = 4
     reset_noise_scale = 5e-3

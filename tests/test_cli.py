@@ -1,0 +1,97 @@
+"""The morl-trl command line: --version, plain help, KEY=VALUE overrides, warnings, readable envs."""
+
+from __future__ import annotations
+
+import re
+from importlib.metadata import version
+
+import pytest
+
+from morl_trl.cli import group_names, main, parse_overrides, plain
+from tests.runs._helpers import TINY
+
+
+def _run(capsys, *args):
+    capsys.readouterr()
+    try:
+        rc = main([str(a) for a in args])
+    except SystemExit as exit_:  # argparse's --help / --version
+        rc = exit_.code
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+def test_version_comes_from_the_package_metadata(capsys):
+    rc, out, _ = _run(capsys, "--version")
+    assert rc == 0 and out.strip() == f"morl-trl {version('morl-trl')}"
+
+
+@pytest.mark.parametrize("command", ["", "train", "evaluate", "envs", "demo", "reference-table", "reference-pack"])
+def test_help_has_no_restructuredtext(capsys, command):
+    rc, out, _ = _run(capsys, *([command] if command else []), "--help")
+    assert rc == 0 and "usage: morl-trl" in out
+    assert "``" not in out and not re.search(r":(func|class|mod|meth):`", out)
+
+
+def test_plain_strips_markup():
+    assert plain("The ``morl-trl`` CLI, :func:`~morl_trl.reporting.table.reference_table`, :class:`Foo`") == \
+        "The morl-trl CLI, reference_table, Foo"
+
+
+def test_overrides_parse_as_toml():
+    assert parse_overrides(["lr=1e-3", "hidden=[64, 64]", "prioritized=false", "device=cuda", 'logger="none"',
+                            "optim.tau=0.01"]) == dict(lr=1e-3, hidden=[64, 64], prioritized=False, device="cuda",
+                                                       logger="none", tau=0.01)
+    with pytest.raises(ValueError, match="override 'lr' is not KEY=VALUE"):
+        parse_overrides(["lr"])
+
+
+def test_key_value_overrides_beside_config_and_flags_win(capsys, tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("lr = 0.5\nbatch_size = 7\nframes = 999\n")
+    rc, out, err = _run(capsys, "train", "envelope", "MOLavaGridDR-v0", "lr=1e-3", "hidden=[64,64]", "--config", cfg,
+                        "--set", "prioritized=false", "frames=5000", "--frames", "1234", "--print-config")
+    assert rc == 0, err
+    assert "lr = 0.001 " in out and "hidden = [64, 64] " in out and "prioritized = false " in out
+    assert "batch_size = 7 " in out  # the file's, where no override names it
+    assert "frames = 1234 " in out  # the flag wins over frames=5000, which wins over the file
+
+
+def test_unknown_override_lists_the_valid_keys(capsys):
+    rc, _, err = _run(capsys, "train", "envelope", "MOLavaGridDR-v0", "learning_rate=1e-3", "--print-config")
+    assert rc == 2
+    assert "unknown config key(s) ['learning_rate']; valid keys: [" in err and "'lr'" in err
+    rc, _, err = _run(capsys, "train", "envelope", "MOLavaGridDR-v0", "hidden=[0]", "--print-config")
+    assert rc == 2 and "config key 'hidden' (network)" in err
+
+
+def test_frames_below_the_learning_start_warns(capsys, tmp_path, monkeypatch):
+    monkeypatch.delenv("MORL_TRL_REFERENCE", raising=False)
+    monkeypatch.chdir(tmp_path)
+    values = {**TINY, "frames": 128, "init_random_frames": 256, "eval_interval": 128}
+    overrides = [f"{k}={v!r}".replace("'", '"').replace("(", "[").replace(")", "]") for k, v in values.items()
+                 if k not in ("frames",)]
+    overrides = [o.replace("False", "false").replace("True", "true") for o in overrides]
+    rc, out, err = _run(capsys, "train", "envelope", "MOLavaGridDR-v0", *overrides, "--frames", 128,
+                        "--run-dir", tmp_path / "run", "--logger", "none")
+    assert rc == 0, err
+    warning = "warning: frames (128) is below init_random_frames (256): the run takes uniformly random actions only"
+    assert warning in out and warning in (tmp_path / "run" / "log.txt").read_text()
+
+
+def test_envs_groups_numbered_parameters(capsys):
+    rc, out, _ = _run(capsys, "envs")
+    assert rc == 0
+    assert ("context (93): lava_x2_y2..lava_x10_y10 (81), goal0_x..goal2_y (6), weight0..weight2 (3), "
+            "agent_x, agent_y, agent_dir") in out
+    assert "context (7): gravity, wind_power, turbulence_power" in out
+    assert group_names(["a1", "a2", "b", "c3", "c4", "c5"]) == ["a1", "a2", "b", "c3..c5 (3)"]
+
+
+def test_progress_bar_shows_one_frame_rate():
+    import inspect
+
+    from morl_trl.recipes import off_policy
+
+    src = inspect.getsource(off_policy.train)
+    assert "set_postfix(nhgr=" in src and "fps=" not in src.split("set_postfix", 1)[1].split("\n", 1)[0]
