@@ -213,6 +213,14 @@ def reference_table_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def floors_main(argv: list[str] | None = None) -> int:
+    """``morl-trl floors --reference DIR [--write]``: the trivial policies' NHGR per domain and context
+    (:mod:`morl_trl.reporting.floors`)."""
+    from morl_trl.reporting.floors import floors_main as run
+
+    return run(argv)
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
@@ -220,6 +228,7 @@ COMMANDS = {
     "demo": (demo_main, "build every domain, step it under random contexts, print vector returns"),
     "envs": (envs_main, "list domains, their contexts and evaluation suites"),
     "reference-table": (reference_table_main, "reproduce the paper's NHGR table from the published fronts"),
+    "floors": (floors_main, "NHGR of trivial policies (random, constant actions) per domain: the honest floors"),
 }
 
 
