@@ -51,6 +51,8 @@ __all__ = [
     "best_floor",
     "floor_entries",
     "update_floors_file",
+    "floors_markdown",
+    "floors_main",
 ]
 
 FLOORS_FILE = "floors.json"
@@ -250,7 +252,7 @@ def floors_main(argv: list[str] | None = None) -> int:
         description="NHGR of trivial policies (random, every constant action / the zero action) per domain and "
         "context under the paper's protocol; --write merges them into the shipped floors.json.",
     )
-    p.add_argument("--reference", required=True, help="the published data (minmax_values/, specialist_fronts/)")
+    p.add_argument("--reference", help="the published data (minmax_values/, specialist_fronts/)")
     p.add_argument("--domain", action="append", help="a training id (repeatable; default every domain with data)")
     p.add_argument("--policy", action="append", help="a trivial policy name (repeatable; default all of the domain's)")
     p.add_argument("--weights", type=int, help="evaluation weights (default the paper's: 100, Mario 32)")
@@ -258,7 +260,16 @@ def floors_main(argv: list[str] | None = None) -> int:
     p.add_argument("--write", nargs="?", const=str(_default_path()), metavar="PATH",
                    help=f"merge the results into PATH (default the shipped {FLOORS_FILE}), after each policy")
     p.add_argument("--skip-done", action="store_true", help="with --write: skip policies already in the file")
-    args = p.parse_args(argv)
+    p.add_argument("--markdown", action="store_true",
+                   help="only print the shipped floors as the README's Markdown table (computes nothing)")
+    args, rest = p.parse_known_args(argv)
+    if args.markdown:
+        print(floors_markdown())
+        return 0
+    if rest:
+        p.error(f"unrecognized arguments: {' '.join(rest)}")
+    if not args.reference:
+        p.error("--reference DIR is required (the published data), unless --markdown")
     domains = args.domain or list_reference_domains(args.reference)
     command = "morl-trl floors " + " ".join(shlex.quote(a) for a in (argv or []))
     for train_id in domains:
@@ -289,6 +300,35 @@ def floors_main(argv: list[str] | None = None) -> int:
                 update_floors_file(args.write, floor, weights=weights, seed=args.seed, gamma=float(spec.gamma),
                                    command=command, seconds=dt, all_policies=names)
     return 0
+
+
+def floors_markdown(floors: dict | None = None) -> str:
+    """The README's floors table: per domain, random, the best constant action and the paper's best algorithm."""
+    from morl_trl.reporting.table import PAPER_NHGR, PAPER_ORDER, domain_name
+
+    floors = load_floors() if floors is None else floors
+    doms = floors.get("domains", {})
+    lines = [
+        "| domain | weights | random | best constant action | paper's best algorithm | not computed |",
+        "|---|---|---|---|---|---|",
+    ]
+    for d in [d for d in PAPER_ORDER if d in doms] + sorted(d for d in doms if d not in PAPER_ORDER):
+        entries = {f.policy: f for f in floor_entries(floors, d)}
+        rnd = entries.get("random")
+        consts = [f for n, f in entries.items() if n != "random"]
+        best_const = max(consts, key=lambda f: f.mean) if consts else None
+        paper = PAPER_NHGR.get(d, {})
+        top = max(paper, key=lambda a: paper[a][0]) if paper else None
+        cells = [
+            domain_name(d),
+            str(doms[d].get("weights", "")),
+            "n/a" if rnd is None else f"{rnd.mean:.2f} ± {rnd.std:.2f}",
+            "n/a" if best_const is None else f"{best_const.mean:.2f} ± {best_const.std:.2f} ({best_const.policy})",
+            "n/a" if top is None else f"{paper[top][0]:.2f} ± {paper[top][1]:.2f} ({top})",
+            ", ".join(doms[d].get("not_computed", [])) or "-",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def format_floor(floor: Floor | None) -> str:

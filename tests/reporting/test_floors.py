@@ -110,3 +110,12 @@ def test_floor_column_of_the_report():
     assert label == "floor: zero" and values == {"a": 0.1, "b": 0.2}
     assert floor_column("MOLavaGridDR-v0", _fake_floors()) is None
     assert Floor("x", "p", {"a": 0.2, "b": 0.4}).std == pytest.approx(0.1)
+
+
+def test_readme_table_from_the_floors_file():
+    from morl_trl.reporting.floors import floors_markdown
+
+    text = floors_markdown(_fake_floors())
+    assert "| MO-Hopper |  | 0.02 ± 0.01 | 0.15 ± 0.05 (zero) | 0.54 ± 0.15 (MORL/D SB+PSA) | - |" in text
+    shipped = floors_markdown()
+    assert "| MO-LunarLander | 100 | " in shipped and "(noop)" in shipped
