@@ -19,6 +19,7 @@ import argparse
 import os
 import sys
 import time
+from importlib import resources
 
 import gymnasium as gym
 import numpy as np
@@ -29,10 +30,11 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from morl_trl.envs import make_env  # noqa: E402
 
 DOMAINS = {
-    # domain: (our DR id, Gymnasium id, Gymnasium kwargs giving the same reward as ours)
-    "Hopper": ("MOHopperDR-v5", "Hopper-v5", {}),
+    # domain: (our DR id, Gymnasium id, Gymnasium kwargs giving the same physics and (but for the
+    # healthy term on terminal steps) the same scalar reward as ours)
+    "Hopper": ("MOHopperDR-v5", "Hopper-v5", {"xml_file": str(resources.files("morl_trl.envs.mujoco") / "assets" / "hopper.xml")}),
     "HalfCheetah": ("MOHalfCheetahDR-v5", "HalfCheetah-v5", {}),
-    "Humanoid": ("MOHumanoidDR-v5", "Humanoid-v5", {"healthy_reward": 2.0, "contact_cost_weight": 0.0}),
+    "Humanoid": ("MOHumanoidDR-v5", "Humanoid-v5", {"healthy_reward": 2.0, "contact_cost_weight": 0.0, "ctrl_cost_weight": 1e-3}),
 }
 
 

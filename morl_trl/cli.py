@@ -355,6 +355,14 @@ def reference_manifest_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def floors_main(argv: list[str] | None = None) -> int:
+    """``morl-trl floors --reference DIR [--write]``: the trivial policies' NHGR per domain and context
+    (:mod:`morl_trl.reporting.floors`)."""
+    from morl_trl.reporting.floors import floors_main as run
+
+    return run(argv)
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
@@ -365,6 +373,7 @@ COMMANDS = {
     "reference-pack": (reference_pack_main, "ship the bounds and specialist fronts of a reference folder in the package"),
     "reference-manifest": (reference_manifest_main, "check reference data against the published files' manifest "
                            "(or --write it)"),
+    "floors": (floors_main, "NHGR of trivial policies (random, constant actions) per domain: the honest floors"),
 }
 
 

@@ -1,5 +1,6 @@
-"""The end-of-run report: NHGR per evaluation context, against the specialists, a random policy
-and (with the published data) the paper's baselines; Pareto-front and NHGR plots."""
+"""The end-of-run report: NHGR per evaluation context, against the specialists, a random policy,
+the domain's floor (the best trivial policy, :mod:`morl_trl.reporting.floors`) and (with the
+published data) the paper's baselines; Pareto-front and NHGR plots."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_report", "published_baselines"]
+__all__ = ["write_report", "published_baselines", "floor_column"]
 
 
 def _fmt(v) -> str:
@@ -27,6 +28,17 @@ def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dic
     ref = load_domain_reference(reference_dir, domain)
     rows = domain_rows(ref, load_generalist_fronts(reference_dir, domain, ref.contexts), eugr=False)
     return {r.label: dict(zip(r.contexts, r.nhgr.mean(0).tolist())) for r in rows}
+
+
+def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
+    """``("floor: <policy>", {context: NHGR})`` of the domain's best trivial policy in the shipped
+    floors file (or ``floors``), ``None`` when the domain has none."""
+    from morl_trl.reporting.floors import best_floor, load_floors
+
+    best = best_floor(load_floors() if floors is None else floors, domain)
+    if best is None:
+        return None
+    return f"floor: {best.policy}", dict(best.nhgr)
 
 
 def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> Path | None:
@@ -59,7 +71,9 @@ def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> 
     return path
 
 
-def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Path) -> Path:
+def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Path,
+               floor: tuple[str, dict[str, float]] | None = None) -> Path:
+    """Bars per series and context; ``floor`` (label, per-context NHGR) as a dashed line across each context."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -72,6 +86,12 @@ def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Pa
     for s, name in enumerate(series):
         vals = [table[name].get(c, np.nan) for c in contexts]
         ax.bar(x + s * width - 0.4 + width / 2, vals, width, label=name)
+    if floor is not None:
+        label, values = floor
+        for i, c in enumerate(contexts):
+            if c in values:
+                ax.hlines(values[c], x[i] - 0.45, x[i] + 0.45, colors="k", linestyles="--", linewidth=1.2,
+                          label=label if i == 0 or not any(cc in values for cc in contexts[:i]) else None)
     ax.set_xticks(x, [c.replace("-v0", "").replace("-v5", "").replace("-v2", "") for c in contexts],
                   rotation=30, ha="right", fontsize=8)
     ax.set_ylabel("NHGR")
@@ -104,6 +124,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
             baselines = published_baselines(cfg.reference_dir, spec.train_id)
         except ValueError as err:  # no published runs for this domain
             log.note(f"no published baselines: {err}")
+    floor = floor_column(spec.train_id)
+    if floor is not None and nhgr_cols:
+        nhgr_cols[floor[0]] = floor[1]
     nhgr_cols.update({f"{k} (paper)": v for k, v in baselines.items()})
 
     lines = [f"# {cfg.algo} on {cfg.env_id} (seed {cfg.seed})", ""]
@@ -127,9 +150,16 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         means = [np.mean([col[c] for c in contexts if c in col]) if col else float("nan") for col in nhgr_cols.values()]
         lines.append("| **mean** | " + " | ".join(_fmt(float(m)) for m in means) + " |")
         lines.append("")
-        png = _plot_nhgr(nhgr_cols, contexts, run_dir / "report_nhgr.png")
+        bars = {k: v for k, v in nhgr_cols.items() if floor is None or k != floor[0]}
+        png = _plot_nhgr(bars, contexts, run_dir / "report_nhgr.png", floor=floor)
         lines.append(f"![NHGR per context]({png.name})")
         lines.append("")
+        if floor is not None:
+            lines.append(f"`{floor[0]}`: the NHGR of the best trivial policy (a constant action or random) "
+                         "under the paper's protocol (its number of weights, seed 0), shipped in "
+                         "`morl_trl/reporting/floors.json` (`morl-trl floors`); a score near it is no evidence "
+                         "of learning. Dashed on the plot.")
+            lines.append("")
     png = _plot_fronts(result, reference, run_dir / "report_fronts.png", tuple(spec.objective_names))
     if png is not None:
         lines.append(f"![Pareto fronts per context]({png.name})")

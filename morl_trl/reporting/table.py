@@ -5,6 +5,8 @@ every algorithm with final fronts there, build the ``[seeds, contexts]`` matrix 
 (frozen bounds with clipping, origin reference, specialist combined front as denominator,
 capped at 1) and report its mean ± population std over all entries, IQM and optimality gap
 (rliable's definitions), optionally stratified-bootstrap CIs, and EUGR on the energy weights.
+Each domain's block ends with its floor: the best trivial policy's NHGR (mean ± std over the
+contexts, one seed) from the shipped ``floors.json`` (:mod:`morl_trl.reporting.floors`).
 
 Example:
     $ morl-trl reference-table ../shared/reference
@@ -260,14 +262,34 @@ def reference_table(
     return rows
 
 
-def format_table(rows: list[TableRow]) -> str:
-    """Plain-text table, one block per domain."""
+def _floor_line(domain: str, floors: dict) -> str | None:
+    from morl_trl.reporting.floors import best_floor
+
+    best = best_floor(floors, domain)
+    if best is None:
+        return None
+    n = len(best.nhgr)
+    label = f"floor: {best.policy}"
+    return (f"  {label:<15} {f'{best.mean:.2f} ± {best.std:.2f}':<16}  "
+            f"(best trivial policy; over {n} contexts, 1 seed; morl-trl floors)")
+
+
+def format_table(rows: list[TableRow], floors: dict | None = None) -> str:
+    """Plain-text table, one block per domain, each ending with the domain's floor row.
+
+    ``floors``: a loaded floors file (default the shipped one; ``{}`` for no floor rows).
+    """
+    from morl_trl.reporting.floors import load_floors
+
+    floors = load_floors() if floors is None else floors
     out = []
     has_ci = any(r.iqm_ci is not None for r in rows)
     has_eugr = any(r.eugr is not None for r in rows)
     domain = None
     for r in rows:
         if r.domain != domain:
+            if domain is not None and (fl := _floor_line(domain, floors)):
+                out.append(fl)
             domain = r.domain
             n_ctx = len(r.contexts)
             out.append("")
@@ -293,6 +315,8 @@ def format_table(rows: list[TableRow]) -> str:
         else:
             line += f"  {p[0]:.2f} ± {p[1]:.2f} " + ("(match)" if r.matches_paper else "(DIFFERS)")
         out.append(line)
+    if domain is not None and (fl := _floor_line(domain, floors)):
+        out.append(fl)
     if has_eugr:
         out.append("")
         out.append(

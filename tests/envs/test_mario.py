@@ -292,9 +292,9 @@ def test_run_right_and_jump_on_1_1_ends_by_flag_or_death():
     assert ret[0] > 3.0  # more than 100 pixels of progress, net of penalties
     death = game.is_dying or game.is_dead
     assert death != game.flag_get
-    # x objective = (final x - 0 + time + death) * 0.03, up to float rounding
+    # x objective = (final x - 0 + time) * 0.03, up to float rounding (no death penalty, as the authors')
     clock = game.time - 400
-    expected = (game.x + clock + (-25 if death else 0)) * 0.03
+    expected = (game.x + clock) * 0.03
     assert abs(ret[0].item() - expected) < 1e-3
     # a terminated sub-env stepped again stays put: no reward, still terminated
     last = td[..., -1]["next"].clone()
@@ -404,3 +404,32 @@ def test_missing_emulator_is_an_import_error_naming_the_extra(monkeypatch):
     monkeypatch.setattr(_nes.importlib.util, "find_spec", lambda name, *a: None if name == "nes_py" else real(name, *a))
     with pytest.raises(ImportError, match=r"morl-trl\[mario\]"):
         _nes.require_emulator()
+
+
+@pytest.mark.mario
+@needs_nes
+@pytest.mark.parametrize("death_penalty_on_dying", [False, True])
+def test_walking_into_the_first_goomba_on_1_1_ends_the_episode_before_the_lives_counter_drops_without_death_penalty(
+    death_penalty_on_dying,
+):
+    # holding "right" from the start of 1-1, Mario meets the first Goomba at x = 296 on agent step 40
+    kwargs = {"death_penalty_on_dying": True} if death_penalty_on_dying else {}
+    env = make_env("MOSuperMarioBros-1-1-v2", num_envs=1, **kwargs)
+    td = env.rollout(500, policy=lambda td: td.set("action", torch.tensor([RIGHT])))
+    game = env._games[0]
+    assert td.shape[-1] == 40  # the episode ends on the frame Mario starts dying ...
+    assert td["next", "terminated"][0, -1].item() and not td["next", "terminated"][0, :-1].any()
+    assert not td["next", "truncated"].any()
+    assert game.is_dying and not game.flag_get and game.x == 296
+    assert game.lives == 2  # ... before the lives counter drops: the authors' "lives dropped" -25 never fires
+    reward = td["next", "reward"][0]
+    # the first step earns the start x = 40 (1.2 scaled); walking right: 7 pixels a step (0.21)
+    torch.testing.assert_close(reward[0], torch.tensor([1.2, 0.0, 0.0]))
+    torch.testing.assert_close(reward[36:39], torch.tensor([[0.21, 0.0, 0.0]] * 3))
+    # the last step: dx 7, the clock ticks (-1); the authors pay no death penalty in the vector reward,
+    # our option adds -25 to every objective (-0.75 scaled)
+    last = torch.tensor([0.18, -0.03, -0.03]) + (-0.75 if death_penalty_on_dying else 0.0)
+    torch.testing.assert_close(reward[39], last)
+    # the scalar original_reward is gym-super-mario-bros' own, whose -25 fires on the dying frame: 7 - 1 - 25
+    assert td["next", "original_reward"][0, 39].item() == -19.0
+    env.close()

@@ -158,8 +158,8 @@ def test_hopper_reward_by_hand_healthy_bonus_on_every_objective():
         np.testing.assert_allclose(out["reward"][0].numpy(), expected, rtol=1e-6, atol=1e-5)
         healthy = after[1] > 0.7 and abs(after[2]) < 0.2 and np.all(np.abs(np.r_[after[2:], env.mj_data(0).qvel]) < 100)
         assert bool(out["terminated"][0]) == (not healthy)
-        np.testing.assert_allclose(out["original_reward"][0, 0].item(), x_vel + healthy - 1e-3 * sq, rtol=1e-6, atol=1e-5)
-        if not healthy:  # the terminal step: +1 on every objective, no healthy term in the scalar
+        np.testing.assert_allclose(out["original_reward"][0, 0].item(), x_vel + 1.0 - 1e-3 * sq, rtol=1e-6, atol=1e-5)
+        if not healthy:  # the terminal step: +1 on every objective and in the scalar (the authors')
             saw_terminal = True
             assert out["reward"][0, 2].item() == pytest.approx(1.0 - sq, abs=1e-5)
             break
@@ -194,7 +194,7 @@ def test_humanoid_reward_by_hand_uses_the_centre_of_mass_and_context_masses():
     v = (com_x() - before) / 0.015
     sq = float(np.square(a[0].double().numpy()).sum())
     np.testing.assert_allclose(out["reward"][0].numpy(), [v + 2.0, -sq + 2.0], rtol=1e-6, atol=1e-5)
-    assert out["original_reward"][0, 0].item() == pytest.approx(1.25 * v + 2.0 - 0.1 * sq, abs=1e-5)
+    assert out["original_reward"][0, 0].item() == pytest.approx(1.25 * v + 2.0 - 1e-3 * sq, abs=1e-5)
 
 
 # ---------------------------------------------------------------- domain randomization, seeding, resets
@@ -330,6 +330,12 @@ def test_wrong_context_length_and_bad_actions_raise():
 
 
 # ---------------------------------------------------------------- peers: Gymnasium v5 and MO-Gymnasium
+def _asset(name: str) -> str:
+    from importlib import resources
+
+    return str(resources.files("morl_trl.envs.mujoco").joinpath("assets", name))
+
+
 def _gym_peer(name, **kwargs):
     pytest.importorskip("gymnasium.envs.mujoco.hopper_v5")  # Gymnasium's MuJoCo envs need imageio
     import gymnasium as gym
@@ -340,11 +346,12 @@ def _gym_peer(name, **kwargs):
 @pytest.mark.parametrize(
     "env_id, overrides, peer_id, peer_kwargs, steps",
     [
-        # our foot-floor pair at friction 2.0 is Gymnasium's dynamic foot contact
-        ("MOHopperDefault-v5", {"friction": 2.0}, "Hopper-v5", {}, 60),
+        # Gymnasium's Hopper-v5 code on our (the authors') model: a foot-floor pair at MuJoCo's defaults
+        ("MOHopperDefault-v5", {}, "Hopper-v5", {"xml_file": _asset("hopper.xml")}, 60),
         ("MOHalfCheetahDefault-v5", {}, "HalfCheetah-v5", {}, 40),
-        # the paper's f_SORL: healthy reward 2.0, no contact cost
-        ("MOHumanoidDefault-v5", {}, "Humanoid-v5", {"healthy_reward": 2.0, "contact_cost_weight": 0.0}, 40),
+        # the paper's f_SORL: healthy reward 2.0, no contact cost, control cost 0.001
+        ("MOHumanoidDefault-v5", {}, "Humanoid-v5",
+         {"healthy_reward": 2.0, "contact_cost_weight": 0.0, "ctrl_cost_weight": 1e-3}, 40),
     ],
 )
 def test_same_observations_and_scalar_reward_as_gymnasium(env_id, overrides, peer_id, peer_kwargs, steps):
@@ -358,6 +365,8 @@ def test_same_observations_and_scalar_reward_as_gymnasium(env_id, overrides, pee
         assert np.array_equal(inputs["observation"][t, 0].numpy(), obs.astype(np.float32)), t
         obs, r, terminated, _, _ = peer.step(acts[t, 0].numpy())
         assert np.array_equal(nexts["observation"][t, 0].numpy(), obs.astype(np.float32)), t
+        if terminated:  # Gymnasium v5 pays no healthy term on the terminal step; the authors do
+            r += {"Hopper-v5": 1.0, "Humanoid-v5": 2.0}[peer_id]
         assert nexts["original_reward"][t, 0, 0].item() == pytest.approx(r, rel=1e-6, abs=1e-5)
         assert bool(nexts["terminated"][t, 0]) == terminated
         if terminated:
@@ -370,8 +379,8 @@ def test_same_observations_and_scalar_reward_as_gymnasium(env_id, overrides, pee
 def test_hopper_vector_reward_vs_mo_gymnasium_differs_only_on_the_terminal_step():
     pytest.importorskip("gymnasium.envs.mujoco.hopper_v5")
     mo_gym = pytest.importorskip("mo_gymnasium")
-    peer = mo_gym.make("mo-hopper-v5").unwrapped
-    env = make_env("MOHopperDefault-v5", num_envs=1, seed=4, friction=2.0)
+    peer = mo_gym.make("mo-hopper-v5", xml_file=_asset("hopper.xml")).unwrapped
+    env = make_env("MOHopperDefault-v5", num_envs=1, seed=4)
     acts = actions(env, 60, seed=2)
     nexts, _ = run(env, acts)
     peer.reset(seed=4)
@@ -383,3 +392,132 @@ def test_hopper_vector_reward_vs_mo_gymnasium_differs_only_on_the_terminal_step(
         if terminated:
             break
     assert terminated
+
+
+# ---------------------------------------------------------------- the authors' Hopper model, step for step
+# Observations at steps 0, 100, 200, 300 of a 300-step rollout (seed 7, actions
+# ``default_rng(0).uniform(-1, 1, (300, 3))`` as float32), computed once by ``_plain_mujoco_hopper``
+# below (plain MjModel/MjData on the XML, the context written as SPEC 1.2 says) with the
+# foot-floor <pair> at MuJoCo's defaults (solimp 0.9 0.95 0.001, margin 0), as the authors' is.
+# With our former pair (solimp .8 .8 .01, margin 0.002) the trajectories part after 5-10 steps.
+_HOPPER_FINGERPRINT_STEPS = (0, 100, 200, 300)
+_HOPPER_FINGERPRINT = {
+    "Default": [
+        [1.25397217, 0.00275685685, -0.00274792803, -0.00199833722, 0.00373553438, -0.0049473471, 0.0032122843, 0.00297069433, -0.000320650463, -0.00196967577, -0.00221574376],
+        [1.1850419, -0.13934359, -0.0212409385, -0.409319341, 0.283381492, 0.978488028, -0.0226023495, 3.55328202, 3.19578028, 0.0169200636, 0.238972664],
+        [0.621321023, 1.01538932, -0.153535768, -0.166248307, 0.664282501, 1.89216268, -2.05663991, 2.47366643, -0.400095791, 1.12818086, -0.717206776],
+        [0.38035354, 0.858837605, -0.322336227, -0.805129588, -0.111565761, 0.667191207, -0.774425685, 4.28627872, 2.36716914, 2.56615543, 0.732421637],
+    ],
+    "Light": [
+        [1.25397217, 0.00275685685, -0.00274792803, -0.00199833722, 0.00373553438, -0.0049473471, 0.0032122843, 0.00297069433, -0.000320650463, -0.00196967577, -0.00221574376],
+        [1.28606355, -0.26162082, 0.0183764677, -0.0422382951, 0.806405902, -0.720372856, 0.0802661553, -0.0229112674, 1.08561039, -1.38980985, 0.413317531],
+        [0.286632806, -1.7417599, -0.0617419742, -0.580311835, -0.379995644, -0.439310312, -3.91368961, -5.3219285, -1.73488939, -1.15268219, -3.33374906],
+        [0.0957334712, -4.92684937, -2.13933849, -1.85050321, 0.0513072759, -1.19847465, 0.0800122917, -0.767910063, -0.987380803, 2.8566947, 3.24686027],
+    ],
+    "Slippery": [
+        [1.25397217, 0.00275685685, -0.00274792803, -0.00199833722, 0.00373553438, -0.0049473471, 0.0032122843, 0.00297069433, -0.000320650463, -0.00196967577, -0.00221574376],
+        [1.16600037, -0.0372321308, -0.0206224248, -0.464574754, 0.46266064, 1.14475369, -0.13511084, 3.95676589, 3.19329405, -0.0459959693, 1.20558918],
+        [0.0307116415, 1.57706571, -0.159406036, -0.307100177, 0.432815135, 0.0279099122, 0.38115862, -0.303432196, -0.0472957306, -0.383100837, -3.11487293],
+        [0.426333517, 0.0843091384, -1.12540209, -0.883312225, 0.430785239, 0.423929602, -0.424019068, 2.77354765, 0.785641313, 2.59342599, 2.48074818],
+    ],
+}
+_HOPPER_CONTEXTS = {  # SPEC 1.2: body_mass[1:5], dof_damping[3:6], pair_friction[0, :2]
+    "Default": None,  # the XML's own values (the authors' Default env never calls set_task)
+    "Light": ([0.5, 0.5, 0.3, 0.7], 1.0, 1.0),
+    "Slippery": ([3.7, 4.0, 2.8, 5.3], 1.0, 0.1),
+}
+
+
+def _plain_mujoco_hopper(name: str, seed: int, acts: np.ndarray, *, pair_solimp=None, pair_margin=None) -> np.ndarray:
+    """``[len(acts) + 1, 11]`` Hopper observations from plain ``mujoco`` (no morl_trl code)."""
+    import mujoco
+    from importlib import resources
+
+    model = mujoco.MjModel.from_xml_path(str(resources.files("morl_trl.envs.mujoco").joinpath("assets", "hopper.xml")))
+    if _HOPPER_CONTEXTS[name] is not None:
+        masses, damping, friction = _HOPPER_CONTEXTS[name]
+        model.body_mass[1:5] = masses
+        model.dof_damping[3:6] = damping
+        model.pair_friction[0, :2] = friction
+    if pair_solimp is not None:
+        model.pair_solimp[0, :3] = pair_solimp
+        model.pair_margin[0] = pair_margin
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(seed)  # Gymnasium v5's reset noise, U(+-5e-3)
+    data.qpos[:] = model.qpos0 + rng.uniform(-5e-3, 5e-3, model.nq)
+    data.qvel[:] = rng.uniform(-5e-3, 5e-3, model.nv)
+    mujoco.mj_forward(model, data)
+
+    def observe():
+        return np.r_[data.qpos[1:], np.clip(data.qvel, -10.0, 10.0)]
+
+    obs = [observe()]
+    for a in acts:
+        data.ctrl[:] = a
+        mujoco.mj_step(model, data, nstep=4)  # frame_skip 4
+        obs.append(observe())
+    return np.array(obs)
+
+
+@pytest.mark.parametrize("name", sorted(_HOPPER_CONTEXTS))
+def test_hopper_foot_contact_pair_takes_mujoco_defaults_as_the_authors_model(name):
+    model = load_model("hopper.xml")
+    np.testing.assert_array_equal(model.pair_solimp[0], [0.9, 0.95, 0.001, 0.5, 2.0])
+    assert model.pair_margin[0] == 0.0 and model.pair_gap[0] == 0.0
+    np.testing.assert_array_equal(model.pair_solref[0], [0.02, 1.0])
+    assert model.pair_dim[0] == 3
+
+    acts = np.random.default_rng(0).uniform(-1, 1, (300, 3)).astype(np.float32)
+    env = make_env(f"MOHopper{name}-v5", num_envs=1, seed=7)
+    td = env.reset()
+    ours = [td["observation"][0].numpy()]
+    for a in acts:  # 300 steps, straight through the termination (the physics goes on)
+        td = env.step(td.set("action", torch.from_numpy(a)[None]))["next"]
+        ours.append(td["observation"][0].numpy())
+    ours = np.array(ours, dtype=np.float64)
+    reference = _plain_mujoco_hopper(name, 7, acts.astype(np.float64))
+    np.testing.assert_allclose(ours, reference, rtol=0, atol=1e-6)  # float32 observations
+    np.testing.assert_array_equal(ours, reference.astype(np.float32))  # in fact bit for bit
+    np.testing.assert_allclose(reference[list(_HOPPER_FINGERPRINT_STEPS)], _HOPPER_FINGERPRINT[name], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(ours[list(_HOPPER_FINGERPRINT_STEPS)], _HOPPER_FINGERPRINT[name], rtol=1e-6, atol=1e-7)
+    # the former pair (the geoms' solimp .8 .8 .01, margin 0.002) leaves that trajectory
+    former = _plain_mujoco_hopper(name, 7, acts.astype(np.float64), pair_solimp=[0.8, 0.8, 0.01], pair_margin=0.002)
+    assert np.abs(former[300] - reference[300]).max() > 0.1
+
+
+# ---------------------------------------------------------------- the authors' scalar rewards, by hand
+def test_hopper_original_reward_keeps_healthy_term_on_terminal_step_as_the_authors():
+    env = make_env("MOHopperDefault-v5", num_envs=1, seed=3)
+    env.reset()
+    a = torch.tensor([[0.5, -0.5, 1.0]])  # sum of squares 1.5
+    seen = {"normal": False, "terminal": False}
+    for _ in range(200):
+        x0 = env.mj_data(0).qpos[0]
+        out = env.step(TensorDict(action=a, batch_size=[1]))["next"]
+        v = (env.mj_data(0).qpos[0] - x0) / 0.008
+        # x_velocity + healthy 1.0 - 0.001 * 1.5, the healthy term kept on every step
+        assert out["original_reward"][0, 0].item() == pytest.approx(v + 1.0 - 0.0015, abs=1e-5)
+        kind = "terminal" if out["terminated"][0] else "normal"
+        seen[kind] = True
+        if kind == "terminal":
+            break
+    assert seen == {"normal": True, "terminal": True}
+
+
+def test_humanoid_original_reward_uses_ctrl_cost_0_001_and_keeps_healthy_term_as_the_authors():
+    env = make_env("MOHumanoidDefault-v5", num_envs=1, seed=0)
+    env.reset()
+    mass = env.mj_models[0].body_mass
+    a = torch.full((1, 17), 0.4)  # sum of squares 17 * 0.16 = 2.72: control cost 0.00272 (Gymnasium's 0.1 gives 0.272)
+    seen = {"normal": False, "terminal": False}
+    for _ in range(200):
+        x0 = float(mass @ env.mj_data(0).xipos[:, 0] / mass.sum())
+        out = env.step(TensorDict(action=a, batch_size=[1]))["next"]
+        v = (float(mass @ env.mj_data(0).xipos[:, 0] / mass.sum()) - x0) / 0.015
+        assert out["original_reward"][0, 0].item() == pytest.approx(1.25 * v + 2.0 - 0.00272, abs=1e-5)
+        kind = "terminal" if out["terminated"][0] else "normal"
+        seen[kind] = True
+        if kind == "terminal":  # z left (1, 2): Gymnasium v5 would pay 1.25 v - 0.272 here
+            assert env.mj_data(0).qpos[2] <= 1.0 or env.mj_data(0).qpos[2] >= 2.0
+            break
+    assert seen == {"normal": True, "terminal": True}

@@ -110,10 +110,10 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
       first observation of an episode repeats the start frame 4 times);
     * reward ``[*B, 3]`` ``(x_pos, coin, enemy)``, per raw frame and summed over the skip:
       ``x = Δx`` (0 if Δx < -5), ``coin = 100 Δcoins``, ``enemy = Δscore - 2 coin`` (at least
-      0, and 0 on the last frame); the time penalty ``Δclock`` (<= 0) and the death
-      penalty (-25) are added to every entry, then all is scaled by 0.03;
-    * ``original_reward`` ``[*B, 1]``: gym-super-mario-bros' scalar ``x + time + death``,
-      unscaled;
+      0, and 0 on the last frame); the time penalty ``Δclock`` (<= 0) is added to every
+      entry, then all is scaled by 0.03 (no death penalty by default, see below);
+    * ``original_reward`` ``[*B, 1]``: gym-super-mario-bros' scalar ``x + time + death``
+      (its own -25 on the frame Mario starts dying), unscaled;
     * termination when Mario starts dying or reaches the flag/axe; truncation after
       ``max_episode_steps`` = 500 agent steps (2000 raw frames). A terminated sub-env that
       is stepped again without a reset stays as it is (zero reward, still terminated).
@@ -121,11 +121,12 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     As in the reference, x, coins, clock and score are taken as 0 before the first frame,
     so the first step earns the start position (x = 40, +1.2 scaled) as progress.
 
-    The death penalty is given on the frame Mario starts dying, which is also the frame
-    the episode ends, as gym-super-mario-bros' own death penalty. (The reference MO
-    wrapper tests "the lives counter dropped", but the stage environment under it ends the
-    episode on the frame Mario starts dying, ~180 frames before the counter drops, so there
-    the -25 of SPEC §1.4 never fires.)
+    Death, as the authors ran it: the episode ends on the frame Mario starts dying, with no
+    death penalty in the vector reward. The authors' MO wrapper adds -25 when "the lives
+    counter dropped", but their single-stage environment ends the episode on the frame
+    Mario starts dying, ~180 frames before the counter drops, so that -25 of SPEC §1.4
+    never fires. ``death_penalty_on_dying=True`` (ours, off by default) adds the -25 to
+    every objective on that last frame instead (-0.75 scaled).
 
     Args:
         num_envs: number of emulators.
@@ -141,6 +142,8 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             process-wide :meth:`StagePool.shared`).
         context_space: the stage space (its ``train_stages`` matter only to domain
             randomization).
+        death_penalty_on_dying: add the -25 death penalty (x0.03) to every objective on the
+            frame Mario starts dying (default ``False``: the authors' runs never pay it).
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -170,6 +173,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
         rom_mode: str = "pixel",
         stage_pool: StagePool | None = None,
         context_space: MarioStageSpace = MARIO_STAGE_SPACE,
+        death_penalty_on_dying: bool = False,
     ) -> None:
         if not isinstance(frame_skip, int) or frame_skip < 1:
             raise ValueError(f"frame_skip must be a positive int, got {frame_skip!r}")
@@ -188,6 +192,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             allow_extrapolation=allow_extrapolation,
         )
         self.frame_skip = frame_skip
+        self.death_penalty_on_dying = bool(death_penalty_on_dying)
         self.num_threads = min(num_threads, num_envs)
         self._pool = StagePool.shared(rom_mode) if stage_pool is None else stage_pool
         if self._pool.rom_mode != rom_mode:
@@ -266,6 +271,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
         """Run ``frame_skip`` frames for each ``(sub-env, buttons)``; worker-thread safe."""
         out = []
         skip = self.frame_skip
+        death_in_vector = self.death_penalty_on_dying
         for i, buttons in chunk:
             game = self._games[i]
             raw = self._raw_np[i]
@@ -273,7 +279,7 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
             done = False
             for k in range(skip):
                 f = game.frame(buttons)
-                penalty = f.time + f.death
+                penalty = f.time + f.death if death_in_vector else f.time
                 x += f.x + penalty
                 coin += f.coin + penalty
                 enemy += f.enemy + penalty

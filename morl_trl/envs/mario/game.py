@@ -53,6 +53,9 @@ _ENEMY_TYPE_ADDRESSES = (0x16, 0x17, 0x18, 0x19, 0x1A)
 _STAGE_OVER_ENEMIES = frozenset({0x2D, 0x31})  # Bowser, flagpole
 
 # SPEC §1.4: penalties are added to every objective, then everything is scaled by 3/100.
+# FrameOutcome.death reports -25 on the frame Mario starts dying (gym-super-mario-bros' own death
+# penalty, part of original_reward); the vector reward adds it only with the env's
+# death_penalty_on_dying=True (the authors' episode ends before their "lives dropped" -25 fires).
 DEATH_PENALTY = -25.0
 REWARD_SCALE = 3 / 100
 X_REWARD_FLOOR = -5  # a larger backwards jump of x is a position reset, not movement

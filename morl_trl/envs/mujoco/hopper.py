@@ -20,16 +20,20 @@ class MOHopperEnv(MujocoContextEnv):
     Reward ``[*B, 3]`` = ``[x_velocity, 10 * (z - z_init), -sum(action**2)] + 1.0``: the
     healthy bonus is added to *every* objective on every step, the terminal one included
     (the paper's quirk; ``z_init = 1.25`` is the XML's initial torso height, not the noisy
-    reset height). ``"original_reward"`` is Gymnasium ``Hopper-v5``'s scalar reward
-    ``x_velocity + healthy - 1e-3 * sum(action**2)`` (its healthy term is 0 on the step that
-    terminates; the paper writes ``1.5 v_x`` but states it is Gymnasium's function).
+    reset height). ``"original_reward"`` is the authors' scalar reward
+    ``x_velocity + 1.0 - 1e-3 * sum(action**2)``: Gymnasium's ``Hopper-v5`` function except
+    that, as in the authors' env, the healthy term 1.0 is kept on the step that terminates
+    (Gymnasium v5 pays 0 there; the paper writes ``1.5 v_x`` but states it is Gymnasium's).
     Terminates when ``z <= 0.7``, ``|angle| >= 0.2`` or any of ``qpos[2:], qvel`` leaves
     ``(-100, 100)``. Reset noise ``U(+-5e-3)`` on ``qpos`` and ``qvel``.
 
     Context (8): ``mass_torso, mass_thigh, mass_leg, mass_foot`` -> ``body_mass[1:5]``;
     ``damping_thigh, damping_leg, damping_foot`` -> ``dof_damping[3:6]``; ``friction`` ->
     ``pair_friction[0, :2]`` of the explicit foot-floor contact pair (default 1.0;
-    Gymnasium's hopper has 2.0, and with ``friction=2.0`` this model is Gymnasium's).
+    Gymnasium's hopper has 2.0). The pair's other fields take MuJoCo's defaults (solimp
+    ``0.9 0.95 0.001``, margin 0) as the authors' model does; Gymnasium's dynamic foot
+    contact has the geoms' solimp ``.8 .8 .01`` and margin 0.002, so no friction makes this
+    model Gymnasium's (``assets/hopper.xml``).
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -85,5 +89,6 @@ class MOHopperEnv(MujocoContextEnv):
         reward[:, 2] = -sq
         reward += self.healthy_bonus
         healthy = self._is_healthy()
-        original = (self.forward_reward_weight * x_velocity + healthy * self.healthy_reward) - self.ctrl_cost_weight * sq
+        # the authors keep the healthy term on the terminal step too
+        original = (self.forward_reward_weight * x_velocity + self.healthy_reward) - self.ctrl_cost_weight * sq
         return reward, original, ~healthy

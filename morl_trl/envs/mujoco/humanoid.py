@@ -22,9 +22,11 @@ class MOHumanoidEnv(MujocoContextEnv):
     Reward ``[*B, 2]`` = ``[x_velocity, -sum(ctrl**2)] + 2.0``, where ``x_velocity`` is the
     centre of mass's (computed with the context's masses) and the healthy bonus 2.0 is added
     to both objectives on every step (the paper's quirks: no 1.25 forward weight, no contact
-    cost). ``"original_reward"`` is the paper's f_SORL, Gymnasium ``Humanoid-v5``'s reward
-    with ``healthy_reward=2.0`` and ``contact_cost_weight=0``: ``1.25 * x_velocity + 2.0 *
-    healthy - 0.1 * sum(ctrl**2)``. Terminates when the torso height ``qpos[2]`` leaves
+    cost). ``"original_reward"`` is the paper's f_SORL as the authors compute it:
+    ``1.25 * x_velocity + 2.0 - 0.001 * sum(ctrl**2)`` (Gymnasium ``Humanoid-v5``'s reward
+    with ``healthy_reward=2.0``, ``contact_cost_weight=0`` and ``ctrl_cost_weight=0.001``,
+    the paper's and authors' weight, not Gymnasium's 0.1; the healthy term 2.0 is kept on
+    the terminal step, where Gymnasium v5 pays 0). Terminates when the torso height ``qpos[2]`` leaves
     ``(1, 2)``. Reset noise ``U(+-1e-2)`` on ``qpos`` and ``qvel``.
 
     Context (30): 13 masses (``mass_torso`` ... ``mass_left_lower_arm``) ->
@@ -46,9 +48,10 @@ class MOHumanoidEnv(MujocoContextEnv):
     observation_dim = 348
     healthy_bonus = 2.0
     _bound_fields = ("qpos", "qvel", "ctrl", "xipos", "cinert", "cvel", "qfrc_actuator")
-    # the paper's f_SORL: Gymnasium Humanoid-v5 with healthy_reward=2.0, contact_cost_weight=0
+    # the paper's f_SORL: Gymnasium Humanoid-v5 with healthy_reward=2.0, contact_cost_weight=0,
+    # ctrl_cost_weight=0.001 (the paper's and the authors' value)
     forward_reward_weight = 1.25
-    ctrl_cost_weight = 0.1
+    ctrl_cost_weight = 1e-3
     healthy_reward = 2.0
 
     def _read_context(self, model: mujoco.MjModel) -> np.ndarray:
@@ -109,5 +112,6 @@ class MOHumanoidEnv(MujocoContextEnv):
         reward = np.stack([x_velocity, -sq], axis=1) + self.healthy_bonus
         z = self._fields["qpos"][:, 2]
         healthy = (1.0 < z) & (z < 2.0)
-        original = (self.forward_reward_weight * x_velocity + healthy * self.healthy_reward) - self.ctrl_cost_weight * sq
+        # the authors keep the healthy term on the terminal step too
+        original = (self.forward_reward_weight * x_velocity + self.healthy_reward) - self.ctrl_cost_weight * sq
         return reward, original, ~healthy
