@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_report", "published_baselines", "floor_column"]
+__all__ = ["write_report", "published_baselines", "floor_column", "learning_curves"]
 
 
 def _fmt(v) -> str:
@@ -54,10 +54,16 @@ def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> 
     i, j = 0, 1  # first two objectives; the CSVs hold every objective
     for ax, name in zip(axes.flat, names):
         front = result.front(name)
+        shown = [front[:, [i, j]]]
         if reference is not None and name in reference.specialist_fronts:
             spec = reference.specialist_fronts[name]
             ax.scatter(spec[:, i], spec[:, j], s=10, c="0.6", label="specialist")
-        ax.scatter(front[:, i], front[:, j], s=16, c="C3", label="ours")
+            shown.append(spec[:, [i, j]])
+        if reference is not None and name in reference.bounds:  # the normalization box: a fixed frame
+            b = reference.bounds[name]
+            shown.append(np.array([[b.lower[i], b.lower[j]], [b.upper[i], b.upper[j]]]))
+        ax.scatter(front[:, i], front[:, j], s=22, c="C3", edgecolors="k", linewidths=0.4, label="ours", zorder=3)
+        _frame(ax, np.concatenate(shown))
         ax.set_title(name.replace("-v0", "").replace("-v5", "").replace("-v2", ""), fontsize=9)
         ax.set_xlabel(objectives[i], fontsize=8)
         ax.set_ylabel(objectives[j], fontsize=8)
@@ -65,6 +71,73 @@ def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> 
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _frame(ax, points: np.ndarray) -> None:
+    """Axis limits covering ``points`` ``[n, 2]`` with a margin, also when they collapse to one
+    point (matplotlib then zooms onto a lone dot on unreadable autoscaled ticks)."""
+    lo, hi = points.min(0), points.max(0)
+    span = hi - lo
+    pad = np.where(span > 0, 0.08 * span, 0.05 * np.maximum(np.abs(hi), 1.0))
+    ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+    ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+    ax.ticklabel_format(style="sci", scilimits=(-3, 4), useOffset=False)
+
+
+_CURVES = (("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"), ("eum", "EUM"))
+
+
+def learning_curves(metrics_csv: str | Path) -> dict[str, dict[str, list[tuple[int, float]]]]:
+    """``{metric: {context: [(frames, value), ...]}}`` from a run's ``eval/metrics.csv`` (every
+    evaluation, frame 0 included), for the metrics of :data:`_CURVES` that it holds."""
+    import csv
+
+    curves: dict[str, dict[str, list[tuple[int, float]]]] = {}
+    path = Path(metrics_csv)
+    if not path.is_file():
+        return curves
+    with path.open() as fh:
+        for row in csv.DictReader(fh):
+            for metric, _ in _CURVES:
+                value = row.get(metric)
+                if value in (None, "", "None"):
+                    continue
+                curves.setdefault(metric, {}).setdefault(row["context"], []).append((int(row["frames"]), float(value)))
+    return curves
+
+
+def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, dict[str, float]] | None) -> Path:
+    """One panel per metric: a line per context against frames; the floor's NHGR per context dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metrics = [(m, label) for m, label in _CURVES if m in curves]
+    fig, axes = plt.subplots(1, len(metrics), figsize=(4.4 * len(metrics), 3.3), squeeze=False)
+    for ax, (metric, label) in zip(axes.flat, metrics):
+        for k, c in enumerate(contexts):
+            pts = sorted(curves[metric].get(c, []))
+            if not pts:
+                continue
+            x, y = zip(*pts)
+            short = c.replace("-v0", "").replace("-v5", "").replace("-v2", "")
+            ax.plot(x, y, marker="o", ms=3, lw=1.2, color=f"C{k % 10}", label=short)
+            if metric == "nhgr" and floor is not None and c in floor[1]:
+                ax.axhline(floor[1][c], color=f"C{k % 10}", ls="--", lw=0.8, alpha=0.7)
+        ax.set_xlabel("frames", fontsize=8)
+        ax.set_ylabel(label, fontsize=8)
+        if metric in ("nhgr", "normalized_hypervolume"):
+            ax.set_ylim(0, 1.02)
+        ax.tick_params(labelsize=7)
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
+    axes.flat[0].legend(fontsize=6, ncol=2)
+    if floor is not None:
+        axes.flat[0].set_title(f"dashed: {floor[0]}", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -160,6 +233,16 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
                          "`morl_trl/reporting/floors.json` (`morl-trl floors`); a score near it is no evidence "
                          "of learning. Dashed on the plot.")
             lines.append("")
+    curves = learning_curves(run_dir / "eval" / "metrics.csv")
+    if curves:
+        png = _plot_learning(curves, contexts, run_dir / "report_learning.png", floor)
+        lines.append("## Learning curves")
+        lines.append("")
+        lines.append(f"![NHGR, normalized HV and EUM per context against frames]({png.name})")
+        lines.append("")
+        lines.append("Every evaluation of the run, frame 0 (the untrained policy) included"
+                     + ("; dashed: the floor's NHGR per context." if floor is not None else "."))
+        lines.append("")
     png = _plot_fronts(result, reference, run_dir / "report_fronts.png", tuple(spec.objective_names))
     if png is not None:
         lines.append(f"![Pareto fronts per context]({png.name})")

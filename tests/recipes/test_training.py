@@ -90,6 +90,7 @@ def test_short_run_writes_everything(tmp_path, reference_dir):
     assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper)" in report
     assert "| floor: " in report  # the best trivial policy's NHGR (shipped floors.json), a column and a plot line
     assert (run / "report_fronts.png").stat().st_size > 1000
+    assert "## Learning curves" in report and (run / "report_learning.png").stat().st_size > 1000
     assert 0.0 <= summary["nhgr_mean"] <= 1.0
     # morl-trl evaluate: the last checkpoint again, written beside (not over) the run's outputs
     again = evaluate_run(run, weights=3)
