@@ -192,11 +192,16 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         if any(v is not None for v in rn.values()):
             nhgr_cols["random policy"] = {c: v for c, v in rn.items() if v is not None}
     baselines = {}
+    baseline_note = None
     if cfg.reference_dir:
         try:
             baselines = published_baselines(cfg.reference_dir, spec.train_id)
         except ValueError as err:  # no published runs for this domain
             log.note(f"no published baselines: {err}")
+            baseline_note = f"No paper baselines: {err}"
+    else:
+        baseline_note = ("No paper baselines: their published fronts are not shipped; pass the folder that holds "
+                         "them with `--reference DIR` (config `reference_dir`) to add a column per algorithm.")
     floor = floor_column(spec.train_id)
     if floor is not None and nhgr_cols:
         nhgr_cols[floor[0]] = floor[1]
@@ -224,6 +229,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append("| **mean** | " + " | ".join(_fmt(float(m)) for m in means) + " |")
         lines.append("")
         bars = {k: v for k, v in nhgr_cols.items() if floor is None or k != floor[0]}
+        if baseline_note is not None:
+            lines.append(baseline_note)
+            lines.append("")
         png = _plot_nhgr(bars, contexts, run_dir / "report_nhgr.png", floor=floor)
         lines.append(f"![NHGR per context]({png.name})")
         lines.append("")

@@ -31,6 +31,9 @@ def test_train_returns_the_run_the_summary_and_the_policy(trained):
     p = trained.policy
     assert (p.env_id, p.history_len, p.preference_key, p.frames) == ("MOLavaGridDR-v0", 0, "preference", 512)
     assert p.objective_names == ("lava", "time")
+    # no published data given: NHGR from the shipped constants, and the report says how to add baselines
+    report = (trained.run_dir / "report.md").read_text()
+    assert "## NHGR per context" in report and "pass the folder that holds them with `--reference DIR`" in report
 
 
 def test_loaded_policy_acts_as_the_trained_agent(trained):
