@@ -414,6 +414,7 @@ def test_contexts_as_env_factories_and_a_single_default_context():
 
 def test_mo_gymnasium_lunar_lander_in_a_serial_env():
     mo_gym = pytest.importorskip("mo_gymnasium")
+    pytest.importorskip("Box2D")
     from torchrl.envs import GymWrapper, SerialEnv
 
     def one():

@@ -101,6 +101,7 @@ def test_envelope_recipe_is_the_authors_network_loss_and_preferences():
 
 # ---------------------------------------------------------------- CAPQL
 def test_capql_recipe_acts_on_a_new_cone_preference_every_step_and_trains_on_it_as_the_authors():
+    pytest.importorskip("mujoco")
     cfg, env, agent = _agent("capql", "MOHopperDR-v5")
     assert (cfg.preference_distribution, cfg.preference_resample) == ("cone", "step")
     assert (cfg.loss_fresh_preferences, cfg.actor_scale) == (False, "clamped_log_std")
@@ -122,6 +123,7 @@ def test_capql_recipe_acts_on_a_new_cone_preference_every_step_and_trains_on_it_
 # ---------------------------------------------------------------- MORL/D's MOSAC
 def test_mosac_is_evaluated_with_sampled_actions_as_the_paper():
     assert resolve_config("mosac", "MOHopperDR-v5").eval_exploration == "random"
+    pytest.importorskip("mujoco")
     _, _, agent = _agent("mosac", "MOHopperDR-v5")
     assert agent.eval_exploration == ExplorationType.RANDOM
     _, _, greedy = _agent("mosac", "MOHopperDR-v5", eval_exploration="deterministic")
