@@ -119,3 +119,14 @@ def test_readme_table_from_the_floors_file():
     assert "| MO-Hopper |  | 0.02 ± 0.01 | 0.15 ± 0.05 (zero) | 0.54 ± 0.15 (MORL/D SB+PSA) | - |" in text
     shipped = floors_markdown()
     assert "| MO-LunarLander | 100 | " in shipped and "(noop)" in shipped
+
+
+def test_readme_floors_table_is_the_shipped_file():
+    from pathlib import Path
+
+    from morl_trl.reporting.floors import floors_markdown
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    start = readme.index("<!-- floors-table")
+    block = readme[readme.index("\n", start) + 1 : readme.index("<!-- /floors-table -->")].strip()
+    assert block == floors_markdown().strip()
