@@ -21,6 +21,13 @@ PREFERENCE_DISTRIBUTIONS = ("dirichlet", "gaussian", "cone")
 CONE_ANGLE_DEGREES = 22.5
 
 
+
+def _leading_shape(shape, num_objectives) -> tuple[int, ...]:
+    """``shape`` as a tuple of ints; ``ValueError`` unless ``num_objectives`` is a positive int."""
+    if isinstance(num_objectives, bool) or not isinstance(num_objectives, int) or num_objectives < 1:
+        raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
+    return (int(shape),) if isinstance(shape, int) else tuple(int(s) for s in shape)
+
 def sample_cone_preferences(
     shape: Sequence[int] | int,
     num_objectives: int,
@@ -64,11 +71,7 @@ def sample_cone_preferences(
         >>> bool((w >= 0).all()), bool(torch.allclose(w.sum(-1), torch.ones(5)))
         (True, True)
     """
-    if isinstance(shape, int):
-        shape = (shape,)
-    shape = tuple(int(s) for s in shape)
-    if isinstance(num_objectives, bool) or not isinstance(num_objectives, int) or num_objectives < 1:
-        raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
+    shape = _leading_shape(shape, num_objectives)
     if not 0.0 <= float(angle) <= 90.0:
         raise ValueError(f"angle must lie in [0, 90] degrees, got {angle!r}")
     if generator is not None and device is None:
@@ -157,11 +160,7 @@ def sample_preferences(
         >>> bool((w >= 0).all()), bool(torch.allclose(w.sum(-1), torch.ones(4)))
         (True, True)
     """
-    if isinstance(shape, int):
-        shape = (shape,)
-    shape = tuple(int(s) for s in shape)
-    if isinstance(num_objectives, bool) or not isinstance(num_objectives, int) or num_objectives < 1:
-        raise ValueError(f"num_objectives must be a positive int, got {num_objectives!r}")
+    shape = _leading_shape(shape, num_objectives)
     if distribution not in PREFERENCE_DISTRIBUTIONS:
         raise ValueError(f"distribution={distribution!r}; valid values are {PREFERENCE_DISTRIBUTIONS}")
     k = num_objectives
