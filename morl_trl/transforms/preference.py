@@ -218,7 +218,8 @@ class PreferenceConditioning(SeededTransform):
         return tensordict
 
     def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
-        self._sync_seed()
+        if self.mode != "given":  # (given preferences draw nothing: no seed to follow, no parent walk)
+            self._sync_seed()
         batch, device = tensordict_reset.batch_size, tensordict_reset.device
         k = self.num_objectives
         mask = reset_mask(tensordict, batch, device)

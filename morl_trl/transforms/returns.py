@@ -73,8 +73,18 @@ class DiscountedVectorReturn(Transform):
         parent = self.parent
         return parent.full_reward_spec[self.in_key]
 
+    def _reward_shape_dtype(self) -> tuple[torch.Size, torch.dtype]:
+        """The reward spec's shape and dtype, remembered from the last spec transform (reading
+        ``self.parent`` walks the env stack, a large share of a partial reset's cost)."""
+        cached = self.__dict__.get("_reward_shape_dtype_cache")
+        if cached is None:
+            spec = self._reward_spec()
+            cached = self.__dict__["_reward_shape_dtype_cache"] = (spec.shape, spec.dtype)
+        return cached
+
     def _specs(self) -> dict:
         r = self._reward_spec()
+        self.__dict__["_reward_shape_dtype_cache"] = (r.shape, r.dtype)
         batch = r.shape[:-1]
         dtype = self.dtype or r.dtype
         vec = Unbounded(shape=r.shape, dtype=dtype, device=r.device)
@@ -96,11 +106,11 @@ class DiscountedVectorReturn(Transform):
         return input_spec
 
     def _reset(self, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
-        spec = self._reward_spec()
         batch, device = tensordict_reset.batch_size, tensordict_reset.device
+        shape, spec_dtype = self._reward_shape_dtype()
         keep = ~reset_mask(tensordict, batch, device).unsqueeze(-1)
-        dtype = self.dtype or spec.dtype
-        zeros = torch.zeros(spec.shape, dtype=dtype, device=device)
+        dtype = self.dtype or spec_dtype
+        zeros = torch.zeros(shape, dtype=dtype, device=device)
         ones = torch.ones(*batch, 1, dtype=dtype, device=device)
         for key, fresh in ((self.return_key, zeros), (self.discounted_key, zeros), (self.discount_key, ones)):
             old = tensordict.get(key, None)
