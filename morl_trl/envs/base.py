@@ -305,12 +305,12 @@ class ContextualMOEnv(EnvBase):
         (``finite_check_keys``) of an (active) sub-env is NaN or infinite. The usual path is
         one sum per entry and one scalar read (a NaN or inf entry makes the sum non-finite);
         the diagnosis runs only when the sum is not finite."""
-        s = reward.sum().item()  # (Python floats: cheaper than adding tensors on a CPU)
         keys = self.finite_check_keys
-        for key in (obs if keys is None else keys):
-            value = obs[key]
-            if value.is_floating_point():
-                s += value.sum().item()
+        values = [obs[key] for key in (obs if keys is None else keys) if obs[key].is_floating_point()]
+        if reward.device.type == "cpu":  # Python floats: cheaper than adding tensors on a CPU
+            s = reward.sum().item() + sum(v.sum().item() for v in values)
+        else:  # one host read per step on an accelerator, not one per entry
+            s = torch.stack([reward.sum().float(), *(v.sum().float() for v in values)]).sum().item()
         if s - s == 0.0:  # finite (inf - inf and nan - x are nan)
             return
         entries = {"reward": reward, **{k: v for k, v in obs.items() if v.is_floating_point()}}

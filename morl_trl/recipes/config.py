@@ -290,6 +290,8 @@ def _toml_value(v) -> str:
 
 
 _FIELDS = {f.name: f for f in dataclasses.fields(TrainConfig)}
+#: the float keys (an integer in a file or on the command line, e.g. ``lr = 1``, is read as a float)
+_FLOAT_KEYS = frozenset(name for name, f in _FIELDS.items() if str(f.type).split(" |")[0] == "float")
 #: group name -> its keys, in order
 GROUPS: dict[str, tuple[str, ...]] = {}
 for _f in dataclasses.fields(TrainConfig):
@@ -321,9 +323,7 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
             v = None
         if k in ("hidden", "eval_contexts") and isinstance(v, list):
             v = tuple(v)
-        elif k in ("lr", "gamma", "tau", "per_alpha", "per_beta", "alpha", "eps_start", "eps_end",
-                   "homotopy_lambda0", "homotopy_final", "max_grad_norm", "target_entropy_scale") \
-                and isinstance(v, int) and not isinstance(v, bool):
+        elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
         out[k] = v
     return out

@@ -53,8 +53,7 @@ def make_training_env(cfg: TrainConfig, device: torch.device):
     episode or, with ``preference_resample="step"``, every step) + vector returns."""
     spec = domain_of(cfg.env_id)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
-    gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
-    return compose_training_env(env, gamma=gamma, history_len=cfg.history_len, preference_seed=cfg.seed + 1,
+    return compose_training_env(env, gamma=_gamma(cfg, spec), history_len=cfg.history_len, preference_seed=cfg.seed + 1,
                                 preference_mode=cfg.preference_distribution, preference_resample=cfg.preference_resample)
 
 
@@ -101,7 +100,7 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
         list(cfg.eval_contexts) if cfg.eval_contexts else spec.train_id,
         weights=cfg.eval_weights,
         episodes=cfg.eval_episodes,
-        gamma=cfg.gamma if cfg.gamma is not None else spec.gamma,
+        gamma=_gamma(cfg, spec),
         env_factory=env_factory,
         reference=reference,
         exploration_type=agent.eval_exploration,
@@ -119,6 +118,21 @@ def _load_reference(cfg: TrainConfig, spec: DomainSpec):
     if spec.train_id not in list_reference_domains(root) and not cfg.reference_dir:
         return None
     return load_domain_reference(root, spec.train_id)
+
+
+def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
+    """The run's discount: ``cfg.gamma``, else the domain's evaluation discount."""
+    return cfg.gamma if cfg.gamma is not None else spec.gamma
+
+
+def _build(cfg: TrainConfig, spec: DomainSpec, device: torch.device):
+    """``(training env, agent, reference, evaluator)`` of a run: what training and re-evaluation share."""
+    from morl_trl.recipes import build_agent
+
+    env = make_training_env(cfg, device)
+    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
+    reference = _load_reference(cfg, spec)
+    return env, agent, reference, make_evaluator(cfg, agent, spec, reference)
 
 
 def _set_threads(cfg: TrainConfig) -> None:
@@ -234,16 +248,10 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
-    gamma = cfg.gamma if cfg.gamma is not None else spec.gamma
-
-    from morl_trl.recipes import build_agent
 
     # everything is built before the run directory is touched: a failed start writes nothing
-    env = make_training_env(cfg, device)
-    agent = build_agent(cfg, env, gamma=gamma, device=device)
+    env, agent, reference, evaluator = _build(cfg, spec, device)
     buffer = make_replay_buffer(cfg, device)
-    reference = _load_reference(cfg, spec)
-    evaluator = make_evaluator(cfg, agent, spec, reference)
 
     frames, updates, next_eval, next_ckpt, last_eval = 0, 0, 0, cfg.checkpoint_interval, -1
     state = None
@@ -413,15 +421,11 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
-    from morl_trl.recipes import build_agent
-
-    env = make_training_env(cfg, device)
-    agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
+    _, agent, reference, evaluator = _build(cfg, spec, device)
     agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
-    log.reference = _load_reference(cfg, spec)
+    log.reference = reference
     frames = checkpoint_frames(ckpt)
-    evaluator = make_evaluator(cfg, agent, spec, log.reference)
     summary = log.evaluation(frames, evaluator.evaluate())
     log.report(summary, fps=None)
     log.close()

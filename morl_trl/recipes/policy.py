@@ -32,7 +32,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.off_policy import make_training_env, run_training
+from morl_trl.recipes.off_policy import _gamma, make_training_env, run_training
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -175,7 +175,7 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
 
     spec = domain_of(cfg.env_id)
     env = make_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
-    agent = build_agent(cfg, env, gamma=cfg.gamma if cfg.gamma is not None else spec.gamma, device=device)
+    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
     env.close()
     state = load_checkpoint(ckpt, map_location=device)
     agent.loss.load_state_dict(state["agent"]["loss"])

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -330,9 +329,3 @@ def floors_markdown(floors: dict | None = None) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
-
-def format_floor(floor: Floor | None) -> str:
-    """``"0.43 ± 0.05 (noop)"`` or ``"n/a"``."""
-    if floor is None or not math.isfinite(floor.mean):
-        return "n/a"
-    return f"{floor.mean:.2f} ± {floor.std:.2f} ({floor.policy})"
