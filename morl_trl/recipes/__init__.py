@@ -24,7 +24,7 @@ from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
 from morl_trl.recipes.envelope import make_envelope_agent
-from morl_trl.recipes.off_policy import evaluate_run, run_training, train
+from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
 __all__ = [
@@ -35,7 +35,9 @@ __all__ = [
     "TrainConfig",
     "TrainResult",
     "TrainedPolicy",
+    "TRAINING_ENV_BUILDERS",
     "build_agent",
+    "build_training_env",
     "evaluate_run",
     "load_policy",
     "resolve_config",
@@ -61,3 +63,13 @@ def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
     except KeyError:
         raise ValueError(f"unknown algorithm {cfg.algo!r}; valid: {list(ALGORITHMS)}") from None
     return builder(cfg, env, gamma=gamma, device=device)
+
+
+#: algorithm name -> ``builder(cfg, device) -> env`` for an algorithm whose training env is not
+#: :func:`~morl_trl.recipes.off_policy.make_training_env`'s (DR env + history + preferences + returns)
+TRAINING_ENV_BUILDERS: dict = {}
+
+
+def build_training_env(cfg: TrainConfig, device):
+    """The training env of ``cfg.algo`` (its own builder, else :func:`make_training_env`)."""
+    return TRAINING_ENV_BUILDERS.get(cfg.algo, make_training_env)(cfg, device)

@@ -48,6 +48,28 @@ class Agent:
         self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
 
     # ------------------------------------------------------------------ learning
+    def learn(self, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+        """What the loop does with one collected batch: returns ``(last losses or None, updates done)``.
+
+        Off-policy default: store the batch's transitions in ``buffer``, then, once ``frames``
+        reaches ``cfg.init_random_frames``, ``cfg.updates_per_batch`` :meth:`update` calls (0: one
+        per collected frame). An algorithm whose learning differs (on-policy, episodic, a
+        weight-support loop) overrides this and keeps the rest of the run (collection,
+        evaluation, checkpoints, logs) as it is. Raises :class:`NonFiniteLossError` as
+        :meth:`update` does, with ``updates_done``: the updates applied before it.
+        """
+        buffer.extend(batch.reshape(-1))
+        if frames < self.cfg.init_random_frames:
+            return None, 0
+        losses, n = None, self.cfg.updates_per_batch or batch.numel()
+        for i in range(n):
+            try:
+                losses = self.update(buffer)
+            except NonFiniteLossError as err:
+                err.updates_done = i  # the loop counts the updates applied before it
+                raise
+        return losses, n
+
     def update(self, buffer) -> TensorDictBase:
         """One gradient step on a sampled batch; raises :class:`NonFiniteLossError` before stepping on NaNs.
 

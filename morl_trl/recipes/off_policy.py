@@ -127,9 +127,9 @@ def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
 
 def _build(cfg: TrainConfig, spec: DomainSpec, device: torch.device):
     """``(training env, agent, reference, evaluator)`` of a run: what training and re-evaluation share."""
-    from morl_trl.recipes import build_agent
+    from morl_trl.recipes import build_agent, build_training_env
 
-    env = make_training_env(cfg, device)
+    env = build_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
     reference = _load_reference(cfg, spec)
     return env, agent, reference, make_evaluator(cfg, agent, spec, reference)
@@ -331,7 +331,6 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             next_eval += cfg.eval_interval
         tqdm.write(_eval_line(summary))
 
-    updates_per_batch = cfg.updates_per_batch or cfg.frames_per_batch
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
     t_start, frames_start = time.perf_counter(), frames
 
@@ -346,20 +345,18 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         # policy trained on `frames` frames. A checkpoint is the state at the end of a batch
         # (after its evaluation), so the batch after it is the same whether the run resumes or not.
         for batch in collector:
-            buffer.extend(batch.reshape(-1))
             frames += batch.numel()
             log.training_episodes(frames, batch)
-            if frames >= cfg.init_random_frames:
-                for _ in range(updates_per_batch):
-                    try:
-                        losses = agent.update(buffer)
-                    except NonFiniteLossError as err:
-                        path = _stop(log, summary, fps(), f"{err} (at {frames:,} frames, after {updates} updates)",
-                                     lambda: checkpoint(frames, stopped=str(err)))
-                        raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
-                    updates += 1
-                if updates % 50 == 0 or updates_per_batch > 1:
-                    log.losses(frames, losses)
+            try:
+                losses, done_updates = agent.learn(batch, buffer, frames)  # store + update (the algorithm's)
+            except NonFiniteLossError as err:
+                updates += getattr(err, "updates_done", 0)
+                path = _stop(log, summary, fps(), f"{err} (at {frames:,} frames, after {updates} updates)",
+                             lambda: checkpoint(frames, stopped=str(err)))
+                raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
+            updates += done_updates
+            if losses is not None and (updates % 50 == 0 or done_updates > 1):
+                log.losses(frames, losses)
             agent.on_frames(frames)
             collector.update_policy_weights_()
             bar.update(batch.numel())

@@ -32,7 +32,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.off_policy import _gamma, make_training_env, run_training
+from morl_trl.recipes.off_policy import _gamma, run_training
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -171,14 +171,14 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = dataclasses.replace(cfg, device=str(device))
-    from morl_trl.recipes import build_agent
+    from morl_trl.recipes import build_agent, build_training_env
 
     spec = domain_of(cfg.env_id)
-    env = make_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
+    env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
     agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
     env.close()
     state = load_checkpoint(ckpt, map_location=device)
-    agent.loss.load_state_dict(state["agent"]["loss"])
+    agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
                            device=device)
     return policy.eval()
