@@ -15,6 +15,16 @@ def test_config_takes_the_dmc_domains_defaults():
     assert (cfg.frames, cfg.history_len, cfg.eval_interval, cfg.eval_weights) == (1_000_000, 2, 50_000, 32)
 
 
+def test_no_reference_data_means_no_nhgr():
+    from morl_trl.envs import domain_of
+    from morl_trl.recipes.off_policy import _load_reference, no_reference_note
+
+    spec = domain_of("DMCHopperDR-v0")
+    assert _load_reference(resolve_config("capql", "DMCHopperDR-v0"), spec) is None
+    assert no_reference_note(spec).startswith("NHGR unavailable for DMCHopperDR-v0: no reference data")
+
+
+@pytest.mark.slow  # ~40 s: three evaluations of 1000-step episodes
 def test_capql_runs_on_dmc_and_says_nhgr_is_unavailable(tmp_path, capsys):
     cfg = resolve_config(
         "capql", "DMCCheetahDR-v0", quick=True, run_dir=str(tmp_path / "run"), frames=256, num_envs=4,
