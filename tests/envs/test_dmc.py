@@ -174,6 +174,8 @@ def test_registry_ids_and_evaluation_suite():
     assert spec.context_space.as_dict(spec.context_of("DMCHopperHard-v0"))["torso_mass"] == 2.0
     with pytest.raises(ValueError, match=r"'friction' is 20\.0.*\[0\.01, 10\.0\]"):
         make_env("DMCWalkerDefault-v0", friction=20.0)
+    with pytest.raises(ValueError, match=r"'joint_damping' is -1\.0 \(row 0\); it must be >= 0"):
+        make_env("DMCWalkerDefault-v0", joint_damping=-1.0, allow_extrapolation=True)
     with pytest.raises(ValueError, match="task must be one of"):
         make_env("DMCWalkerDefault-v0", task="fly")
 
@@ -197,3 +199,20 @@ def test_snapshot_resumes_exactly():
             out.append(step["next", "reward"].clone())
         runs.append(torch.stack(out))
     assert torch.equal(runs[0], runs[1])
+
+
+@pytest.mark.parametrize("env_id", ["DMCWalkerDefault-v0", "DMCHopperDefault-v0"])
+def test_render_shows_the_sub_env(env_id):
+    from morl_trl.envs.mujoco.render import gl_backend
+
+    try:
+        gl_backend()
+    except RuntimeError as err:
+        pytest.skip(str(err))
+    env = make_env(env_id, num_envs=2, seed=0)
+    env.reset()
+    before = env.render(index=1, width=96, height=64)
+    assert before.shape == (64, 96, 3) and before.dtype == np.uint8 and before.std() > 0
+    for _ in range(5):
+        env.rand_step()
+    assert (env.render(index=1, width=96, height=64) != before).any()

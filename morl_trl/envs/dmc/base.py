@@ -148,6 +148,16 @@ class DMCContextEnv(MujocoContextEnv):
         # the constants derived from masses (subtree masses: the suite's speed sensor)
         mujoco.mj_setConst(model, self._scratch)
 
+    def _check_physics(self, context: np.ndarray) -> None:
+        """Reject negative damping or stiffness (which the ContextSpace lets through under
+        ``allow_extrapolation``) before any state changes."""
+        for name in ("joint_damping", "joint_stiffness"):
+            col = self.context_space_.index(name)
+            bad = np.flatnonzero(context[:, col] < 0)
+            if bad.size:
+                raise ValueError(f"context parameter {name!r} is {float(context[bad[0], col])} (row {int(bad[0])}); "
+                                 f"it must be >= 0")
+
     def _apply_contexts(self, ids, context: np.ndarray) -> None:
         values = _as_decimal_float64(context)
         for i, row in zip(ids, values):
@@ -164,6 +174,7 @@ class DMCContextEnv(MujocoContextEnv):
 
     def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
         context = context.cpu().numpy()
+        self._check_physics(context)  # before anything changes
         ids = idx.cpu().numpy()
         self._apply_contexts(ids, context)
         self._sim.set_models(self._models)  # Batch's contract after editing a model
