@@ -216,3 +216,22 @@ def test_render_shows_the_sub_env(env_id):
     for _ in range(5):
         env.rand_step()
     assert (env.render(index=1, width=96, height=64) != before).any()
+
+
+def test_lean_auto_reset_matches_torchrl_path_under_dr():
+    """The lean ``step_and_maybe_reset`` (partial resets, new DR contexts and timesteps) gives
+    TorchRL's generic step + step_mdp + maybe_reset TensorDicts."""
+    from tests.envs.test_auto_reset import _run_both
+
+    make = lambda: make_env("DMCHopperDR-v0", num_envs=3, seed=1, max_episode_steps=7)  # noqa: E731
+    assert _run_both(make, steps=16) == 6  # every sub-env ends at steps 7 and 14
+
+
+def test_partial_step_advances_only_the_selected_sub_envs():
+    env = make_env("DMCCheetahDefault-v0", num_envs=2, seed=0)
+    td = env.reset()
+    qpos = env.mj_data(1).qpos.copy()
+    td["action"] = torch.full((2, 6), 0.5)
+    td["_step"] = torch.tensor([True, False])
+    env.step(td)
+    assert np.array_equal(env.mj_data(1).qpos, qpos) and env.mj_data(0).time == pytest.approx(0.01)
