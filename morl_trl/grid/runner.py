@@ -194,6 +194,8 @@ def run_grid(
     died. ``stream=False`` prints nothing. ``run_cell(cell, run_dir)`` replaces :func:`run_cell`
     (it must be importable by the workers).
     """
+    os.environ.setdefault("TUNE_DISABLE_AUTO_CALLBACK_LOGGERS", "1")  # our runs log themselves
+    os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     from ray import tune
 
     cells = spec.check()
@@ -228,7 +230,7 @@ def run_grid(
         tuner = tune.Tuner(
             trainable,
             param_space=param_space,
-            tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent,
+            tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent, reuse_actors=True,
                                         trial_dirname_creator=lambda t: t.trial_id,
                                         trial_name_creator=lambda t: Cell(**t.config["cell"]).name),
             run_config=tune.RunConfig(

@@ -40,20 +40,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Cell", "GridSpec", "load_grid_spec", "QUICK_GRID"]
+__all__ = ["Cell", "GridSpec", "load_grid_spec", "read_grid_file", "QUICK_GRID"]
 
 _TOP_KEYS = ("name", "seeds", "quick", "overrides", "resources", "algorithms", "domains", "block", "cell")
 _RESOURCE_KEYS = ("cpus", "gpus")
 
-#: the built-in ``--quick`` grid: 2 algorithms × MO-LavaGrid × 2 seeds, each a short ``--quick``
-#: run (about a minute of one CPU core each)
+#: the built-in ``--quick`` grid (``examples/grid/quick.toml``): 2 algorithms × MO-LunarLander ×
+#: 2 seeds, each a shortened ``--quick`` run (16k frames, 8 evaluation weights: about a minute
+#: of one CPU core each)
 QUICK_GRID: dict[str, Any] = {
     "name": "quick",
     "algorithms": ["envelope", "mosac_discrete"],
-    "domains": ["MOLavaGridDR-v0"],
+    "domains": ["MOLunarLanderDR-v0"],
     "seeds": [0, 1],
     "quick": True,
-    "overrides": {"frames": 12_000, "eval_interval": 4_000, "checkpoint_interval": 4_000, "init_random_frames": 1_000},
+    "overrides": {"frames": 16_000, "eval_interval": 4_000, "checkpoint_interval": 4_000},
 }
 
 
@@ -264,6 +265,11 @@ def _rule_text(rule: dict) -> str:
 
 def load_grid_spec(path: str | Path) -> GridSpec:
     """Read a grid spec from a ``.toml`` or ``.json`` file (see the module docstring)."""
+    return GridSpec.from_dict(read_grid_file(path), f"grid spec {str(path)!r}")
+
+
+def read_grid_file(path: str | Path) -> dict:
+    """The raw table of a grid spec file (``ValueError`` if it is missing or does not parse)."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"grid spec {str(path)!r} does not exist")
@@ -276,4 +282,4 @@ def load_grid_spec(path: str | Path) -> GridSpec:
             raise ValueError(f"grid spec {str(path)!r}: use a .toml or .json file")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as err:
         raise ValueError(f"grid spec {str(path)!r} does not parse: {err}") from None
-    return GridSpec.from_dict(data, f"grid spec {str(path)!r}")
+    return data
