@@ -100,6 +100,21 @@ def write_cell_record(grid_dir: str | Path, name: str, **values) -> dict:
     return record
 
 
+def _attempt_alive(record: dict) -> bool:
+    """Whether the process of a cell's running attempt may still be alive (``False`` only when it
+    ran on this host and its pid is gone: a killed grid leaves ``"running"`` records behind)."""
+    pid = record.get("pid")
+    if record.get("host") != os.uname().nodename or not isinstance(pid, int):
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def cell_state(grid_dir: str | Path, name: str, target: int | None, *, running: bool | None = None) -> CellState:
     """The state of cell ``name`` (``target``: its frames; ``running``: what the scheduler knows,
     ``None`` to trust the cell's record)."""
@@ -116,7 +131,7 @@ def cell_state(grid_dir: str | Path, name: str, target: int | None, *, running: 
     if ckpt is not None and target is not None and ckpt >= target and record.get("status") != "failed":
         return CellState(name, "done", ckpt, target, **common)
     recorded = record.get("status")
-    if running or (running is None and recorded == "running"):
+    if running or (running is None and recorded == "running" and _attempt_alive(record)):
         return CellState(name, "running", frames, target, **common)
     if recorded == "failed":
         return CellState(name, "failed", frames, target, error=record.get("error"), **common)

@@ -157,3 +157,47 @@ def test_report_is_the_reference_table_of_the_runs(grid, capsys):
     assert "report/curves_MOLavaGridDR-v0.png" in (grid.dir / "report.md").read_text()
     assert main(["grid", "status", str(grid.dir)]) == 0
     assert capsys.readouterr().out.startswith("grid: 4/4 done, 0 running, 0 failed, 0 to run")
+
+
+# ---------------------------------------------------------------- the whole command killed
+@pytest.mark.slow
+def test_a_killed_grid_command_resumes_when_run_again(tmp_path):
+    """SIGKILL ``morl-trl grid`` (its whole process group: driver, Ray, the worker) mid-run; the same
+    command then resumes the cell from its newest checkpoint and finishes it."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("ray")
+    from tests.runs._helpers import env
+
+    spec = tmp_path / "grid.json"
+    spec.write_text(json.dumps({"name": "killed", "algorithms": ["envelope"], "domains": ["MOLavaGridDR-v0"],
+                                "seeds": [0], "overrides": {**TINY, "frames": 4096, "eval_interval": 1024,
+                                                            "checkpoint_interval": 512}}))
+    grid_dir = tmp_path / "g"
+    cmd = [sys.executable, "-m", "morl_trl.cli", "grid", str(spec), "--dir", str(grid_dir), "--num-cpus", "1",
+           "--no-report", "--progress-interval", "5"]
+    proc = subprocess.Popen(cmd, env=env(), cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    latest = grid_dir / "runs" / "envelope__MOLavaGridDR-v0__s0" / "checkpoints" / "latest"
+    deadline = time.time() + 240
+    try:
+        while time.time() < deadline and proc.poll() is None:
+            if latest.is_file() and latest.read_text().strip() not in ("", "frames_000000000000"):
+                break
+            time.sleep(0.05)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    killed_at = int(latest.read_text().strip().split("_")[-1])
+    assert 0 < killed_at < 4096
+    time.sleep(2)
+    again = subprocess.run(cmd, env=env(), cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "0 finished (skipped), 1 to run (1 resume from their checkpoints)" in again.stdout
+    log = (grid_dir / "runs" / "envelope__MOLavaGridDR-v0__s0" / "log.txt").read_text()
+    assert f"resumed from frames_{killed_at:012d}" in log
+    run = grid_dir / "runs" / "envelope__MOLavaGridDR-v0__s0"
+    assert _eval_frames(run) == [f for f in (0, 1024, 2048, 3072, 4096) for _ in range(2)]
