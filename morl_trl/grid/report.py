@@ -129,6 +129,11 @@ def grid_rows(grid_dir: str | Path, *, reference_dir: str | Path | None = None, 
                 row.label = paper_label(algo)
                 rows.append(row)
         protocol[domain] = (sorted(set(weights.values())), contexts)
+        from morl_trl.envs import domain_of
+
+        if protocol[domain][0] != [domain_of(domain).eval_weights]:
+            notes.append(f"{domain}: EUGR on the runs' {', '.join(map(str, protocol[domain][0]))} energy weights "
+                         f"(the paper's protocol: {domain_of(domain).eval_weights})")
     return rows, notes, protocol
 
 

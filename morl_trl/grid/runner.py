@@ -194,9 +194,10 @@ def run_grid(
     died. ``stream=False`` prints nothing. ``run_cell(cell, run_dir)`` replaces :func:`run_cell`
     (it must be importable by the workers).
     """
-    os.environ.setdefault("TUNE_DISABLE_AUTO_CALLBACK_LOGGERS", "1")  # our runs log themselves
+    os.environ.setdefault("TUNE_DISABLE_AUTO_CALLBACK_LOGGERS", "1")  # our runs log themselves: no TensorBoard/CSV
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     from ray import tune
+    from ray.tune.logger import JsonLoggerCallback
 
     cells = spec.check()
     grid_dir = Path(grid_dir).resolve()
@@ -237,7 +238,7 @@ def run_grid(
                 name=f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}",
                 storage_path=str(grid_dir / "tune"),
                 failure_config=tune.FailureConfig(max_failures=max_failures),
-                callbacks=[progress.as_callback()],
+                callbacks=[progress.as_callback(), JsonLoggerCallback()],  # (Tune reads its result.json)
                 verbose=0,
             ),
         )

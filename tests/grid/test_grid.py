@@ -35,6 +35,20 @@ def test_spec_lists_every_cell_with_its_overrides_and_resources():
     assert (cfg.algo, cfg.seed, cfg.frames, cfg.run_dir, cfg.progress) == ("mosac_discrete", 1, 512, "/tmp/x", False)
 
 
+def test_a_run_with_a_gpu_share_trains_on_cuda():
+    (cell,) = GridSpec.from_dict({**SPEC, "algorithms": ["envelope"], "seeds": [0],
+                                  "resources": {"cpus": 1, "gpus": 0.25}}).cells()
+    assert (cell.cpus, cell.gpus) == (1.0, 0.25)
+    assert cell.config(check_device=False).device == "cpu"  # what a driver without the GPU checks
+    import torch
+
+    if torch.cuda.is_available():
+        assert cell.config().device == "cuda"
+    else:
+        with pytest.raises(ValueError, match="config key 'device' .* is 'cuda'"):
+            cell.config()
+
+
 @pytest.mark.parametrize("change, message", [
     ({"algorithms": ["envelope", "nope"]}, r"algorithm\(s\) \['nope'\] are not available; valid: \['envelope'"),
     ({"domains": ["MOLavaGridDR-v9"]}, "MOLavaGridDR-v9"),
