@@ -47,6 +47,31 @@ def run_cell(cell: Cell, run_dir: Path) -> dict:
     return train(cfg, overwrite=True)
 
 
+#: seconds a trial waits for an earlier attempt's process to let go of its cell
+LOCK_WAIT_S = 120.0
+
+
+def _lock_cell(grid_dir: Path, name: str, wait_s: float = LOCK_WAIT_S):
+    """An exclusive lock on ``cells/<name>.lock`` (released when its process dies, even by SIGKILL),
+    so two attempts never write one run directory: a worker of a killed grid can outlive its
+    driver for a few seconds. Returns the open file holding the lock."""
+    import fcntl
+
+    (grid_dir / "cells").mkdir(parents=True, exist_ok=True)
+    fh = open(grid_dir / "cells" / f"{name}.lock", "a+")  # noqa: SIM115 - held for the trial's lifetime
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return fh
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                fh.close()
+                raise RuntimeError(f"another process still holds cell {name} after {wait_s:.0f} s (a worker of an "
+                                   f"earlier grid run?); run the grid again once it has stopped") from None
+            time.sleep(0.2)
+
+
 def _trainable(config: dict) -> None:
     """The Tune trial of one cell (runs in a Ray worker)."""
     from ray import tune
@@ -54,6 +79,14 @@ def _trainable(config: dict) -> None:
     cell = Cell(**config["cell"])
     grid_dir = Path(config["grid_dir"])
     run = config.get("run_cell") or run_cell
+    lock = _lock_cell(grid_dir, cell.name)
+    try:
+        _run_trial(cell, grid_dir, run, tune)
+    finally:
+        lock.close()  # (releases the lock)
+
+
+def _run_trial(cell: Cell, grid_dir: Path, run, tune) -> None:
     record = read_cell_record(grid_dir, cell.name)
     write_cell_record(grid_dir, cell.name, status="running", attempts=int(record.get("attempts", 0)) + 1,
                       error=None, host=os.uname().nodename, pid=os.getpid())
