@@ -79,6 +79,22 @@ def test_shipped_grid_files():
     assert load_grid_spec(ROOT / "examples/grid/quick.toml") == GridSpec.from_dict(QUICK_GRID)
 
 
+@pytest.mark.parametrize("args, message", [
+    ([], "give a grid spec file, --quick, or --algos and --domains"),
+    (["--quick", "--algos", "envelope"], "--algos and --domains go together"),
+    (["--quick", "--seeds", "0,x"], "--seeds '0,x': give comma-separated ints"),
+    (["--algos", "envelope", "--domains", "MOLavaGridDR-v0", "--set", "lr=-1"], "cell envelope__MOLavaGridDR-v0__s0: "
+     "config key 'lr'"),
+    (["no/such/spec.toml"], "grid spec 'no/such/spec.toml' does not exist"),
+])
+def test_grid_command_refuses_bad_input_before_running(capsys, tmp_path, args, message):
+    from morl_trl.cli import main
+
+    assert main(["grid", *args, "--dir", str(tmp_path / "g")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "g").exists()
+
+
 # ---------------------------------------------------------------- on Ray
 @pytest.fixture(scope="module")
 def grid(tmp_path_factory):
