@@ -77,13 +77,16 @@ class Cell:
 
     def config(self, run_dir: str | Path | None = None, *, check_device: bool = True):
         """The cell's resolved :class:`~morl_trl.recipes.TrainConfig` (``resolve_config`` with
-        its overrides, no progress bar; ``device="cuda"`` when it asks for a GPU and names no device).
+        its overrides, no progress bar; ``device="cuda"`` when it asks for a GPU and names no
+        device; ``num_threads`` = its whole CPUs when it reserves more than one and names none).
 
         ``check_device=False`` resolves with ``device="cpu"`` (to check a cell on a driver
         without the GPU its worker will have)."""
         from morl_trl.recipes import resolve_config
 
         values = {"progress": False, **self.overrides}
+        if self.cpus >= 2 and "num_threads" not in self.overrides:
+            values["num_threads"] = int(self.cpus)
         if self.gpus > 0 and "device" not in self.overrides:
             values["device"] = "cuda"
         if not check_device:

@@ -32,6 +32,7 @@ def test_spec_lists_every_cell_with_its_overrides_and_resources():
     assert list(cells) == [ENVELOPE_0, ENVELOPE_1, SAC_0, SAC_1]
     assert cells[ENVELOPE_1].config().lr == 1e-3 and cells[ENVELOPE_0].config().lr == 3e-4
     assert (cells[ENVELOPE_1].cpus, cells[SAC_0].cpus) == (2.0, 0.5)
+    assert (cells[ENVELOPE_1].config().num_threads, cells[SAC_0].config().num_threads) == (2, 1)
     cfg = cells[SAC_1].config("/tmp/x")
     assert (cfg.algo, cfg.seed, cfg.frames, cfg.run_dir, cfg.progress) == ("mosac_discrete", 1, 512, "/tmp/x", False)
 
