@@ -74,9 +74,9 @@ def test_a_bad_value_is_refused_before_anything_runs():
 def test_shipped_grid_files():
     paper = load_grid_spec(ROOT / "examples/grid/paper.toml")
     cells = paper.check()
-    assert len(cells) == 2 * 3 * 5 * 2 and paper.seeds == (0, 1, 2, 3, 4)
+    assert len(cells) == (3 + 2 + 2 * 3) * 5 and paper.seeds == (0, 1, 2, 3, 4)
     mario = [c for c in cells if c.env_id == "MOSuperMarioBrosZeroShot-v2"]
-    assert len(mario) == 10 and {c.cpus for c in mario} == {2.0}
+    assert len(mario) == 5 and {c.cpus for c in mario} == {2.0} and {c.algo for c in mario} == {"envelope"}
     assert load_grid_spec(ROOT / "examples/grid/quick.toml") == GridSpec.from_dict(QUICK_GRID)
 
 
