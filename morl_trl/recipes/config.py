@@ -27,7 +27,7 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "pcn")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "pcn", "pgmorl")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -232,6 +232,25 @@ class TrainConfig:
     pcn_model_updates: int = _key("pcn", 50, "supervised updates per command (num_model_updates)", _int(1))
     pcn_noise: float = _key("pcn", 0.1, "std of the Gaussian noise on continuous actions", _float(0.0, 1e6))
     pcn_hidden: int = _key("pcn", 64, "width of PCN's embeddings and hidden layer (hidden_dim)", _int(1))
+    # PGMORL (Xu et al. 2020; MORL-Baselines' defaults, SPEC §4 per domain)
+    pgmorl_pop: int = _key("pgmorl", 6, "population size (one PPO task per member)", _int(1))
+    pgmorl_envs_per_member: int = _key("pgmorl", 4, "sub-envs per member (num_envs must be pgmorl_pop times this; "
+                                       "frames_per_batch / num_envs = steps per iteration)", _int(1))
+    pgmorl_warmup: int = _key("pgmorl", 80, "warm-up iterations", _int(1))
+    pgmorl_evo_iterations: int = _key("pgmorl", 20, "iterations between task selections", _int(1))
+    pgmorl_num_buffers: int = _key("pgmorl", 100, "bins of the performance buffer (num_performance_buffer)",
+                                   _int(2))
+    pgmorl_buffer_size: int = _key("pgmorl", 2, "policies per bin (performance_buffer_size)", _int(1))
+    pgmorl_delta_weight: float = _key("pgmorl", 0.2, "weight grid step (candidates: half of it)",
+                                      _float(0.0, 1.0, open_low=True))
+    pgmorl_sparsity: float = _key("pgmorl", -1.0, "sparsity coefficient of the task selection", _float(-1e12, 1e12))
+    pgmorl_epochs: int = _key("pgmorl", 10, "PPO epochs per iteration", _int(1))
+    pgmorl_minibatches: int = _key("pgmorl", 32, "PPO minibatches per epoch and member", _int(1))
+    pgmorl_clip: float = _key("pgmorl", 0.2, "PPO ratio and value clip", _float(0.0, 10.0, open_low=True))
+    pgmorl_gae_lambda: float = _key("pgmorl", 0.95, "GAE lambda", _float(0.0, 1.0))
+    pgmorl_eval_obs: str = _key("pgmorl", "raw", "observations of the evaluated policy: 'raw' (the authors: "
+                                "normalised policies fed raw observations) or 'normalized' (the training "
+                                "normalisation, frozen)", _choice(("raw", "normalized")))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -374,6 +393,10 @@ _ALGO = {
     # PCN: MORL-Baselines' lr 1e-3 and batch 256; the collector's random frames are replaced by
     # the authors' pcn_er_episodes random episodes
     "pcn": dict(lr=1e-3, batch_size=256, init_random_frames=0, prioritized=False),
+    # PGMORL: P x 4 envs x 2048 steps per iteration, MO-PPO's lr 3e-4 and gradient norm 0.5, sampled
+    # evaluation actions (MOPPO.eval samples)
+    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 2048, init_random_frames=0, prioritized=False,
+                   max_grad_norm=0.5, eval_exploration="random"),
 }
 _PCN_DOMAIN = {  # SPEC §4: scaling factor, max return, buffer (episodes), ER episodes (+ noise, batch)
     "MOLunarLanderDR-v0": dict(pcn_scaling_factor=(0.1,) * 5, pcn_buffer_episodes=100_000, pcn_er_episodes=1000),
@@ -397,6 +420,12 @@ _ALGO_DOMAIN = {
     ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
     ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
     **{("pcn", d): v for d, v in _PCN_DOMAIN.items()},
+    ("pgmorl", "MOHopperDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
+                                      pgmorl_num_buffers=210, pgmorl_sparsity=-1e6, pgmorl_delta_weight=0.25),
+    ("pgmorl", "MOHalfCheetahDR-v5"): dict(pgmorl_warmup=80, pgmorl_evo_iterations=20, pgmorl_num_buffers=100,
+                                           pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
+    ("pgmorl", "MOHumanoidDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
+                                        pgmorl_num_buffers=100, pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
 }
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
@@ -408,6 +437,8 @@ _QUICK = dict(
 # --quick per algorithm, on top of _QUICK (PCN: fewer random warm-up episodes than the authors' 1000)
 _QUICK_ALGO = {
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
+    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 128, init_random_frames=0, pgmorl_warmup=6,
+                   pgmorl_evo_iterations=4, pgmorl_minibatches=4),
 }
 
 

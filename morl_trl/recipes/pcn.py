@@ -42,6 +42,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torch import nn
+from torchrl.envs import ClipTransform
 
 from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
@@ -72,6 +73,10 @@ def make_pcn_training_env(cfg, device: torch.device):
     env = compose_policy_env(make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed),
                              history_len=cfg.history_len)
     k = num_objectives(env)
+    spec = action_spec(env)
+    if not is_discrete(spec):  # MuJoCo clamps the controls to their range: the env gets them clipped, PCN learns the sample
+        env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
+                                           low=float(spec.space.low.min()), high=float(spec.space.high.max())))
     env.append_transform(DesiredReturnConditioning(k, max_return=_max_return(cfg, k)))
     env.append_transform(DiscountedVectorReturn(_gamma(cfg)))
     return env
@@ -130,6 +135,9 @@ class PCNPolicy(TensorDictModuleBase):
             return td.set("action", action.to(self.action_spec_.dtype))
         if self.mode == "explore":
             out = out + self.noise * torch.randn(*out.shape[:-1], 1, device=out.device)
+        else:  # the env's bounds (the training env clips the explored actions the same way)
+            out = torch.maximum(torch.minimum(out, self.action_spec_.space.high.to(out.device)),
+                                self.action_spec_.space.low.to(out.device))
         return td.set("action", out.to(self.action_spec_.dtype))
 
 
