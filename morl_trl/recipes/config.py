@@ -437,8 +437,8 @@ _QUICK = dict(
 # --quick per algorithm, on top of _QUICK (PCN: fewer random warm-up episodes than the authors' 1000)
 _QUICK_ALGO = {
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
-    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 128, init_random_frames=0, pgmorl_warmup=6,
-                   pgmorl_evo_iterations=4, pgmorl_minibatches=4),
+    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,
+                   pgmorl_evo_iterations=2, pgmorl_minibatches=8, eval_interval=30_720),
 }
 
 

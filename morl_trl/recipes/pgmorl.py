@@ -152,8 +152,8 @@ class PGMORLAgent(Agent):
         self.population = PerformanceBuffer(cfg.pgmorl_num_buffers, cfg.pgmorl_buffer_size, self.ref_point)
         self.predictor = PerformancePredictor()
         self.archive: list = []
-        self.evals_before = np.zeros((self.P, k))
-        self.performance = np.zeros((self.P, k))
+        self.evals_before = np.full((self.P, k), np.nan)  # NaN: no episode of the member has ended yet
+        self.performance = np.full((self.P, k), np.nan)
         self.iteration = 0
         self.generation = 0
         self.rng = np.random.default_rng(cfg.seed)
@@ -169,7 +169,7 @@ class PGMORLAgent(Agent):
         b = batch.reshape(P, E, batch.shape[-1])
         self._record_performance(b)
         b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
-                     ("next", "done"), ("next", "terminated"))
+                     ("next", "done"), ("next", "terminated")).detach()
         nxt = b.get("next")
         self.reward_clip(self.reward_norm._step(b, nxt))  # the statistics take the batch, then normalise it
         if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
@@ -237,14 +237,16 @@ class PGMORLAgent(Agent):
     def _evaluate_all(self, *, add_to_prediction: bool) -> None:
         for p in range(self.P):
             perf = self.performance[p].copy()
+            if not np.isfinite(perf).all():
+                continue  # not evaluated yet (no episode of it has ended)
             self.population.add(self._member_state(p), perf)
             self.archive = nondominated(self.archive + [perf])
-            if add_to_prediction:
+            if add_to_prediction and np.isfinite(self.evals_before[p]).all():
                 self.predictor.add(self.weights[p].cpu().numpy(), self.evals_before[p], perf)
             self.evals_before[p] = perf
 
     def _select_tasks(self) -> None:
-        if len({tuple(a) for a in self.predictor.after}) < 4:
+        if len({tuple(a) for a in self.predictor.after}) < 4 or not self.population.individuals:
             return  # the prediction model needs 4 distinct samples: the members keep their tasks
         tasks = select_tasks(self.population, self.archive, self.predictor, self.P,
                              delta_weight=self.cfg.pgmorl_delta_weight, ref_point=self.ref_point,
