@@ -18,6 +18,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.objectives import LossModule
 
+from morl_trl.objectives.common import module_output
+
 __all__ = ["PCNNetwork", "PCNLoss", "make_pcn_network"]
 
 
@@ -106,16 +108,15 @@ class PCNLoss(LossModule):
         return ["observation", "desired_return", "desired_horizon", self.tensor_keys.action]
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
-        td = tensordict.select(*self.in_keys, strict=False).copy()
-        with self.policy_network_params.to_module(self.policy_network):
-            out = self.policy_network(td)
+        key = self.tensor_keys.log_probs if self.discrete else self.tensor_keys.action_pred
+        with self.policy_network_params.to_module(self.policy_network, preserve_module_state=False):
+            pred = module_output(self.policy_network, tensordict, key)
         action = tensordict.get(self.tensor_keys.action)
         if self.discrete:
-            logp = out.get(self.tensor_keys.log_probs)
+            logp = pred
             if action.shape == logp.shape:  # one-hot
                 action = action.argmax(-1)
             nll = -logp.gather(-1, action.long().reshape(*logp.shape[:-1], 1)).squeeze(-1)
             entropy = -(logp.exp() * logp).sum(-1).mean().detach()
             return TensorDict({"loss_pcn": nll.mean(), "entropy": entropy}, [])
-        pred = out.get(self.tensor_keys.action_pred)
         return TensorDict({"loss_pcn": torch.nn.functional.mse_loss(pred, action.to(pred.dtype))}, [])
