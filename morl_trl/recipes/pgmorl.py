@@ -140,10 +140,11 @@ class PGMORLAgent(Agent):
     """The PGMORL :class:`~morl_trl.recipes.agent.Agent` (see the module)."""
 
     def __init__(self, cfg, loss, actor, critic, eval_policy, optimizer, *, weights, steps, gamma, ref_point,
-                 device) -> None:
+                 device, obs_norm=None) -> None:
         super().__init__(cfg, loss, actor, eval_policy, {"ppo": optimizer}, None, device=device,
                          eval_exploration=eval_exploration(cfg))
         self.actor, self.critic = actor, critic
+        self.obs_norm = obs_norm  # the training env's observation VecNorm (its statistics travel with the agent)
         self.head = actor.module[0].module if hasattr(actor.module[0], "module") else actor.module[0]
         self.weights = weights  # [P, k]
         self.P, self.E, self.T = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member, steps
@@ -273,7 +274,8 @@ class PGMORLAgent(Agent):
                      predictor=(list(self.predictor.weights), list(self.predictor.before), list(self.predictor.after)),
                      evals_before=self.evals_before.copy(), performance=self.performance.copy(),
                      iteration=self.iteration, generation=self.generation, rng=self.rng.bit_generator.state,
-                     generator=self.generator.get_state(), reward_norm=self.reward_norm.state_dict())
+                     generator=self.generator.get_state(), reward_norm=self.reward_norm.state_dict(),
+                     obs_norm=self.obs_norm.state_dict() if self.obs_norm is not None else None)
         return state
 
     def load_state_dict(self, state: dict) -> None:
@@ -287,13 +289,15 @@ class PGMORLAgent(Agent):
         self.rng.bit_generator.state = state["rng"]
         self.generator.set_state(state["generator"])
         self.reward_norm.load_state_dict(state["reward_norm"])
+        if self.obs_norm is not None and state.get("obs_norm") is not None:
+            self.obs_norm.load_state_dict(state["obs_norm"])
 
 
 def _obs_vecnorm(env):
     from morl_trl.runs.env_state import transforms_of
 
     for t in transforms_of(env):
-        if isinstance(t, VecNorm.__mro__[0]) or type(t).__name__.startswith("VecNorm"):
+        if type(t).__name__.startswith("VecNorm"):
             if "observation" in [k if isinstance(k, str) else k[-1] for k in t.in_keys]:
                 return t
     raise ValueError("the PGMORL agent needs its training env (make_pgmorl_training_env)")
@@ -320,11 +324,12 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     weights = grid[torch.arange(P) % grid.shape[0]].clone().to(device)
     head = actor.module[0].module
     holder: dict = {}
-    obs_norm = _obs_vecnorm(env) if cfg.pgmorl_eval_obs == "normalized" else None
-    eval_policy = PGMORLEvalPolicy(head, lambda: holder["agent"].weights, obs_norm, low=spec.space.low.float(),
+    obs_norm = _obs_vecnorm(env)
+    eval_policy = PGMORLEvalPolicy(head, lambda: holder["agent"].weights,
+                                   obs_norm if cfg.pgmorl_eval_obs == "normalized" else None, low=spec.space.low.float(),
                                    high=spec.space.high.float())
     ref = domain_of(cfg.env_id).hv_ref_point or (-100.0,) * k
     agent = PGMORLAgent(cfg, loss, actor, critic, eval_policy, optimizer, weights=weights, steps=steps, gamma=gamma,
-                        ref_point=ref, device=device)
+                        ref_point=ref, device=device, obs_norm=obs_norm)
     holder["agent"] = agent
     return agent

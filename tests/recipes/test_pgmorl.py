@@ -159,6 +159,9 @@ def test_learn_runs_ppo_on_every_member_and_state_round_trips():
     _, _, other = _agent(pgmorl_epochs=2, pgmorl_minibatches=2)
     other.load_state_dict(state)
     assert other.iteration == 1 and torch.equal(other.weights, agent.weights)
+    # the observation statistics travel with the agent (a re-evaluation with normalised observations needs them)
+    assert torch.equal(other.obs_norm.loc["observation"], agent.obs_norm.loc["observation"])
+    assert torch.equal(other.reward_norm.loc["reward"], agent.reward_norm.loc["reward"])
 
 
 @pytest.mark.parametrize("module", ["morl_trl.objectives.pgmorl", "morl_trl.recipes.pgmorl_evolution",
