@@ -19,12 +19,15 @@ from torch import nn
 from torchrl.objectives import LossModule
 
 from morl_trl.objectives.common import module_output
+from morl_trl.objectives.networks import _encoder_and_width
 
 __all__ = ["PCNNetwork", "PCNLoss", "make_pcn_network"]
 
 
 class PCNNetwork(nn.Module):
     """``(observation, desired_return [k], desired_horizon [1]) -> log-probs [A]`` or ``action [A]``.
+
+    ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first).
 
     Example:
         >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=8)
@@ -33,7 +36,7 @@ class PCNNetwork(nn.Module):
         (torch.Size([5, 3]), True)
     """
 
-    def __init__(self, obs_dim: int, action_dim: int, num_objectives: int, scaling_factor: Sequence[float],
+    def __init__(self, obs_dim, action_dim: int, num_objectives: int, scaling_factor: Sequence[float],
                  hidden: int = 64, *, discrete: bool = True) -> None:
         super().__init__()
         scale = torch.as_tensor(scaling_factor, dtype=torch.float32).flatten()
@@ -42,7 +45,11 @@ class PCNNetwork(nn.Module):
                              f"return's and the horizon's), got {list(scaling_factor)}")
         self.num_objectives, self.discrete = num_objectives, discrete
         self.register_buffer("scaling_factor", scale)
-        self.s_emb = nn.Sequential(nn.Linear(obs_dim, hidden), nn.Sigmoid())
+        # an image (C, H, W) goes through the Nature CNN first (512 features; MORL-Baselines' PCN is
+        # written for vector observations)
+        encoder, width = _encoder_and_width(obs_dim, 512)
+        self.obs_ndim = 1 if encoder is None else 3
+        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, hidden), nn.Sigmoid())
         self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, hidden), nn.Sigmoid())
         layers = [nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, action_dim)]
         if discrete:
@@ -51,7 +58,8 @@ class PCNNetwork(nn.Module):
 
     def forward(self, observation: torch.Tensor, desired_return: torch.Tensor, desired_horizon: torch.Tensor):
         c = torch.cat([desired_return, desired_horizon], -1).float() * self.scaling_factor
-        return self.fc(self.s_emb(observation.float().flatten(observation.ndim - 1)) * self.c_emb(c))
+        obs = observation if self.obs_ndim == 3 else observation.float()
+        return self.fc(self.s_emb(obs) * self.c_emb(c))
 
 
 def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor, hidden: int = 64, *,

@@ -262,9 +262,8 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     if len(scale) != k + 1:
         raise ValueError(f"config key 'pcn_scaling_factor' is {scale}; valid: {k + 1} numbers (the desired return's "
                          f"{k} and the horizon's) or null")
-    obs_dim = 1
-    for d in obs_shape(env):
-        obs_dim *= d
+    shape = obs_shape(env)
+    obs_dim = shape[0] if len(shape) == 1 else shape
     action_dim = spec.space.n if discrete else int(spec.shape[-1])
     net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.pcn_hidden, discrete=discrete).to(device)
     loss = PCNLoss(net)

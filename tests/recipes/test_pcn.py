@@ -159,3 +159,13 @@ def test_a_short_pcn_run_learns_and_resumes(tmp_path):
     cfg.frames = 1536
     summary = train(cfg, resume=tmp_path / "run")
     assert summary["frames"] == 1536
+
+
+def test_pcn_network_takes_images_through_the_nature_cnn():
+    from morl_trl.objectives.pcn import PCNNetwork
+
+    net = PCNNetwork((4, 84, 84), 7, 3, [0.1] * 4, hidden=16)
+    logp = net(torch.zeros(2, 4, 84, 84, dtype=torch.uint8), torch.zeros(2, 3), torch.ones(2, 1))
+    assert logp.shape == (2, 7) and torch.allclose(logp.exp().sum(-1), torch.ones(2))
+    with pytest.raises(ValueError, match="scaling_factor needs num_objectives \\+ 1 = 4 values"):
+        PCNNetwork(8, 4, 3, [0.1] * 3)
