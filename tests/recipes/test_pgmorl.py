@@ -181,3 +181,18 @@ def test_a_short_pgmorl_run_selects_tasks(tmp_path):
     assert summary["frames"] == 6 * 1024 and 0.0 <= summary["nhgr_mean"] <= 1.0
     assert agent.iteration == 6 and agent.generation >= 1  # warm-up 2, then task selections at 2, 4, 6
     assert len(agent.predictor) >= 4 and agent.population.individuals
+
+
+def test_a_tiny_pgmorl_run_resumes_with_its_population(tmp_path):
+    cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=2, pgmorl_envs_per_member=1,
+                         frames_per_batch=128, frames=256, pgmorl_warmup=1, pgmorl_evo_iterations=1,
+                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(8,), eval_interval=256, eval_weights=3,
+                         checkpoint_interval=128, eval_contexts=("MOHopperDefault-v5",), progress=False,
+                         eval_random_baseline=False, run_dir=str(tmp_path / "run"))
+    _, first, _, _ = run_training(cfg)
+    cfg.frames = 384
+    summary, agent, _, _ = run_training(cfg, resume=tmp_path / "run")
+    assert summary["frames"] == 384 and agent.iteration == first.iteration + 1 == 3
+    n = len(first.predictor)  # the prediction samples of the first part carried over, one more evaluation added
+    assert n >= 2 and len(agent.predictor) == n + 2
+    assert all(np.array_equal(a, b) for a, b in zip(agent.predictor.after[:n], first.predictor.after))
