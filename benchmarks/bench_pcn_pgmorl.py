@@ -41,7 +41,6 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from morl_trl.data.episode_replay import EpisodeReplay  # noqa: E402
 
 warnings.filterwarnings("ignore")
 

@@ -88,9 +88,8 @@ class _GaussianHead(nn.Module):
 
     def forward(self, obs: torch.Tensor):
         loc = self.mean(obs)
-        lead = loc.shape[:-1]
-        scale = self.log_std.exp().expand(self.mean.population, loc.reshape(self.mean.population, -1, loc.shape[-1]).shape[1], -1)
-        return loc, scale.reshape(*lead, loc.shape[-1])
+        per_member = loc.reshape(self.mean.population, -1, loc.shape[-1])
+        return loc, self.log_std.exp().expand_as(per_member).reshape(loc.shape)
 
     def member_state(self, p: int) -> dict[str, torch.Tensor]:
         return {name: t[p].detach().clone() for name, t in self.named_parameters()}

@@ -39,9 +39,8 @@ Example:
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
-from torch import nn
 from torchrl.envs import ClipTransform
 
 from morl_trl.data.episode_replay import EpisodeReplay
@@ -202,8 +201,6 @@ class PCNAgent(Agent):
         return losses, self.cfg.pcn_model_updates
 
     def update(self, buffer=None) -> TensorDictBase:
-        from tensordict import TensorDict
-
         obs, action, ret, horizon = self.replay.sample(self.cfg.batch_size, generator=self.generator)
         td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
                         [obs.shape[0]], device=self.device)

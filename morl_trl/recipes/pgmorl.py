@@ -65,7 +65,15 @@ from morl_trl.objectives.pgmorl import (
     scalarize_advantage,
     vector_gae,
 )
-from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import (
+    Agent,
+    NonFiniteLossError,
+    action_spec,
+    eval_exploration,
+    is_discrete,
+    num_objectives,
+    obs_shape,
+)
 from morl_trl.recipes.pgmorl_evolution import (
     PerformanceBuffer,
     PerformancePredictor,
