@@ -27,7 +27,7 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -212,6 +212,16 @@ class TrainConfig:
                             _choice(("softplus", "clamped_log_std")))
     loss_fresh_preferences: bool = _key("actor_critic", False, "CAPQL/MOSAC losses draw fresh preferences per "
                                         "sample instead of the stored ones (the authors: false)", _bool)
+    # MORL/D (morld, morld_psa)
+    pop_size: int = _key("morld", 6, "population size P (each member owns num_envs sub-envs: P * num_envs in all)",
+                         _int(1, 4096))
+    exchange_every: int = _key("morld", 20_000, "frames between exchanges (archive update, weight adaptation)", _int(1))
+    weight_adaptation: str = _key("morld", "none", "'none' (MORL/D SB: fixed weights) or 'psa' (Pareto simulated "
+                                  "annealing, MORL/D SB+PSA)", _choice(("none", "psa")))
+    psa_delta: float = _key("morld", 0.1, "PSA step: a weight is multiplied or divided by 1 + psa_delta",
+                            _float(0.0, 10.0, open_low=True))
+    update_frequency: int = _key("morld", 1, "member frames per gradient update when updates_per_batch is 0 (the "
+                                 "authors' discrete MOSAC: 4)", _int(1))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -351,7 +361,20 @@ _ALGO = {
                   prioritized=False, eval_exploration="random"),
     "mosac_discrete": dict(batch_size=128, target_update_period=2000, learn_alpha=True,
                            target_entropy_scale=0.3, prioritized=False, eval_exploration="random"),
+    # MORL/D (SPEC §4; MORL-Baselines' MOSAC / MOSACDiscrete defaults where SPEC is silent): shared buffer,
+    # energy weights, temperature 0.2 tuned; the discrete domains' values are in _ALGO_DOMAIN
+    "morld": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000, prioritized=False,
+                  eval_exploration="random", pop_size=6, exchange_every=20_000, weight_adaptation="none",
+                  num_envs=2, frames_per_batch=60, update_frequency=1),
+    "morld_psa": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000,
+                      prioritized=False, eval_exploration="random", pop_size=6, exchange_every=20_000,
+                      weight_adaptation="psa", num_envs=2, frames_per_batch=60, update_frequency=1),
+    # SAC on the domain's original scalar reward (SPEC §4), evaluated with sampled actions as the authors
+    "sac": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000, prioritized=False,
+                eval_exploration="random"),
 }
+_MORLD_DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, update_frequency=4,
+                       target_entropy_scale=0.89)
 _ALGO_DOMAIN = {
     ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200, num_sampled_prefs=4),
     ("envelope", "MOSuperMarioBrosZeroShot-v2"): dict(batch_size=64, init_random_frames=25_000, buffer_size=100_000,
@@ -360,7 +383,24 @@ _ALGO_DOMAIN = {
     ("mosac", "MOHopperDR-v5"): dict(init_random_frames=10_000),
     ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
     ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
+    # MORL/D: target periods in updates (the authors' are in frames, one update per 4 member frames)
+    **{(a, "MOHalfCheetahDR-v5"): dict(exchange_every=10_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOHopperDR-v5"): dict(init_random_frames=10_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOHumanoidDR-v5"): dict(init_random_frames=5_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOLunarLanderDR-v0"): dict(_MORLD_DISCRETE, target_update_period=500, target_entropy_scale=0.3)
+       for a in ("morld", "morld_psa")},
+    **{(a, "MOLavaGridDR-v0"): dict(_MORLD_DISCRETE, pop_size=5, exchange_every=10_000, target_update_period=50)
+       for a in ("morld", "morld_psa")},
+    ("sac", "MOLunarLanderDR-v0"): dict(tau=None, batch_size=128, target_update_period=2000, target_entropy_scale=0.3,
+                                        init_random_frames=20_000),
+    ("sac", "MOLavaGridDR-v0"): dict(tau=None, batch_size=128, target_update_period=200, target_entropy_scale=0.89,
+                                     init_random_frames=20_000),
+    ("sac", "MOSuperMarioBrosZeroShot-v2"): dict(tau=None, batch_size=64, buffer_size=100_000,
+                                                 target_update_period=1000, target_entropy_scale=0.5,
+                                                 init_random_frames=20_000, hidden=(512, 512)),
 }
+# --quick for an algorithm whose sub-env layout differs (MORL/D: num_envs sub-envs per member)
+_QUICK_ALGO = {a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")}
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
@@ -421,6 +461,7 @@ def resolve_config(
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if quick:
         values.update(_QUICK)
+        values.update(_QUICK_ALGO.get(algo, {}))
     values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
     return TrainConfig(**_coerce(values)).validate()
