@@ -112,6 +112,7 @@ def _bandit_agent(**overrides):
     return cfg, env, make_morld_agent(cfg, env, gamma=0.9, device=CPU)
 
 
+@pytest.mark.slow  # ~15-30 s on a shared CPU: ~350 population updates
 def test_population_learns_a_front_no_single_member_covers():
     torch.manual_seed(0)
     cfg, env, agent = _bandit_agent()
@@ -180,3 +181,41 @@ def test_sac_agent_learns_from_the_original_reward():
     buffer.extend(td)
     losses = agent.update(buffer)
     assert {"loss_actor", "loss_qvalue", "loss_alpha"} <= set(losses.keys())
+
+
+# ---------------------------------------------------------------------- recipes and the CLI
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("algo, folder, domains", [
+    ("morld", "morld", {"hopper": "MOHopperDR-v5", "half_cheetah": "MOHalfCheetahDR-v5", "humanoid": "MOHumanoidDR-v5",
+                        "lunar_lander": "MOLunarLanderDR-v0", "lava_grid": "MOLavaGridDR-v0"}),
+    ("sac", "sac", {"hopper": "MOHopperDR-v5", "half_cheetah": "MOHalfCheetahDR-v5", "humanoid": "MOHumanoidDR-v5",
+                    "lunar_lander": "MOLunarLanderDR-v0", "lava_grid": "MOLavaGridDR-v0",
+                    "mario": "MOSuperMarioBrosZeroShot-v2"}),
+])
+def test_paper_recipes_are_the_defaults_on_every_domain_the_paper_ran(algo, folder, domains):
+    for name, env_id in domains.items():
+        assert resolve_config(algo, "MOLavaGridDR-v0", config_file=ROOT / f"examples/{folder}/{name}_paper.toml") == \
+            resolve_config(algo, env_id)
+
+
+def test_quick_recipe_file_is_the_quick_preset():
+    path = ROOT / "examples/morld/lava_grid_quick.toml"
+    assert resolve_config("morld", "MOLavaGridDR-v0", config_file=path) == \
+        resolve_config("morld", "MOLavaGridDR-v0", quick=True)
+
+
+@pytest.mark.slow  # ~25 s: a whole run (build, 2 evaluations, report, checkpoints)
+def test_cli_trains_and_evaluates_morld_psa(tmp_path):
+    from morl_trl.cli import main
+
+    run = tmp_path / "run"
+    code = main(["train", "morld_psa", "MOLavaGridDR-v0", "--quick", "--frames", "600", "--run-dir", str(run),
+                 "--no-progress", "init_random_frames=300", "exchange_every=300", "hidden=[16]", "eval_weights=2",
+                 "eval_contexts=['MOLavaGridRoom-v0']", "eval_random_baseline=false", "batch_size=16"])
+    assert code == 0
+    rows = (run / "eval" / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 3  # header + frames 0 and 600, one context
+    state = torch.load(run / "checkpoints" / "frames_000000000600" / "state.pt", weights_only=False)
+    assert state["agent"]["morld"]["exchanges"] == 2
