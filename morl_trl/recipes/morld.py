@@ -158,7 +158,7 @@ class MORLDAgent(Agent):
         """Record each member's finished episodes, store the batch in the shared buffer, update all
         members (one batched step per update), and exchange every ``cfg.exchange_every`` frames."""
         self._record_returns(batch)
-        buffer.extend(batch.reshape(-1))
+        buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))  # what the loss reads, no more
         losses, n = None, 0
         if frames >= self.cfg.init_random_frames:
             if self.cfg.updates_per_batch:
