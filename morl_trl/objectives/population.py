@@ -221,7 +221,8 @@ def _gaussian_actor(module: nn.Module, in_keys, action_spec: Bounded, action_key
     )
 
 
-def _categorical_actor(module: nn.Module, in_keys, action_spec: TensorSpec, action_key: NestedKey) -> ProbabilisticActor:
+def _categorical_actor(module: nn.Module, in_keys, action_spec: TensorSpec,
+                       action_key: NestedKey) -> ProbabilisticActor:
     return ProbabilisticActor(
         TensorDictModule(module, in_keys=in_keys, out_keys=["logits"]),
         in_keys=["logits"], out_keys=[action_key], spec=Composite({action_key: action_spec}),
@@ -447,7 +448,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
     # ------------------------------------------------------------------ forward
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha`` on a ``[P, B]`` batch."""
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha`` on a
+        ``[P, B]`` batch."""
         if tensordict.ndim != 2 or tensordict.shape[0] != self.population:
             raise ValueError(f"{type(self).__name__} takes a [P, B] batch with P = {self.population} (row p for "
                              f"member p), got batch size {tuple(tensordict.shape)}")
@@ -531,7 +533,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         return [*keys, "alpha", "entropy"]
 
     def _set_in_keys(self) -> None:
-        net_keys = [k for k in (*self.actor_network.in_keys, *self.qvalue_network.in_keys) if k != self.tensor_keys.action]
+        net_keys = [k for k in (*self.actor_network.in_keys, *self.qvalue_network.in_keys)
+                    if k != self.tensor_keys.action]
         keys = [self.tensor_keys.action, ("next", self.tensor_keys.reward), ("next", self.tensor_keys.done),
                 ("next", self.tensor_keys.terminated), *net_keys, *[("next", k) for k in net_keys]]
         self._in_keys = list(dict.fromkeys(keys))

@@ -400,7 +400,8 @@ _ALGO_DOMAIN = {
                                                  init_random_frames=20_000, hidden=(512, 512)),
 }
 # --quick for an algorithm whose sub-env layout differs (MORL/D: num_envs sub-envs per member)
-_QUICK_ALGO = {a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")}
+_QUICK_ALGO = {a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1)
+               for a in ("morld", "morld_psa")}
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,

@@ -191,7 +191,8 @@ class MORLDAgent(Agent):
         total.backward()
         if self.cfg.max_grad_norm is not None:
             for opt in self.optimizers.values():
-                torch.nn.utils.clip_grad_norm_([q for g in opt.param_groups for q in g["params"]], self.cfg.max_grad_norm)
+                params = [q for g in opt.param_groups for q in g["params"]]
+                torch.nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm)
         for opt in self.optimizers.values():
             opt.step()
         self.target_updater.step()
@@ -211,7 +212,8 @@ class MORLDAgent(Agent):
     def member_evaluations(self) -> torch.Tensor:
         """``[P, k]``: each member's mean discounted return since the last exchange (NaN: no episode ended)."""
         count = self._return_count.unsqueeze(-1).double()
-        return torch.where(count > 0, self._return_sum / count.clamp(min=1), torch.full_like(self._return_sum, math.nan))
+        nan = torch.full_like(self._return_sum, math.nan)
+        return torch.where(count > 0, self._return_sum / count.clamp(min=1), nan)
 
     @torch.no_grad()
     def exchange(self) -> None:
@@ -245,7 +247,8 @@ class MORLDAgent(Agent):
         self.archive.load_state_dict(m["archive"])
         self._return_sum.copy_(m["return_sum"])
         self._return_count.copy_(m["return_count"])
-        self._next_exchange, self._member_frames, self.exchanges = m["next_exchange"], m["member_frames"], m["exchanges"]
+        self._next_exchange, self._member_frames = m["next_exchange"], m["member_frames"]
+        self.exchanges = m["exchanges"]
 
 
 # ---------------------------------------------------------------------- builders
@@ -258,7 +261,8 @@ def make_morld_training_env(cfg, device: torch.device):
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
-                         f"{cfg.pop_size} * {cfg.num_envs} = {total} (MORL/D's sub-envs), e.g. {total * max(1, cfg.frames_per_batch // total)}")
+                         f"{cfg.pop_size} * {cfg.num_envs} = {total} (MORL/D's sub-envs), e.g. "
+                         f"{total * max(1, cfg.frames_per_batch // total)}")
     if cfg.prioritized:
         raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
     env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
