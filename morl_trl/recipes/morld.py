@@ -35,6 +35,7 @@ Example:
 from __future__ import annotations
 
 import math
+import warnings
 
 import torch
 from tensordict import TensorDictBase
@@ -180,7 +181,10 @@ class MORLDAgent(Agent):
     def update(self, buffer) -> TensorDictBase:
         """One batched gradient step: ``P * batch_size`` transitions of the shared buffer, ``batch_size`` per member."""
         p, b = self.population, self.cfg.batch_size
-        batch = buffer.sample(p * b).to(self.device).reshape(p, b)
+        with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
+            warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+            batch = buffer.sample(p * b)
+        batch = batch.to(self.device).reshape(p, b)
         out = self.loss(batch)
         total = sum(out[k] for k in self.loss_keys)
         if not torch.isfinite(total):
