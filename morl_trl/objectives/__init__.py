@@ -5,6 +5,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`EnvelopeQLoss` -- Envelope Q-learning (discrete actions, PER-ready).
 * :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
 * :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
+* :class:`PopulationMOSACLoss` -- MORL/D's population of MOSAC learners as one batched module
+  (:mod:`morl_trl.objectives.population`).
 
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
@@ -26,6 +28,7 @@ from morl_trl.objectives.networks import (
 )
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
+from morl_trl.objectives.population import PopulationMOSACLoss
 
 __all__ = [
     "CAPQLLoss",
@@ -43,4 +46,5 @@ __all__ = [
     "make_vector_q_network",
     "scalarized_argmax",
     "vector_td0_return_estimate",
+    "PopulationMOSACLoss",
 ]
