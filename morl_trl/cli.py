@@ -146,7 +146,7 @@ def _resume_config(args):
     from_file = load_config_file(args.config) if args.config else {}
     cfg = resume_config(cfg, {"algo": args.algo, "env_id": from_file.get("env_id", args.env_id)}, "the command line")
     if args.quick:
-        cfg = resume_config(cfg, {k: v for k, v in quick_preset().items() if k != "frames"}, "the --quick preset")
+        cfg = resume_config(cfg, {k: v for k, v in quick_preset(cfg.algo).items() if k != "frames"}, "the --quick preset")
     if from_file:
         cfg = resume_config(cfg, from_file, f"config file {args.config!r}")
     if args.overrides:

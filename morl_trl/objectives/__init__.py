@@ -8,6 +8,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`PCNLoss` -- Pareto Conditioned Networks' supervised loss (:mod:`morl_trl.objectives.pcn`).
 * PGMORL: TorchRL's ``ClipPPOLoss`` on a batched population (:mod:`morl_trl.objectives.pgmorl`:
   :class:`PopulationMLP`, :func:`make_population_actor`, :func:`make_population_critic`, :func:`vector_gae`).
+* :class:`PopulationMOSACLoss` -- MORL/D's population of MOSAC learners as one batched module
+  (:mod:`morl_trl.objectives.population`).
 
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
@@ -31,6 +33,7 @@ from morl_trl.objectives.pcn import PCNLoss, PCNNetwork, make_pcn_network
 from morl_trl.objectives.pgmorl import PopulationMLP, make_population_actor, make_population_critic, vector_gae
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
+from morl_trl.objectives.population import PopulationMOSACLoss
 
 __all__ = [
     "CAPQLLoss",
@@ -55,4 +58,5 @@ __all__ = [
     "scalarized_argmax",
     "vector_gae",
     "vector_td0_return_estimate",
+    "PopulationMOSACLoss",
 ]

@@ -9,6 +9,9 @@ algorithm          agent (networks, policies, loss, optimizers)  loop
 ``mosac_discrete`` :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent` :mod:`~morl_trl.recipes.off_policy`
 ``pcn``            :func:`~morl_trl.recipes.pcn.make_pcn_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pcn.PCNAgent`)
 ``pgmorl``         :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`              :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`)
+``morld``          :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.morld.MORLDAgent`)
+``morld_psa``      :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (weight_adaptation="psa")
+``sac``            :func:`~morl_trl.recipes.sac.make_sac_agent`                   :mod:`~morl_trl.recipes.off_policy`
 ================== ============================================= ===================================
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
@@ -28,6 +31,8 @@ from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
 from morl_trl.recipes.envelope import make_envelope_agent
 from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+from morl_trl.recipes.sac import make_sac_agent
 from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
@@ -56,6 +61,9 @@ AGENT_BUILDERS = {
     "capql": make_capql_agent,
     "mosac": make_mosac_agent,
     "mosac_discrete": make_discrete_mosac_agent,
+    "morld": make_morld_agent,
+    "morld_psa": make_morld_agent,
+    "sac": make_sac_agent,
     "pcn": make_pcn_agent,
     "pgmorl": make_pgmorl_agent,
 }
@@ -77,6 +85,7 @@ TRAINING_ENV_BUILDERS: dict = {
     "pcn": make_pcn_training_env,
     "pgmorl": make_pgmorl_training_env,
 }
+TRAINING_ENV_BUILDERS["morld"] = TRAINING_ENV_BUILDERS["morld_psa"] = make_morld_training_env
 
 
 def build_training_env(cfg: TrainConfig, device):

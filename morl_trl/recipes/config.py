@@ -27,7 +27,7 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "pcn", "pgmorl")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -251,6 +251,16 @@ class TrainConfig:
     pgmorl_eval_obs: str = _key("pgmorl", "raw", "observations of the evaluated policy: 'raw' (the authors: "
                                 "normalised policies fed raw observations) or 'normalized' (the training "
                                 "normalisation, frozen)", _choice(("raw", "normalized")))
+    # MORL/D (morld, morld_psa)
+    pop_size: int = _key("morld", 6, "population size P (each member owns num_envs sub-envs: P * num_envs in all)",
+                         _int(1, 4096))
+    exchange_every: int = _key("morld", 20_000, "frames between exchanges (archive update, weight adaptation)", _int(1))
+    weight_adaptation: str = _key("morld", "none", "'none' (MORL/D SB: fixed weights) or 'psa' (Pareto simulated "
+                                  "annealing, MORL/D SB+PSA)", _choice(("none", "psa")))
+    psa_delta: float = _key("morld", 0.1, "PSA step: a weight is multiplied or divided by 1 + psa_delta",
+                            _float(0.0, 10.0, open_low=True))
+    update_frequency: int = _key("morld", 1, "member frames per gradient update when updates_per_batch is 0 (the "
+                                 "authors' discrete MOSAC: 4)", _int(1))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -397,6 +407,17 @@ _ALGO = {
     # evaluation actions (MOPPO.eval samples)
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 2048, init_random_frames=0, prioritized=False,
                    max_grad_norm=0.5, eval_exploration="random"),
+    # MORL/D (SPEC §4; MORL-Baselines' MOSAC / MOSACDiscrete defaults where SPEC is silent): shared buffer,
+    # energy weights, temperature 0.2 tuned; the discrete domains' values are in _ALGO_DOMAIN
+    "morld": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000, prioritized=False,
+                  eval_exploration="random", pop_size=6, exchange_every=20_000, weight_adaptation="none",
+                  num_envs=2, frames_per_batch=60, update_frequency=1),
+    "morld_psa": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000,
+                      prioritized=False, eval_exploration="random", pop_size=6, exchange_every=20_000,
+                      weight_adaptation="psa", num_envs=2, frames_per_batch=60, update_frequency=1),
+    # SAC on the domain's original scalar reward (SPEC §4), evaluated with sampled actions as the authors
+    "sac": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000, prioritized=False,
+                eval_exploration="random"),
 }
 _PCN_DOMAIN = {  # SPEC §4: scaling factor, max return, buffer (episodes), ER episodes (+ noise, batch)
     "MOLunarLanderDR-v0": dict(pcn_scaling_factor=(0.1,) * 5, pcn_buffer_episodes=100_000, pcn_er_episodes=1000),
@@ -411,6 +432,8 @@ _PCN_DOMAIN = {  # SPEC §4: scaling factor, max return, buffer (episodes), ER e
     "MOSuperMarioBrosZeroShot-v2": dict(pcn_scaling_factor=(0.1,) * 4, pcn_max_return=(100.0, 100.0, 200.0),
                                         pcn_buffer_episodes=100_000, pcn_er_episodes=200, batch_size=64),
 }
+_MORLD_DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, update_frequency=4,
+                       target_entropy_scale=0.89)
 _ALGO_DOMAIN = {
     ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200, num_sampled_prefs=4),
     ("envelope", "MOSuperMarioBrosZeroShot-v2"): dict(batch_size=64, init_random_frames=25_000, buffer_size=100_000,
@@ -419,6 +442,21 @@ _ALGO_DOMAIN = {
     ("mosac", "MOHopperDR-v5"): dict(init_random_frames=10_000),
     ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
     ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
+    # MORL/D: target periods in updates (the authors' are in frames, one update per 4 member frames)
+    **{(a, "MOHalfCheetahDR-v5"): dict(exchange_every=10_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOHopperDR-v5"): dict(init_random_frames=10_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOHumanoidDR-v5"): dict(init_random_frames=5_000) for a in ("morld", "morld_psa")},
+    **{(a, "MOLunarLanderDR-v0"): dict(_MORLD_DISCRETE, target_update_period=500, target_entropy_scale=0.3)
+       for a in ("morld", "morld_psa")},
+    **{(a, "MOLavaGridDR-v0"): dict(_MORLD_DISCRETE, pop_size=5, exchange_every=10_000, target_update_period=50)
+       for a in ("morld", "morld_psa")},
+    ("sac", "MOLunarLanderDR-v0"): dict(tau=None, batch_size=128, target_update_period=2000, target_entropy_scale=0.3,
+                                        init_random_frames=20_000),
+    ("sac", "MOLavaGridDR-v0"): dict(tau=None, batch_size=128, target_update_period=200, target_entropy_scale=0.89,
+                                     init_random_frames=20_000),
+    ("sac", "MOSuperMarioBrosZeroShot-v2"): dict(tau=None, batch_size=64, buffer_size=100_000,
+                                                 target_update_period=1000, target_entropy_scale=0.5,
+                                                 init_random_frames=20_000, hidden=(512, 512)),
     **{("pcn", d): v for d, v in _PCN_DOMAIN.items()},
     ("pgmorl", "MOHopperDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
                                       pgmorl_num_buffers=210, pgmorl_sparsity=-1e6, pgmorl_delta_weight=0.25),
@@ -434,8 +472,10 @@ _QUICK = dict(
     eval_weights=8, checkpoint_interval=20_000,
 )
 
-# --quick per algorithm, on top of _QUICK (PCN: fewer random warm-up episodes than the authors' 1000)
+# --quick per algorithm, on top of _QUICK (MORL/D: num_envs sub-envs per member; PCN: fewer random
+# warm-up episodes than the authors' 1000; PGMORL: shorter iterations)
 _QUICK_ALGO = {
+    **{a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")},
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,
                    pgmorl_evo_iterations=2, pgmorl_minibatches=8, eval_interval=30_720),
@@ -500,9 +540,9 @@ def resolve_config(
     return TrainConfig(**_coerce(values)).validate()
 
 
-def quick_preset() -> dict[str, Any]:
-    """The values ``--quick`` sets."""
-    return dict(_QUICK)
+def quick_preset(algo: str | None = None) -> dict[str, Any]:
+    """The values ``--quick`` sets (for ``algo``: with its own quick overrides)."""
+    return {**_QUICK, **(_QUICK_ALGO.get(algo, {}) if algo else {})}
 
 
 #: the keys a resume may change (``morl-trl train ... --resume``): where and how fast it runs,

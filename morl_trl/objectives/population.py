@@ -1,0 +1,540 @@
+"""A population of MOSAC policies as ONE batched module (MORL/D's population, trained in one pass).
+
+MORL-Baselines' MORL/D keeps a Python list of ``MOSAC`` agents and steps them one at a time.
+Here the ``P`` members' networks are stacked: every linear layer holds ``[P, out, in]``
+weights and runs as one ``baddbmm`` (:class:`PopulationLinear`, :class:`PopulationMLP`), so one
+forward, one backward and one optimizer step update all ``P`` members.
+:class:`PopulationMOSACLoss` is, member by member, exactly :class:`~morl_trl.objectives.MOSACLoss`
+(continuous) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (discrete) with a fixed preference
+``w_p`` and networks that do not read the preference (MORL/D's): the batch is ``[P, B]`` (member
+``p`` learns from row ``p``), each member has its own temperature, and the losses are summed over
+members (each member's gradient is that of its own loss; Adam is elementwise, so one Adam over the
+stacked parameters is ``P`` independent Adams). ``tests/objectives/test_population.py`` checks one
+batched update against ``P`` separate ``MOSACLoss`` updates from the same state.
+
+Example:
+    >>> import torch
+    >>> from tensordict import TensorDict
+    >>> from torchrl.data import Bounded
+    >>> from torchrl.objectives import SoftUpdate
+    >>> P, B = 3, 8
+    >>> actor = make_population_gaussian_actor(P, 5, Bounded(-1.0, 1.0, (2,)), num_cells=(16,))
+    >>> critic = make_population_critic(P, 5, 2, 2, num_cells=(16,))
+    >>> loss = PopulationMOSACLoss(actor, critic, weights=torch.tensor([[1.0, 0.0], [0.5, 0.5], [0.0, 1.0]]))
+    >>> _ = loss.make_value_estimator(gamma=0.99)
+    >>> data = TensorDict({"observation": torch.randn(P, B, 5), "action": torch.rand(P, B, 2) * 2 - 1,
+    ...     ("next", "observation"): torch.randn(P, B, 5), ("next", "reward"): torch.randn(P, B, 2),
+    ...     ("next", "done"): torch.zeros(P, B, 1, dtype=torch.bool),
+    ...     ("next", "terminated"): torch.zeros(P, B, 1, dtype=torch.bool)}, [P, B])
+    >>> out = loss(data)
+    >>> sorted(out.keys()), out["alpha"].shape
+    (['alpha', 'entropy', 'loss_actor', 'loss_alpha', 'loss_qvalue'], torch.Size([3]))
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict, TensorDictBase, TensorDictParams
+from tensordict.nn import TensorDictModule, dispatch
+from tensordict.utils import NestedKey
+from torch import Tensor, nn
+from torchrl.data import Bounded, Categorical, Composite, TensorSpec
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.modules import ProbabilisticActor, TanhNormal
+from torchrl.objectives.sac import compute_rsample_log_prob
+from torchrl.objectives.utils import _cache_values
+
+from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+from morl_trl.objectives.envelope import action_index
+from morl_trl.objectives.networks import DEFAULT_NUM_CELLS, _LocClampedLogStd, _LocScale, _discrete_distribution
+
+__all__ = [
+    "PopulationLinear",
+    "PopulationMLP",
+    "PopulationMOSACLoss",
+    "MemberRouter",
+    "NearestMemberRouter",
+    "make_population_gaussian_actor",
+    "make_population_categorical_actor",
+    "make_population_critic",
+    "make_population_q_network",
+    "nearest_member",
+]
+
+
+class PopulationLinear(nn.Module):
+    """``P`` independent linear layers as one: ``[P, *B, in] -> [P, *B, out]`` (one ``baddbmm``).
+
+    ``weight`` is ``[P, out, in]`` and ``bias`` ``[P, out]``: member ``p`` is ``nn.Linear`` with
+    ``weight[p]``, ``bias[p]`` (each initialised as ``nn.Linear`` is).
+
+    Example:
+        >>> lin = PopulationLinear(3, 4, 2)
+        >>> x = torch.randn(3, 5, 4)
+        >>> torch.allclose(lin(x)[1], x[1] @ lin.weight[1].T + lin.bias[1])
+        True
+    """
+
+    def __init__(self, population: int, in_features: int, out_features: int) -> None:
+        super().__init__()
+        self.population, self.in_features, self.out_features = int(population), int(in_features), int(out_features)
+        self.weight = nn.Parameter(torch.empty(self.population, self.out_features, self.in_features))
+        self.bias = nn.Parameter(torch.empty(self.population, self.out_features))
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        bound = 1 / math.sqrt(self.in_features) if self.in_features > 0 else 0
+        for p in range(self.population):  # as nn.Linear: kaiming_uniform(a=sqrt(5)) and U(-bound, bound)
+            nn.init.kaiming_uniform_(self.weight.data[p], a=math.sqrt(5))
+        nn.init.uniform_(self.bias, -bound, bound)
+
+    def forward(self, x: Tensor) -> Tensor:
+        if x.shape[0] != self.population:
+            raise ValueError(f"PopulationLinear: the leading dim of the input is the population ({self.population}), "
+                             f"got an input of shape {tuple(x.shape)}")
+        flat = x.reshape(self.population, -1, self.in_features)
+        out = torch.baddbmm(self.bias.unsqueeze(1), flat, self.weight.transpose(1, 2))
+        return out.reshape(*x.shape[:-1], self.out_features)
+
+    def extra_repr(self) -> str:
+        return f"population={self.population}, in_features={self.in_features}, out_features={self.out_features}"
+
+
+class PopulationMLP(nn.Module):
+    """``P`` MLPs as one: ``cat(inputs, -1)`` ``[P, *B, in]`` -> ``[P, *B, *out_shape]``.
+
+    The layers sit in ``self.mlp`` at the same indices as in
+    :class:`~morl_trl.objectives.networks.PreferenceConditionedMLP`'s ``mlp``, so a member's
+    parameters have the names of a single network's (see :meth:`PopulationMOSACLoss.load_members`).
+
+    Example:
+        >>> net = PopulationMLP(4, 6, (3, 2), num_cells=(8, 8))
+        >>> net(torch.randn(4, 5, 6)).shape
+        torch.Size([4, 5, 3, 2])
+    """
+
+    def __init__(self, population: int, in_features: int, out_shape: int | Sequence[int], *,
+                 num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU) -> None:
+        super().__init__()
+        if isinstance(population, bool) or not isinstance(population, int) or population < 1:
+            raise ValueError(f"population must be a positive int, got {population!r}")
+        self.population = population
+        self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
+        layers: list[nn.Module] = []
+        width = int(in_features)
+        for cells in num_cells:
+            layers += [PopulationLinear(population, width, cells), activation()]
+            width = cells
+        layers.append(PopulationLinear(population, width, math.prod(self.out_shape)))
+        self.mlp = nn.Sequential(*layers)
+
+    def forward(self, first: Tensor, *rest: Tensor) -> Tensor:
+        x = torch.cat([first, *rest], dim=-1) if rest else first
+        out = self.mlp(x)
+        return out.reshape(*out.shape[:-1], *self.out_shape)
+
+
+# ---------------------------------------------------------------------- routing of sub-envs to members
+def nearest_member(preference: Tensor, weights: Tensor) -> Tensor:
+    """Index of the member whose weight is nearest (squared Euclidean) to each preference row.
+
+    Example:
+        >>> nearest_member(torch.tensor([[0.9, 0.1], [0.2, 0.8]]), torch.tensor([[1.0, 0.0], [0.5, 0.5], [0.0, 1.0]]))
+        tensor([0, 2])
+    """
+    d = (preference.unsqueeze(-2) - weights.to(preference)).pow(2).sum(-1)
+    return d.argmin(-1)
+
+
+class MemberRouter(nn.Module):
+    """Acting in the training env: sub-env ``i`` of ``P * N`` is driven by member ``i // N``.
+
+    Reshapes the ``[P * N, ...]`` inputs to ``[P, N, ...]``, runs the population network and
+    flattens its outputs back.
+    """
+
+    def __init__(self, net: nn.Module, population: int) -> None:
+        super().__init__()
+        self.net, self.population = net, population
+
+    def forward(self, *inputs: Tensor):
+        n = inputs[0].shape[0]
+        if n % self.population:
+            raise ValueError(f"the training env has {n} sub-envs; MORL/D needs a multiple of the population "
+                             f"size {self.population} (each member owns num_envs of them)")
+        out = self.net(*(x.reshape(self.population, n // self.population, *x.shape[1:]) for x in inputs))
+        if isinstance(out, tuple):
+            return tuple(o.reshape(n, *o.shape[2:]) for o in out)
+        return out.reshape(n, *out.shape[2:])
+
+
+class NearestMemberRouter(nn.Module):
+    """Acting under a given preference (the evaluator's): each row is driven by the member whose
+    weight is nearest to its ``preference`` (the authors' MORL/D evaluation).
+
+    All members run on all rows (``[P, *B, ...]``) and each row keeps its member's output.
+    ``weights`` is the population's ``[P, k]`` weight buffer (shared with the loss, so weight
+    adaptation is seen at once).
+    """
+
+    def __init__(self, net: nn.Module, weights: Tensor) -> None:
+        super().__init__()
+        self.net = net
+        self.weights = weights  # a reference to the loss's buffer (not registered: not a second copy)
+
+    def forward(self, *inputs: Tensor):
+        *obs, preference = inputs
+        batch = preference.shape[:-1]
+        idx = nearest_member(preference.reshape(-1, preference.shape[-1]), self.weights)
+        m = idx.shape[0]
+        p = self.weights.shape[0]
+        flat = [x.reshape(m, *x.shape[len(batch):]) for x in obs]
+        out = self.net(*(x.unsqueeze(0).expand(p, *x.shape) for x in flat))
+
+        def pick(o: Tensor) -> Tensor:
+            g = idx.view(1, m, *([1] * (o.ndim - 2))).expand(1, m, *o.shape[2:])
+            return o.gather(0, g).squeeze(0).reshape(*batch, *o.shape[2:])
+
+        return tuple(pick(o) for o in out) if isinstance(out, tuple) else pick(out)
+
+
+# ---------------------------------------------------------------------- builders
+def _gaussian_head(net: nn.Module, scale: str, log_std_bounds) -> nn.Module:
+    if scale == "softplus":
+        return _LocScale(net)
+    if scale == "clamped_log_std":
+        return _LocClampedLogStd(net, *log_std_bounds)
+    raise ValueError(f"scale={scale!r}; valid values are ('softplus', 'clamped_log_std')")
+
+
+def _gaussian_actor(module: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
+    return ProbabilisticActor(
+        TensorDictModule(module, in_keys=in_keys, out_keys=["loc", "scale"]),
+        in_keys=["loc", "scale"], out_keys=[action_key], spec=Composite({action_key: action_spec}),
+        distribution_class=TanhNormal,
+        distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high},
+        return_log_prob=False,
+    )
+
+
+def _categorical_actor(module: nn.Module, in_keys, action_spec: TensorSpec,
+                       action_key: NestedKey) -> ProbabilisticActor:
+    return ProbabilisticActor(
+        TensorDictModule(module, in_keys=in_keys, out_keys=["logits"]),
+        in_keys=["logits"], out_keys=[action_key], spec=Composite({action_key: action_spec}),
+        distribution_class=_discrete_distribution(action_spec), return_log_prob=False,
+    )
+
+
+def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: Bounded, *,
+                                   num_cells: Sequence[int] = DEFAULT_NUM_CELLS, scale: str = "softplus",
+                                   log_std_bounds: tuple[float, float] = (-20.0, 2.0),
+                                   observation_key: NestedKey = "observation",
+                                   action_key: NestedKey = "action") -> ProbabilisticActor:
+    """``P`` tanh-Gaussian actors ``pi_p(a | s)`` reading ``[P, *B, obs]`` (the loss's view).
+
+    The population network is ``actor.module[0].module.net`` (see :func:`population_policies`
+    for the acting views). Parameter names match :func:`~morl_trl.objectives.make_gaussian_actor`'s
+    with ``preference_key=None``.
+    """
+    mlp = PopulationMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
+    return _gaussian_actor(_gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
+
+
+def make_population_categorical_actor(population: int, obs_dim: int, num_actions: int, *,
+                                      num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
+                                      action_spec: TensorSpec | None = None,
+                                      observation_key: NestedKey = "observation",
+                                      action_key: NestedKey = "action") -> ProbabilisticActor:
+    """``P`` categorical actors ``pi_p(. | s)`` reading ``[P, *B, obs]``."""
+    mlp = PopulationMLP(population, obs_dim, num_actions, num_cells=num_cells)
+    spec = action_spec if action_spec is not None else Categorical(num_actions)
+    return _categorical_actor(mlp, [observation_key], spec, action_key)
+
+
+def make_population_critic(population: int, obs_dim: int, action_dim: int, num_objectives: int, *,
+                           num_cells: Sequence[int] = DEFAULT_NUM_CELLS, observation_key: NestedKey = "observation",
+                           action_key: NestedKey = "action",
+                           out_key: NestedKey = "state_action_value") -> TensorDictModule:
+    """``P`` vector critics ``Q_p(s, a) -> [P, *B, k]`` (MORL/D's MOSAC critics do not read ``w``)."""
+    net = PopulationMLP(population, obs_dim + action_dim, num_objectives, num_cells=num_cells)
+    net.num_objectives = num_objectives
+    return TensorDictModule(net, in_keys=[observation_key, action_key], out_keys=[out_key])
+
+
+def make_population_q_network(population: int, obs_dim: int, num_actions: int, num_objectives: int, *,
+                              num_cells: Sequence[int] = DEFAULT_NUM_CELLS, observation_key: NestedKey = "observation",
+                              out_key: NestedKey = "action_value") -> TensorDictModule:
+    """``P`` vector Q-networks ``Q_p(s, .) -> [P, *B, |A|, k]`` (discrete MORL/D)."""
+    net = PopulationMLP(population, obs_dim, (num_actions, num_objectives), num_cells=num_cells)
+    net.num_objectives, net.num_actions = num_objectives, num_actions
+    return TensorDictModule(net, in_keys=[observation_key], out_keys=[out_key])
+
+
+def population_policies(actor: ProbabilisticActor, weights: Tensor) -> tuple[ProbabilisticActor, ProbabilisticActor]:
+    """``(explore, evaluate)`` views of a population actor sharing its parameters.
+
+    ``explore`` acts in a ``[P * N]`` training env (sub-env ``i``: member ``i // N``,
+    :class:`MemberRouter`); ``evaluate`` reads ``"preference"`` and lets the nearest member act
+    (:class:`NearestMemberRouter`).
+    """
+    tdm = actor.module[0]
+    head = tdm.module
+    population = weights.shape[0]
+    spec = actor.spec
+    action_key = actor.module[-1].out_keys[0]
+    action_spec = spec[action_key]
+    make = _gaussian_actor if "loc" in tdm.out_keys else _categorical_actor
+    explore = make(MemberRouter(head, population), tdm.in_keys, action_spec, action_key)
+    evaluate = make(NearestMemberRouter(head, weights), [*tdm.in_keys, "preference"], action_spec, action_key)
+    return explore, evaluate
+
+
+# ---------------------------------------------------------------------- the loss
+class PopulationMOSACLoss(MultiObjectiveLossModule):
+    r"""MORL/D's population of MOSAC learners (continuous or discrete) as one loss.
+
+    Member ``p`` has the fixed weight ``weights[p]`` and, on row ``p`` of a ``[P, B]`` batch,
+    the losses of :class:`~morl_trl.objectives.MOSACLoss` (``num_actions=None``: a tanh-Gaussian
+    actor, critics ``Q(s, a)``) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (``num_actions``
+    given: a categorical actor, critics ``Q(s, .)``) with ``critic_min="scalarized"``,
+    ``critic_loss="scalarized"``, L2: critics regress ``w^T Q_i`` onto
+    ``w^T (r + gamma (1 - term) (Q^-_min(s', a') - alpha_p log pi_p(a'|s')))``, the actor
+    minimises ``alpha_p log pi_p(a|s) - w^T Q_min(s, a)`` and ``alpha_p`` follows the target
+    entropy. Each output ``loss_*`` is the sum over members of the member's batch mean;
+    ``alpha`` is ``[P]``. :meth:`set_weights` changes the weights (MORL/D's weight adaptation).
+
+    Args:
+        actor_network: a population actor, e.g. :func:`make_population_gaussian_actor`.
+        qvalue_network: a population critic, e.g. :func:`make_population_critic` /
+            :func:`make_population_q_network`; expanded to ``num_qvalue_nets`` independently
+            initialised copies (TorchRL's SAC ensemble), parameters ``[n, P, ...]``.
+
+    Keyword Args:
+        weights (Tensor): ``[P, k]`` member weights on the simplex.
+        num_actions (int, optional): discrete actions ``|A|``; ``None`` for continuous actions.
+        num_qvalue_nets (int): critics per member. Defaults to 2.
+        alpha_init (float): initial temperature of every member. Defaults to 1.
+        fixed_alpha (bool): keep the temperatures (no ``loss_alpha``). Defaults to ``False``.
+        target_entropy (float or "auto"): ``"auto"``: minus the action dimension (continuous,
+            from ``action_spec`` or the actor's spec) or ``target_entropy_weight * log |A|``.
+        target_entropy_weight (float): discrete ``"auto"`` scale. Defaults to 0.98.
+        action_spec (TensorSpec, optional): for the continuous ``"auto"`` target entropy.
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``): ``action``,
+        ``state_action_value`` (continuous critic output), ``action_value`` (discrete critic
+        output), ``value_target``, ``priority``, ``preference`` (unused: the weights are the
+        members'), ``reward``, ``done``, ``terminated``."""
+
+        action: NestedKey = "action"
+        state_action_value: NestedKey = "state_action_value"
+        action_value: NestedKey = "action_value"
+        preference: NestedKey = "preference"
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+    actor_network: ProbabilisticActor
+    qvalue_network: TensorDictModule
+    actor_network_params: TensorDictParams
+    qvalue_network_params: TensorDictParams
+    target_actor_network_params: TensorDictParams
+    target_qvalue_network_params: TensorDictParams
+
+    def __init__(self, actor_network: ProbabilisticActor, qvalue_network: TensorDictModule, *, weights: Tensor,
+                 num_actions: int | None = None, num_qvalue_nets: int = 2, alpha_init: float = 1.0,
+                 fixed_alpha: bool = False, target_entropy: float | str = "auto",
+                 target_entropy_weight: float = 0.98, action_spec: TensorSpec | None = None) -> None:
+        self._in_keys = None
+        super().__init__()
+        weights = torch.as_tensor(weights, dtype=torch.float32)
+        if weights.ndim != 2:
+            raise ValueError(f"weights must be [P, k] (one weight per member), got shape {tuple(weights.shape)}")
+        self.population, self.num_objectives = weights.shape
+        check_preference(weights, self.num_objectives, name="weights")
+        self.num_actions = num_actions
+        self.num_qvalue_nets = int(num_qvalue_nets)
+        self.fixed_alpha = fixed_alpha
+        self.convert_to_functional(actor_network, "actor_network", create_target_params=False)
+        self.convert_to_functional(qvalue_network, "qvalue_network", self.num_qvalue_nets, create_target_params=True,
+                                   compare_against=list(actor_network.parameters()))
+        device = next(iter(self.qvalue_network_params.values(True, True))).device
+        self.register_buffer("weights", weights.to(device).clone())
+        log_alpha = torch.full((self.population,), math.log(alpha_init), device=device)
+        if fixed_alpha:
+            self.register_buffer("log_alpha", log_alpha)
+        else:
+            self.register_parameter("log_alpha", nn.Parameter(log_alpha))
+        if target_entropy == "auto":
+            if fixed_alpha:
+                target_entropy = 0.0
+            elif num_actions is not None:
+                target_entropy = target_entropy_weight * math.log(num_actions)
+            else:
+                spec = action_spec if action_spec is not None else actor_network.spec[self.tensor_keys.action]
+                target_entropy = -float(spec.shape[-1:].numel())
+        self.register_buffer("target_entropy", torch.tensor(float(target_entropy), device=device))
+
+    # ------------------------------------------------------------------ weights
+    def set_weights(self, weights: Tensor) -> None:
+        """Replace the ``[P, k]`` member weights in place (the acting views see them at once)."""
+        weights = torch.as_tensor(weights, dtype=self.weights.dtype, device=self.weights.device)
+        if weights.shape != self.weights.shape:
+            raise ValueError(f"weights must have shape {tuple(self.weights.shape)}, got {tuple(weights.shape)}")
+        check_preference(weights, self.num_objectives, name="weights")
+        self.weights.copy_(weights)
+
+    @torch.no_grad()
+    def load_members(self, losses: Sequence[MultiObjectiveLossModule]) -> None:
+        """Copy ``P`` single-policy MOSAC losses (networks without preference input) into the
+        population: actor, critics, target critics and temperatures of ``losses[p]`` become member ``p``."""
+        if len(losses) != self.population:
+            raise ValueError(f"load_members needs {self.population} losses (one per member), got {len(losses)}")
+        for name, dim in (("actor_network_params", 0), ("qvalue_network_params", 1),
+                          ("target_qvalue_network_params", 1)):
+            mine = getattr(self, name)
+            for key, value in mine.items(True, True):
+                value.data.copy_(torch.stack([getattr(l, name).get(key).data for l in losses], dim))
+        self.log_alpha.data.copy_(torch.stack([l.log_alpha.data.reshape(()) for l in losses]))
+
+    # ------------------------------------------------------------------ pieces
+    @property
+    def _alpha(self) -> Tensor:
+        with torch.no_grad():
+            return self.log_alpha.exp()
+
+    @property
+    @_cache_values
+    def _cached_detached_qvalue_params(self):
+        return self.qvalue_network_params.detach()
+
+    def _critics(self, td: TensorDictBase, params, key: NestedKey) -> Tensor:
+        """``[n, P, B, ...]``: every critic of the ensemble (a loop of ``n`` calls, each batched over members)."""
+        values = []
+        for i in range(self.num_qvalue_nets):
+            with params[i].to_module(self.qvalue_network, preserve_module_state=False):
+                values.append(self.qvalue_network.module(*(td.get(k) for k in self.qvalue_network.in_keys)))
+        return torch.stack(values)
+
+    def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
+        """The vector of the critic with the lowest ``w . Q`` (``q``: ``[n, P, B, ..., k]``)."""
+        worst = (q * w).sum(-1).argmin(0, keepdim=True)
+        return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
+
+    def _actor(self, data: TensorDictBase):
+        with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
+            return self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
+
+    def _w(self, extra_dims: int) -> Tensor:
+        """``[P, 1, (1,)*extra_dims, k]``: member weights broadcast over the batch."""
+        return self.weights.view(self.population, 1, *([1] * extra_dims), self.num_objectives)
+
+    def _per_member(self, x: Tensor) -> Tensor:
+        """Sum over members of each member's batch mean (``x``: ``[P, B]``)."""
+        return x.mean(1).sum()
+
+    # ------------------------------------------------------------------ forward
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha`` on a
+        ``[P, B]`` batch."""
+        if tensordict.ndim != 2 or tensordict.shape[0] != self.population:
+            raise ValueError(f"{type(self).__name__} takes a [P, B] batch with P = {self.population} (row p for "
+                             f"member p), got batch size {tuple(tensordict.shape)}")
+        self._check_inputs(tensordict, needs_preference=False)
+        if self.num_actions is None:
+            losses, neg_entropy, td_error = self._continuous(tensordict)
+        else:
+            losses, neg_entropy, td_error = self._discrete(tensordict)
+        tensordict.set(self.tensor_keys.priority, td_error)
+        if self.fixed_alpha:
+            losses.pop("loss_alpha")
+        out = TensorDict({**losses, "alpha": self._alpha, "entropy": -neg_entropy.detach().mean(1)}, batch_size=[])
+        self._clear_weakrefs(tensordict, out, "actor_network_params", "qvalue_network_params",
+                             "target_qvalue_network_params")
+        return out
+
+    def _critic_loss(self, q: Tensor, target: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
+        sq, st = (q * w).sum(-1), (target * w).sum(-1)  # [n, P, B], [P, B]
+        td = sq - st
+        return td.pow(2).sum(0), td.detach().abs().max(0).values
+
+    def _continuous(self, data: TensorDictBase):
+        w = self._w(0)
+        alpha = self._alpha.view(-1, 1)
+        with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+            next_data = data.get("next")
+            next_action, next_log_prob = compute_rsample_log_prob(self._actor(next_data))
+            td = next_data.select(*self.qvalue_network.in_keys, strict=False)
+            td.set(self.tensor_keys.action, next_action)
+            q_next = self._critics(td, self.target_qvalue_network_params, self.tensor_keys.state_action_value)
+            next_value = self._select_min(q_next, w) - (alpha * next_log_prob).unsqueeze(-1)
+            target = self.value_estimator.value_estimate(data, next_value=next_value)
+        q = self._critics(data, self.qvalue_network_params, self.tensor_keys.state_action_value)
+        loss_qvalue, td_error = self._critic_loss(q, target, w)
+
+        with set_exploration_type(ExplorationType.RANDOM):
+            action, log_prob = compute_rsample_log_prob(self._actor(data))
+        td = data.select(*self.qvalue_network.in_keys, strict=False)
+        td.set(self.tensor_keys.action, action)
+        q_pi = self._critics(td, self._cached_detached_qvalue_params, self.tensor_keys.state_action_value)
+        loss_actor = alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
+        loss_alpha = -self.log_alpha.view(-1, 1) * (log_prob.detach() + self.target_entropy)
+        losses = {"loss_actor": self._per_member(loss_actor), "loss_qvalue": self._per_member(loss_qvalue),
+                  "loss_alpha": self._per_member(loss_alpha)}
+        return losses, log_prob, td_error
+
+    def _discrete(self, data: TensorDictBase):
+        w = self._w(1)  # over the actions
+        alpha = self._alpha.view(-1, 1, 1)
+        key = self.tensor_keys.action_value
+        with torch.no_grad():
+            next_data = data.get("next")
+            dist = self._actor(next_data)
+            probs, log_probs = dist.probs, dist.logits
+            q_next = self._select_min(self._critics(next_data, self.target_qvalue_network_params, key), w)
+            next_value = (probs.unsqueeze(-1) * (q_next - (alpha * log_probs).unsqueeze(-1))).sum(-2)
+            target = self.value_estimator.value_estimate(data, next_value=next_value)
+        q = self._critics(data, self.qvalue_network_params, key)  # [n, P, B, |A|, k]
+        n, p, b, a, k = q.shape
+        action = data.get(self.tensor_keys.action)
+        index = action_index(action.reshape(p * b, *action.shape[2:]), p * b, a).view(1, p, b, 1, 1)
+        q_taken = q.gather(-2, index.expand(n, p, b, 1, k)).squeeze(-2)
+        loss_qvalue, td_error = self._critic_loss(q_taken, target, self._w(0))
+
+        dist = self._actor(data)
+        probs, log_probs = dist.probs, dist.logits
+        q_pi = self._select_min(self._critics(data, self._cached_detached_qvalue_params, key), w)
+        scalar_q_pi = (q_pi * w).sum(-1)
+        loss_actor = (probs * (alpha * log_probs - scalar_q_pi)).sum(-1)
+        neg_entropy = (probs * log_probs).sum(-1)
+        loss_alpha = -self.log_alpha.view(-1, 1) * (neg_entropy.detach() + self.target_entropy)
+        losses = {"loss_actor": self._per_member(loss_actor), "loss_qvalue": self._per_member(loss_qvalue),
+                  "loss_alpha": self._per_member(loss_alpha)}
+        return losses, neg_entropy, td_error
+
+    @property
+    def out_keys(self) -> list[str]:
+        keys = ["loss_actor", "loss_qvalue"]
+        if not self.fixed_alpha:
+            keys.append("loss_alpha")
+        return [*keys, "alpha", "entropy"]
+
+    def _set_in_keys(self) -> None:
+        net_keys = [k for k in (*self.actor_network.in_keys, *self.qvalue_network.in_keys)
+                    if k != self.tensor_keys.action]
+        keys = [self.tensor_keys.action, ("next", self.tensor_keys.reward), ("next", self.tensor_keys.done),
+                ("next", self.tensor_keys.terminated), *net_keys, *[("next", k) for k in net_keys]]
+        self._in_keys = list(dict.fromkeys(keys))

@@ -1,0 +1,304 @@
+"""MORL/D (Felten et al., 2024) with a shared replay buffer: ``morl-trl train morld|morld_psa <id>``.
+
+A population of ``P`` MOSAC learners (continuous or discrete actions), member ``p`` with its own
+scalarization weight ``w_p`` (the authors: pymoo's energy weights for ``P``, ``seed`` = the run's
+seed), all trained from ONE shared replay buffer (SB). Every ``exchange_every`` frames the members'
+recent returns go into a Pareto archive and, with ``weight_adaptation="psa"`` (SB+PSA), each weight
+moves by Pareto simulated annealing away from its nearest archived neighbour. Evaluation as the
+authors': for each evaluation weight the member whose weight is nearest acts, with sampled actions.
+
+Beyond MORL-Baselines (which trains one member at a time for ``exchange_every`` steps): the
+population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`),
+one optimizer step updates all ``P`` members, and the members collect at the same time: the
+training env holds ``P * num_envs`` sub-envs, member ``p`` acting in sub-envs
+``p * num_envs .. (p + 1) * num_envs - 1``. Each member gets one update per ``update_frequency`` of
+its own frames (``updates_per_batch = 0``), the authors' update-to-data ratio per member.
+
+Where this differs from the authors' loop, on purpose: the members train concurrently, not turn by
+turn (so there is no "update the others ``update_passes`` times" step and no transfer), and a
+member's archived evaluation is the mean discounted vector return of its training episodes that
+ended since the last exchange (sampled actions, training contexts) instead of separate episodes
+on an evaluation env. The PSA rule, its ``delta = 0.1``, the archive's distance threshold (0.01)
+and the weights' L1 renormalisation are MORL-Baselines 1.3.0's.
+
+Example:
+    >>> from morl_trl.recipes import resolve_config
+    >>> cfg = resolve_config("morld_psa", "MOLavaGridDR-v0", quick=True, hidden=(16,))
+    >>> env = make_morld_training_env(cfg, torch.device("cpu"))
+    >>> env.batch_size, cfg.pop_size, cfg.weight_adaptation
+    (torch.Size([10]), 5, 'psa')
+    >>> agent = make_morld_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+    >>> agent.loss.weights.shape
+    torch.Size([5, 2])
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import torch
+from tensordict import TensorDictBase
+
+from morl_trl.envs import domain_of, make_env
+from morl_trl.metrics import is_nondominated
+from morl_trl.objectives.population import (
+    PopulationMOSACLoss,
+    make_population_categorical_actor,
+    make_population_critic,
+    make_population_gaussian_actor,
+    make_population_q_network,
+    population_policies,
+)
+from morl_trl.preferences import energy_weights
+from morl_trl.recipes.agent import (
+    Agent,
+    NonFiniteLossError,
+    action_spec,
+    actor_critic_optimizers,
+    eval_exploration,
+    is_discrete,
+    num_objectives,
+    obs_shape,
+    target_updater,
+)
+from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
+
+__all__ = ["MORLDAgent", "ParetoArchive", "make_morld_agent", "make_morld_training_env", "psa_weights"]
+
+#: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
+PSA_MIN_DISTANCE = 0.01
+
+
+def psa_weights(weights: torch.Tensor, evaluations: torch.Tensor, archive: torch.Tensor, delta: float,
+                min_distance: float = PSA_MIN_DISTANCE) -> torch.Tensor:
+    """Pareto simulated annealing (Czyżak & Jaszkiewicz, 1998) as MORL/D adapts its weights.
+
+    For each member (row of ``weights`` ``[P, k]`` with evaluation ``evaluations[p]`` ``[k]``), the
+    nearest archived evaluation ``c`` (squared distance above ``min_distance``) is found; objective
+    ``i`` where the member is at least as good as ``c`` gets ``w_i * (1 + delta)``, the others
+    ``w_i / (1 + delta)``; the result is renormalised to sum 1 (below: the member itself, at
+    distance 0, is skipped and (0, 1) is its neighbour). A member with no such neighbour
+    (or a NaN evaluation: not evaluated) keeps its weight.
+
+    Example:
+        >>> w = torch.tensor([[0.5, 0.5]])
+        >>> psa_weights(w, torch.tensor([[1.0, 0.0]]), torch.tensor([[1.0, 0.0], [0.0, 1.0]]), 0.1)
+        tensor([[0.5475, 0.4525]])
+    """
+    new = weights.clone()
+    for p in range(weights.shape[0]):
+        e = evaluations[p]
+        if torch.isnan(e).any() or archive.shape[0] == 0:
+            continue
+        d = (archive - e).pow(2).sum(-1)
+        d = torch.where(d > min_distance, d, torch.full_like(d, math.inf))
+        if not torch.isfinite(d.min()):
+            continue
+        closest = archive[d.argmin()]
+        w = torch.where(e >= closest, weights[p] * (1 + delta), weights[p] / (1 + delta))
+        new[p] = w / w.abs().sum()
+    return new
+
+
+class ParetoArchive:
+    """The non-dominated (evaluation, policy) pairs seen so far, as MORL-Baselines' ``ParetoArchive``.
+
+    ``evaluations`` ``[m, k]``; ``individuals[i]``: ``{"weight": [k], "actor": member's actor
+    parameters}`` (on the CPU). Adding keeps the non-dominated points (the first copy of a duplicate).
+
+    Example:
+        >>> a = ParetoArchive()
+        >>> a.add(torch.tensor([[1.0, 0.0], [0.5, 0.5], [0.2, 0.2]]), [{"id": 0}, {"id": 1}, {"id": 2}])
+        >>> a.evaluations.tolist(), [i["id"] for i in a.individuals]
+        ([[1.0, 0.0], [0.5, 0.5]], [0, 1])
+    """
+
+    def __init__(self) -> None:
+        self.evaluations = torch.zeros(0, 0)
+        self.individuals: list[dict] = []
+
+    def __len__(self) -> int:
+        return len(self.individuals)
+
+    def add(self, evaluations: torch.Tensor, individuals: list[dict]) -> None:
+        evaluations = evaluations.detach().double().cpu()
+        points = evaluations if len(self) == 0 else torch.cat([self.evaluations, evaluations])
+        people = self.individuals + list(individuals)
+        keep = torch.as_tensor(is_nondominated(points.numpy()))
+        self.evaluations = points[keep]
+        self.individuals = [p for p, k in zip(people, keep.tolist()) if k]
+
+    def state_dict(self) -> dict:
+        return {"evaluations": self.evaluations.clone(), "individuals": list(self.individuals)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.evaluations = state["evaluations"].clone()
+        self.individuals = list(state["individuals"])
+
+
+class MORLDAgent(Agent):
+    """The MORL/D population (see the module docstring): store, update all members, exchange."""
+
+    def __init__(self, cfg, loss: PopulationMOSACLoss, explore_policy, eval_policy, optimizers, updater, *, device,
+                 num_envs_per_member: int, eval_exploration) -> None:
+        super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater, device=device,
+                         eval_exploration=eval_exploration)
+        self.population = loss.population
+        self.num_envs_per_member = num_envs_per_member
+        self.archive = ParetoArchive()
+        k = loss.num_objectives
+        self._return_sum = torch.zeros(self.population, k, dtype=torch.float64)
+        self._return_count = torch.zeros(self.population, dtype=torch.long)
+        self._next_exchange = cfg.exchange_every
+        self._member_frames = 0  # member frames not yet turned into updates (update_frequency)
+        self.exchanges = 0
+
+    # ------------------------------------------------------------------ learning
+    def learn(self, batch: TensorDictBase, buffer, frames: int):
+        """Record each member's finished episodes, store the batch in the shared buffer, update all
+        members (one batched step per update), and exchange every ``cfg.exchange_every`` frames."""
+        self._record_returns(batch)
+        buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))  # what the loss reads, no more
+        losses, n = None, 0
+        if frames >= self.cfg.init_random_frames:
+            if self.cfg.updates_per_batch:
+                n = self.cfg.updates_per_batch
+            else:
+                self._member_frames += batch.numel() // self.population
+                n, self._member_frames = divmod(self._member_frames, self.cfg.update_frequency)
+            for i in range(n):
+                try:
+                    losses = self.update(buffer)
+                except NonFiniteLossError as err:
+                    err.updates_done = i
+                    raise
+        while frames >= self._next_exchange:
+            self._next_exchange += self.cfg.exchange_every
+            self.exchange()
+        return losses, n
+
+    def update(self, buffer) -> TensorDictBase:
+        """One batched gradient step: ``P * batch_size`` transitions of the shared buffer, ``batch_size`` per member."""
+        p, b = self.population, self.cfg.batch_size
+        with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
+            warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+            batch = buffer.sample(p * b)
+        batch = batch.to(self.device).reshape(p, b)
+        out = self.loss(batch)
+        total = sum(out[k] for k in self.loss_keys)
+        if not torch.isfinite(total):
+            bad = {k: out[k].item() for k in self.loss_keys}
+            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
+        for opt in self.optimizers.values():
+            opt.zero_grad(set_to_none=True)
+        total.backward()
+        if self.cfg.max_grad_norm is not None:
+            for opt in self.optimizers.values():
+                params = [q for g in opt.param_groups for q in g["params"]]
+                torch.nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm)
+        for opt in self.optimizers.values():
+            opt.step()
+        self.target_updater.step()
+        return out.detach()
+
+    def _record_returns(self, batch: TensorDictBase) -> None:
+        nxt = batch.get("next")
+        done = nxt.get("done").squeeze(-1)  # [P * N, T]
+        if not done.any():
+            return
+        member = torch.arange(done.shape[0], device=done.device) // self.num_envs_per_member
+        member = member.view(-1, *([1] * (done.ndim - 1))).expand_as(done)[done].cpu()
+        ret = nxt.get("episode_discounted_return")[done].detach().double().cpu()
+        self._return_sum.index_add_(0, member, ret)
+        self._return_count.index_add_(0, member, torch.ones_like(member))
+
+    def member_evaluations(self) -> torch.Tensor:
+        """``[P, k]``: each member's mean discounted return since the last exchange (NaN: no episode ended)."""
+        count = self._return_count.unsqueeze(-1).double()
+        nan = torch.full_like(self._return_sum, math.nan)
+        return torch.where(count > 0, self._return_sum / count.clamp(min=1), nan)
+
+    @torch.no_grad()
+    def exchange(self) -> None:
+        """Archive the evaluated members (non-dominated filter); with PSA, adapt the weights."""
+        evals = self.member_evaluations()
+        evaluated = ~torch.isnan(evals).any(-1)
+        weights = self.loss.weights.detach().cpu()
+        if evaluated.any():
+            actor = self.loss.actor_network_params.detach().cpu()
+            people = [{"weight": weights[p].clone(), "actor": actor.apply(lambda x: x[p].clone())}
+                      for p in evaluated.nonzero().flatten().tolist()]
+            self.archive.add(evals[evaluated], people)
+        if self.cfg.weight_adaptation == "psa" and len(self.archive):
+            new = psa_weights(weights.double(), evals, self.archive.evaluations, self.cfg.psa_delta)
+            self.loss.set_weights(new.float())
+        self._return_sum.zero_()
+        self._return_count.zero_()
+        self.exchanges += 1
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        state = super().state_dict()
+        state["morld"] = {"archive": self.archive.state_dict(), "return_sum": self._return_sum.clone(),
+                          "return_count": self._return_count.clone(), "next_exchange": self._next_exchange,
+                          "member_frames": self._member_frames, "exchanges": self.exchanges}
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        m = state["morld"]
+        self.archive.load_state_dict(m["archive"])
+        self._return_sum.copy_(m["return_sum"])
+        self._return_count.copy_(m["return_count"])
+        self._next_exchange, self._member_frames = m["next_exchange"], m["member_frames"]
+        self.exchanges = m["exchanges"]
+
+
+# ---------------------------------------------------------------------- builders
+def make_morld_training_env(cfg, device: torch.device):
+    """``P * num_envs`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``num_envs``) + the
+    policy's history + discounted vector returns (each member's evaluation). No preference: a
+    member's weight lives in the loss, not in the data."""
+    from morl_trl.recipes.off_policy import _gamma
+
+    total = cfg.pop_size * cfg.num_envs
+    if cfg.frames_per_batch % total:
+        raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
+                         f"{cfg.pop_size} * {cfg.num_envs} = {total} (MORL/D's sub-envs), e.g. "
+                         f"{total * max(1, cfg.frames_per_batch // total)}")
+    if cfg.prioritized:
+        raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
+    env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
+    env = compose_policy_env(env, history_len=cfg.history_len)
+    env.append_transform(DiscountedVectorReturn(_gamma(cfg, domain_of(cfg.env_id))))
+    return env
+
+
+def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAgent:
+    """The population (continuous or discrete, from the env's action spec), its loss, optimizers
+    (one Adam per network kind over all members), targets and acting views."""
+    spec = action_spec(env)
+    (obs_dim,) = obs_shape(env)
+    k = num_objectives(env)
+    p = cfg.pop_size
+    weights = energy_weights(k, p, seed=cfg.seed, dtype=torch.float32) if p >= k else None
+    if weights is None:
+        raise ValueError(f"pop_size={p} is below the number of objectives {k}: the energy weights include the "
+                         f"{k} corners of the simplex; use pop_size >= {k}")
+    if is_discrete(spec):
+        n = spec.space.n
+        actor = make_population_categorical_actor(p, obs_dim, n, num_cells=cfg.hidden, action_spec=spec).to(device)
+        critic = make_population_q_network(p, obs_dim, n, k, num_cells=cfg.hidden).to(device)
+        loss = PopulationMOSACLoss(actor, critic, weights=weights, num_actions=n, alpha_init=cfg.alpha,
+                                   fixed_alpha=not cfg.learn_alpha, target_entropy_weight=cfg.target_entropy_scale)
+    else:
+        actor = make_population_gaussian_actor(p, obs_dim, spec.to(device), num_cells=cfg.hidden,
+                                               scale=cfg.actor_scale).to(device)
+        critic = make_population_critic(p, obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
+        loss = PopulationMOSACLoss(actor, critic, weights=weights, alpha_init=cfg.alpha,
+                                   fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+    loss.make_value_estimator(gamma=gamma)
+    explore, evaluate = population_policies(actor, loss.weights)
+    return MORLDAgent(cfg, loss, explore, evaluate, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
+                      device=device, num_envs_per_member=cfg.num_envs, eval_exploration=eval_exploration(cfg))

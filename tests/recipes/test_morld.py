@@ -1,0 +1,221 @@
+"""MORL/D (morld, morld_psa) and the SAC baseline: the authors' settings, PSA, the archive, learning."""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.collectors import Collector
+from torchrl.data import Categorical, Composite, LazyTensorStorage, TensorDictReplayBuffer, Unbounded
+from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+from morl_trl.recipes import ALGORITHMS, AGENT_BUILDERS, TRAINING_ENV_BUILDERS, resolve_config
+from morl_trl.recipes.morld import MORLDAgent, ParetoArchive, make_morld_agent, psa_weights
+from morl_trl.transforms import DiscountedVectorReturn
+
+CPU = torch.device("cpu")
+
+
+# ---------------------------------------------------------------------- the authors' settings (SPEC §4)
+@pytest.mark.parametrize("algo", ["morld", "morld_psa"])
+def test_morld_config_is_spec_section_4(algo):
+    c = {d: resolve_config(algo, d) for d in ("MOHopperDR-v5", "MOHalfCheetahDR-v5", "MOHumanoidDR-v5",
+                                              "MOLunarLanderDR-v0", "MOLavaGridDR-v0")}
+    assert {d: (x.pop_size, x.exchange_every, x.init_random_frames, x.batch_size) for d, x in c.items()} == {
+        "MOHopperDR-v5": (6, 20_000, 10_000, 256), "MOHalfCheetahDR-v5": (6, 10_000, 25_000, 256),
+        "MOHumanoidDR-v5": (6, 20_000, 5_000, 256), "MOLunarLanderDR-v0": (6, 20_000, 20_000, 128),
+        "MOLavaGridDR-v0": (5, 10_000, 20_000, 128)}
+    assert all(x.tau == 0.005 and x.eval_exploration == "random" and not x.prioritized for x in
+               (c["MOHopperDR-v5"], c["MOHalfCheetahDR-v5"], c["MOHumanoidDR-v5"]))
+    lander, grid = c["MOLunarLanderDR-v0"], c["MOLavaGridDR-v0"]
+    # discrete: hard targets every 2000 / 200 frames = 500 / 50 updates at one update per 4 member frames
+    assert (lander.tau, lander.target_update_period, lander.update_frequency, lander.target_entropy_scale) == \
+        (None, 500, 4, 0.3)
+    assert (grid.target_update_period, grid.update_frequency) == (50, 4)
+    assert c["MOHopperDR-v5"].weight_adaptation == ("psa" if algo == "morld_psa" else "none")
+    assert c["MOHopperDR-v5"].history_len == 2 and grid.history_len == 0
+    assert AGENT_BUILDERS[algo] is make_morld_agent and algo in TRAINING_ENV_BUILDERS
+
+
+def test_sac_config_is_spec_section_4():
+    hop, lander, grid = (resolve_config("sac", d) for d in ("MOHopperDR-v5", "MOLunarLanderDR-v0", "MOLavaGridDR-v0"))
+    assert (hop.alpha, hop.batch_size, hop.tau) == (0.2, 256, 0.005)
+    assert (lander.batch_size, lander.target_update_period, lander.target_entropy_scale) == (128, 2000, 0.3)
+    assert grid.target_update_period == 200
+    assert "sac" in ALGORITHMS
+
+
+def test_quick_morld_runs_p_times_num_envs_sub_envs():
+    cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True)
+    assert (cfg.pop_size, cfg.num_envs, cfg.frames_per_batch, cfg.updates_per_batch) == (5, 2, 60, 0)
+    with pytest.raises(ValueError, match=r"multiple of pop_size \* num_envs = 5 \* 7 = 35"):
+        TRAINING_ENV_BUILDERS["morld"](resolve_config("morld", "MOLavaGridDR-v0", quick=True, num_envs=7), CPU)
+    with pytest.raises(ValueError, match="'weight_adaptation'"):
+        resolve_config("morld", "MOLavaGridDR-v0", weight_adaptation="annealing")
+
+
+# ---------------------------------------------------------------------- PSA and the archive
+def test_psa_moves_each_weight_away_from_its_nearest_archived_neighbour():
+    w = torch.tensor([[0.5, 0.5], [0.2, 0.8], [0.9, 0.1]], dtype=torch.float64)
+    evals = torch.tensor([[2.0, 2.0], [1.0, 3.0], [float("nan"), 0.0]], dtype=torch.float64)
+    archive = torch.tensor([[2.0, 2.0], [3.0, 1.0], [1.0, 3.0]], dtype=torch.float64)
+    new = psa_weights(w, evals, archive, 0.1)
+    # member 0: nearest other point (3, 1) (tie with (1, 3): the first) -> objective 0 worse, objective 1 better
+    expect0 = torch.tensor([0.5 / 1.1, 0.5 * 1.1], dtype=torch.float64)
+    # member 1: itself skipped (distance 0 <= 0.01), nearest (2, 2): objective 0 worse, objective 1 better
+    expect1 = torch.tensor([0.2 / 1.1, 0.8 * 1.1], dtype=torch.float64)
+    torch.testing.assert_close(new[0], expect0 / expect0.sum())
+    torch.testing.assert_close(new[1], expect1 / expect1.sum())
+    torch.testing.assert_close(new[2], w[2])  # not evaluated: unchanged
+
+
+def test_archive_keeps_the_non_dominated_and_their_policies():
+    a = ParetoArchive()
+    a.add(torch.tensor([[1.0, 1.0], [2.0, 0.0]]), [{"id": 0}, {"id": 1}])
+    a.add(torch.tensor([[1.5, 1.5], [2.0, 0.0]]), [{"id": 2}, {"id": 3}])
+    assert a.evaluations.tolist() == [[2.0, 0.0], [1.5, 1.5]]
+    assert [i["id"] for i in a.individuals] == [1, 2]
+
+
+# ---------------------------------------------------------------------- a bandit the population must cover
+R = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.7, 0.7]])  # action -> vector reward; each is optimal for some w
+
+
+class Bandit(EnvBase):
+    """One-step episodes, constant observation, three actions with the rewards ``R``."""
+
+    def __init__(self, n):
+        super().__init__(batch_size=[n])
+        self.observation_spec = Composite(observation=Unbounded((n, 2)), shape=(n,))
+        self.action_spec = Categorical(3, shape=(n,))
+        self.reward_spec = Unbounded((n, 2))
+
+    def _reset(self, td):
+        n = self.batch_size[0]
+        return TensorDict(observation=torch.ones(n, 2), done=torch.zeros(n, 1, dtype=torch.bool),
+                          terminated=torch.zeros(n, 1, dtype=torch.bool), batch_size=[n])
+
+    def _step(self, td):
+        n = self.batch_size[0]
+        return TensorDict(observation=torch.ones(n, 2), reward=R[td["action"]],
+                          done=torch.ones(n, 1, dtype=torch.bool), terminated=torch.ones(n, 1, dtype=torch.bool),
+                          batch_size=[n])
+
+    def _set_seed(self, seed):
+        return seed
+
+
+def _bandit_agent(**overrides):
+    cfg = resolve_config("morld_psa", "MOLavaGridDR-v0", pop_size=3, num_envs=4, frames_per_batch=12, hidden=(16,),
+                         batch_size=32, lr=3e-3, target_update_period=10, update_frequency=1, init_random_frames=120,
+                         exchange_every=10**9, seed=0, **overrides)
+    env = TransformedEnv(Bandit(12), DiscountedVectorReturn(0.9))
+    return cfg, env, make_morld_agent(cfg, env, gamma=0.9, device=CPU)
+
+
+@pytest.mark.slow  # ~15-30 s on a shared CPU: ~350 population updates
+def test_population_learns_a_front_no_single_member_covers():
+    torch.manual_seed(0)
+    cfg, env, agent = _bandit_agent()
+    assert isinstance(agent, MORLDAgent)
+    torch.testing.assert_close(agent.loss.weights, torch.tensor([[0.0, 1.0], [0.5012, 0.4988], [1.0, 0.0]]), atol=1e-4,
+                               rtol=0)
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(10_000))
+    collector = Collector(env, agent.explore_policy, frames_per_batch=12, total_frames=1_200, init_random_frames=120,
+                          exploration_type=ExplorationType.RANDOM, auto_register_policy_transforms=False)
+    frames = 0
+    for batch in collector:
+        frames += batch.numel()
+        agent.learn(batch, buffer, frames)
+    collector.shutdown()
+    prefs = torch.tensor([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]])
+    td = TensorDict(observation=torch.ones(3, 2), preference=prefs, batch_size=[3])
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        actions = agent.eval_policy(td)["action"]
+        members = agent.explore_policy(TensorDict(observation=torch.ones(12, 2), batch_size=[12]))["action"]
+    # each member learned its own weight's best action; together they cover the three points of the front
+    assert actions.tolist() == [1, 2, 0]
+    assert members.view(3, 4).tolist() == [[1] * 4, [2] * 4, [0] * 4]
+    front = {tuple(R[a].tolist()) for a in actions.tolist()}
+    assert len(front) == 3  # a single member's (deterministic) policy gives one of these points
+
+
+def test_exchange_archives_member_returns_and_adapts_weights():
+    torch.manual_seed(0)
+    cfg, env, agent = _bandit_agent()
+    # three finished episodes: sub-envs 0 and 1 (member 0), 5 (member 1), 11 (member 2)
+    done = torch.zeros(12, 1, 1, dtype=torch.bool)
+    done[[0, 1, 5, 11]] = True
+    ret = torch.zeros(12, 1, 2)
+    ret[0], ret[1], ret[5], ret[11] = torch.tensor([0.0, 1.0]), torch.tensor([0.0, 3.0]), torch.tensor([0.7, 0.7]), \
+        torch.tensor([0.1, 0.0])
+    batch = TensorDict({"next": TensorDict(done=done, episode_discounted_return=ret, batch_size=[12, 1])}, [12, 1])
+    agent._record_returns(batch)
+    torch.testing.assert_close(agent.member_evaluations(),
+                               torch.tensor([[0.0, 2.0], [0.7, 0.7], [0.1, 0.0]], dtype=torch.float64))
+    before = agent.loss.weights.clone()
+    agent.exchange()
+    torch.testing.assert_close(agent.archive.evaluations,  # (0.1, 0) is dominated by (0.7, 0.7)
+                               torch.tensor([[0.0, 2.0], [0.7, 0.7]], dtype=torch.float64))
+    expected = psa_weights(before.double(), torch.tensor([[0.0, 2.0], [0.7, 0.7], [0.1, 0.0]], dtype=torch.float64),
+                           agent.archive.evaluations, 0.1).float()
+    torch.testing.assert_close(agent.loss.weights, expected)
+    assert not torch.equal(agent.loss.weights, before)
+    assert agent.member_evaluations().isnan().all()  # the next period starts afresh
+    # the state (weights in the loss, archive, exchange bookkeeping) round-trips
+    _, _, other = _bandit_agent()
+    other.load_state_dict(agent.state_dict())
+    torch.testing.assert_close(other.loss.weights, agent.loss.weights)
+    assert other.archive.evaluations.tolist() == agent.archive.evaluations.tolist() and other.exchanges == 1
+
+
+def test_sac_agent_learns_from_the_original_reward():
+    from morl_trl.recipes.off_policy import make_training_env
+
+    cfg = resolve_config("sac", "MOHopperDR-v5", quick=True, hidden=(16,), num_envs=2)
+    pytest.importorskip("mujoco")
+    env = make_training_env(cfg, CPU)
+    agent = AGENT_BUILDERS["sac"](cfg, env, gamma=0.99, device=CPU)
+    assert type(agent.loss).__name__ == "SACLoss" and agent.loss.tensor_keys.reward == "original_reward"
+    td = env.rollout(4, agent.explore_policy, break_when_any_done=False).reshape(-1)
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(100), batch_size=8)
+    buffer.extend(td)
+    losses = agent.update(buffer)
+    assert {"loss_actor", "loss_qvalue", "loss_alpha"} <= set(losses.keys())
+
+
+# ---------------------------------------------------------------------- recipes and the CLI
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("algo, folder, domains", [
+    ("morld", "morld", {"hopper": "MOHopperDR-v5", "half_cheetah": "MOHalfCheetahDR-v5", "humanoid": "MOHumanoidDR-v5",
+                        "lunar_lander": "MOLunarLanderDR-v0", "lava_grid": "MOLavaGridDR-v0"}),
+    ("sac", "sac", {"hopper": "MOHopperDR-v5", "half_cheetah": "MOHalfCheetahDR-v5", "humanoid": "MOHumanoidDR-v5",
+                    "lunar_lander": "MOLunarLanderDR-v0", "lava_grid": "MOLavaGridDR-v0",
+                    "mario": "MOSuperMarioBrosZeroShot-v2"}),
+])
+def test_paper_recipes_are_the_defaults_on_every_domain_the_paper_ran(algo, folder, domains):
+    for name, env_id in domains.items():
+        assert resolve_config(algo, "MOLavaGridDR-v0", config_file=ROOT / f"examples/{folder}/{name}_paper.toml") == \
+            resolve_config(algo, env_id)
+
+
+def test_quick_recipe_file_is_the_quick_preset():
+    path = ROOT / "examples/morld/lava_grid_quick.toml"
+    assert resolve_config("morld", "MOLavaGridDR-v0", config_file=path) == \
+        resolve_config("morld", "MOLavaGridDR-v0", quick=True)
+
+
+@pytest.mark.slow  # ~25 s: a whole run (build, 2 evaluations, report, checkpoints)
+def test_cli_trains_and_evaluates_morld_psa(tmp_path):
+    from morl_trl.cli import main
+
+    run = tmp_path / "run"
+    code = main(["train", "morld_psa", "MOLavaGridDR-v0", "--quick", "--frames", "600", "--run-dir", str(run),
+                 "--no-progress", "init_random_frames=300", "exchange_every=300", "hidden=[16]", "eval_weights=2",
+                 "eval_contexts=['MOLavaGridRoom-v0']", "eval_random_baseline=false", "batch_size=16"])
+    assert code == 0
+    rows = (run / "eval" / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 3  # header + frames 0 and 600, one context
+    state = torch.load(run / "checkpoints" / "frames_000000000600" / "state.pt", weights_only=False)
+    assert state["agent"]["morld"]["exchanges"] == 2
