@@ -5,6 +5,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`EnvelopeQLoss` -- Envelope Q-learning (discrete actions, PER-ready).
 * :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
 * :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
+* :class:`GPILoss` -- GPI-LS / GPI-PD (vector Q ensemble, GPI priorities); :class:`DynamicsLoss`
+  -- GPI-PD's probabilistic dynamics ensemble (:class:`ProbabilisticEnsemble`).
 
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
@@ -14,7 +16,9 @@ Networks: :mod:`morl_trl.objectives.networks`.
 
 from morl_trl.objectives.capql import CAPQLLoss
 from morl_trl.objectives.common import MultiObjectiveLossModule
+from morl_trl.objectives.dynamics import DynamicsLoss, ProbabilisticEnsemble, fit_dynamics
 from morl_trl.objectives.envelope import EnvelopeQLoss
+from morl_trl.objectives.gpi import GPILoss, GPIPolicy, GPIQNetwork, gpi_action
 from morl_trl.objectives.mosac import DiscreteMOSACLoss, MOSACLoss
 from morl_trl.objectives.networks import (
     NatureCNN,
@@ -43,4 +47,12 @@ __all__ = [
     "make_vector_q_network",
     "scalarized_argmax",
     "vector_td0_return_estimate",
+    # GPI-LS / GPI-PD
+    "GPILoss",
+    "GPIPolicy",
+    "GPIQNetwork",
+    "gpi_action",
+    "DynamicsLoss",
+    "ProbabilisticEnsemble",
+    "fit_dynamics",
 ]

@@ -7,6 +7,8 @@ algorithm          agent (networks, policies, loss, optimizers)  loop
 ``capql``          :func:`~morl_trl.recipes.actor_critic.make_capql_agent`         :mod:`~morl_trl.recipes.off_policy`
 ``mosac``          :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`         :mod:`~morl_trl.recipes.off_policy`
 ``mosac_discrete`` :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent` :mod:`~morl_trl.recipes.off_policy`
+``gpi_ls``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.gpi.GPIAgent`: weight-support iterations)
+``gpi_pd``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (+ Dyna with a dynamics ensemble)
 ================== ============================================= ===================================
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
@@ -24,6 +26,7 @@ from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
 from morl_trl.recipes.envelope import make_envelope_agent
+from morl_trl.recipes.gpi import make_gpi_agent
 from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
@@ -52,6 +55,8 @@ AGENT_BUILDERS = {
     "capql": make_capql_agent,
     "mosac": make_mosac_agent,
     "mosac_discrete": make_discrete_mosac_agent,
+    "gpi_ls": make_gpi_agent,
+    "gpi_pd": make_gpi_agent,
 }
 assert tuple(AGENT_BUILDERS) == ALGORITHMS
 

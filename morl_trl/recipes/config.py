@@ -7,7 +7,7 @@ frames, history, evaluation period and weights) -> the algorithm's defaults (SPE
 
 The keys are grouped as TorchRL's sota recipes group theirs (``run``, ``env``, ``collector``,
 ``replay_buffer``, ``optim``, ``network``, ``exploration``, ``envelope``, ``actor_critic``,
-``eval``): a config file may use ``[group]`` tables or flat keys, and
+``gpi``, ``eval``): a config file may use ``[group]`` tables or flat keys, and
 ``TrainConfig.to_toml()`` (``morl-trl train ... --print-config``) writes the complete grouped
 config. Every value is checked (type and range) when the config is built: a bad one raises a
 ``ValueError`` naming the key, the value and what is valid; an unknown key lists the valid ones.
@@ -27,7 +27,7 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "gpi_ls", "gpi_pd")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -212,6 +212,32 @@ class TrainConfig:
                             _choice(("softplus", "clamped_log_std")))
     loss_fresh_preferences: bool = _key("actor_critic", False, "CAPQL/MOSAC losses draw fresh preferences per "
                                         "sample instead of the stored ones (the authors: false)", _bool)
+    # GPI-LS / GPI-PD (the authors' GPIPD defaults; SPEC §4 per domain)
+    gpi_iteration_frames: int = _key("gpi", 50_000, "frames per weight-support iteration (timesteps_per_iter)", _int(1))
+    gpi_front_episodes: int = _key("gpi", 5, "episodes per weight when the GPI policy is evaluated on the support "
+                                   "and the corner weights (LunarLander: 3)", _int(1, 10_000))
+    gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
+    gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
+    gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    gpi_gradient_updates: int = _key("gpi", 20, "gradient updates per frame once frames reach "
+                                     "gpi_dynamics_rollout_starts (1 before; updates_per_batch > 0 overrides both)",
+                                     _int(1))
+    gpi_min_priority: float = _key("gpi", 0.01, "Huber threshold and minimum PER priority",
+                                   _float(0.0, 1e6, open_low=True))
+    gpi_dynamics_hidden: tuple[int, ...] = _key("gpi", (256, 256, 256), "GPI-PD: hidden widths of the dynamics "
+                                                "ensemble", _hidden)
+    gpi_dynamics_ensemble: int = _key("gpi", 5, "GPI-PD: dynamics ensemble members", _int(1, 64))
+    gpi_dynamics_elites: int = _key("gpi", 2, "GPI-PD: elite members sampled from", _int(1, 64))
+    gpi_dynamics_lr: float = _key("gpi", 1e-3, "GPI-PD: dynamics learning rate", _float(0.0, 1.0, open_low=True))
+    gpi_dynamics_train_freq: int = _key("gpi", 250, "GPI-PD: frames between dynamics fits", _int(1))
+    gpi_dynamics_rollout_freq: int = _key("gpi", 250, "GPI-PD: frames between model rollouts", _int(1))
+    gpi_dynamics_rollout_starts: int = _key("gpi", 5_000, "GPI-PD: frames before the first rollout (also when "
+                                            "gpi_gradient_updates starts, for GPI-LS too)", _int(0))
+    gpi_dynamics_rollout_batch: int = _key("gpi", 25_000, "GPI-PD: observations rolled out per rollout", _int(1))
+    gpi_dynamics_buffer: int = _key("gpi", 100_000, "GPI-PD: model transitions kept", _int(1))
+    gpi_uncertainty_threshold: float = _key("gpi", 1.5, "GPI-PD: model transitions kept only below this "
+                                            "uncertainty", _float(0.0, 1e12, open_low=True))
+    gpi_real_ratio: float = _key("gpi", 0.5, "GPI-PD: fraction of real transitions per batch", _float(0.0, 1.0))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -321,7 +347,7 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
     for k, v in values.items():
         if v == "null":  # TOML has no null: a file or a key=value flag writes the string
             v = None
-        if k in ("hidden", "eval_contexts") and isinstance(v, list):
+        if k in ("hidden", "eval_contexts", "gpi_dynamics_hidden") and isinstance(v, list):
             v = tuple(v)
         elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
@@ -351,6 +377,12 @@ _ALGO = {
                   prioritized=False, eval_exploration="random"),
     "mosac_discrete": dict(batch_size=128, target_update_period=2000, learn_alpha=True,
                            target_entropy_scale=0.3, prioritized=False, eval_exploration="random"),
+    # GPI-LS / GPI-PD: the authors' GPIPD defaults (learning_starts 100, PER without importance
+    # weights, hard copies counted in frames) with SPEC's epsilon schedule
+    "gpi_ls": dict(batch_size=128, target_update_period=1000, prioritized=True, per_importance_weights=False,
+                   init_random_frames=100, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
+    "gpi_pd": dict(batch_size=128, target_update_period=1000, prioritized=True, per_importance_weights=False,
+                   init_random_frames=100, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
 }
 _ALGO_DOMAIN = {
     ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200, num_sampled_prefs=4),
@@ -360,12 +392,25 @@ _ALGO_DOMAIN = {
     ("mosac", "MOHopperDR-v5"): dict(init_random_frames=10_000),
     ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
     ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
+    ("gpi_ls", "MOLunarLanderDR-v0"): dict(gpi_front_episodes=3),
+    ("gpi_ls", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200),
+    ("gpi_ls", "MOSuperMarioBrosZeroShot-v2"): dict(hidden=(512, 512), eps_start=0.2, eps_end=0.01, batch_size=64,
+                                                    init_random_frames=25_000, buffer_size=100_000,
+                                                    gpi_layer_norm=False, eval_weights=32),
+    ("gpi_pd", "MOLunarLanderDR-v0"): dict(gpi_front_episodes=3, gpi_uncertainty_threshold=20.0,
+                                           gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=5_000),
+    ("gpi_pd", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200,
+                                        gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
+                                        gpi_dynamics_hidden=(512, 512)),
 }
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
     buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
     eval_weights=8, checkpoint_interval=20_000,
+    # GPI-LS / GPI-PD: several weight-support iterations, cheaper model fits and rollouts
+    gpi_iteration_frames=10_000, gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=1_000,
+    gpi_dynamics_rollout_batch=5_000,
 )
 
 
