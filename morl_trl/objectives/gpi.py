@@ -243,6 +243,12 @@ class GPILoss(MultiObjectiveLossModule):
         self.current_weight = weight.to(self.current_weight.device)
         self.weight_support = support.to(self.current_weight.device)
 
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):
+        saved = state_dict.get(prefix + "weight_support")
+        if saved is not None:  # the support's size changes over a run: take the saved one's
+            self.weight_support = torch.empty_like(saved, device=self.weight_support.device)
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+
     def _set_in_keys(self) -> None:
         k = self.tensor_keys
         self._in_keys = [k.observation, k.action, ("next", k.observation), ("next", k.reward), ("next", k.done),
