@@ -408,10 +408,14 @@ _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
     buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
     eval_weights=8, checkpoint_interval=20_000,
-    # GPI-LS / GPI-PD: several weight-support iterations, cheaper model fits and rollouts
-    gpi_iteration_frames=10_000, gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=1_000,
-    gpi_dynamics_rollout_batch=5_000,
 )
+# --quick, per algorithm, on top of _QUICK
+_QUICK_ALGO = {
+    # GPI-LS / GPI-PD: several weight-support iterations, cheaper model fits and rollouts
+    "gpi_ls": dict(gpi_iteration_frames=10_000),
+    "gpi_pd": dict(gpi_iteration_frames=10_000, gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=1_000,
+                   gpi_dynamics_rollout_batch=5_000),
+}
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
@@ -466,6 +470,7 @@ def resolve_config(
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if quick:
         values.update(_QUICK)
+        values.update(_QUICK_ALGO.get(algo, {}))
     values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
     return TrainConfig(**_coerce(values)).validate()
