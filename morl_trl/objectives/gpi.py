@@ -27,7 +27,8 @@ from morl_trl.objectives.common import MultiObjectiveLossModule
 from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear
 from morl_trl.objectives.envelope import action_index
 
-__all__ = ["GPIQNetwork", "GPIPolicy", "GPILoss", "gpi_action", "thresholded_huber"]
+__all__ = ["GPIQNetwork", "GPIPolicy", "GPILoss", "gpi_action", "thresholded_huber", "GPIActor", "GPIVectorCritic",
+           "GPIContinuousPolicy", "GPIContinuousLoss"]
 
 
 class GPIQNetwork(nn.Module):
@@ -360,4 +361,224 @@ class GPILoss(MultiObjectiveLossModule):
         out = TensorDict({"loss_qvalue": loss, "td_error_mean": td.detach().mean(),
                           "scalarized_q": torch.einsum("ebk,bk->eb", q_taken.detach(), w).mean()}, batch_size=[])
         self._clear_weakrefs(tensordict, out, "value_network_params", "target_value_network_params")
+        return out
+
+
+# ============================================================================ continuous actions
+class GPIActor(nn.Module):
+    """The authors' continuous ``Policy``: ``tanh(MLP(s, w))`` rescaled to ``[low, high]`` (ReLU MLP, orthogonal init).
+
+    ``forward(observation, preference, noise=None, noise_clip=None)``: with ``noise``, Gaussian noise
+    of that std clipped to ``+-noise_clip`` is added before the rescaling, then clamped to ``[-1, 1]``.
+
+    Example:
+        >>> actor = GPIActor(5, 2, 3, low=-torch.ones(3), high=torch.ones(3), hidden=(8, 8))
+        >>> actor(torch.zeros(4, 5), torch.full((4, 2), 0.5)).shape
+        torch.Size([4, 3])
+    """
+
+    def __init__(self, obs_dim: int, num_objectives: int, action_dim: int, *, low, high, hidden=(256, 256)) -> None:
+        super().__init__()
+        layers, width = [], obs_dim + num_objectives
+        for h in hidden:
+            layers += [nn.Linear(width, h), nn.ReLU()]
+            width = h
+        self.latent = nn.Sequential(*layers)
+        self.mean = nn.Linear(width, action_dim)
+        for m in self.modules():
+            if isinstance(m, nn.Linear):
+                nn.init.orthogonal_(m.weight)
+                nn.init.zeros_(m.bias)
+        low, high = torch.as_tensor(low, dtype=torch.float32), torch.as_tensor(high, dtype=torch.float32)
+        self.register_buffer("action_scale", (high - low) / 2)
+        self.register_buffer("action_bias", (high + low) / 2)
+        self.num_objectives = num_objectives
+
+    def forward(self, observation, preference, noise: float | None = None, noise_clip: float | None = None):
+        x = torch.cat([observation.to(self.mean.weight.dtype), preference.to(self.mean.weight.dtype)], -1)
+        a = torch.tanh(self.mean(self.latent(x)))
+        if noise:
+            a = (a + (torch.randn_like(a) * noise).clamp(-noise_clip, noise_clip)).clamp(-1, 1)
+        return a * self.action_scale + self.action_bias
+
+
+class GPIVectorCritic(nn.Module):
+    """``E`` vector critics ``Q_e(s, a, w)`` ``[E, *B, k]`` as one batched module (the authors' continuous
+    ``QNetwork``: ``MLP(s, a, w)`` with Linear-Dropout-LayerNorm-ReLU blocks).
+
+    Example:
+        >>> GPIVectorCritic(5, 3, 2, hidden=(8, 8))(torch.zeros(4, 5), torch.zeros(4, 3), torch.full((4, 2), .5)).shape
+        torch.Size([2, 4, 2])
+    """
+
+    def __init__(self, obs_dim: int, action_dim: int, num_objectives: int, *, hidden=(256, 256), num_nets: int = 2,
+                 dropout: float = 0.01, layer_norm: bool = True) -> None:
+        super().__init__()
+        widths = (obs_dim + action_dim + num_objectives, *hidden)
+        self.layers = nn.ModuleList(EnsembleLinear(num_nets, a, b) for a, b in zip(widths[:-1], widths[1:]))
+        self.norms = nn.ModuleList(EnsembleLayerNorm(num_nets, b) for b in hidden) if layer_norm else None
+        self.out = EnsembleLinear(num_nets, widths[-1], num_objectives)
+        self.dropout, self.num_nets, self.num_objectives = dropout, num_nets, num_objectives
+
+    def forward(self, observation, action, preference):
+        lead = observation.shape[:-1]
+        x = torch.cat([observation, action, preference], -1).to(self.out.weight.dtype)
+        x = x.reshape(1, -1, x.shape[-1]).expand(self.num_nets, -1, -1)
+        for i, layer in enumerate(self.layers):
+            x = layer(x)
+            if self.dropout > 0:
+                x = F.dropout(x, self.dropout, self.training)
+            if self.norms is not None:
+                x = self.norms[i](x)
+            x = F.relu(x)
+        return self.out(x).reshape(self.num_nets, *lead, self.num_objectives)
+
+
+class GPIContinuousPolicy(TensorDictModuleBase):
+    """Acts with the actor for the row's ``w`` (``noise``: the authors' exploration, ``policy_noise`` clipped), or,
+    with ``gpi=True``, by GPI over the support: ``argmax_{i, j} w . Q_0(s, pi(s, w_j), w_i)`` (the authors use GPI
+    in the continuous case only to rank the corner weights).
+
+    Example:
+        >>> from tensordict import TensorDict
+        >>> actor = GPIActor(4, 2, 3, low=-torch.ones(3), high=torch.ones(3), hidden=(8,))
+        >>> policy = GPIContinuousPolicy(actor, GPIVectorCritic(4, 3, 2, hidden=(8,)), support=torch.eye(2), gpi=True)
+        >>> policy(TensorDict(observation=torch.zeros(5, 4), preference=torch.full((5, 2), .5), batch_size=[5]))["action"].shape
+        torch.Size([5, 3])
+    """
+
+    def __init__(self, actor: GPIActor, critic: GPIVectorCritic | None = None, support=None, *, gpi: bool = False,
+                 noise: float | None = None, noise_clip: float | None = None) -> None:
+        super().__init__()
+        self.actor, self.critic, self.gpi = actor, critic, gpi
+        self.noise, self.noise_clip = noise, noise_clip
+        self.support = torch.zeros(0, actor.num_objectives) if support is None else torch.as_tensor(support).float()
+        self.in_keys, self.out_keys = ["observation", "preference"], ["action"]
+
+    def set_support(self, support) -> None:
+        self.support = torch.as_tensor(support, dtype=torch.float32)
+
+    @torch.no_grad()
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        obs, w = tensordict.get("observation"), tensordict.get("preference").float()
+        if not self.gpi or self.support.shape[0] == 0:
+            tensordict.set("action", self.actor(obs, w, self.noise, self.noise_clip))
+            return tensordict
+        lead, m = w.shape[:-1], self.support.shape[0]
+        M = self.support.to(w.device).expand(*lead, m, w.shape[-1])
+        obs_m = obs.unsqueeze(-2).expand(*lead, m, obs.shape[-1])
+        actions = self.actor(obs_m, M)  # [*B, m(j), act]
+        # Q_0(s, a_j, w_i): [*B, i, j, k]
+        q = self.critic(obs_m.unsqueeze(-3).expand(*lead, m, m, obs.shape[-1]),
+                        actions.unsqueeze(-3).expand(*lead, m, m, actions.shape[-1]),
+                        M.unsqueeze(-2).expand(*lead, m, m, w.shape[-1]))[0]
+        best_j = gpi_action(q, w)[0]  # gpi_action's "action" axis is the candidate j
+        tensordict.set("action", actions.gather(-2, best_j[..., None, None].expand(*lead, 1, actions.shape[-1])).squeeze(-2))
+        return tensordict
+
+
+class GPIContinuousLoss(MultiObjectiveLossModule):
+    r"""The authors' continuous GPI-LS / GPI-PD update (TD3 with vector critics conditioned on ``w``).
+
+    Weights as :class:`GPILoss` (half the batch under ``w``, half under support weights). Critic:
+    target action :math:`\pi^-(s', w)` plus clipped noise (``policy_noise``, ``noise_clip``), target the
+    member of the target critics with the lowest :math:`w \cdot Q^-_e`, loss the mean over members of
+    the MSE. Actor: :math:`-w \cdot \frac1E \sum_e Q_e(s, \pi(s, w), w)` (critics held fixed).
+    Priority: :math:`\max(|w \cdot 0.05\,|Q_0 - y||, \text{min\_priority})` on the first ``B`` rows.
+    ``loss_actor`` is for a summed backward; the authors step the critics first and then the actor
+    against the updated critics: :meth:`actor_loss` after the critic step does that.
+
+    Example:
+        >>> actor = GPIActor(5, 2, 3, low=-torch.ones(3), high=torch.ones(3), hidden=(16,))
+        >>> loss = GPIContinuousLoss(actor, GPIVectorCritic(5, 3, 2, hidden=(16,)))
+        >>> loss.make_value_estimator(gamma=0.99)  # doctest: +ELLIPSIS
+        GPIContinuousLoss(...)
+        >>> td = TensorDict({"observation": torch.randn(8, 5), "action": torch.rand(8, 3) * 2 - 1,
+        ...     ("next", "observation"): torch.randn(8, 5), ("next", "reward"): torch.randn(8, 2),
+        ...     ("next", "done"): torch.zeros(8, 1, dtype=torch.bool),
+        ...     ("next", "terminated"): torch.zeros(8, 1, dtype=torch.bool)}, [8])
+        >>> out = loss(td)
+        >>> sorted(k for k in out.keys() if k.startswith("loss_"))
+        ['loss_actor', 'loss_qvalue']
+    """
+
+    _AcceptedKeys = GPILoss._AcceptedKeys
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+    actor_network: TensorDictModule
+    actor_network_params: TensorDictBase
+    target_actor_network_params: TensorDictBase
+    qvalue_network: TensorDictModule
+    qvalue_network_params: TensorDictBase
+    target_qvalue_network_params: TensorDictBase
+
+    def __init__(self, actor: GPIActor, critic: GPIVectorCritic, *, policy_noise: float = 0.2, noise_clip: float = 0.5,
+                 min_priority: float = 0.1) -> None:
+        self._in_keys = None
+        super().__init__()
+        self.num_objectives = critic.num_objectives
+        self.policy_noise, self.noise_clip, self.min_priority = policy_noise, noise_clip, float(min_priority)
+        self.convert_to_functional(TensorDictModule(actor, in_keys=["observation", "preference"], out_keys=["action"]),
+                                   "actor_network", create_target_params=True)
+        self.convert_to_functional(TensorDictModule(critic, in_keys=["observation", "action", "preference"],
+                                                    out_keys=["state_action_value"]),
+                                   "qvalue_network", create_target_params=True)
+        k = self.num_objectives
+        self.register_buffer("current_weight", torch.full((k,), 1.0 / k))
+        self.register_buffer("weight_support", torch.full((1, k), 1.0 / k))
+
+    set_weights = GPILoss.set_weights
+    _load_from_state_dict = GPILoss._load_from_state_dict
+    _set_in_keys = GPILoss._set_in_keys
+
+    @property
+    def out_keys(self) -> list[str]:
+        return ["loss_qvalue", "loss_actor", "scalarized_q"]
+
+    def actor_loss(self) -> torch.Tensor:
+        """The actor loss on the (doubled) batch of the last :meth:`forward`, with the critics as they are now:
+        a trainer that steps the critics first and the actor after (the authors' order) calls it after the step."""
+        obs, w = self.last_actor_inputs
+        pi = self._actor(self.actor_network_params, obs, w)
+        q_pi = self._critic(self.qvalue_network_params.detach().clone(), obs, pi, w).mean(0)
+        return -torch.einsum("bk,bk->b", q_pi, w).mean()
+
+    def _actor(self, params, obs, w, noise=None):
+        with params.to_module(self.actor_network, preserve_module_state=False):
+            return self.actor_network.module(obs, w, noise, self.noise_clip)
+
+    def _critic(self, params, obs, a, w):
+        with params.to_module(self.qvalue_network, preserve_module_state=False):
+            return self.qvalue_network.module(obs, a, w)
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        self._check_inputs(tensordict, needs_preference=False)
+        data, keys = tensordict.reshape(-1), self.tensor_keys
+        b = data.shape[0]
+        obs, next_obs = data.get(keys.observation), data.get(("next", keys.observation))
+        action, reward = data.get(keys.action).reshape(b, -1), data.get(("next", keys.reward))
+        terminated = data.get(("next", keys.terminated)).reshape(b, 1)
+        w = self.current_weight.expand(b, -1)
+        support = self.weight_support
+        if support.shape[0] > 1:
+            w = torch.cat([w, support[torch.randint(support.shape[0], (b,), device=support.device)]])
+            obs, next_obs, action = obs.repeat(2, 1), next_obs.repeat(2, 1), action.repeat(2, 1)
+            reward, terminated = reward.repeat(2, 1), terminated.repeat(2, 1)
+        with torch.no_grad():
+            next_a = self._actor(self.target_actor_network_params, next_obs, w, self.policy_noise)
+            qt = self._critic(self.target_qvalue_network_params, next_obs, next_a, w)  # [E, 2B, k]
+            idx = torch.einsum("ebk,bk->eb", qt, w).argmin(0).view(1, -1, 1).expand(1, *qt.shape[1:])
+            target = reward + self.value_estimator.gamma * (1 - terminated.to(reward.dtype)) * qt.gather(0, idx)[0]
+        q = self._critic(self.qvalue_network_params, obs, action, w)
+        loss_q = torch.stack([F.mse_loss(q[e], target) for e in range(q.shape[0])]).mean()
+        err = ((q[0] - target).detach().abs() * 0.05)[:b]
+        tensordict.set(keys.priority, torch.einsum("bk,bk->b", err, w[:b]).clamp(min=self.min_priority)
+                       .reshape(tensordict.shape))
+        self.last_actor_inputs = (obs.detach(), w.detach())
+        loss_actor = self.actor_loss()
+        out = TensorDict({"loss_qvalue": loss_q, "loss_actor": loss_actor,
+                          "scalarized_q": torch.einsum("bk,bk->b", q[0].detach(), w).mean()}, batch_size=[])
+        self._clear_weakrefs(tensordict, out, "actor_network_params", "target_actor_network_params",
+                             "qvalue_network_params", "target_qvalue_network_params")
         return out

@@ -238,6 +238,13 @@ class TrainConfig:
     gpi_uncertainty_threshold: float = _key("gpi", 1.5, "GPI-PD: model transitions kept only below this "
                                             "uncertainty", _float(0.0, 1e12, open_low=True))
     gpi_real_ratio: float = _key("gpi", 0.5, "GPI-PD: fraction of real transitions per batch", _float(0.0, 1.0))
+    gpi_dynamics_rollout_len: int = _key("gpi", 1, "GPI-PD: model steps per rollout (continuous: 5)", _int(1, 1000))
+    gpi_dynamics_normalize: bool = _key("gpi", False, "GPI-PD: standardise the model's inputs (continuous: true)",
+                                        _bool)
+    gpi_policy_noise: float = _key("gpi", 0.2, "continuous: std of the actor's exploration and target-smoothing "
+                                   "noise", _float(0.0, 1e3))
+    gpi_noise_clip: float = _key("gpi", 0.5, "continuous: that noise clipped to +-this", _float(0.0, 1e3))
+    gpi_policy_delay: int = _key("gpi", 2, "continuous: critic updates per actor update", _int(1))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -403,6 +410,23 @@ _ALGO_DOMAIN = {
                                         gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
                                         gpi_dynamics_hidden=(512, 512)),
 }
+# continuous GPI-LS / GPI-PD: the authors' GPIPDContinuousAction defaults with SPEC's script values
+_GPI_CONTINUOUS = dict(tau=0.005, batch_size=256, init_random_frames=25_000, buffer_size=1_000_000,
+                       gpi_gradient_updates=1, gpi_min_priority=0.1, gpi_dynamics_hidden=(200, 200, 200, 200),
+                       gpi_dynamics_rollout_len=5, gpi_dynamics_rollout_starts=1_000, gpi_dynamics_rollout_batch=50_000,
+                       gpi_dynamics_buffer=200_000, gpi_uncertainty_threshold=2.0, gpi_real_ratio=0.1,
+                       gpi_dynamics_normalize=True)
+for _algo in ("gpi_ls", "gpi_pd"):
+    _ALGO_DOMAIN[(_algo, "MOHopperDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=50_000)
+    _ALGO_DOMAIN[(_algo, "MOHalfCheetahDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=25_000)
+    _ALGO_DOMAIN[(_algo, "MOHumanoidDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=25_000)
+_ALGO_DOMAIN[("gpi_pd", "MOHopperDR-v5")].update(gpi_dynamics_train_freq=2_000, gpi_dynamics_rollout_freq=2_000,
+                                                 gpi_real_ratio=0.5)
+_ALGO_DOMAIN[("gpi_pd", "MOHalfCheetahDR-v5")].update(gpi_dynamics_train_freq=4_000, gpi_dynamics_rollout_freq=4_000,
+                                                      gpi_uncertainty_threshold=10.0)
+_ALGO_DOMAIN[("gpi_pd", "MOHumanoidDR-v5")].update(gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=5_000,
+                                                   gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
+                                                   gpi_dynamics_hidden=(512, 512))
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,

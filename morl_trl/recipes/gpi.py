@@ -51,6 +51,7 @@ from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import make_env
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
+from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic
 from morl_trl.objectives.dynamics import model_inputs
 from morl_trl.objectives.gpi import gpi_action
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
@@ -97,9 +98,13 @@ class GPIAgent(Agent):
 
     def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
                  exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
-                 num_actions: int, dynamics: DynamicsLoss | None = None) -> None:
-        super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, HardUpdate(loss, value_network_update_interval=1),
+                 num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
+        updater = HardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
+        super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
                          device=device, exploration_module=exploration_module)
+        self.gpi_policy = eval_policy if gpi_policy is None else gpi_policy
+        self.continuous = num_actions is None
+        self._updates = 0
         self.gamma = gamma
         self.k = loss.num_objectives
         self.num_actions = num_actions
@@ -128,14 +133,16 @@ class GPIAgent(Agent):
             self.preference_transform.weights = support.clone()
             self.preference_transform.mode = "random"
 
-    def _gpi_policies(self) -> list[GPIPolicy]:
-        return [m for m in self.explore_policy.modules() if isinstance(m, GPIPolicy)] + [self.eval_policy]
+    def _gpi_policies(self) -> list:
+        kinds = (GPIPolicy, GPIContinuousPolicy)
+        return [m for m in self.explore_policy.modules() if isinstance(m, kinds)] + [self.eval_policy, self.gpi_policy]
 
-    def _evaluate(self, weights: np.ndarray, support: np.ndarray) -> np.ndarray:
-        """GPI over ``support``, evaluated at ``weights``."""
-        self.eval_policy.set_support(torch.as_tensor(support, dtype=torch.float32))
+    def _evaluate(self, weights: np.ndarray, support: np.ndarray, policy=None) -> np.ndarray:
+        """``policy`` (the evaluation policy: GPI over ``support`` for discrete actions) at ``weights``."""
+        policy = self.eval_policy if policy is None else policy
+        policy.set_support(torch.as_tensor(support, dtype=torch.float32))
         self.evaluations += 1
-        values = evaluate_gpi_weights(self.eval_policy, self.cfg.env_id, weights, episodes=self.cfg.gpi_front_episodes,
+        values = evaluate_gpi_weights(policy, self.cfg.env_id, weights, episodes=self.cfg.gpi_front_episodes,
                                       gamma=self.gamma, history_len=self.cfg.history_len,
                                       seed=self.cfg.seed + 10_000 * self.evaluations, device=self.device)
         return values
@@ -150,7 +157,7 @@ class GPIAgent(Agent):
         if ls.ccs:
             ccs_support = np.stack(ls.get_weight_support())
             corners = ls.corner_weights()
-            w = ls.next_weight(gpi_values=self._evaluate(corners, ccs_support))
+            w = ls.next_weight(gpi_values=self._evaluate(corners, ccs_support, self.gpi_policy))
         else:
             w = ls.next_weight()
         if w is None:  # no corner left (only with an epsilon): keep training on the last weight
@@ -159,7 +166,7 @@ class GPIAgent(Agent):
         self.support = unique_weights(ls.get_weight_support() + ls.get_corner_weights(top_k=4) + [self.weight])
         self.iteration += 1
         self._apply_weights()
-        if buffer is not None and self.cfg.prioritized and len(buffer):
+        if buffer is not None and self.cfg.prioritized and len(buffer) and not self.continuous:  # (discrete only)
             self._reset_priorities(buffer)
 
     @torch.no_grad()
@@ -180,15 +187,15 @@ class GPIAgent(Agent):
         if frames >= cfg.init_random_frames:
             if self.dynamics is not None:
                 self._dyna(buffer, prev, frames)
-            per_frame = cfg.gpi_gradient_updates if frames >= cfg.gpi_dynamics_rollout_starts else 1
-            n = cfg.updates_per_batch or batch.numel() * per_frame
+            gated = not self.continuous and frames < cfg.gpi_dynamics_rollout_starts  # (the authors' discrete GPIPD)
+            n = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
             for i in range(n):
                 try:
                     losses = self.update(buffer)
                 except NonFiniteLossError as err:
                     err.updates_done = i
                     raise
-            if frames // cfg.target_update_period > prev // cfg.target_update_period:
+            if not self.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
                 self.target_updater.step()  # the authors' hard copy every target_update_period steps
         if frames >= self.iteration_end:
             while self.iteration_end <= frames:
@@ -210,6 +217,8 @@ class GPIAgent(Agent):
         return batch, real
 
     def update(self, buffer):
+        if self.continuous:
+            return self._update_continuous(buffer)
         batch, real = self._sample(buffer)
         out = self.loss(batch)
         total = out["loss_qvalue"]
@@ -222,6 +231,32 @@ class GPIAgent(Agent):
         if self.cfg.max_grad_norm is not None:
             torch.nn.utils.clip_grad_norm_([p for g in opt.param_groups for p in g["params"]], self.cfg.max_grad_norm)
         opt.step()
+        if self.cfg.prioritized:
+            if real is not batch:
+                real.set("td_error", batch["td_error"][: real.shape[0]])
+            buffer.update_tensordict_priority(real)
+        return out.detach()
+
+    def _update_continuous(self, buffer):
+        """The authors' continuous update: critics every update, the actor every ``gpi_policy_delay``
+        updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
+        batch, real = self._sample(buffer)
+        out = self.loss(batch)
+        if not (torch.isfinite(out["loss_qvalue"]) and torch.isfinite(out["loss_actor"])):
+            bad = {k: out[k].item() for k in ("loss_qvalue", "loss_actor")}
+            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
+        q_opt, pi_opt = self.optimizers["qvalue"], self.optimizers["actor"]
+        q_opt.zero_grad(set_to_none=True)
+        out["loss_qvalue"].backward()
+        q_opt.step()
+        tau = self.cfg.tau if self.cfg.tau is not None else 0.005
+        _polyak(self.loss.qvalue_network_params, self.loss.target_qvalue_network_params, tau)
+        if self._updates % self.cfg.gpi_policy_delay == 0:
+            pi_opt.zero_grad(set_to_none=True)
+            self.loss.actor_loss().backward()  # against the critics just updated, as the authors
+            pi_opt.step()
+            _polyak(self.loss.actor_network_params, self.loss.target_actor_network_params, tau)
+        self._updates += 1
         if self.cfg.prioritized:
             if real is not batch:
                 real.set("td_error", batch["td_error"][: real.shape[0]])
@@ -250,31 +285,41 @@ class GPIAgent(Agent):
         size = -(-total // chunks)
         support = torch.as_tensor(self.support, dtype=torch.float32, device=self.device)
         w = torch.as_tensor(self.weight, dtype=torch.float32, device=self.device)
-        qnet = self.loss.value_network.module
         for _ in range(chunks):
             index = torch.randint(len(buffer), (size,))
             obs = buffer.storage[index]["observation"].to(self.device).float()
-            m = support.shape[0]
-            q = qnet(obs.unsqueeze(1).expand(-1, m, -1), support.expand(size, m, k), members=slice(0, 1))[0]
-            action, _ = gpi_action(q, w.expand(size, k))
-            y, unc = self.dynamics.model.step(model_inputs(obs, action, self.num_actions))
-            keep = unc < cfg.gpi_uncertainty_threshold
-            n = int(keep.sum())
-            if n:
-                false = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
-                self.model_buffer.extend(TensorDict({
-                    "observation": obs[keep], "action": action[keep],
-                    ("next", "observation"): obs[keep] + y[keep, k:], ("next", "reward"): y[keep, :k],
-                    ("next", "terminated"): false, ("next", "done"): false}, batch_size=[n]))
-            added += n
+            for _ in range(cfg.gpi_dynamics_rollout_len):  # (no termination model: every imagined step continues)
+                action = self._model_action(obs, w, support)
+                y, unc = self.dynamics.model.step(model_inputs(obs, action, self.num_actions))
+                next_obs = obs + y[:, k:]
+                keep = unc < cfg.gpi_uncertainty_threshold
+                n = int(keep.sum())
+                if n:
+                    false = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+                    self.model_buffer.extend(TensorDict({
+                        "observation": obs[keep], "action": action[keep],
+                        ("next", "observation"): next_obs[keep], ("next", "reward"): y[keep, :k],
+                        ("next", "terminated"): false, ("next", "done"): false}, batch_size=[n]))
+                added += n
+                obs = next_obs
         return added
+
+    def _model_action(self, obs: torch.Tensor, w: torch.Tensor, support: torch.Tensor) -> torch.Tensor:
+        """The action imagined rollouts take: GPI for ``w`` (discrete), the noisy actor (continuous), as the authors."""
+        n, k = obs.shape[0], self.k
+        if self.continuous:
+            return self.loss.actor_network.module(obs, w.expand(n, k), self.cfg.gpi_policy_noise, self.cfg.gpi_noise_clip)
+        m = support.shape[0]
+        q = self.loss.value_network.module(obs.unsqueeze(1).expand(-1, m, -1), support.expand(n, m, k),
+                                           members=slice(0, 1))[0]
+        return gpi_action(q, w.expand(n, k))[0]
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
         state = super().state_dict()
         state.update(linear_support=self.linear_support.state_dict(), weight=self.weight, support=self.support,
                      iteration=self.iteration, iteration_end=self.iteration_end, evaluations=self.evaluations,
-                     frames=self.frames,
+                     frames=self.frames, updates=self._updates,
                      dynamics=None if self.dynamics is None else self.dynamics.model.state_dict())
         return state
 
@@ -283,18 +328,24 @@ class GPIAgent(Agent):
         self.linear_support.load_state_dict(state["linear_support"])
         self.weight, self.support = np.asarray(state["weight"]), np.asarray(state["support"])
         self.iteration, self.iteration_end = state["iteration"], state["iteration_end"]
-        self.evaluations, self.frames = state["evaluations"], state["frames"]
+        self.evaluations, self.frames, self._updates = state["evaluations"], state["frames"], state.get("updates", 0)
         if self.dynamics is not None and state.get("dynamics") is not None:
             self.dynamics.model.load_state_dict(state["dynamics"])
         self._apply_weights()
 
 
+def _polyak(params, target, tau: float) -> None:
+    with torch.no_grad():
+        for p, t in zip(params.values(True, True), target.values(True, True)):
+            t.data.lerp_(p.data, tau)
+
+
 def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
-    """The GPI-LS (``cfg.algo == "gpi_ls"``) or GPI-PD (``"gpi_pd"``) agent for ``env`` (discrete actions)."""
+    """The GPI-LS (``cfg.algo == "gpi_ls"``) or GPI-PD (``"gpi_pd"``) agent for ``env``: discrete actions
+    (:class:`~morl_trl.objectives.GPILoss`) or continuous ones (:class:`~morl_trl.objectives.gpi.GPIContinuousLoss`)."""
     spec = action_spec(env)
     if not is_discrete(spec):
-        raise ValueError(f"{cfg.algo} is implemented for discrete actions only; {cfg.env_id} has "
-                         f"{type(spec).__name__} actions: use capql or mosac")
+        return _make_continuous_gpi_agent(cfg, env, spec, gamma=gamma, device=device)
     shape = obs_shape(env)
     if len(shape) != 1:
         raise ValueError(f"{cfg.algo} needs flat observations; {cfg.env_id} has shape {shape} (image observations "
@@ -313,9 +364,38 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     dynamics = None
     if pd:
         model = ProbabilisticEnsemble(shape[0] + num_actions, shape[0] + k, ensemble_size=cfg.gpi_dynamics_ensemble,
-                                      hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites).to(device)
+                                      hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
+                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
         dynamics = DynamicsLoss(model, num_actions=num_actions)
     prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
     optimizers = {"qvalue": torch.optim.Adam(loss.value_network_params.values(True, True), lr=cfg.lr)}
     return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=egreedy, gamma=gamma,
                     preference_transform=prefs[-1] if prefs else None, num_actions=num_actions, dynamics=dynamics)
+
+
+def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.device) -> GPIAgent:
+    """The authors' ``GPIPDContinuousAction``: a TD3-style actor and an ensemble of vector critics; GPI only ranks
+    the corner weights (collection and evaluation act with the actor for the row's ``w``)."""
+    obs_dim, act_dim, k = obs_shape(env)[0], spec.shape[-1], num_objectives(env)
+    actor = GPIActor(obs_dim, k, act_dim, low=spec.space.low, high=spec.space.high, hidden=cfg.hidden).to(device)
+    critic = GPIVectorCritic(obs_dim, act_dim, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
+                             dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
+    loss = GPIContinuousLoss(actor, critic, policy_noise=cfg.gpi_policy_noise, noise_clip=cfg.gpi_noise_clip,
+                             min_priority=cfg.gpi_min_priority)
+    loss.make_value_estimator(gamma=gamma)
+    actor_m, critic_m = loss.actor_network.module, loss.qvalue_network.module
+    explore = GPIContinuousPolicy(actor_m, noise=cfg.gpi_policy_noise, noise_clip=cfg.gpi_noise_clip)
+    eval_policy = GPIContinuousPolicy(actor_m)
+    gpi_policy = GPIContinuousPolicy(actor_m, critic_m, gpi=True)
+    dynamics = None
+    if cfg.algo == "gpi_pd":
+        model = ProbabilisticEnsemble(obs_dim + act_dim, obs_dim + k, ensemble_size=cfg.gpi_dynamics_ensemble,
+                                      hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
+                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
+        dynamics = DynamicsLoss(model, num_actions=None)
+    prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
+    optimizers = {"qvalue": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.lr),
+                  "actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr)}
+    return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=None, gamma=gamma,
+                    preference_transform=prefs[-1] if prefs else None, num_actions=None, dynamics=dynamics,
+                    gpi_policy=gpi_policy)
