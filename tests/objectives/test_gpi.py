@@ -118,3 +118,59 @@ def test_bad_arguments_raise():
     loss = GPILoss(GPIQNetwork(4, 3, 2, hidden=(8,)))
     with pytest.raises(ValueError, match="weight must be"):
         loss.set_weights(torch.tensor([1.0, 0.0, 0.0]), torch.eye(2))
+
+
+# ------------------------------------------------------------------ continuous actions
+from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic  # noqa: E402
+
+
+def _continuous(seed=0):
+    torch.manual_seed(seed)
+    actor = GPIActor(5, 2, 3, low=-torch.ones(3), high=2 * torch.ones(3), hidden=(16,))
+    critic = GPIVectorCritic(5, 3, 2, hidden=(16, 16), dropout=0.0)
+    return actor, critic
+
+
+def test_actor_respects_the_action_bounds():
+    actor, _ = _continuous()
+    a = actor(torch.randn(64, 5) * 100, torch.full((64, 2), 0.5), noise=0.2, noise_clip=0.5)
+    assert bool((a >= -1).all() and (a <= 2).all())
+
+
+def test_continuous_gpi_picks_the_best_candidate_by_brute_force():
+    actor, critic = _continuous()
+    support = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.3, 0.7]])
+    obs, w = torch.randn(4, 5), torch.tensor([[0.6, 0.4]]).expand(4, 2)
+    act = GPIContinuousPolicy(actor, critic, support, gpi=True)(
+        TensorDict(observation=obs, preference=w, batch_size=[4]))["action"]
+    with torch.no_grad():
+        for b in range(4):
+            cands = [actor(obs[b:b + 1], support[j:j + 1])[0] for j in range(3)]
+            scores = torch.tensor([[float(critic(obs[b:b + 1], cands[j][None], support[i:i + 1])[0, 0] @ w[b])
+                                    for j in range(3)] for i in range(3)])
+            j = int(scores.max(0).values.argmax())
+            torch.testing.assert_close(act[b], cands[j])
+
+
+def test_continuous_critic_loss_by_hand():
+    actor, critic = _continuous()
+    loss = GPIContinuousLoss(actor, critic, policy_noise=0.0, noise_clip=0.5)
+    loss.make_value_estimator(gamma=0.9)
+    w = torch.tensor([0.25, 0.75])
+    loss.set_weights(w, w[None])
+    g = torch.Generator().manual_seed(3)
+    td = TensorDict({"observation": torch.randn(6, 5, generator=g), "action": torch.rand(6, 3, generator=g),
+                     ("next", "observation"): torch.randn(6, 5, generator=g),
+                     ("next", "reward"): torch.randn(6, 2, generator=g),
+                     ("next", "done"): torch.zeros(6, 1, dtype=torch.bool),
+                     ("next", "terminated"): torch.zeros(6, 1, dtype=torch.bool)}, [6])
+    out = loss(td)
+    with torch.no_grad():
+        na = actor(td["next", "observation"], w.expand(6, 2))  # target == online at init
+        qt = critic(td["next", "observation"], na, w.expand(6, 2))  # [E, B, k]
+        pick = (qt @ w).argmin(0)
+        y = td["next", "reward"] + 0.9 * qt[pick, torch.arange(6)]
+        q = critic(td["observation"], td["action"], w.expand(6, 2))
+        want = torch.stack([((q[e] - y) ** 2).mean() for e in range(2)]).mean()
+    torch.testing.assert_close(out["loss_qvalue"], want)
+    torch.testing.assert_close(td["td_error"], ((q[0] - y).abs() * 0.05 @ w).clamp(min=0.1))

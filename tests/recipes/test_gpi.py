@@ -83,3 +83,29 @@ def test_short_real_run_and_resume_state(tmp_path, algo):
     fresh.load_state_dict(state)
     np.testing.assert_array_equal(fresh.support, agent.support)
     assert fresh.linear_support.ccs and len(fresh.linear_support.ccs) == len(agent.linear_support.ccs)
+
+
+def test_continuous_settings_and_agent():
+    hop = resolve_config("gpi_ls", "MOHopperDR-v5")
+    assert (hop.batch_size, hop.init_random_frames, hop.gpi_gradient_updates, hop.gpi_iteration_frames, hop.tau) == \
+        (256, 25_000, 1, 50_000, 0.005)
+    pd = resolve_config("gpi_pd", "MOHopperDR-v5")
+    assert (pd.gpi_dynamics_train_freq, pd.gpi_dynamics_rollout_freq, pd.gpi_real_ratio) == (2000, 2000, 0.5)
+    assert resolve_config("gpi_pd", "MOHalfCheetahDR-v5").gpi_uncertainty_threshold == 10.0
+    assert resolve_config("gpi_ls", "MOHumanoidDR-v5").gpi_iteration_frames == 25_000
+
+
+@pytest.mark.slow
+def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
+    torch.manual_seed(0)
+    kw = {**TINY, "gpi_dynamics_rollout_len": 2, "gpi_uncertainty_threshold": 1e9, "hidden": (16, 16)}
+    cfg = resolve_config("gpi_pd", "MOHopperDR-v5", **kw)
+    env = make_training_env(cfg, torch.device("cpu"))
+    agent = make_gpi_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
+    before = [p.clone() for p in agent.loss.actor_network_params.values(True, True)]
+    losses, n = agent.learn(td, buffer, 64)
+    assert n == 2 and len(agent.model_buffer) == 100  # 50 observations x 2 model steps
+    assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
+    assert agent.iteration == 2 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
