@@ -26,6 +26,7 @@ from torch.nn import functional as F
 from morl_trl.objectives.common import MultiObjectiveLossModule
 from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear
 from morl_trl.objectives.envelope import action_index
+from morl_trl.objectives.networks import NatureCNN
 
 __all__ = ["GPIQNetwork", "GPIPolicy", "GPILoss", "gpi_action", "thresholded_huber", "GPIActor", "GPIVectorCritic",
            "GPIContinuousPolicy", "GPIContinuousLoss"]
@@ -35,7 +36,8 @@ class GPIQNetwork(nn.Module):
     """``E`` vector Q-networks ``Q_e(s, ., w)`` ``[E, *B, |A|, k]`` as one batched module.
 
     Args:
-        obs_dim: flat observation width.
+        obs_dim: flat observation width, or an image shape ``(C, H, W)`` (one ``NatureCNN`` per member
+            gives the state features; the authors' Mario).
         num_actions: ``|A|``.
         num_objectives: ``k``.
         hidden: widths; the first is the state/preference feature width (the authors: ``[256] * 4``).
@@ -51,9 +53,13 @@ class GPIQNetwork(nn.Module):
         torch.Size([1, 5, 3, 2])
     """
 
-    def __init__(self, obs_dim: int, num_actions: int, num_objectives: int, *, hidden=(256, 256, 256, 256),
+    def __init__(self, obs_dim, num_actions: int, num_objectives: int, *, hidden=(256, 256, 256, 256),
                  num_nets: int = 2, dropout: float = 0.01, layer_norm: bool = True) -> None:
         super().__init__()
+        obs_shape = (int(obs_dim),) if isinstance(obs_dim, int) else tuple(int(d) for d in obs_dim)
+        if len(obs_shape) not in (1, 3):
+            raise ValueError(f"obs_dim must be a width or an image shape (C, H, W), got {obs_dim!r}")
+        self.obs_shape = obs_shape
         if not hidden:
             raise ValueError("hidden must hold at least one width (the feature width)")
         if num_nets < 1:
@@ -63,18 +69,28 @@ class GPIQNetwork(nn.Module):
         self.num_actions, self.num_objectives, self.num_nets = num_actions, num_objectives, num_nets
         self.dropout = dropout
         h0 = hidden[0]
-        self.state_features = EnsembleLinear(num_nets, obs_dim, h0)
+        if len(obs_shape) == 1:
+            self.state_features = EnsembleLinear(num_nets, obs_shape[0], h0)
+        else:  # images: one NatureCNN per member (the authors'), features of width hidden[0]
+            self.state_features = nn.ModuleList(NatureCNN(obs_shape, h0) for _ in range(num_nets))
         self.weight_features = EnsembleLinear(num_nets, num_objectives, h0)
         self.hidden = nn.ModuleList(EnsembleLinear(num_nets, a, b) for a, b in zip(hidden[:-1], hidden[1:]))
         self.norms = nn.ModuleList(EnsembleLayerNorm(num_nets, b) for b in hidden[1:]) if layer_norm else None
         self.out = EnsembleLinear(num_nets, hidden[-1], num_actions * num_objectives)
 
     def forward(self, observation: torch.Tensor, preference: torch.Tensor, members: slice | None = None) -> torch.Tensor:
-        lead = observation.shape[:-1]
-        e = self.num_nets if members is None else len(range(self.num_nets)[members])
-        s = observation.reshape(1, -1, observation.shape[-1]).to(self.out.weight.dtype).expand(e, -1, -1)
-        w = preference.to(s.dtype).reshape(1, -1, preference.shape[-1]).expand(e, -1, -1)
-        x = F.relu(self.state_features(s, members)) * F.relu(self.weight_features(w, members))
+        lead = preference.shape[:-1]
+        chosen = range(self.num_nets) if members is None else range(self.num_nets)[members]
+        e = len(chosen)
+        dtype = self.out.weight.dtype
+        if isinstance(self.state_features, nn.ModuleList):
+            pixels = observation.reshape(-1, *self.obs_shape)
+            sf = torch.stack([self.state_features[i](pixels) for i in chosen])
+        else:
+            s = observation.reshape(1, -1, observation.shape[-1]).to(dtype).expand(e, -1, -1)
+            sf = self.state_features(s, members)
+        w = preference.to(dtype).reshape(1, -1, preference.shape[-1]).expand(e, -1, -1)
+        x = F.relu(sf) * F.relu(self.weight_features(w, members))
         for i, layer in enumerate(self.hidden):
             x = layer(x, members)
             if self.dropout > 0:
@@ -139,7 +155,7 @@ class GPIPolicy(TensorDictModuleBase):
         if self.include_preference or support.shape[-2] == 0:
             support = torch.cat([support, w.unsqueeze(-2).float()], -2)
         m = support.shape[-2]
-        obs_m = obs.unsqueeze(-2).expand(*lead, m, obs.shape[-1])
+        obs_m = obs.unsqueeze(len(lead)).expand(*lead, m, *obs.shape[len(lead):])
         q = self.qnet(obs_m, support, members=slice(0, 1))[0]  # [*B, M, A, k]
         action, policy = gpi_action(q, w)
         tensordict.set(self.out_keys[0], action)
@@ -282,7 +298,7 @@ class GPILoss(MultiObjectiveLossModule):
     def gpi_target_value(self, next_obs: torch.Tensor, w: torch.Tensor, sampled: torch.Tensor) -> torch.Tensor:
         """``[B, k]``: the GPI target over the support weights ``sampled`` ``[P, k]`` (the authors' ``_envelope_target``)."""
         b, p = next_obs.shape[0], sampled.shape[0]
-        obs = next_obs.unsqueeze(1).expand(b, p, next_obs.shape[-1])
+        obs = next_obs.unsqueeze(1).expand(b, p, *next_obs.shape[1:])
         W = sampled.unsqueeze(0).expand(b, p, sampled.shape[-1])
         q = self._q(self.target_value_network_params, obs, W)  # [E, B, P, A, k]
         scal = torch.einsum("ebpak,bk->ebpa", q, w)
@@ -340,7 +356,7 @@ class GPILoss(MultiObjectiveLossModule):
         if support.shape[0] > 1:  # half under w, half under support weights
             drawn = support[torch.randint(support.shape[0], (b,), device=support.device)]
             w = torch.cat([w_now, drawn])
-            obs, next_obs, action = obs.repeat(2, 1), next_obs.repeat(2, 1), action.repeat(2)
+            obs, next_obs, action = torch.cat([obs, obs]), torch.cat([next_obs, next_obs]), action.repeat(2)
             reward, terminated = reward.repeat(2, 1), terminated.repeat(2, 1)
         else:
             w = w_now

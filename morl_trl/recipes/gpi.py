@@ -347,13 +347,13 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     if not is_discrete(spec):
         return _make_continuous_gpi_agent(cfg, env, spec, gamma=gamma, device=device)
     shape = obs_shape(env)
-    if len(shape) != 1:
-        raise ValueError(f"{cfg.algo} needs flat observations; {cfg.env_id} has shape {shape} (image observations "
-                         f"are not supported yet)")
-    k, num_actions = num_objectives(env), spec.space.n
-    qnet = GPIQNetwork(shape[0], num_actions, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
-                       dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
     pd = cfg.algo == "gpi_pd"
+    if pd and len(shape) != 1:
+        raise ValueError(f"gpi_pd needs flat observations (its dynamics model is an MLP); {cfg.env_id} has shape "
+                         f"{shape}: use gpi_ls (the paper ran GPI-PD on LunarLander and Hopper only)")
+    k, num_actions = num_objectives(env), spec.space.n
+    qnet = GPIQNetwork(shape[0] if len(shape) == 1 else shape, num_actions, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
+                       dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
     loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
     loss.make_value_estimator(gamma=gamma)
     greedy = GPIPolicy(qnet, include_preference=True)

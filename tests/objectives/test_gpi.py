@@ -174,3 +174,20 @@ def test_continuous_critic_loss_by_hand():
         want = torch.stack([((q[e] - y) ** 2).mean() for e in range(2)]).mean()
     torch.testing.assert_close(out["loss_qvalue"], want)
     torch.testing.assert_close(td["td_error"], ((q[0] - y).abs() * 0.05 @ w).clamp(min=0.1))
+
+
+def test_image_observations_use_one_cnn_per_member():
+    torch.manual_seed(0)
+    qnet = GPIQNetwork((4, 84, 84), 5, 3, hidden=(32, 16), dropout=0.0, layer_norm=False)
+    obs = torch.randint(0, 255, (2, 4, 84, 84), dtype=torch.uint8)
+    out = qnet(obs, torch.full((2, 3), 1 / 3))
+    assert out.shape == (2, 2, 5, 3) and not torch.allclose(out[0], out[1])
+    td = GPIPolicy(qnet, torch.eye(3))(TensorDict(observation=obs, preference=torch.full((2, 3), 1 / 3), batch_size=[2]))
+    assert td["action"].shape == (2,)
+    loss = GPILoss(qnet)
+    loss.make_value_estimator(gamma=0.99)
+    loss.set_weights(torch.tensor([1.0, 0, 0]), torch.eye(3))
+    data = TensorDict({"observation": obs, "action": torch.tensor([0, 4]), ("next", "observation"): obs,
+                       ("next", "reward"): torch.zeros(2, 3), ("next", "done"): torch.zeros(2, 1, dtype=torch.bool),
+                       ("next", "terminated"): torch.zeros(2, 1, dtype=torch.bool)}, [2])
+    loss(data)["loss_qvalue"].backward()
