@@ -24,7 +24,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from morl_trl.objectives.common import MultiObjectiveLossModule
-from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear
+from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear, dropout
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN
 
@@ -94,7 +94,7 @@ class GPIQNetwork(nn.Module):
         for i, layer in enumerate(self.hidden):
             x = layer(x, members)
             if self.dropout > 0:
-                x = F.dropout(x, self.dropout, self.training)
+                x = dropout(x, self.dropout, self.training)
             if self.norms is not None:
                 x = self.norms[i](x, members)
             x = F.relu(x)
@@ -443,7 +443,7 @@ class GPIVectorCritic(nn.Module):
         for i, layer in enumerate(self.layers):
             x = layer(x)
             if self.dropout > 0:
-                x = F.dropout(x, self.dropout, self.training)
+                x = dropout(x, self.dropout, self.training)
             if self.norms is not None:
                 x = self.norms[i](x)
             x = F.relu(x)

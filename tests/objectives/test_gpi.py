@@ -39,7 +39,7 @@ def test_gpi_policy_uses_member_zero_over_the_support():
 
 
 def test_ensemble_members_are_independent_networks():
-    qnet = GPIQNetwork(3, 2, 2, hidden=(8, 8), num_nets=3)
+    qnet = GPIQNetwork(3, 2, 2, hidden=(8, 8), num_nets=3, dropout=0.0)
     out = qnet(torch.ones(4, 3), torch.full((4, 2), 0.5))
     assert out.shape == (3, 4, 2, 2)
     assert not torch.allclose(out[0], out[1])
@@ -191,3 +191,14 @@ def test_image_observations_use_one_cnn_per_member():
                        ("next", "reward"): torch.zeros(2, 3), ("next", "done"): torch.zeros(2, 1, dtype=torch.bool),
                        ("next", "terminated"): torch.zeros(2, 1, dtype=torch.bool)}, [2])
     loss(data)["loss_qvalue"].backward()
+
+
+def test_dropout_keeps_the_expectation_and_rate():
+    from morl_trl.objectives.ensemble import dropout
+
+    torch.manual_seed(0)
+    x = torch.ones(200_000)
+    y = dropout(x, 0.1, True)
+    assert abs(float((y == 0).float().mean()) - 0.1) < 0.005
+    assert abs(float(y.mean()) - 1.0) < 0.01
+    assert dropout(x, 0.1, False) is x
