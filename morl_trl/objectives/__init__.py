@@ -10,6 +10,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
   :class:`PopulationMLP`, :func:`make_population_actor`, :func:`make_population_critic`, :func:`vector_gae`).
 * :class:`PopulationMOSACLoss` -- MORL/D's population of MOSAC learners as one batched module
   (:mod:`morl_trl.objectives.population`).
+* :class:`GPILoss` -- GPI-LS / GPI-PD (vector Q ensemble, GPI priorities); :class:`DynamicsLoss`
+  -- GPI-PD's probabilistic dynamics ensemble (:class:`ProbabilisticEnsemble`).
 
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
@@ -19,7 +21,9 @@ Networks: :mod:`morl_trl.objectives.networks`.
 
 from morl_trl.objectives.capql import CAPQLLoss
 from morl_trl.objectives.common import MultiObjectiveLossModule
+from morl_trl.objectives.dynamics import DynamicsLoss, ProbabilisticEnsemble, fit_dynamics
 from morl_trl.objectives.envelope import EnvelopeQLoss
+from morl_trl.objectives.gpi import GPILoss, GPIPolicy, GPIQNetwork, gpi_action
 from morl_trl.objectives.mosac import DiscreteMOSACLoss, MOSACLoss
 from morl_trl.objectives.networks import (
     NatureCNN,
@@ -59,4 +63,12 @@ __all__ = [
     "vector_gae",
     "vector_td0_return_estimate",
     "PopulationMOSACLoss",
+    # GPI-LS / GPI-PD
+    "GPILoss",
+    "GPIPolicy",
+    "GPIQNetwork",
+    "gpi_action",
+    "DynamicsLoss",
+    "ProbabilisticEnsemble",
+    "fit_dynamics",
 ]

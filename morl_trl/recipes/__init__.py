@@ -12,6 +12,8 @@ algorithm          agent (networks, policies, loss, optimizers)  loop
 ``morld``          :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.morld.MORLDAgent`)
 ``morld_psa``      :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (weight_adaptation="psa")
 ``sac``            :func:`~morl_trl.recipes.sac.make_sac_agent`                   :mod:`~morl_trl.recipes.off_policy`
+``gpi_ls``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.gpi.GPIAgent`: weight-support iterations)
+``gpi_pd``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (+ Dyna with a dynamics ensemble)
 ================== ============================================= ===================================
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
@@ -33,6 +35,7 @@ from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
 from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
 from morl_trl.recipes.sac import make_sac_agent
+from morl_trl.recipes.gpi import make_gpi_agent
 from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
@@ -66,6 +69,8 @@ AGENT_BUILDERS = {
     "sac": make_sac_agent,
     "pcn": make_pcn_agent,
     "pgmorl": make_pgmorl_agent,
+    "gpi_ls": make_gpi_agent,
+    "gpi_pd": make_gpi_agent,
 }
 assert tuple(AGENT_BUILDERS) == ALGORITHMS
 

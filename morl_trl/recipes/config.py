@@ -7,7 +7,7 @@ frames, history, evaluation period and weights) -> the algorithm's defaults (SPE
 
 The keys are grouped as TorchRL's sota recipes group theirs (``run``, ``env``, ``collector``,
 ``replay_buffer``, ``optim``, ``network``, ``exploration``, ``envelope``, ``actor_critic``,
-``eval``): a config file may use ``[group]`` tables or flat keys, and
+``gpi``, ``eval``): a config file may use ``[group]`` tables or flat keys, and
 ``TrainConfig.to_toml()`` (``morl-trl train ... --print-config``) writes the complete grouped
 config. Every value is checked (type and range) when the config is built: a bad one raises a
 ``ValueError`` naming the key, the value and what is valid; an unknown key lists the valid ones.
@@ -27,7 +27,8 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
+              "gpi_ls", "gpi_pd")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -261,6 +262,39 @@ class TrainConfig:
                             _float(0.0, 10.0, open_low=True))
     update_frequency: int = _key("morld", 1, "member frames per gradient update when updates_per_batch is 0 (the "
                                  "authors' discrete MOSAC: 4)", _int(1))
+    # GPI-LS / GPI-PD (the authors' GPIPD defaults; SPEC §4 per domain)
+    gpi_iteration_frames: int = _key("gpi", 50_000, "frames per weight-support iteration (timesteps_per_iter)", _int(1))
+    gpi_front_episodes: int = _key("gpi", 5, "episodes per weight when the GPI policy is evaluated on the support "
+                                   "and the corner weights (LunarLander: 3)", _int(1, 10_000))
+    gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
+    gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
+    gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    gpi_gradient_updates: int = _key("gpi", 20, "gradient updates per frame once frames reach "
+                                     "gpi_dynamics_rollout_starts (1 before; updates_per_batch > 0 overrides both)",
+                                     _int(1))
+    gpi_min_priority: float = _key("gpi", 0.01, "Huber threshold and minimum PER priority",
+                                   _float(0.0, 1e6, open_low=True))
+    gpi_dynamics_hidden: tuple[int, ...] = _key("gpi", (256, 256, 256), "GPI-PD: hidden widths of the dynamics "
+                                                "ensemble", _hidden)
+    gpi_dynamics_ensemble: int = _key("gpi", 5, "GPI-PD: dynamics ensemble members", _int(1, 64))
+    gpi_dynamics_elites: int = _key("gpi", 2, "GPI-PD: elite members sampled from", _int(1, 64))
+    gpi_dynamics_lr: float = _key("gpi", 1e-3, "GPI-PD: dynamics learning rate", _float(0.0, 1.0, open_low=True))
+    gpi_dynamics_train_freq: int = _key("gpi", 250, "GPI-PD: frames between dynamics fits", _int(1))
+    gpi_dynamics_rollout_freq: int = _key("gpi", 250, "GPI-PD: frames between model rollouts", _int(1))
+    gpi_dynamics_rollout_starts: int = _key("gpi", 5_000, "GPI-PD: frames before the first rollout (also when "
+                                            "gpi_gradient_updates starts, for GPI-LS too)", _int(0))
+    gpi_dynamics_rollout_batch: int = _key("gpi", 25_000, "GPI-PD: observations rolled out per rollout", _int(1))
+    gpi_dynamics_buffer: int = _key("gpi", 100_000, "GPI-PD: model transitions kept", _int(1))
+    gpi_uncertainty_threshold: float = _key("gpi", 1.5, "GPI-PD: model transitions kept only below this "
+                                            "uncertainty", _float(0.0, 1e12, open_low=True))
+    gpi_real_ratio: float = _key("gpi", 0.5, "GPI-PD: fraction of real transitions per batch", _float(0.0, 1.0))
+    gpi_dynamics_rollout_len: int = _key("gpi", 1, "GPI-PD: model steps per rollout (continuous: 5)", _int(1, 1000))
+    gpi_dynamics_normalize: bool = _key("gpi", False, "GPI-PD: standardise the model's inputs (continuous: true)",
+                                        _bool)
+    gpi_policy_noise: float = _key("gpi", 0.2, "continuous: std of the actor's exploration and target-smoothing "
+                                   "noise", _float(0.0, 1e3))
+    gpi_noise_clip: float = _key("gpi", 0.5, "continuous: that noise clipped to +-this", _float(0.0, 1e3))
+    gpi_policy_delay: int = _key("gpi", 2, "continuous: critic updates per actor update", _int(1))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -370,7 +404,7 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
     for k, v in values.items():
         if v == "null":  # TOML has no null: a file or a key=value flag writes the string
             v = None
-        if k in ("hidden", "eval_contexts", "pcn_scaling_factor", "pcn_max_return") and isinstance(v, list):
+        if k in ("hidden", "eval_contexts", "pcn_scaling_factor", "pcn_max_return", "gpi_dynamics_hidden") and isinstance(v, list):
             v = tuple(v)
         elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
@@ -418,6 +452,12 @@ _ALGO = {
     # SAC on the domain's original scalar reward (SPEC §4), evaluated with sampled actions as the authors
     "sac": dict(batch_size=256, tau=0.005, alpha=0.2, learn_alpha=True, init_random_frames=25_000, prioritized=False,
                 eval_exploration="random"),
+    # GPI-LS / GPI-PD: the authors' GPIPD defaults (learning_starts 100, PER without importance
+    # weights, hard copies counted in frames) with SPEC's epsilon schedule
+    "gpi_ls": dict(batch_size=128, target_update_period=1000, prioritized=True, per_importance_weights=False,
+                   init_random_frames=100, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
+    "gpi_pd": dict(batch_size=128, target_update_period=1000, prioritized=True, per_importance_weights=False,
+                   init_random_frames=100, eps_start=1.0, eps_end=0.05, eps_frames=1_000_000),
 }
 _PCN_DOMAIN = {  # SPEC §4: scaling factor, max return, buffer (episodes), ER episodes (+ noise, batch)
     "MOLunarLanderDR-v0": dict(pcn_scaling_factor=(0.1,) * 5, pcn_buffer_episodes=100_000, pcn_er_episodes=1000),
@@ -464,17 +504,47 @@ _ALGO_DOMAIN = {
                                            pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
     ("pgmorl", "MOHumanoidDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
                                         pgmorl_num_buffers=100, pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
+    ("gpi_ls", "MOLunarLanderDR-v0"): dict(gpi_front_episodes=3),
+    ("gpi_ls", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200),
+    ("gpi_ls", "MOSuperMarioBrosZeroShot-v2"): dict(hidden=(512, 512), eps_start=0.2, eps_end=0.01, batch_size=64,
+                                                    init_random_frames=25_000, buffer_size=100_000,
+                                                    gpi_layer_norm=False, eval_weights=32),
+    ("gpi_pd", "MOLunarLanderDR-v0"): dict(gpi_front_episodes=3, gpi_uncertainty_threshold=20.0,
+                                           gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=5_000),
+    ("gpi_pd", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200,
+                                        gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
+                                        gpi_dynamics_hidden=(512, 512)),
 }
+# continuous GPI-LS / GPI-PD: the authors' GPIPDContinuousAction defaults with SPEC's script values
+_GPI_CONTINUOUS = dict(tau=0.005, batch_size=256, init_random_frames=25_000, buffer_size=1_000_000,
+                       gpi_gradient_updates=1, gpi_min_priority=0.1, gpi_dynamics_hidden=(200, 200, 200, 200),
+                       gpi_dynamics_rollout_len=5, gpi_dynamics_rollout_starts=1_000, gpi_dynamics_rollout_batch=50_000,
+                       gpi_dynamics_buffer=200_000, gpi_uncertainty_threshold=2.0, gpi_real_ratio=0.1,
+                       gpi_dynamics_normalize=True)
+for _algo in ("gpi_ls", "gpi_pd"):
+    _ALGO_DOMAIN[(_algo, "MOHopperDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=50_000)
+    _ALGO_DOMAIN[(_algo, "MOHalfCheetahDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=25_000)
+    _ALGO_DOMAIN[(_algo, "MOHumanoidDR-v5")] = dict(_GPI_CONTINUOUS, gpi_iteration_frames=25_000)
+_ALGO_DOMAIN[("gpi_pd", "MOHopperDR-v5")].update(gpi_dynamics_train_freq=2_000, gpi_dynamics_rollout_freq=2_000,
+                                                 gpi_real_ratio=0.5)
+_ALGO_DOMAIN[("gpi_pd", "MOHalfCheetahDR-v5")].update(gpi_dynamics_train_freq=4_000, gpi_dynamics_rollout_freq=4_000,
+                                                      gpi_uncertainty_threshold=10.0)
+_ALGO_DOMAIN[("gpi_pd", "MOHumanoidDR-v5")].update(gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=5_000,
+                                                   gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
+                                                   gpi_dynamics_hidden=(512, 512))
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
     frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
     buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
     eval_weights=8, checkpoint_interval=20_000,
 )
-
 # --quick per algorithm, on top of _QUICK (MORL/D: num_envs sub-envs per member; PCN: fewer random
-# warm-up episodes than the authors' 1000; PGMORL: shorter iterations)
+# warm-up episodes than the authors' 1000; PGMORL: shorter iterations; GPI-LS / GPI-PD: several
+# weight-support iterations, cheaper model fits and rollouts)
 _QUICK_ALGO = {
+    "gpi_ls": dict(gpi_iteration_frames=10_000),
+    "gpi_pd": dict(gpi_iteration_frames=10_000, gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=1_000,
+                   gpi_dynamics_rollout_batch=5_000),
     **{a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")},
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,

@@ -21,6 +21,9 @@ ROOT = Path(__file__).resolve().parents[2]
         ("capql", "examples/actor_critic/hopper_paper.toml", "MOHopperDR-v5", 3_000_000),
         ("mosac", "examples/actor_critic/half_cheetah_quick.toml", "MOHalfCheetahDR-v5", 20_000),
         ("mosac", "examples/actor_critic/half_cheetah_paper.toml", "MOHalfCheetahDR-v5", 5_000_000),
+        ("gpi_ls", "examples/gpi/lunar_lander_quick.toml", "MOLunarLanderDR-v0", 60_000),
+        ("gpi_ls", "examples/gpi/lava_grid_quick.toml", "MOLavaGridDR-v0", 60_000),
+        ("gpi_pd", "examples/gpi/lunar_lander_paper.toml", "MOLunarLanderDR-v0", 3_000_000),
     ],
 )
 def test_example_configs_resolve(algo, path, env_id, frames):
@@ -31,6 +34,12 @@ def test_example_configs_resolve(algo, path, env_id, frames):
 def test_quick_config_file_equals_the_quick_preset():
     from_file = resolve_config("envelope", "MOLunarLanderDR-v0", config_file=ROOT / "examples/envelope/lunar_lander_quick.toml")
     assert from_file == resolve_config("envelope", "MOLunarLanderDR-v0", quick=True)
+
+
+def test_gpi_quick_config_file_equals_the_quick_preset():
+    path = ROOT / "examples/gpi/lunar_lander_quick.toml"
+    assert resolve_config("gpi_ls", "MOLunarLanderDR-v0", config_file=path) == \
+        resolve_config("gpi_ls", "MOLunarLanderDR-v0", quick=True)
 
 
 def test_custom_trainer_runs():

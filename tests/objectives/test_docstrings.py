@@ -5,7 +5,7 @@ import importlib
 
 import pytest
 
-MODULES = ["capql", "common", "envelope", "mosac", "networks", "value"]
+MODULES = ["capql", "common", "envelope", "mosac", "networks", "value", "gpi", "ensemble", "dynamics"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -1,0 +1,401 @@
+"""GPI-LS and GPI-PD (Alegre et al., AAMAS 2023): the agents that ``morl-trl train gpi_ls|gpi_pd`` trains.
+
+The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` overrides
+:meth:`~morl_trl.recipes.agent.Agent.learn` with the authors' weight-support loop
+(MORL-Baselines' ``GPIPD.train`` / ``train_iteration``):
+
+1. Every ``gpi_iteration_frames`` frames an iteration ends: the GPI policy over the support
+   ``M`` is evaluated (``gpi_front_episodes`` episodes per weight, in the training domain,
+   discounted vector returns) at every weight of ``M`` and each value is added to the linear
+   support (:class:`~morl_trl.preferences.linear_support.LinearSupport`).
+2. The next iteration's weight ``w``: the corner weights of the CCS, each prioritised by
+   how much the GPI policy over the CCS's weight support improves on the CCS there (the
+   first ``k`` iterations take the extrema). ``M`` = the CCS's weights + the 4 best corners + ``w``.
+3. Collection: each sub-env draws its episode's preference from ``M`` (the authors'
+   ``change_w_every_episode``); actions are epsilon-greedy around GPI over ``M`` and the
+   sub-env's ``w``. PER priorities are recomputed for the whole buffer under ``w``.
+4. Updates (:class:`~morl_trl.objectives.GPILoss`): 1 per frame, ``gpi_gradient_updates``
+   (20) per frame once ``frames >= gpi_dynamics_rollout_starts`` (as the authors, for GPI-LS
+   too); a hard target copy every ``target_update_period`` frames.
+5. GPI-PD only: every ``gpi_dynamics_train_freq`` frames the dynamics ensemble is refitted on
+   the whole buffer (:func:`~morl_trl.objectives.fit_dynamics`); every
+   ``gpi_dynamics_rollout_freq`` frames from ``gpi_dynamics_rollout_starts``,
+   ``gpi_dynamics_rollout_batch`` stored observations are stepped once through the model with
+   the GPI action for ``w``, and the transitions with uncertainty below
+   ``gpi_uncertainty_threshold`` go to a model buffer; updates then draw ``gpi_real_ratio``
+   of each batch from the real buffer and the rest from the model buffer.
+
+Evaluation (the off-policy loop's evaluator) acts by GPI over ``M`` for each evaluation
+weight, as the authors.
+
+Example:
+    >>> from morl_trl.recipes import resolve_config
+    >>> from morl_trl.recipes.off_policy import make_training_env
+    >>> cfg = resolve_config("gpi_ls", "MOLavaGridDR-v0", quick=True, hidden=(16, 16), num_envs=2)
+    >>> env = make_training_env(cfg, torch.device("cpu"))
+    >>> agent = make_gpi_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+    >>> agent.weight, agent.support.shape
+    (array([1., 0.]), (2, 2))
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictSequential
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.modules import EGreedyModule
+from torchrl.objectives import HardUpdate
+
+from morl_trl.envs import make_env
+from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
+from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic
+from morl_trl.objectives.dynamics import model_inputs
+from morl_trl.objectives.gpi import gpi_action
+from morl_trl.preferences.linear_support import LinearSupport, unique_weights
+from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.runs.env_state import transforms_of
+from morl_trl.transforms import PreferenceConditioning, compose_policy_env
+
+__all__ = ["GPIAgent", "make_gpi_agent", "evaluate_gpi_weights"]
+
+_KEYS = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "terminated"),
+         ("next", "done"))
+
+
+@torch.no_grad()
+def evaluate_gpi_weights(policy, env_id: str, weights: np.ndarray, *, episodes: int, gamma: float, history_len: int,
+                         seed: int, device, max_steps: int = 100_000) -> np.ndarray:
+    """``[m, k]``: the mean discounted vector return of ``policy`` for each weight of ``weights``
+    ``[m, k]`` over ``episodes`` episodes of ``env_id`` (all ``m * episodes`` in one batched env;
+    a DR id draws fresh contexts: the authors' ``policy_evaluation_mo`` on their training env)."""
+    W = torch.as_tensor(np.repeat(weights, episodes, 0), dtype=torch.float32, device=device)
+    n, k = W.shape
+    env = compose_policy_env(make_env(env_id, num_envs=n, seed=seed, device=device), history_len=history_len)
+    env.append_transform(PreferenceConditioning(k, mode="given"))
+    td = env.reset(TensorDict(preference=W, batch_size=[n], device=device))
+    ret = torch.zeros(n, k, device=device)
+    disc = torch.ones(n, 1, device=device)
+    alive = torch.ones(n, 1, dtype=torch.bool, device=device)
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(max_steps):
+            td = policy(td)
+            td, root = env.step_and_maybe_reset(td)
+            ret += alive * disc * td["next", "reward"].float()
+            disc = disc * gamma
+            alive &= ~td["next", "done"].reshape(n, 1)
+            if not alive.any():
+                break
+            td = root
+    env.close()
+    return ret.reshape(len(weights), episodes, k).mean(1).cpu().double().numpy()
+
+
+class GPIAgent(Agent):
+    """GPI-LS / GPI-PD: the weight-support loop around :class:`~morl_trl.objectives.GPILoss` (see the module)."""
+
+    def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
+                 exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
+                 num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
+        updater = HardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
+        super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
+                         device=device, exploration_module=exploration_module)
+        self.gpi_policy = eval_policy if gpi_policy is None else gpi_policy
+        self.continuous = num_actions is None
+        self._updates = 0
+        self.gamma = gamma
+        self.k = loss.num_objectives
+        self.num_actions = num_actions
+        self.preference_transform = preference_transform
+        self.dynamics = dynamics
+        self.model_buffer = None
+        if dynamics is not None:
+            self.model_buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.gpi_dynamics_buffer, device=device),
+                                                       batch_size=cfg.batch_size)
+        self.linear_support = LinearSupport(self.k, seed=cfg.seed)
+        self.weight: np.ndarray | None = None
+        self.support: np.ndarray | None = None
+        self.iteration = 0
+        self.iteration_end = cfg.gpi_iteration_frames
+        self.evaluations = 0
+        self.frames = 0
+        self._begin_iteration(None)
+
+    # ------------------------------------------------------------------ weights
+    def _apply_weights(self) -> None:
+        support = torch.as_tensor(self.support, dtype=torch.float32)
+        self.loss.set_weights(torch.as_tensor(self.weight, dtype=torch.float32), support)
+        for policy in {id(p): p for p in self._gpi_policies()}.values():
+            policy.set_support(support)
+        if self.preference_transform is not None:  # each sub-env's episode weight: a random row of M
+            self.preference_transform.weights = support.clone()
+            self.preference_transform.mode = "random"
+
+    def _gpi_policies(self) -> list:
+        kinds = (GPIPolicy, GPIContinuousPolicy)
+        return [m for m in self.explore_policy.modules() if isinstance(m, kinds)] + [self.eval_policy, self.gpi_policy]
+
+    def _evaluate(self, weights: np.ndarray, support: np.ndarray, policy=None) -> np.ndarray:
+        """``policy`` (the evaluation policy: GPI over ``support`` for discrete actions) at ``weights``."""
+        policy = self.eval_policy if policy is None else policy
+        policy.set_support(torch.as_tensor(support, dtype=torch.float32))
+        self.evaluations += 1
+        values = evaluate_gpi_weights(policy, self.cfg.env_id, weights, episodes=self.cfg.gpi_front_episodes,
+                                      gamma=self.gamma, history_len=self.cfg.history_len,
+                                      seed=self.cfg.seed + 10_000 * self.evaluations, device=self.device)
+        return values
+
+    def _end_iteration(self) -> None:
+        values = self._evaluate(self.support, self.support)
+        for v, w in zip(values, self.support):
+            self.linear_support.add_solution(v, w)
+
+    def _begin_iteration(self, buffer) -> None:
+        ls = self.linear_support
+        if ls.ccs:
+            ccs_support = np.stack(ls.get_weight_support())
+            corners = ls.corner_weights()
+            w = ls.next_weight(gpi_values=self._evaluate(corners, ccs_support, self.gpi_policy))
+        else:
+            w = ls.next_weight()
+        if w is None:  # no corner left (only with an epsilon): keep training on the last weight
+            w = self.weight
+        self.weight = np.asarray(w, np.float64)
+        self.support = unique_weights(ls.get_weight_support() + ls.get_corner_weights(top_k=4) + [self.weight])
+        self.iteration += 1
+        self._apply_weights()
+        if buffer is not None and self.cfg.prioritized and len(buffer) and not self.continuous:  # (discrete only)
+            self._reset_priorities(buffer)
+
+    @torch.no_grad()
+    def _reset_priorities(self, buffer, chunk: int = 1000) -> None:
+        """The authors' ``_reset_priorities``: every stored transition's priority under the new ``w``."""
+        n = len(buffer)
+        for start in range(0, n, chunk):
+            index = torch.arange(start, min(start + chunk, n))
+            td = buffer.storage[index].to(self.device)
+            buffer.update_priority(index, self.loss.priorities(td))
+
+    # ------------------------------------------------------------------ learning
+    def learn(self, batch, buffer, frames: int):
+        prev, self.frames = self.frames, frames
+        buffer.extend(batch.reshape(-1))
+        losses, n = None, 0
+        cfg = self.cfg
+        if frames >= cfg.init_random_frames:
+            if self.dynamics is not None:
+                self._dyna(buffer, prev, frames)
+            gated = not self.continuous and frames < cfg.gpi_dynamics_rollout_starts  # (the authors' discrete GPIPD)
+            n = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
+            for i in range(n):
+                try:
+                    losses = self.update(buffer)
+                except NonFiniteLossError as err:
+                    err.updates_done = i
+                    raise
+            if not self.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
+                self.target_updater.step()  # the authors' hard copy every target_update_period steps
+        if frames >= self.iteration_end:
+            while self.iteration_end <= frames:
+                self.iteration_end += cfg.gpi_iteration_frames
+            self._end_iteration()
+            self._begin_iteration(buffer)
+        return losses, n
+
+    def _sample(self, buffer):
+        """``(batch, real part)``: ``gpi_real_ratio`` real transitions and model ones once the model buffer has some."""
+        cfg = self.cfg
+        if self.model_buffer is None or not len(self.model_buffer) or self.frames < cfg.gpi_dynamics_rollout_starts:
+            real = buffer.sample().to(self.device)
+            return real, real
+        n_real = int(cfg.batch_size * cfg.gpi_real_ratio)
+        real = buffer.sample(n_real).to(self.device)
+        model = self.model_buffer.sample(cfg.batch_size - n_real)
+        batch = torch.cat([real.select(*_KEYS), model.select(*_KEYS)])
+        return batch, real
+
+    def update(self, buffer):
+        if self.continuous:
+            return self._update_continuous(buffer)
+        batch, real = self._sample(buffer)
+        out = self.loss(batch)
+        total = out["loss_qvalue"]
+        if not torch.isfinite(total):
+            raise NonFiniteLossError(f"non-finite loss {{'loss_qvalue': {total.item()}}}; the networks were left as "
+                                     f"they were before this update")
+        opt = self.optimizers["qvalue"]
+        opt.zero_grad(set_to_none=True)
+        total.backward()
+        if self.cfg.max_grad_norm is not None:
+            torch.nn.utils.clip_grad_norm_([p for g in opt.param_groups for p in g["params"]], self.cfg.max_grad_norm)
+        opt.step()
+        if self.cfg.prioritized:
+            if real is not batch:
+                real.set("td_error", batch["td_error"][: real.shape[0]])
+            buffer.update_tensordict_priority(real)
+        return out.detach()
+
+    def _update_continuous(self, buffer):
+        """The authors' continuous update: critics every update, the actor every ``gpi_policy_delay``
+        updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
+        batch, real = self._sample(buffer)
+        out = self.loss(batch)
+        if not (torch.isfinite(out["loss_qvalue"]) and torch.isfinite(out["loss_actor"])):
+            bad = {k: out[k].item() for k in ("loss_qvalue", "loss_actor")}
+            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
+        q_opt, pi_opt = self.optimizers["qvalue"], self.optimizers["actor"]
+        q_opt.zero_grad(set_to_none=True)
+        out["loss_qvalue"].backward()
+        q_opt.step()
+        tau = self.cfg.tau if self.cfg.tau is not None else 0.005
+        _polyak(self.loss.qvalue_network_params, self.loss.target_qvalue_network_params, tau)
+        if self._updates % self.cfg.gpi_policy_delay == 0:
+            pi_opt.zero_grad(set_to_none=True)
+            self.loss.actor_loss().backward()  # against the critics just updated, as the authors
+            pi_opt.step()
+            _polyak(self.loss.actor_network_params, self.loss.target_actor_network_params, tau)
+        self._updates += 1
+        if self.cfg.prioritized:
+            if real is not batch:
+                real.set("td_error", batch["td_error"][: real.shape[0]])
+            buffer.update_tensordict_priority(real)
+        return out.detach()
+
+    # ------------------------------------------------------------------ Dyna
+    def _dyna(self, buffer, prev: int, frames: int) -> None:
+        cfg = self.cfg
+        if frames // cfg.gpi_dynamics_train_freq > prev // cfg.gpi_dynamics_train_freq:
+            data = buffer.storage[torch.arange(len(buffer))].to(self.device)
+            x, y = self.dynamics.inputs_targets(data)
+            fit_dynamics(self.dynamics, x.float(), y.float(), lr=cfg.gpi_dynamics_lr)
+        if frames >= cfg.gpi_dynamics_rollout_starts and \
+                frames // cfg.gpi_dynamics_rollout_freq > prev // cfg.gpi_dynamics_rollout_freq:
+            self.rollout_model(buffer)
+
+    @torch.no_grad()
+    def rollout_model(self, buffer) -> int:
+        """One model step from ``gpi_dynamics_rollout_batch`` stored observations (GPI actions for ``w``);
+        stores the confident ones in the model buffer and returns how many."""
+        cfg, k = self.cfg, self.k
+        added = 0
+        total = cfg.gpi_dynamics_rollout_batch
+        chunks = -(-total // 10_000)  # the authors: chunks of at most 10k
+        size = -(-total // chunks)
+        support = torch.as_tensor(self.support, dtype=torch.float32, device=self.device)
+        w = torch.as_tensor(self.weight, dtype=torch.float32, device=self.device)
+        for _ in range(chunks):
+            index = torch.randint(len(buffer), (size,))
+            obs = buffer.storage[index]["observation"].to(self.device).float()
+            for _ in range(cfg.gpi_dynamics_rollout_len):  # (no termination model: every imagined step continues)
+                action = self._model_action(obs, w, support)
+                y, unc = self.dynamics.model.step(model_inputs(obs, action, self.num_actions))
+                next_obs = obs + y[:, k:]
+                keep = unc < cfg.gpi_uncertainty_threshold
+                n = int(keep.sum())
+                if n:
+                    false = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+                    self.model_buffer.extend(TensorDict({
+                        "observation": obs[keep], "action": action[keep],
+                        ("next", "observation"): next_obs[keep], ("next", "reward"): y[keep, :k],
+                        ("next", "terminated"): false, ("next", "done"): false}, batch_size=[n]))
+                added += n
+                obs = next_obs
+        return added
+
+    def _model_action(self, obs: torch.Tensor, w: torch.Tensor, support: torch.Tensor) -> torch.Tensor:
+        """The action imagined rollouts take: GPI for ``w`` (discrete), the noisy actor (continuous), as the authors."""
+        n, k = obs.shape[0], self.k
+        if self.continuous:
+            return self.loss.actor_network.module(obs, w.expand(n, k), self.cfg.gpi_policy_noise, self.cfg.gpi_noise_clip)
+        m = support.shape[0]
+        q = self.loss.value_network.module(obs.unsqueeze(1).expand(-1, m, -1), support.expand(n, m, k),
+                                           members=slice(0, 1))[0]
+        return gpi_action(q, w.expand(n, k))[0]
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        state = super().state_dict()
+        state.update(linear_support=self.linear_support.state_dict(), weight=self.weight, support=self.support,
+                     iteration=self.iteration, iteration_end=self.iteration_end, evaluations=self.evaluations,
+                     frames=self.frames, updates=self._updates,
+                     dynamics=None if self.dynamics is None else self.dynamics.model.state_dict())
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.linear_support.load_state_dict(state["linear_support"])
+        self.weight, self.support = np.asarray(state["weight"]), np.asarray(state["support"])
+        self.iteration, self.iteration_end = state["iteration"], state["iteration_end"]
+        self.evaluations, self.frames, self._updates = state["evaluations"], state["frames"], state.get("updates", 0)
+        if self.dynamics is not None and state.get("dynamics") is not None:
+            self.dynamics.model.load_state_dict(state["dynamics"])
+        self._apply_weights()
+
+
+def _polyak(params, target, tau: float) -> None:
+    with torch.no_grad():
+        for p, t in zip(params.values(True, True), target.values(True, True)):
+            t.data.lerp_(p.data, tau)
+
+
+def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
+    """The GPI-LS (``cfg.algo == "gpi_ls"``) or GPI-PD (``"gpi_pd"``) agent for ``env``: discrete actions
+    (:class:`~morl_trl.objectives.GPILoss`) or continuous ones (:class:`~morl_trl.objectives.gpi.GPIContinuousLoss`)."""
+    spec = action_spec(env)
+    if not is_discrete(spec):
+        return _make_continuous_gpi_agent(cfg, env, spec, gamma=gamma, device=device)
+    shape = obs_shape(env)
+    pd = cfg.algo == "gpi_pd"
+    if pd and len(shape) != 1:
+        raise ValueError(f"gpi_pd needs flat observations (its dynamics model is an MLP); {cfg.env_id} has shape "
+                         f"{shape}: use gpi_ls (the paper ran GPI-PD on LunarLander and Hopper only)")
+    k, num_actions = num_objectives(env), spec.space.n
+    qnet = GPIQNetwork(shape[0] if len(shape) == 1 else shape, num_actions, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
+                       dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
+    loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
+    loss.make_value_estimator(gamma=gamma)
+    greedy = GPIPolicy(qnet, include_preference=True)
+    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
+                            annealing_num_steps=max(1, cfg.eps_frames))
+    explore = TensorDictSequential(greedy, egreedy)
+    eval_policy = GPIPolicy(qnet)
+    dynamics = None
+    if pd:
+        model = ProbabilisticEnsemble(shape[0] + num_actions, shape[0] + k, ensemble_size=cfg.gpi_dynamics_ensemble,
+                                      hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
+                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
+        dynamics = DynamicsLoss(model, num_actions=num_actions)
+    prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
+    optimizers = {"qvalue": torch.optim.Adam(loss.value_network_params.values(True, True), lr=cfg.lr)}
+    return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=egreedy, gamma=gamma,
+                    preference_transform=prefs[-1] if prefs else None, num_actions=num_actions, dynamics=dynamics)
+
+
+def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.device) -> GPIAgent:
+    """The authors' ``GPIPDContinuousAction``: a TD3-style actor and an ensemble of vector critics; GPI only ranks
+    the corner weights (collection and evaluation act with the actor for the row's ``w``)."""
+    obs_dim, act_dim, k = obs_shape(env)[0], spec.shape[-1], num_objectives(env)
+    actor = GPIActor(obs_dim, k, act_dim, low=spec.space.low, high=spec.space.high, hidden=cfg.hidden).to(device)
+    critic = GPIVectorCritic(obs_dim, act_dim, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
+                             dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
+    loss = GPIContinuousLoss(actor, critic, policy_noise=cfg.gpi_policy_noise, noise_clip=cfg.gpi_noise_clip,
+                             min_priority=cfg.gpi_min_priority)
+    loss.make_value_estimator(gamma=gamma)
+    actor_m, critic_m = loss.actor_network.module, loss.qvalue_network.module
+    explore = GPIContinuousPolicy(actor_m, noise=cfg.gpi_policy_noise, noise_clip=cfg.gpi_noise_clip)
+    eval_policy = GPIContinuousPolicy(actor_m)
+    gpi_policy = GPIContinuousPolicy(actor_m, critic_m, gpi=True)
+    dynamics = None
+    if cfg.algo == "gpi_pd":
+        model = ProbabilisticEnsemble(obs_dim + act_dim, obs_dim + k, ensemble_size=cfg.gpi_dynamics_ensemble,
+                                      hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
+                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
+        dynamics = DynamicsLoss(model, num_actions=None)
+    prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
+    optimizers = {"qvalue": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.lr),
+                  "actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr)}
+    return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=None, gamma=gamma,
+                    preference_transform=prefs[-1] if prefs else None, num_actions=None, dynamics=dynamics,
+                    gpi_policy=gpi_policy)

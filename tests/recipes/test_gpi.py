@@ -1,0 +1,111 @@
+"""GPI-LS / GPI-PD recipes: config, the weight-support loop, Dyna, and short real runs."""
+
+import numpy as np
+import pytest
+import torch
+
+from morl_trl.recipes import resolve_config, run_training
+from morl_trl.recipes.gpi import make_gpi_agent
+from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
+
+TINY = dict(num_envs=4, frames_per_batch=32, init_random_frames=64, updates_per_batch=2, batch_size=16,
+            hidden=(16, 16), buffer_size=4096, gpi_iteration_frames=64, gpi_front_episodes=1,
+            gpi_dynamics_hidden=(16,), gpi_dynamics_train_freq=64, gpi_dynamics_rollout_freq=32,
+            gpi_dynamics_rollout_starts=64, gpi_dynamics_rollout_batch=50, progress=False)
+
+
+def test_config_has_the_authors_settings():
+    ll = resolve_config("gpi_pd", "MOLunarLanderDR-v0")
+    assert (ll.gpi_uncertainty_threshold, ll.gpi_dynamics_train_freq, ll.gpi_dynamics_rollout_freq) == (20.0, 5000, 5000)
+    assert (ll.gpi_front_episodes, ll.gpi_num_nets, ll.gpi_dropout, ll.gpi_layer_norm) == (3, 2, 0.01, True)
+    assert (ll.target_update_period, ll.eps_frames, ll.prioritized, ll.per_importance_weights) == (1000, 1_000_000, True, False)
+    lava = resolve_config("gpi_pd", "MOLavaGridDR-v0")
+    assert (lava.gpi_uncertainty_threshold, lava.gpi_dynamics_lr, lava.gpi_dynamics_hidden) == (1e4, 3e-5, (512, 512))
+    assert (lava.eps_frames, lava.target_update_period, lava.gpi_iteration_frames) == (5_000_000, 200, 50_000)
+    mario = resolve_config("gpi_ls", "MOSuperMarioBrosZeroShot-v2")
+    assert (mario.hidden, mario.gpi_layer_norm, mario.eval_weights, mario.batch_size) == ((512, 512), False, 32, 64)
+
+
+def _agent(algo, **kw):
+    torch.manual_seed(0)
+    cfg = resolve_config(algo, "MOLavaGridDR-v0", **{**TINY, **kw})
+    env = make_training_env(cfg, torch.device("cpu"))
+    return cfg, env, make_gpi_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+
+
+def test_first_iteration_trains_e1_with_the_other_extrema_in_the_support():
+    _, env, agent = _agent("gpi_ls")
+    np.testing.assert_array_equal(agent.weight, [1, 0])
+    np.testing.assert_array_equal(agent.support, [[0, 1], [1, 0]])
+    prefs = env.reset()["preference"]  # the sub-envs draw their episode's weight from the support
+    assert all(any(torch.allclose(p, torch.tensor(m, dtype=torch.float32)) for m in agent.support) for p in prefs)
+    torch.testing.assert_close(agent.loss.current_weight, torch.tensor([1.0, 0.0]))
+
+
+def test_iterations_grow_the_ccs_and_pick_the_next_weight():
+    cfg, env, agent = _agent("gpi_ls")
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    td = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [4, 16] = 64 frames
+    agent.learn(td, buffer, 64)  # reaches gpi_iteration_frames: evaluate M, add to the CCS, next weight
+    assert agent.iteration == 2
+    assert len(agent.linear_support.visited_weights) == 2  # both weights of M were evaluated
+    np.testing.assert_array_equal(agent.weight, [0, 1])  # the second extremum
+    td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
+    agent.learn(td, buffer, 128)
+    assert agent.iteration == 3 and len(agent.linear_support.ccs) >= 1
+    assert agent.weight.shape == (2,) and np.isclose(agent.weight.sum(), 1)
+    # the evaluation policy acts by GPI over the support the loss trains on
+    torch.testing.assert_close(agent.eval_policy.support, agent.loss.weight_support)
+
+
+def test_gpi_pd_rolls_out_the_model_into_its_buffer():
+    cfg, env, agent = _agent("gpi_pd", gpi_uncertainty_threshold=1e9, gpi_iteration_frames=10_000)
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
+    agent.learn(td, buffer, 64)  # fits the model (train freq 64) and rolls out (starts at 64)
+    assert len(agent.model_buffer) == 50
+    batch, real = agent._sample(buffer)
+    assert batch.shape == (16,) and real.shape == (8,)  # real_ratio 0.5
+    cfg2, _, strict = _agent("gpi_pd", gpi_uncertainty_threshold=1e-9, gpi_iteration_frames=10_000)
+    assert strict.rollout_model(buffer) == 0  # nothing is that certain
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", ["gpi_ls", "gpi_pd"])
+def test_short_real_run_and_resume_state(tmp_path, algo):
+    cfg = resolve_config(algo, "MOLavaGridDR-v0", **TINY, frames=256, eval_interval=256, eval_weights=3,
+                         checkpoint_interval=128, eval_contexts=("MOLavaGridRoom-v0",), eval_random_baseline=False,
+                         run_dir=str(tmp_path / algo))
+    summary, agent, run_dir, _ = run_training(cfg)
+    assert summary["frames"] == 256 and agent.iteration >= 4
+    state = agent.state_dict()
+    _, _, fresh = _agent(algo)
+    fresh.load_state_dict(state)
+    np.testing.assert_array_equal(fresh.support, agent.support)
+    assert fresh.linear_support.ccs and len(fresh.linear_support.ccs) == len(agent.linear_support.ccs)
+
+
+def test_continuous_settings_and_agent():
+    hop = resolve_config("gpi_ls", "MOHopperDR-v5")
+    assert (hop.batch_size, hop.init_random_frames, hop.gpi_gradient_updates, hop.gpi_iteration_frames, hop.tau) == \
+        (256, 25_000, 1, 50_000, 0.005)
+    pd = resolve_config("gpi_pd", "MOHopperDR-v5")
+    assert (pd.gpi_dynamics_train_freq, pd.gpi_dynamics_rollout_freq, pd.gpi_real_ratio) == (2000, 2000, 0.5)
+    assert resolve_config("gpi_pd", "MOHalfCheetahDR-v5").gpi_uncertainty_threshold == 10.0
+    assert resolve_config("gpi_ls", "MOHumanoidDR-v5").gpi_iteration_frames == 25_000
+
+
+@pytest.mark.slow
+def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
+    torch.manual_seed(0)
+    kw = {**TINY, "gpi_dynamics_rollout_len": 2, "gpi_uncertainty_threshold": 1e9, "hidden": (16, 16)}
+    cfg = resolve_config("gpi_pd", "MOHopperDR-v5", **kw)
+    env = make_training_env(cfg, torch.device("cpu"))
+    agent = make_gpi_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
+    before = [p.clone() for p in agent.loss.actor_network_params.values(True, True)]
+    losses, n = agent.learn(td, buffer, 64)
+    assert n == 2 and len(agent.model_buffer) == 100  # 50 observations x 2 model steps
+    assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
+    assert agent.iteration == 2 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
