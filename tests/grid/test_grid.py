@@ -74,9 +74,15 @@ def test_a_bad_value_is_refused_before_anything_runs():
 def test_shipped_grid_files():
     paper = load_grid_spec(ROOT / "examples/grid/paper.toml")
     cells = paper.check()
-    assert len(cells) == (3 + 2 + 2 * 3) * 5 and paper.seeds == (0, 1, 2, 3, 4)
+    assert len(cells) == 39 * 5 and paper.seeds == (0, 1, 2, 3, 4)  # the paper's 39 table entries
+    from morl_trl.grid.report import paper_label
+    from morl_trl.reporting.table import PAPER_NHGR
+
+    pairs = {(c.env_id, paper_label(c.algo)) for c in cells}
+    assert pairs == {(d, a) for d, row in PAPER_NHGR.items() for a in row}
     mario = [c for c in cells if c.env_id == "MOSuperMarioBrosZeroShot-v2"]
-    assert len(mario) == 5 and {c.cpus for c in mario} == {2.0} and {c.algo for c in mario} == {"envelope"}
+    assert len(mario) == 4 * 5 and {c.cpus for c in mario} == {2.0}
+    assert {c.algo for c in mario} == {"envelope", "gpi_ls", "pcn", "sac"}
     assert load_grid_spec(ROOT / "examples/grid/quick.toml") == GridSpec.from_dict(QUICK_GRID)
 
 
