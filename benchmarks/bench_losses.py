@@ -50,6 +50,7 @@ from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # n
 from torchrl.objectives import HardUpdate, SoftUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
+from morl_trl.recipes.agent import adam  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
@@ -112,7 +113,7 @@ def ours_envelope(tr, buffer_size):
     )
     loss.make_value_estimator(gamma=GAMMA)
     updater = HardUpdate(loss, value_network_update_interval=c["target_every"])
-    optim = torch.optim.Adam(loss.parameters(), lr=LR)
+    optim = adam(loss.parameters(), LR)
     sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4)
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), sampler=sampler, batch_size=c["batch"])
     rb.extend(as_tensordict(tr))
@@ -141,7 +142,7 @@ def ours_capql(tr, buffer_size):
     )
     loss.make_value_estimator(gamma=GAMMA)
     updater = SoftUpdate(loss, tau=c["tau"])
-    optim = torch.optim.Adam(loss.parameters(), lr=LR)
+    optim = adam(loss.parameters(), LR)
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=c["batch"])
     rb.extend(as_tensordict(tr))
 

@@ -15,7 +15,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.objectives import HardUpdate, SoftUpdate
 
 __all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers", "eval_exploration"]
+           "target_updater", "actor_critic_optimizers", "eval_exploration", "adam"]
 
 
 class NonFiniteLossError(RuntimeError):
@@ -159,12 +159,32 @@ def target_updater(cfg, loss):
     return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
 
 
+def adam(params, lr: float, *, fused: bool | None = None) -> torch.optim.Adam:
+    """``torch.optim.Adam`` over ``params``, fused when torch has a fused kernel for them.
+
+    The fused implementation updates every parameter in one kernel (on a CPU core ~4x faster
+    than the per-tensor loop torch picks there by default) with Adam's arithmetic unchanged
+    (results agree to float rounding), and it can skip a step on the device without reading
+    the host (``found_inf``), which the captured update relies on. ``fused=None`` (the default):
+    fused when every parameter is a floating point tensor on the CPU or a CUDA device.
+
+    Example:
+        >>> opt = adam([torch.nn.Parameter(torch.zeros(3))], lr=1e-3)
+        >>> opt.defaults["fused"]
+        True
+    """
+    params = list(params)
+    if fused is None:
+        fused = all(p.is_floating_point() and p.device.type in ("cpu", "cuda") for p in params)
+    return torch.optim.Adam(params, lr=lr, fused=bool(fused))
+
+
 def actor_critic_optimizers(cfg, loss) -> dict:
-    """Adam for the actor, the critics and (when learned) the temperature."""
+    """Adam (:func:`adam`) for the actor, the critics and (when learned) the temperature."""
     opts = {
-        "actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr),
-        "qvalue": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.lr),
+        "actor": adam(loss.actor_network_params.values(True, True), cfg.lr),
+        "qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr),
     }
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
-        opts["alpha"] = torch.optim.Adam([loss.log_alpha], lr=cfg.lr)
+        opts["alpha"] = adam([loss.log_alpha], cfg.lr)
     return opts
