@@ -18,6 +18,10 @@ __all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objec
            "target_updater", "actor_critic_optimizers", "eval_exploration", "adam"]
 
 
+def _captures(cfg) -> bool:
+    return bool(getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False))
+
+
 class NonFiniteLossError(RuntimeError):
     """A loss came out NaN or infinite; the update was not applied."""
 
@@ -46,6 +50,7 @@ class Agent:
         self.exploration_module = exploration_module
         self.eval_exploration = eval_exploration
         self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
+        self._captured = None  # the compiled / CUDA-graphed update, built on first use
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
@@ -71,13 +76,22 @@ class Agent:
         return losses, n
 
     def update(self, buffer) -> TensorDictBase:
-        """One gradient step on a sampled batch; raises :class:`NonFiniteLossError` before stepping on NaNs.
+        """One gradient step on a sampled batch; a non-finite loss is never applied.
 
         With ``cfg.max_grad_norm`` the gradient norm of each optimizer's parameters is clipped to
         it (``torch.nn.utils.clip_grad_norm_``) before stepping, as MORL-Baselines clips each
         network's (Envelope: 1.0).
+
+        By default (eager) the loss is checked on the host before anything is stepped and
+        :class:`NonFiniteLossError` is raised at once. With the update captured
+        (``cfg.compile`` / ``cfg.cudagraphs``, see :mod:`morl_trl.recipes.capture`) the check
+        stays on the device: a non-finite update is skipped there (the fused optimizers'
+        ``found_inf``, a masked Polyak step, priorities unchanged) and the flag is read every
+        ``cfg.finite_check_interval`` updates, raising :class:`NonFiniteLossError` then.
         """
         batch = buffer.sample().to(self.device)
+        if self._captured is not None or _captures(self.cfg):
+            return self._captured_update(batch, buffer)
         out = self.loss(batch)
         total = sum(out[k] for k in self.loss_keys)
         if not torch.isfinite(total):
@@ -86,17 +100,27 @@ class Agent:
         for opt in self.optimizers.values():
             opt.zero_grad(set_to_none=True)
         total.backward()
-        max_norm = getattr(self.cfg, "max_grad_norm", None)
-        if max_norm is not None:
-            for opt in self.optimizers.values():
-                params = [p for group in opt.param_groups for p in group["params"]]
-                torch.nn.utils.clip_grad_norm_(params, max_norm)
+        self._clip_gradients()
         for opt in self.optimizers.values():
             opt.step()
         self.target_updater.step()
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
+
+    def _clip_gradients(self) -> None:
+        max_norm = getattr(self.cfg, "max_grad_norm", None)
+        if max_norm is not None:
+            for opt in self.optimizers.values():
+                params = [p for group in opt.param_groups for p in group["params"]]
+                torch.nn.utils.clip_grad_norm_(params, max_norm)
+
+    def _captured_update(self, batch: TensorDictBase, buffer) -> TensorDictBase:
+        from morl_trl.recipes.capture import CapturedUpdate
+
+        if self._captured is None:
+            self._captured = CapturedUpdate(self)
+        return self._captured(batch, buffer)
 
     def on_frames(self, frames: int) -> None:
         """Advance the frame-based schedules (epsilon, homotopy)."""
