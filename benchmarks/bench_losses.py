@@ -25,6 +25,13 @@ re-creation of its update loops (same networks, same tensor work: the target net
 evaluated on batch x N x N rows for Envelope, separate critic/actor passes for CAPQL),
 and the output says so.
 
+Ours is ``Agent.update`` as the recipes run it (fused Adam, sampling and priority updates
+included). ``--device cuda`` runs ours (and MORL-Baselines, when installed) on the GPU and adds
+rows for the captured update (``compile``, ``cudagraphs``, ``both``: see
+``morl_trl.recipes.capture``) with their speed-up over the eager one:
+
+    python benchmarks/bench_losses.py --device cuda [--capture cudagraphs both]
+
 Ours and the peer alternate in rounds so that machine load hits both alike; the
 median rate over rounds is reported. On a shared machine, ``--threads 1 --clock cpu``
 (process CPU time) gives steadier figures than wall time.
@@ -47,13 +54,14 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from tensordict import TensorDict  # noqa: E402
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
-from torchrl.objectives import HardUpdate, SoftUpdate  # noqa: E402
+from torchrl.objectives import HardUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
 from morl_trl.recipes.agent import adam  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
+    PolyakUpdate,
     make_gaussian_actor,
     make_vector_critic,
     make_vector_q_network,
@@ -150,7 +158,7 @@ def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
         alpha=c["alpha"],
     )
     loss.make_value_estimator(gamma=GAMMA)
-    updater = SoftUpdate(loss, tau=c["tau"])
+    updater = PolyakUpdate(loss, tau=c["tau"])
     optimizers = {"actor": adam(loss.actor_network_params.values(True, True), LR),
                   "qvalue": adam(loss.qvalue_network_params.values(True, True), LR)}
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), batch_size=c["batch"])

@@ -9,7 +9,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
 
-Networks: :mod:`morl_trl.objectives.networks`.
+Networks: :mod:`morl_trl.objectives.networks`. Target updates: :class:`PolyakUpdate` (TorchRL's
+``SoftUpdate`` in one ``foreach`` step).
 """
 
 from morl_trl.objectives.capql import CAPQLLoss
@@ -25,6 +26,7 @@ from morl_trl.objectives.networks import (
     make_vector_q_network,
 )
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
+from morl_trl.objectives.updaters import PolyakUpdate
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
 
 __all__ = [
@@ -35,6 +37,7 @@ __all__ = [
     "MOSACLoss",
     "MultiObjectiveLossModule",
     "NatureCNN",
+    "PolyakUpdate",
     "PreferenceConditionedMLP",
     "VectorTD0Estimator",
     "make_categorical_actor",

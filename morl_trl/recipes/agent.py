@@ -12,7 +12,9 @@ from tensordict import TensorDictBase
 from torch import nn
 from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
-from torchrl.objectives import HardUpdate, SoftUpdate
+from torchrl.objectives import HardUpdate
+
+from morl_trl.objectives import PolyakUpdate
 
 __all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "eval_exploration", "adam"]
@@ -177,9 +179,9 @@ def eval_exploration(cfg) -> ExplorationType:
 
 
 def target_updater(cfg, loss):
-    """Polyak averaging with ``cfg.tau``, else a hard copy every ``cfg.target_update_period`` updates."""
+    """Polyak averaging with ``cfg.tau`` (:class:`~morl_trl.objectives.PolyakUpdate`), else a hard copy every ``cfg.target_update_period`` updates."""
     if cfg.tau is not None:
-        return SoftUpdate(loss, tau=cfg.tau)
+        return PolyakUpdate(loss, tau=cfg.tau)
     return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
 
 

@@ -45,6 +45,8 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.objectives import SoftUpdate
 
+from morl_trl.objectives import PolyakUpdate
+
 __all__ = ["CapturedUpdate"]
 
 
@@ -78,12 +80,8 @@ class CapturedUpdate:
         self.soft = isinstance(updater, SoftUpdate)
         if self.soft:
             self.tau = 1.0 - float(updater.eps)
-            self.sources, self.targets = [], []
-            for key, source in updater._sources.items():
-                target = updater._targets.get(f"target_{key}")
-                for name in source.keys(True, True):
-                    self.sources.append(source.get(name))
-                    self.targets.append(target.get(name))
+            self.sources, self.targets = (updater.leaves() if isinstance(updater, PolyakUpdate)
+                                          else PolyakUpdate.leaves(updater))
         self.skipped = torch.zeros((), device=agent.device)
         self.since_check = 0
         fn = self.step

@@ -7,7 +7,7 @@ import torch
 from torchrl.data import Bounded
 from torchrl.objectives import SoftUpdate
 
-from morl_trl.objectives import CAPQLLoss, MOSACLoss, make_gaussian_actor, make_vector_critic
+from morl_trl.objectives import CAPQLLoss, MOSACLoss, PolyakUpdate, make_gaussian_actor, make_vector_critic
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 from morl_trl.objectives.networks import NatureCNN, PreferenceConditionedMLP
 from tests.objectives._helpers import random_batch
@@ -104,3 +104,19 @@ def test_forward_with_rejects_an_encoder():
     net.encoder = NatureCNN((3, 36, 36), 8)
     with pytest.raises(ValueError, match="without encoder"):
         net.forward_with([p.detach() for p in net.parameters()], torch.zeros(1, 3, 36, 36), torch.zeros(1, 2))
+
+
+def test_polyak_update_is_bit_identical_to_soft_update():
+    ours, torchrl_ = make(), make()
+    a, b = PolyakUpdate(ours, tau=0.005), SoftUpdate(torchrl_, tau=0.005)  # targets := online
+    for loss in (ours, torchrl_):  # then move the online critics away from the targets
+        for p in loss.qvalue_network_params.values(True, True):
+            p.data.add_(torch.randn(p.shape, generator=torch.Generator().manual_seed(p.numel())))
+    start = ours.target_qvalue_network_params.clone()
+    for _ in range(3):
+        a.step()
+        b.step()
+    for key, value in ours.target_qvalue_network_params.items(True, True):
+        assert torch.equal(value, torchrl_.target_qvalue_network_params.get(key)), key
+        assert not torch.equal(value, start.get(key)), key
+    assert not any(t.requires_grad for t in a.leaves()[1])
