@@ -247,6 +247,9 @@ class TrainConfig:
             problem = check(value) if check is not None else None
             if problem is not None:
                 raise ValueError(f"config key {f.name!r} ({f.metadata['group']}) is {value!r}; valid: {problem}")
+        if self.cudagraphs and not str(self.device).startswith("cuda"):
+            raise ValueError(f"config key 'cudagraphs' (compile) is true but device is {self.device!r}; "
+                             "valid: cudagraphs=true with a cuda device (compile=true works on any device)")
         return self
 
     # ------------------------------------------------------------------ views and files

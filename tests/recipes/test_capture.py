@@ -104,7 +104,10 @@ def test_captured_update_needs_fused_optimizers_and_cuda_for_graphs():
     agent.optimizers["actor"] = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-3)
     with pytest.raises(ValueError, match=r"needs fused optimizers.*\['actor'\]"):
         CapturedUpdate(agent)
-    _, agent, _ = setup("capql", cudagraphs=True)
+    with pytest.raises(ValueError, match="'cudagraphs' .* is true but device is 'cpu'"):
+        resolve_config("capql", "MOHopperDR-v5", cudagraphs=True)
+    _, agent, _ = setup("capql")
+    agent.cfg.cudagraphs = True  # past the config's check
     with pytest.raises(ValueError, match="cudagraphs=true needs device='cuda'"):
         CapturedUpdate(agent)
 
