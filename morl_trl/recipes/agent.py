@@ -148,8 +148,23 @@ class Agent:
         self.loss.load_state_dict(state["loss"])
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])
+            _keep_implementation(o)
         if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
             self.target_updater.counter = state["target_updater_counter"]
+
+
+def _keep_implementation(opt: torch.optim.Optimizer) -> None:
+    """After ``load_state_dict``: the optimizer keeps the implementation it was built with (a
+    checkpoint written by a per-tensor Adam would otherwise turn a fused one back), with its step
+    counters where that implementation keeps them."""
+    for group in opt.param_groups:
+        for key in ("fused", "foreach"):
+            if key in opt.defaults:
+                group[key] = opt.defaults[key]
+    if opt.defaults.get("fused"):
+        for param, st in opt.state.items():
+            if torch.is_tensor(st.get("step")):
+                st["step"] = st["step"].to(device=param.device, dtype=torch.float32)
 
 
 # ---------------------------------------------------------------------- shared by the builders

@@ -62,7 +62,8 @@ class CapturedUpdate:
         cfg = agent.cfg
         self.agent = agent
         self.interval = int(getattr(cfg, "finite_check_interval", 1))
-        not_fused = [name for name, opt in agent.optimizers.items() if not opt.defaults.get("fused")]
+        not_fused = [name for name, opt in agent.optimizers.items()
+                     if not all(group.get("fused") for group in opt.param_groups)]
         if not_fused:
             raise ValueError(f"a captured update (compile/cudagraphs) needs fused optimizers, as "
                              f"morl_trl.recipes.agent.adam makes them; {not_fused} are not fused")

@@ -153,3 +153,19 @@ def test_cuda_graphed_update_matches_the_eager_update_on_cuda(name):
     out_g, params_g = run(graphed, buf_g, 8)
     for key in params_e:
         torch.testing.assert_close(params_e[key], params_g[key], rtol=1e-5, atol=1e-6, msg=key)
+
+
+def test_a_checkpoint_of_a_per_tensor_adam_keeps_the_agent_fused():
+    _, agent, buffer = setup("capql")
+    agent.update(buffer)
+    state = agent.state_dict()
+    for opt_state in state["optimizers"].values():  # as a checkpoint from before the fused optimizers
+        for group in opt_state["param_groups"]:
+            group["fused"] = None
+    _, other, _ = setup("capql")
+    other.load_state_dict(state)
+    for opt in other.optimizers.values():
+        assert all(group["fused"] is True for group in opt.param_groups)
+        assert all(st["step"].item() == 1.0 for st in opt.state.values())
+    other.update(buffer)  # steps with the fused kernel
+    assert all(st["step"].item() == 2.0 for opt in other.optimizers.values() for st in opt.state.values())
