@@ -404,7 +404,8 @@ def compare(name, variants, peer, *, warmup, updates, rounds):
     eager = statistics.median(rates["eager"])
     for label in variants:
         a = statistics.median(rates[label])
-        print(f"{name:<10} {label:<11} {a:>10.1f} {b:>10.1f} {a / b:>8.2f}x {a / eager:>9.2f}x")
+        vs_peer = f"{b:>10.1f} {a / b:>8.2f}x" if peer is not None else f"{'-':>10} {'-':>9}"
+        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x")
 
 
 def main(argv=None) -> int:

@@ -44,6 +44,16 @@ class FunctionalNetwork:
         net: the MLP (its own parameters are TorchRL's meta placeholders; never read).
         keys: the parameter leaves' keys in the TensorDict, in ``net.named_parameters()`` order.
         in_keys: the TensorDict keys of the network's positional inputs.
+
+    Example:
+        >>> from tensordict import TensorDict
+        >>> from morl_trl.objectives import make_vector_critic
+        >>> critic = make_vector_critic(5, 2, 3, num_cells=(16,))
+        >>> params = TensorDict.from_module(critic)
+        >>> plan = FunctionalNetwork.of(critic, params)
+        >>> x, a, w = torch.randn(4, 5), torch.rand(4, 2), torch.full((4, 3), 1 / 3)
+        >>> torch.equal(plan(plan.leaves(params), [x, a, w]), critic.module(x, a, w))
+        True
     """
 
     net: PreferenceConditionedMLP
