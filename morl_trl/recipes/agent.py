@@ -52,7 +52,8 @@ class Agent:
         self.exploration_module = exploration_module
         self.eval_exploration = eval_exploration
         self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
-        self._captured = None  # the compiled / CUDA-graphed update, built on first use
+        self._captured = None  # the compiled / CUDA-graphed / device-guarded update, built on first use
+        self._guard = None
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
@@ -84,15 +85,17 @@ class Agent:
         it (``torch.nn.utils.clip_grad_norm_``) before stepping, as MORL-Baselines clips each
         network's (Envelope: 1.0).
 
-        By default (eager) the loss is checked on the host before anything is stepped and
+        On the CPU (eager) the loss is checked on the host before anything is stepped and
         :class:`NonFiniteLossError` is raised at once. With the update captured
-        (``cfg.compile`` / ``cfg.cudagraphs``, see :mod:`morl_trl.recipes.capture`) the check
-        stays on the device: a non-finite update is skipped there (the fused optimizers'
-        ``found_inf``, a masked Polyak step, priorities unchanged) and the flag is read every
-        ``cfg.finite_check_interval`` updates, raising :class:`NonFiniteLossError` then.
+        (``cfg.compile`` / ``cfg.cudagraphs``, see :mod:`morl_trl.recipes.capture`), and on
+        accelerators whenever the optimizers are fused (no host synchronisation per update),
+        the check stays on the device: a non-finite update is skipped there (the fused
+        optimizers' ``found_inf``, a masked Polyak step, priorities written as 0) and the count
+        of skipped updates is read every ``cfg.finite_check_interval`` updates, raising
+        :class:`NonFiniteLossError` then.
         """
         batch = buffer.sample().to(self.device)
-        if self._captured is not None or _captures(self.cfg):
+        if self._device_guard():
             return self._captured_update(batch, buffer)
         out = self.loss(batch)
         total = sum(out[k] for k in self.loss_keys)
@@ -109,6 +112,15 @@ class Agent:
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
+
+    def _device_guard(self) -> bool:
+        """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""
+        if self._captured is not None:
+            return True
+        if self._guard is None:
+            fused = all(group.get("fused") for opt in self.optimizers.values() for group in opt.param_groups)
+            self._guard = _captures(self.cfg) or (torch.device(self.device).type != "cpu" and fused)
+        return self._guard
 
     def _clip_gradients(self) -> None:
         max_norm = getattr(self.cfg, "max_grad_norm", None)

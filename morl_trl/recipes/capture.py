@@ -7,6 +7,9 @@ group ``compile``, as in TorchRL's ``sota-implementations``) the middle part run
 function wrapped by ``torch.compile(mode=cfg.compile_mode)`` and/or
 :class:`tensordict.nn.CudaGraphModule` (one graph launch per update on CUDA).
 
+On an accelerator the same step runs uncompiled by default (when the optimizers are fused), for
+its on-device guard: no host synchronisation per update there either.
+
 What changes so that nothing in it reads the host:
 
 * the non-finite guard stays on the device: the loss's ``isfinite`` flag is handed to the

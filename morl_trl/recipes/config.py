@@ -189,9 +189,9 @@ class TrainConfig:
                                     "'max-autotune', ...)", _str(optional=True))
     cudagraphs: bool = _key("compile", False, "replay the update step as a CUDA graph (tensordict.nn."
                             "CudaGraphModule; device cuda only)", _bool)
-    finite_check_interval: int = _key("compile", 100, "captured update: updates between host reads of the "
-                                      "device's count of skipped non-finite updates (the eager update checks "
-                                      "every one before applying it)", _int(1))
+    finite_check_interval: int = _key("compile", 100, "captured update and accelerators: updates between host "
+                                      "reads of the device's count of skipped non-finite updates (the eager CPU "
+                                      "update checks every one before applying it)", _int(1))
     # network
     hidden: tuple[int, ...] = _key("network", (256, 256, 256, 256), "hidden layer widths of every MLP", _hidden)
     # exploration (epsilon-greedy)
