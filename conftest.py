@@ -1,5 +1,5 @@
 """Collection rules that let ``python -m pytest`` pass on an install without the optional
-simulator extras (``box2d``, ``mujoco``, ``mario``).
+simulator extras (``box2d``, ``mujoco``, ``mario``, ``dmc``).
 
 ``--doctest-modules`` imports every module of the package. A module that cannot be imported
 because its simulator is missing is not collected (``pytest_ignore_collect``), and a doctest
@@ -23,6 +23,7 @@ EXTRAS = {
     "box2d": (("Box2D",), "morl_trl/envs/lunar_lander", ("LunarLander",)),
     "mujoco": (("mujoco",), "morl_trl/envs/mujoco", ("Hopper", "HalfCheetah", "Humanoid")),
     "mario": (("nes_py", "gym_super_mario_bros"), "morl_trl/envs/mario", ("SuperMario",)),
+    "dmc": (("dm_control", "mujoco"), "morl_trl/envs/dmc", ("DMC", "suite_model")),
 }
 
 

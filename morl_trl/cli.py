@@ -7,6 +7,7 @@ only when it runs (``morl-trl envs`` loads no simulator, no training code).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import sys
@@ -363,6 +364,135 @@ def floors_main(argv: list[str] | None = None) -> int:
     return run(argv)
 
 
+# ---------------------------------------------------------------------- the experiment grid
+def grid_main(argv: list[str]) -> int:
+    """``morl-trl grid [SPEC] ...`` runs a grid on Ray; ``grid report DIR`` / ``grid status DIR``."""
+    if argv and argv[0] == "report":
+        return grid_report_main(argv[1:])
+    if argv and argv[0] == "status":
+        return grid_status_main(argv[1:])
+    p = _Parser(
+        prog="morl-trl grid",
+        description="Run the cartesian product of algorithms, domains and seeds on Ray (Tune), each cell a "
+                    "morl-trl train run under DIR/runs/; re-running the same command skips finished cells and "
+                    "resumes the others from their checkpoints; then print the paper's table from the runs. "
+                    "Also: morl-trl grid report DIR, morl-trl grid status DIR.",
+    )
+    p.add_argument("spec", nargs="?", help="a grid spec (.toml/.json; e.g. examples/grid/paper.toml)")
+    p.add_argument("--quick", action="store_true",
+                   help="without SPEC: the built-in quick grid (envelope and mosac_discrete on MO-LunarLander, 2 seeds, "
+                        "short --quick runs); with SPEC: the --quick preset for every cell")
+    p.add_argument("--algos", help="comma-separated algorithms (with --domains: replaces the spec's blocks)")
+    p.add_argument("--domains", help="comma-separated training env ids")
+    p.add_argument("--seeds", help="comma-separated seeds, or a range 0-4")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="set_",
+                   help="a config override for every cell (repeatable)")
+    p.add_argument("--frames", type=int, help="frames of every cell")
+    p.add_argument("--dir", help="the grid directory (default grids/<spec name>)")
+    p.add_argument("--address", help="an existing Ray cluster (e.g. auto, ray://host:10001); default: an embedded "
+                   "Ray on this machine")
+    p.add_argument("--num-cpus", type=int, help="CPUs the embedded Ray may use (default: the machine's)")
+    p.add_argument("--num-gpus", type=float, help="GPUs the embedded Ray may use (default: the machine's)")
+    p.add_argument("--cpus-per-run", type=float, help="CPUs reserved per run (default 1)")
+    p.add_argument("--gpus-per-run", type=float, help="GPUs reserved per run, a fraction shares one GPU (e.g. 0.25; "
+                   "a run with a GPU trains on cuda)")
+    p.add_argument("--max-concurrent", type=int, help="at most this many runs at once")
+    p.add_argument("--max-failures", type=int, default=2, help="retries of a run whose worker died (default 2)")
+    p.add_argument("--progress-interval", type=float, default=30.0, help="seconds between progress lines")
+    p.add_argument("--reference", help="the published data for each run's report (baseline columns)")
+    p.add_argument("--no-report", action="store_true", help="do not print the table at the end")
+    args = p.parse_args(argv)
+    from morl_trl.grid.spec import QUICK_GRID, GridSpec, read_grid_file
+
+    if args.spec:
+        data, source = read_grid_file(args.spec), f"grid spec {args.spec!r}"
+        if args.quick:
+            data["quick"] = True
+    elif args.quick:
+        data, source = json.loads(json.dumps(QUICK_GRID)), "the quick grid"
+    elif args.algos and args.domains:
+        data, source = {}, "the command line"
+    else:
+        raise ValueError("give a grid spec file, --quick, or --algos and --domains")
+    if args.algos or args.domains:
+        if not (args.algos and args.domains):
+            raise ValueError("--algos and --domains go together (they replace the spec's blocks)")
+        data.pop("block", None)
+        data["algorithms"] = [a.strip() for a in args.algos.split(",") if a.strip()]
+        data["domains"] = [d.strip() for d in args.domains.split(",") if d.strip()]
+    if args.seeds:
+        data["seeds"] = _seed_list(args.seeds)
+    overrides = dict(data.get("overrides", {}))
+    overrides.update(parse_overrides(args.set_))
+    if args.frames is not None:
+        overrides["frames"] = args.frames
+    if args.reference:
+        overrides["reference_dir"] = str(Path(args.reference).resolve())
+    data["overrides"] = overrides
+    resources = dict(data.get("resources", {}))
+    if args.cpus_per_run is not None:
+        resources["cpus"] = args.cpus_per_run
+    if args.gpus_per_run is not None:
+        resources["gpus"] = args.gpus_per_run
+    data["resources"] = resources
+    spec = GridSpec.from_dict(data, source)
+    grid_dir = Path(args.dir or Path("grids") / spec.name)
+    from morl_trl.grid import run_grid
+
+    states = run_grid(spec, grid_dir, address=args.address, num_cpus=args.num_cpus, num_gpus=args.num_gpus,
+                      max_concurrent=args.max_concurrent, max_failures=args.max_failures,
+                      progress_interval=args.progress_interval)
+    if not args.no_report and any(s.status == "done" for s in states):
+        from morl_trl.grid import grid_report
+
+        grid_report(grid_dir)
+    bad = [s for s in states if s.status != "done"]
+    if bad:
+        print(f"morl-trl grid: {len(bad)} of {len(states)} cells not done: "
+              + ", ".join(f"{s.name} ({s.status})" for s in bad) + f"; see {grid_dir}/cells/; run the same command "
+              "again to resume them", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _seed_list(text: str) -> list[int]:
+    try:
+        if "-" in text and "," not in text:
+            lo, hi = (int(x) for x in text.split("-", 1))
+            return list(range(lo, hi + 1))
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"--seeds {text!r}: give comma-separated ints (0,1,2) or a range (0-4)") from None
+
+
+def grid_report_main(argv: list[str]) -> int:
+    p = _Parser(prog="morl-trl grid report",
+                description="The paper's table (NHGR mean ± std, IQM, optimality gap, EUGR per algorithm and "
+                            "domain; the paper's values and the floors beside them) and learning curves per domain, "
+                            "from a grid's finished cells, into DIR/report.md.")
+    p.add_argument("grid_dir")
+    p.add_argument("--reference", help="reference data (bounds, specialist fronts; default: the shipped copies)")
+    p.add_argument("--floors", choices=("auto", "shipped", "none"), default="auto",
+                   help="auto: the shipped floors at the paper's weights, else evaluated at the runs' weights; "
+                        "shipped: only the shipped ones; none")
+    p.add_argument("--ci", action="store_true", help="add stratified-bootstrap 95%% CIs of IQM and optimality gap")
+    args = p.parse_args(argv)
+    from morl_trl.grid import grid_report
+
+    grid_report(args.grid_dir, reference_dir=args.reference, floors=args.floors, ci_reps=50_000 if args.ci else 0)
+    return 0
+
+
+def grid_status_main(argv: list[str]) -> int:
+    p = _Parser(prog="morl-trl grid status", description="Where each cell of a grid stands (from its files).")
+    p.add_argument("grid_dir")
+    args = p.parse_args(argv)
+    from morl_trl.grid import format_status, grid_status
+
+    print(format_status(grid_status(args.grid_dir)))
+    return 0
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
@@ -374,6 +504,7 @@ COMMANDS = {
     "reference-manifest": (reference_manifest_main, "check reference data against the published files' manifest "
                            "(or --write it)"),
     "floors": (floors_main, "NHGR of trivial policies (random, constant actions) per domain: the honest floors"),
+    "grid": (grid_main, "run algorithms x domains x seeds on Ray, resumable; grid report DIR: the paper's table"),
 }
 
 

@@ -26,7 +26,7 @@ def test_version_comes_from_the_package_metadata(capsys):
     assert rc == 0 and out.strip() == f"morl-trl {version('morl-trl')}"
 
 
-@pytest.mark.parametrize("command", ["", "train", "evaluate", "envs", "demo", "reference-table", "reference-pack"])
+@pytest.mark.parametrize("command", ["", "train", "evaluate", "envs", "demo", "reference-table", "reference-pack", "grid"])
 def test_help_has_no_restructuredtext(capsys, command):
     rc, out, _ = _run(capsys, *([command] if command else []), "--help")
     assert rc == 0 and "usage: morl-trl" in out

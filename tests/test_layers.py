@@ -25,6 +25,8 @@ ALLOWED = {
     "runs": {"envs", "metrics", "preferences", "evaluation", "reporting"},
     "recipes": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting",
                 "runs"},
+    "grid": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting", "runs",
+             "recipes"},
 }
 
 

@@ -43,6 +43,7 @@ _BUILTIN_SPECS = (
     "morl_trl.envs.lunar_lander.spec",
     "morl_trl.envs.mario.spec",
     "morl_trl.envs.mujoco.spec",
+    "morl_trl.envs.dmc.spec",
 )
 
 

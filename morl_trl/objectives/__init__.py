@@ -5,6 +5,9 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`EnvelopeQLoss` -- Envelope Q-learning (discrete actions, PER-ready).
 * :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
 * :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
+* :class:`PCNLoss` -- Pareto Conditioned Networks' supervised loss (:mod:`morl_trl.objectives.pcn`).
+* PGMORL: TorchRL's ``ClipPPOLoss`` on a batched population (:mod:`morl_trl.objectives.pgmorl`:
+  :class:`PopulationMLP`, :func:`make_population_actor`, :func:`make_population_critic`, :func:`vector_gae`).
 
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
@@ -25,6 +28,8 @@ from morl_trl.objectives.networks import (
     make_vector_critic,
     make_vector_q_network,
 )
+from morl_trl.objectives.pcn import PCNLoss, PCNNetwork, make_pcn_network
+from morl_trl.objectives.pgmorl import PopulationMLP, make_population_actor, make_population_critic, vector_gae
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
 from morl_trl.objectives.updaters import PolyakUpdate
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
@@ -37,13 +42,20 @@ __all__ = [
     "MOSACLoss",
     "MultiObjectiveLossModule",
     "NatureCNN",
+    "PCNLoss",
+    "PCNNetwork",
     "PolyakUpdate",
+    "PopulationMLP",
     "PreferenceConditionedMLP",
     "VectorTD0Estimator",
     "make_categorical_actor",
     "make_gaussian_actor",
+    "make_pcn_network",
+    "make_population_actor",
+    "make_population_critic",
     "make_vector_critic",
     "make_vector_q_network",
     "scalarized_argmax",
+    "vector_gae",
     "vector_td0_return_estimate",
 ]

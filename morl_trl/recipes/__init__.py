@@ -7,6 +7,8 @@ algorithm          agent (networks, policies, loss, optimizers)  loop
 ``capql``          :func:`~morl_trl.recipes.actor_critic.make_capql_agent`         :mod:`~morl_trl.recipes.off_policy`
 ``mosac``          :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`         :mod:`~morl_trl.recipes.off_policy`
 ``mosac_discrete`` :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent` :mod:`~morl_trl.recipes.off_policy`
+``pcn``            :func:`~morl_trl.recipes.pcn.make_pcn_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pcn.PCNAgent`)
+``pgmorl``         :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`              :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`)
 ================== ============================================= ===================================
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
@@ -24,6 +26,8 @@ from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
 from morl_trl.recipes.envelope import make_envelope_agent
+from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
 from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
@@ -52,6 +56,8 @@ AGENT_BUILDERS = {
     "capql": make_capql_agent,
     "mosac": make_mosac_agent,
     "mosac_discrete": make_discrete_mosac_agent,
+    "pcn": make_pcn_agent,
+    "pgmorl": make_pgmorl_agent,
 }
 assert tuple(AGENT_BUILDERS) == ALGORITHMS
 
@@ -67,7 +73,10 @@ def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
 
 #: algorithm name -> ``builder(cfg, device) -> env`` for an algorithm whose training env is not
 #: :func:`~morl_trl.recipes.off_policy.make_training_env`'s (DR env + history + preferences + returns)
-TRAINING_ENV_BUILDERS: dict = {}
+TRAINING_ENV_BUILDERS: dict = {
+    "pcn": make_pcn_training_env,
+    "pgmorl": make_pgmorl_training_env,
+}
 
 
 def build_training_env(cfg: TrainConfig, device):

@@ -27,7 +27,7 @@ from typing import Any
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
            "resume_config", "quick_preset"]
 
-ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete")
+ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "pcn", "pgmorl")
 LOGGERS = ("csv", "tensorboard", "wandb", "none")
 
 
@@ -89,6 +89,14 @@ def _hidden(v):
     ok = isinstance(v, tuple) and len(v) > 0 and all(
         isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v)
     return None if ok else "a non-empty list of positive ints (hidden layer widths), e.g. [256, 256]"
+
+
+def _floats(v):
+    if v is None:
+        return None
+    ok = isinstance(v, tuple) and len(v) > 0 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+    return None if ok else "a non-empty list of finite numbers, or null"
 
 
 def _contexts(v):
@@ -222,6 +230,37 @@ class TrainConfig:
                             _choice(("softplus", "clamped_log_std")))
     loss_fresh_preferences: bool = _key("actor_critic", False, "CAPQL/MOSAC losses draw fresh preferences per "
                                         "sample instead of the stored ones (the authors: false)", _bool)
+    # PCN (Reymond et al. 2022; MORL-Baselines' defaults, SPEC §4 per domain)
+    pcn_scaling_factor: tuple[float, ...] | None = _key("pcn", None, "scale of the command [desired return (k), "
+                                                        "horizon] (null: 0.1 each)", _floats)
+    pcn_max_return: tuple[float, ...] | None = _key("pcn", None, "upper clip of the desired return while acting "
+                                                    "(null: 100 per objective)", _floats)
+    pcn_buffer_episodes: int = _key("pcn", 100, "episodes in the episode replay (max_buffer_size)", _int(1))
+    pcn_er_episodes: int = _key("pcn", 20, "random warm-up episodes, and the best episodes commands are "
+                                "chosen from (num_er_episodes)", _int(1))
+    pcn_step_episodes: int = _key("pcn", 10, "episodes per command (num_step_episodes)", _int(1))
+    pcn_model_updates: int = _key("pcn", 50, "supervised updates per command (num_model_updates)", _int(1))
+    pcn_noise: float = _key("pcn", 0.1, "std of the Gaussian noise on continuous actions", _float(0.0, 1e6))
+    pcn_hidden: int = _key("pcn", 64, "width of PCN's embeddings and hidden layer (hidden_dim)", _int(1))
+    # PGMORL (Xu et al. 2020; MORL-Baselines' defaults, SPEC §4 per domain)
+    pgmorl_pop: int = _key("pgmorl", 6, "population size (one PPO task per member)", _int(1))
+    pgmorl_envs_per_member: int = _key("pgmorl", 4, "sub-envs per member (num_envs must be pgmorl_pop times this; "
+                                       "frames_per_batch / num_envs = steps per iteration)", _int(1))
+    pgmorl_warmup: int = _key("pgmorl", 80, "warm-up iterations", _int(1))
+    pgmorl_evo_iterations: int = _key("pgmorl", 20, "iterations between task selections", _int(1))
+    pgmorl_num_buffers: int = _key("pgmorl", 100, "bins of the performance buffer (num_performance_buffer)",
+                                   _int(2))
+    pgmorl_buffer_size: int = _key("pgmorl", 2, "policies per bin (performance_buffer_size)", _int(1))
+    pgmorl_delta_weight: float = _key("pgmorl", 0.2, "weight grid step (candidates: half of it)",
+                                      _float(0.0, 1.0, open_low=True))
+    pgmorl_sparsity: float = _key("pgmorl", -1.0, "sparsity coefficient of the task selection", _float(-1e12, 1e12))
+    pgmorl_epochs: int = _key("pgmorl", 10, "PPO epochs per iteration", _int(1))
+    pgmorl_minibatches: int = _key("pgmorl", 32, "PPO minibatches per epoch and member", _int(1))
+    pgmorl_clip: float = _key("pgmorl", 0.2, "PPO ratio and value clip", _float(0.0, 10.0, open_low=True))
+    pgmorl_gae_lambda: float = _key("pgmorl", 0.95, "GAE lambda", _float(0.0, 1.0))
+    pgmorl_eval_obs: str = _key("pgmorl", "raw", "observations of the evaluated policy: 'raw' (the authors: "
+                                "normalised policies fed raw observations) or 'normalized' (the training "
+                                "normalisation, frozen)", _choice(("raw", "normalized")))
     # evaluation
     eval_interval: int = _key("eval", 50_000, "frames between evaluations", _int(1))
     eval_weights: int = _key("eval", 100, "evaluation weights (energy weights; the paper: 100, Mario 32)",
@@ -334,7 +373,7 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
     for k, v in values.items():
         if v == "null":  # TOML has no null: a file or a key=value flag writes the string
             v = None
-        if k in ("hidden", "eval_contexts") and isinstance(v, list):
+        if k in ("hidden", "eval_contexts", "pcn_scaling_factor", "pcn_max_return") and isinstance(v, list):
             v = tuple(v)
         elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
@@ -364,6 +403,26 @@ _ALGO = {
                   prioritized=False, eval_exploration="random"),
     "mosac_discrete": dict(batch_size=128, target_update_period=2000, learn_alpha=True,
                            target_entropy_scale=0.3, prioritized=False, eval_exploration="random"),
+    # PCN: MORL-Baselines' lr 1e-3 and batch 256; the collector's random frames are replaced by
+    # the authors' pcn_er_episodes random episodes
+    "pcn": dict(lr=1e-3, batch_size=256, init_random_frames=0, prioritized=False),
+    # PGMORL: P x 4 envs x 2048 steps per iteration, MO-PPO's lr 3e-4 and gradient norm 0.5, sampled
+    # evaluation actions (MOPPO.eval samples)
+    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 2048, init_random_frames=0, prioritized=False,
+                   max_grad_norm=0.5, eval_exploration="random"),
+}
+_PCN_DOMAIN = {  # SPEC §4: scaling factor, max return, buffer (episodes), ER episodes (+ noise, batch)
+    "MOLunarLanderDR-v0": dict(pcn_scaling_factor=(0.1,) * 5, pcn_buffer_episodes=100_000, pcn_er_episodes=1000),
+    "MOHopperDR-v5": dict(pcn_scaling_factor=(0.1,) * 4, pcn_max_return=(2700.0, 3100.0, 1000.0),
+                          pcn_buffer_episodes=100_000, pcn_er_episodes=1000),
+    "MOHalfCheetahDR-v5": dict(pcn_scaling_factor=(0.1,) * 3, pcn_max_return=(12300.0, 0.0),
+                               pcn_buffer_episodes=10_000, pcn_er_episodes=1000, pcn_noise=0.2),
+    "MOHumanoidDR-v5": dict(pcn_scaling_factor=(0.1,) * 3, pcn_max_return=(5200.0, 1000.0),
+                            pcn_buffer_episodes=100_000),
+    "MOLavaGridDR-v0": dict(pcn_scaling_factor=(0.1,) * 3, pcn_max_return=(300.0, 300.0), pcn_buffer_episodes=4000,
+                            pcn_er_episodes=2000),
+    "MOSuperMarioBrosZeroShot-v2": dict(pcn_scaling_factor=(0.1,) * 4, pcn_max_return=(100.0, 100.0, 200.0),
+                                        pcn_buffer_episodes=100_000, pcn_er_episodes=200, batch_size=64),
 }
 _ALGO_DOMAIN = {
     ("envelope", "MOLavaGridDR-v0"): dict(eps_frames=5_000_000, target_update_period=200, num_sampled_prefs=4),
@@ -373,6 +432,13 @@ _ALGO_DOMAIN = {
     ("mosac", "MOHopperDR-v5"): dict(init_random_frames=10_000),
     ("mosac", "MOHumanoidDR-v5"): dict(init_random_frames=5_000),
     ("mosac_discrete", "MOLavaGridDR-v0"): dict(target_update_period=200),
+    **{("pcn", d): v for d, v in _PCN_DOMAIN.items()},
+    ("pgmorl", "MOHopperDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
+                                      pgmorl_num_buffers=210, pgmorl_sparsity=-1e6, pgmorl_delta_weight=0.25),
+    ("pgmorl", "MOHalfCheetahDR-v5"): dict(pgmorl_warmup=80, pgmorl_evo_iterations=20, pgmorl_num_buffers=100,
+                                           pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
+    ("pgmorl", "MOHumanoidDR-v5"): dict(pgmorl_pop=6, pgmorl_warmup=200, pgmorl_evo_iterations=40,
+                                        pgmorl_num_buffers=100, pgmorl_sparsity=-1.0, pgmorl_delta_weight=0.2),
 }
 # --quick: a few CPU minutes on 2 cores, learning visibly on the default domains.
 _QUICK = dict(
@@ -380,6 +446,13 @@ _QUICK = dict(
     buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
     eval_weights=8, checkpoint_interval=20_000,
 )
+
+# --quick per algorithm, on top of _QUICK (PCN: fewer random warm-up episodes than the authors' 1000)
+_QUICK_ALGO = {
+    "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
+    "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,
+                   pgmorl_evo_iterations=2, pgmorl_minibatches=8, eval_interval=30_720),
+}
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
@@ -434,6 +507,7 @@ def resolve_config(
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if quick:
         values.update(_QUICK)
+        values.update(_QUICK_ALGO.get(algo, {}))
     values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
     return TrainConfig(**_coerce(values)).validate()

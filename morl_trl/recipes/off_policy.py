@@ -115,9 +115,15 @@ def _load_reference(cfg: TrainConfig, spec: DomainSpec):
     from morl_trl.reporting.reference import PACKAGED_REFERENCE, list_reference_domains, load_domain_reference
 
     root = cfg.reference_dir or PACKAGED_REFERENCE
-    if spec.train_id not in list_reference_domains(root) and not cfg.reference_dir:
+    if spec.train_id not in list_reference_domains(root):  # (e.g. the DMC domains: no published data)
         return None
     return load_domain_reference(root, spec.train_id)
+
+
+def no_reference_note(spec: DomainSpec) -> str:
+    """What a run of a domain without reference data says about NHGR."""
+    return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
+            f"exists for this domain, so the evaluation reports hypervolume and EUM only")
 
 
 def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
@@ -286,6 +292,8 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
     log.reference = reference
+    if reference is None:
+        notes.append(no_reference_note(spec))
     if cfg.frames < cfg.init_random_frames and frames < cfg.frames:
         notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): "
                      f"the run takes uniformly random actions only and never learns; raise frames or lower "

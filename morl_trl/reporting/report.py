@@ -30,6 +30,21 @@ def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dic
     return {r.label: dict(zip(r.contexts, r.nhgr.mean(0).tolist())) for r in rows}
 
 
+def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
+    """A table of hypervolume and EUM, ours beside the uniformly random policy's, per context."""
+    metrics = [m for m in ("hypervolume", "eum") if any(v is not None for v in result.metric(m).values())]
+    if not metrics:
+        return []
+    head = " | ".join(f"{m} (ours) | {m} (random)" for m in metrics)
+    lines = ["## Against a uniformly random policy", "", f"| context | {head} |", "|---|" + "---|" * (2 * len(metrics))]
+    for c in contexts + [None]:
+        ours = result.aggregate if c is None else result.per_context[c].metrics
+        rand = random_result.aggregate if c is None else random_result.per_context[c].metrics
+        cells = " | ".join(f"{_fmt(ours.get(m))} | {_fmt(rand.get(m))}" for m in metrics)
+        lines.append(f"| {'**mean**' if c is None else c} | {cells} |")
+    return lines + [""]
+
+
 def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
     """``("floor: <policy>", {context: NHGR})`` of the domain's best trivial policy in the shipped
     floors file (or ``floors``), ``None`` when the domain has none."""
@@ -193,7 +208,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
             nhgr_cols["random policy"] = {c: v for c, v in rn.items() if v is not None}
     baselines = {}
     baseline_note = None
-    if cfg.reference_dir:
+    if reference is None and "reference" in log.__dict__:  # no data for the domain: said below, once
+        pass
+    elif cfg.reference_dir:
         try:
             baselines = published_baselines(cfg.reference_dir, spec.train_id)
         except ValueError as err:  # no published runs for this domain
@@ -218,6 +235,12 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append(f"| {c} | " + " | ".join(_fmt(result.per_context[c].metrics.get(m)) for m in present) + " |")
     lines.append("| **mean** | " + " | ".join(_fmt(result.aggregate.get(m)) for m in present) + " |")
     lines.append("")
+    if random_result is not None and not nhgr_cols:  # no NHGR: the random policy beside ours
+        lines.extend(_random_rows(result, random_result, contexts))
+    if reference is None and "nhgr" not in present:
+        lines.append(f"NHGR: unavailable. No reference data (per-context bounds and specialist fronts) exists for "
+                     f"{spec.train_id}, so this report gives hypervolume and EUM only.")
+        lines.append("")
     if nhgr_cols:
         lines.append("## NHGR per context")
         lines.append("")
@@ -266,5 +289,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     if nhgr_cols:
         start = lines.index("## NHGR per context")
         tqdm.write("\n".join(lines[start : start + 4 + len(contexts) + 1]))
+    elif "## Against a uniformly random policy" in lines:
+        start = lines.index("## Against a uniformly random policy")
+        tqdm.write("\n".join(lines[start : start + 4 + len(contexts) + 1]))
+    tqdm.write("\n".join(line for line in lines if line.startswith("NHGR: unavailable")))
     tqdm.write(f"report: {path}")
     return path

@@ -274,10 +274,12 @@ def _floor_line(domain: str, floors: dict) -> str | None:
             f"(best trivial policy; over {n} contexts, 1 seed; morl-trl floors)")
 
 
-def format_table(rows: list[TableRow], floors: dict | None = None) -> str:
+def format_table(rows: list[TableRow], floors: dict | None = None, *, paper_match: bool = True) -> str:
     """Plain-text table, one block per domain, each ending with the domain's floor row.
 
     ``floors``: a loaded floors file (default the shipped one; ``{}`` for no floor rows).
+    ``paper_match``: mark each paper value ``(match)`` or ``(DIFFERS)`` (for the published
+    fronts, which must reproduce it; off for our own runs, which are not expected to).
     """
     from morl_trl.reporting.floors import load_floors
 
@@ -313,7 +315,9 @@ def format_table(rows: list[TableRow], floors: dict | None = None) -> str:
         if p is None:
             line += "  (not in the paper)"
         else:
-            line += f"  {p[0]:.2f} ± {p[1]:.2f} " + ("(match)" if r.matches_paper else "(DIFFERS)")
+            line += f"  {p[0]:.2f} ± {p[1]:.2f}"
+            if paper_match:
+                line += " (match)" if r.matches_paper else " (DIFFERS)"
         out.append(line)
     if domain is not None and (fl := _floor_line(domain, floors)):
         out.append(fl)

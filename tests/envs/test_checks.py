@@ -16,7 +16,7 @@ from morl_trl.envs import ContextSampler, context_space, domain_of, list_domains
 from morl_trl.envs.base import NonFiniteStepError
 from morl_trl.transforms import DomainRandomization
 
-_MODULE = {"LunarLander": "Box2D", "Hopper": "mujoco", "HalfCheetah": "mujoco", "Humanoid": "mujoco",
+_MODULE = {"LunarLander": "Box2D", "Hopper": "mujoco", "HalfCheetah": "mujoco", "Humanoid": "mujoco", "DMC": "dm_control",
            "SuperMario": "nes_py"}
 # one id per domain: the training id (its env has a context sampler)
 DOMAIN_IDS = [spec.train_id for spec in list_domains()]
@@ -166,7 +166,7 @@ def _bad_discrete_actions(n: int):
 
 @pytest.mark.parametrize("case", list(_bad_discrete_actions(3)))
 @pytest.mark.parametrize("env_id", [i for i in DOMAIN_IDS if "Continuous" not in i and "Hopper" not in i
-                                    and "Cheetah" not in i and "Humanoid" not in i])
+                                    and "Cheetah" not in i and "Humanoid" not in i and "Walker" not in i])
 def test_bad_discrete_actions_raise_the_same_way(env_id, case):
     env = _env(env_id)
     n = env.action_spec.space.n
@@ -178,7 +178,7 @@ def test_bad_discrete_actions_raise_the_same_way(env_id, case):
 
 
 @pytest.mark.parametrize("env_id", [i for i in DOMAIN_IDS if "Continuous" not in i and "Hopper" not in i
-                                    and "Cheetah" not in i and "Humanoid" not in i])
+                                    and "Cheetah" not in i and "Humanoid" not in i and "Walker" not in i])
 def test_integral_float_discrete_actions_are_accepted(env_id):
     env = _env(env_id)
     td = env.reset()
@@ -187,7 +187,7 @@ def test_integral_float_discrete_actions_are_accepted(env_id):
 
 
 @pytest.mark.parametrize("env_id", [i for i in DOMAIN_IDS if i.startswith(("MOLunarLanderContinuous", "MOHopper",
-                                                                           "MOHalfCheetah", "MOHumanoid"))])
+                                                                           "MOHalfCheetah", "MOHumanoid", "DMC"))])
 def test_bad_continuous_actions_raise_the_same_way(env_id):
     env = _env(env_id)
     td = env.reset()

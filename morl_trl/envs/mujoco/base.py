@@ -72,6 +72,18 @@ def _as_decimal_float64(context: np.ndarray) -> np.ndarray:
     return np.asarray(context, dtype=np.float32).astype(str).astype(np.float64)
 
 
+def _rng_state(rng) -> dict:
+    """The state of a ``numpy.random.Generator`` or a legacy ``RandomState`` (dm_control's)."""
+    return rng.bit_generator.state if isinstance(rng, np.random.Generator) else rng.get_state(legacy=False)
+
+
+def _set_rng_state(rng, state: dict) -> None:
+    if isinstance(rng, np.random.Generator):
+        rng.bit_generator.state = state
+    else:
+        rng.set_state(state)
+
+
 class MujocoContextEnv(ContextualMOEnv):
     """Base of :class:`MOHopperEnv`, :class:`MOHalfCheetahEnv` and :class:`MOHumanoidEnv`.
 
@@ -132,7 +144,7 @@ class MujocoContextEnv(ContextualMOEnv):
             num_threads = min(num_envs, _usable_cpus())
         if not isinstance(num_threads, int) or num_threads < 1:
             raise ValueError(f"num_threads must be a positive int, got {num_threads!r}")
-        base = load_model(self.xml_file)
+        base = self._base_model()
         self._models = [copy.copy(base) for _ in range(num_envs)]
         self._init_qpos = base.qpos0.copy()
         self._init_qvel = np.zeros(base.nv)
@@ -158,7 +170,7 @@ class MujocoContextEnv(ContextualMOEnv):
         return {"observation": Unbounded(shape=(self.observation_dim,), dtype=torch.float32)}
 
     def _domain_action_spec(self):
-        low, high = load_model(self.xml_file).actuator_ctrlrange.T
+        low, high = self._base_model().actuator_ctrlrange.T
         return Bounded(
             low=torch.as_tensor(low, dtype=torch.float32),
             high=torch.as_tensor(high, dtype=torch.float32),
@@ -167,6 +179,10 @@ class MujocoContextEnv(ContextualMOEnv):
         )
 
     # ------------------------------------------------------------------ models
+    def _base_model(self) -> mujoco.MjModel:
+        """The domain's compiled model, shared by every instance (copy it before editing)."""
+        return load_model(self.xml_file)
+
     @property
     def num_threads(self) -> int:
         return self._sim.nthread
@@ -273,7 +289,7 @@ class MujocoContextEnv(ContextualMOEnv):
 
         renderers = self.__dict__.setdefault("_renderers", {})
         if (width, height) not in renderers:
-            renderers[(width, height)] = MujocoFrameRenderer(load_model(self.xml_file), width=width, height=height,
+            renderers[(width, height)] = MujocoFrameRenderer(self._base_model(), width=width, height=height,
                                                              **self.render_camera)
         data = self._sim.get_data(index)
         import mujoco
@@ -291,7 +307,7 @@ class MujocoContextEnv(ContextualMOEnv):
         # start, which a fresh mj_forward would not reproduce)
         names = dict.fromkeys((*self._STATE_FIELDS, *self._bound_fields))
         fields = {name: np.array(self._sim.bind(name), copy=True) for name in names}
-        return {"fields": fields, "rngs": [g.bit_generator.state for g in self._rngs],
+        return {"fields": fields, "rngs": [_rng_state(g) for g in self._rngs],
                 "extra": {k: np.array(v, copy=True) for k, v in self._snapshot_extra().items()}}
 
     def _load_snapshot_subenvs(self, state: dict) -> None:
@@ -305,7 +321,7 @@ class MujocoContextEnv(ContextualMOEnv):
             target.setflags(write=True)    # next call recomputes them; the domain's bindings stay as they are)
             target[...] = value
         for g, st in zip(self._rngs, state["rngs"]):
-            g.bit_generator.state = st
+            _set_rng_state(g, st)
         for k, v in state["extra"].items():
             getattr(self, k)[...] = v
 

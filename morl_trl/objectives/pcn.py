@@ -1,0 +1,130 @@
+"""Pareto Conditioned Networks (Reymond et al. 2022): the command-conditioned policy and its supervised loss.
+
+The network is the authors' (MORL-Baselines ``multi_policy/pcn/pcn.py``): the command
+``c = [desired_return, desired_horizon] * scaling_factor`` and the observation are embedded
+(``Linear + Sigmoid`` each), multiplied element-wise, then ``Linear, ReLU, Linear`` gives
+log-probabilities (discrete actions, ``LogSoftmax``) or the action itself (continuous).
+The loss is the cross-entropy of the stored action (discrete) or the mean squared error to it
+(continuous), on steps of the best episodes (:class:`~morl_trl.data.episode_replay.EpisodeReplay`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from tensordict import TensorDict, TensorDictBase, TensorDictParams
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.objectives import LossModule
+
+from morl_trl.objectives.common import module_output
+from morl_trl.objectives.networks import _encoder_and_width
+
+__all__ = ["PCNNetwork", "PCNLoss", "make_pcn_network"]
+
+
+class PCNNetwork(nn.Module):
+    """``(observation, desired_return [k], desired_horizon [1]) -> log-probs [A]`` or ``action [A]``.
+
+    ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first).
+
+    Example:
+        >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=8)
+        >>> logp = net(torch.zeros(5, 4), torch.zeros(5, 2), torch.ones(5, 1))
+        >>> logp.shape, torch.allclose(logp.exp().sum(-1), torch.ones(5))
+        (torch.Size([5, 3]), True)
+    """
+
+    def __init__(self, obs_dim, action_dim: int, num_objectives: int, scaling_factor: Sequence[float],
+                 hidden: int = 64, *, discrete: bool = True) -> None:
+        super().__init__()
+        scale = torch.as_tensor(scaling_factor, dtype=torch.float32).flatten()
+        if scale.numel() != num_objectives + 1:
+            raise ValueError(f"scaling_factor needs num_objectives + 1 = {num_objectives + 1} values (the desired "
+                             f"return's and the horizon's), got {list(scaling_factor)}")
+        self.num_objectives, self.discrete = num_objectives, discrete
+        self.register_buffer("scaling_factor", scale)
+        # an image (C, H, W) goes through the Nature CNN first (512 features; MORL-Baselines' PCN is
+        # written for vector observations)
+        encoder, width = _encoder_and_width(obs_dim, 512)
+        self.obs_ndim = 1 if encoder is None else 3
+        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, hidden), nn.Sigmoid())
+        self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, hidden), nn.Sigmoid())
+        layers = [nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, action_dim)]
+        if discrete:
+            layers.append(nn.LogSoftmax(dim=-1))
+        self.fc = nn.Sequential(*layers)
+
+    def forward(self, observation: torch.Tensor, desired_return: torch.Tensor, desired_horizon: torch.Tensor):
+        c = torch.cat([desired_return, desired_horizon], -1).float() * self.scaling_factor
+        obs = observation if self.obs_ndim == 3 else observation.float()
+        return self.fc(self.s_emb(obs) * self.c_emb(c))
+
+
+def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor, hidden: int = 64, *,
+                     discrete: bool = True) -> TensorDictModule:
+    """:class:`PCNNetwork` as a ``TensorDictModule`` reading ``observation``, ``desired_return`` and
+    ``desired_horizon`` and writing ``"log_probs"`` (discrete) or ``"action_pred"`` (continuous)."""
+    net = PCNNetwork(obs_dim, action_dim, num_objectives, scaling_factor, hidden, discrete=discrete)
+    out = "log_probs" if discrete else "action_pred"
+    return TensorDictModule(net, in_keys=["observation", "desired_return", "desired_horizon"], out_keys=[out])
+
+
+class PCNLoss(LossModule):
+    """PCN's supervised loss: the stored action under the command the episode achieved.
+
+    The batch holds steps of stored episodes with ``desired_return`` = the step's return-to-go
+    and ``desired_horizon`` = the steps left (what :meth:`EpisodeReplay.sample` gives);
+    discrete actions: ``mean(-log pi(a | s, c))`` (the authors' one-hot cross-entropy);
+    continuous: ``mse(pi(s, c), a)``.
+
+    Example:
+        >>> net = make_pcn_network(4, 3, 2, [0.1] * 3, hidden=8)
+        >>> loss = PCNLoss(net)
+        >>> td = TensorDict({"observation": torch.zeros(6, 4), "desired_return": torch.zeros(6, 2),
+        ...                  "desired_horizon": torch.ones(6, 1), "action": torch.tensor([0, 1, 2, 0, 1, 2])}, [6])
+        >>> out = loss(td)
+        >>> sorted(out.keys()), out["loss_pcn"].shape
+        (['entropy', 'loss_pcn'], torch.Size([]))
+    """
+
+    class _AcceptedKeys:
+        action = "action"
+        log_probs = "log_probs"
+        action_pred = "action_pred"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+    policy_network: TensorDictModule
+    policy_network_params: TensorDictParams
+    target_policy_network_params: TensorDictParams
+
+    def __init__(self, network: TensorDictModule) -> None:
+        super().__init__()
+        self._set_deprecated_ctor_keys()
+        self.convert_to_functional(network, "policy_network")
+        self.discrete = bool(network.module.discrete) if hasattr(network, "module") else True
+
+    def _forward_value_estimator_keys(self, **kwargs) -> None:
+        pass
+
+    out_keys = ["loss_pcn", "entropy"]
+
+    @property
+    def in_keys(self):
+        return ["observation", "desired_return", "desired_horizon", self.tensor_keys.action]
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDict:
+        key = self.tensor_keys.log_probs if self.discrete else self.tensor_keys.action_pred
+        with self.policy_network_params.to_module(self.policy_network, preserve_module_state=False):
+            pred = module_output(self.policy_network, tensordict, key)
+        action = tensordict.get(self.tensor_keys.action)
+        if self.discrete:
+            logp = pred
+            if action.shape == logp.shape:  # one-hot
+                action = action.argmax(-1)
+            nll = -logp.gather(-1, action.long().reshape(*logp.shape[:-1], 1)).squeeze(-1)
+            entropy = -(logp.exp() * logp).sum(-1).mean().detach()
+            return TensorDict({"loss_pcn": nll.mean(), "entropy": entropy}, [])
+        return TensorDict({"loss_pcn": torch.nn.functional.mse_loss(pred, action.to(pred.dtype))}, [])

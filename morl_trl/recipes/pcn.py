@@ -1,0 +1,276 @@
+"""Pareto Conditioned Networks (Reymond et al. 2022): the agent that ``morl-trl train pcn`` trains.
+
+PCN learns a policy conditioned on a *command* -- a desired return and a desired horizon --
+by supervised learning on the steps of the best episodes of a replay of whole episodes
+(:class:`~morl_trl.data.episode_replay.EpisodeReplay`, :class:`~morl_trl.objectives.pcn.PCNLoss`).
+It runs in the loop every algorithm runs (:func:`~morl_trl.recipes.off_policy.run_training`:
+TorchRL's Collector, evaluation, checkpoints); :meth:`PCNAgent.learn` does what differs:
+
+1. the collected batch is cut into whole episodes per sub-env (an episode may span batches)
+   which enter the episode replay with their returns-to-go (discount: the run's gamma);
+2. the first ``pcn_er_episodes`` episodes act uniformly at random (the authors' experience
+   replay warm-up);
+3. then, and after every further ``pcn_step_episodes`` episodes, ``pcn_model_updates``
+   supervised updates on ``batch_size`` steps, and a new command for the episodes that start
+   next: a random non-dominated return among the ``pcn_er_episodes`` best, plus
+   ``U(0, std)`` on one objective, horizon = its length - 2
+   (:meth:`~morl_trl.data.episode_replay.EpisodeReplay.choose_command`).
+
+While acting the command is updated per step (``desired_return = min(desired_return - r,
+max_return)``, ``horizon = max(horizon - 1, 1)``,
+:class:`~morl_trl.transforms.command.DesiredReturnConditioning`); discrete actions are sampled
+from the policy, continuous ones get one Gaussian noise value (``pcn_noise``) added to every
+action dimension, as the authors' ``np.random.normal(0, noise)``.
+
+Evaluation (SPEC §2): the ``n`` evaluation weights get the returns and lengths of the
+``min(n, E)`` best replay episodes, repeated to ``n``; weight ``i`` (the row of the energy weight
+set nearest to the preference the evaluator gives) acts greedily on command ``i``, kept fixed
+over the episode (the authors' ``set_desired_return_and_horizon`` + ``eval``).
+
+Example:
+    >>> from morl_trl.recipes import resolve_config
+    >>> cfg = resolve_config("pcn", "MOLavaGridDR-v0", quick=True, num_envs=2)
+    >>> env = make_pcn_training_env(cfg, torch.device("cpu"))
+    >>> agent = make_pcn_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+    >>> agent.explore_policy(env.reset())["action"].shape
+    torch.Size([2])
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs import ClipTransform
+
+from morl_trl.data.episode_replay import EpisodeReplay
+from morl_trl.envs import domain_of, make_env
+from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
+from morl_trl.preferences import energy_weights
+from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
+from morl_trl.transforms.command import DesiredReturnConditioning
+
+__all__ = ["PCNAgent", "PCNPolicy", "make_pcn_agent", "make_pcn_training_env"]
+
+
+def _gamma(cfg) -> float:
+    return cfg.gamma if cfg.gamma is not None else domain_of(cfg.env_id).gamma
+
+
+def _max_return(cfg, k: int) -> list[float]:
+    mr = list(cfg.pcn_max_return) if cfg.pcn_max_return is not None else [100.0] * k
+    if len(mr) != k:
+        raise ValueError(f"config key 'pcn_max_return' is {list(cfg.pcn_max_return)}; valid: {k} numbers "
+                         f"(one per objective of {cfg.env_id}) or null")
+    return [float(x) for x in mr]
+
+
+def make_pcn_training_env(cfg, device: torch.device):
+    """``make_env(cfg.env_id)`` + the policy's history + the command
+    (:class:`~morl_trl.transforms.command.DesiredReturnConditioning`) + vector returns (for the logs)."""
+    env = compose_policy_env(make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed),
+                             history_len=cfg.history_len)
+    k = num_objectives(env)
+    spec = action_spec(env)
+    if not is_discrete(spec):  # MuJoCo clamps the controls to their range: the env gets them clipped, PCN learns the sample
+        env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
+                                           low=float(spec.space.low.min()), high=float(spec.space.high.max())))
+    env.append_transform(DesiredReturnConditioning(k, max_return=_max_return(cfg, k)))
+    env.append_transform(DiscountedVectorReturn(_gamma(cfg)))
+    return env
+
+
+class PCNPolicy(TensorDictModuleBase):
+    """Acts with a PCN network on ``observation`` and a command.
+
+    ``mode="explore"``: the command is read from the TensorDict (``desired_return``,
+    ``desired_horizon``); discrete actions are sampled, continuous ones get one ``N(0, noise)``
+    value per sub-env added to every dimension; ``random_actions = True`` samples the action
+    spec instead (the warm-up). ``mode="eval"``: the command of the evaluation weight nearest to
+    ``"preference"`` (``commands()`` gives ``(returns [n, k], horizons [n])`` for the ``n`` rows
+    of ``weights``), greedy actions.
+    """
+
+    def __init__(self, network, spec, *, mode: str, noise: float = 0.1, weights=None, commands=None) -> None:
+        super().__init__()
+        if mode not in ("explore", "eval"):
+            raise ValueError(f"mode must be 'explore' or 'eval', got {mode!r}")
+        self.network, self.action_spec_, self.mode, self.noise = network, spec, mode, float(noise)
+        self.discrete = is_discrete(spec)
+        self.random_actions = False
+        self.in_keys = ["observation"] + (["desired_return", "desired_horizon"] if mode == "explore" else ["preference"])
+        self.out_keys = ["action"]
+        if mode == "eval":
+            self.register_buffer("weights", torch.as_tensor(weights, dtype=torch.float32))
+            self._commands = commands
+            self.stale = True
+            self._cache = None
+
+    def _eval_command(self, td: TensorDictBase):
+        if self.stale or self._cache is None:
+            returns, horizons = self._commands()
+            self._cache = (returns, horizons)
+            self.stale = False
+        returns, horizons = self._cache
+        w = td.get("preference").to(self.weights.device, torch.float32)
+        idx = torch.cdist(w.reshape(-1, w.shape[-1]), self.weights).argmin(-1).reshape(w.shape[:-1])
+        dev = td.device if td.device is not None else w.device
+        return returns[idx].to(dev), horizons[idx].unsqueeze(-1).to(dev)
+
+    def forward(self, td: TensorDictBase) -> TensorDictBase:
+        if self.random_actions:
+            return td.set("action", self.action_spec_.rand(td.batch_size))
+        if self.mode == "eval":
+            desired, horizon = self._eval_command(td)
+        else:
+            desired, horizon = td.get("desired_return"), td.get("desired_horizon")
+        out = self.network.module(td.get("observation"), desired, horizon)
+        if self.discrete:
+            if self.mode == "eval":
+                action = out.argmax(-1)
+            else:
+                action = torch.distributions.Categorical(logits=out).sample()
+            return td.set("action", action.to(self.action_spec_.dtype))
+        if self.mode == "explore":
+            out = out + self.noise * torch.randn(*out.shape[:-1], 1, device=out.device)
+        else:  # the env's bounds (the training env clips the explored actions the same way)
+            out = torch.maximum(torch.minimum(out, self.action_spec_.space.high.to(out.device)),
+                                self.action_spec_.space.low.to(out.device))
+        return td.set("action", out.to(self.action_spec_.dtype))
+
+
+class PCNAgent(Agent):
+    """The PCN :class:`~morl_trl.recipes.agent.Agent`: episode replay, warm-up, command rounds (see the module)."""
+
+    def __init__(self, cfg, loss, explore_policy, eval_policy, optimizer, replay: EpisodeReplay, command, *,
+                 device, max_return) -> None:
+        super().__init__(cfg, loss, explore_policy, eval_policy, {"policy": optimizer}, None, device=device)
+        self.replay, self.command = replay, command
+        self.generator = torch.Generator().manual_seed(cfg.seed + 7)
+        self.max_return = torch.as_tensor(max_return)
+        self.episodes = 0  # episodes added to the replay
+        self.next_round = cfg.pcn_er_episodes  # episodes after which the next round of updates runs
+        self.rounds = 0
+        self._pending: dict[int, dict[str, torch.Tensor]] = {}  # sub-env -> the steps of its unfinished episode
+        self.explore_policy.random_actions = True
+
+    # ------------------------------------------------------------------ learning
+    def learn(self, batch: TensorDictBase, buffer, frames: int):
+        """Cut ``batch`` ``[N, T]`` into episodes, store the finished ones, run the rounds they make due."""
+        b = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
+        obs, act = b.get("observation").cpu(), b.get("action").cpu()
+        rew, done = b.get(("next", "reward")).cpu(), b.get(("next", "done")).reshape(b.shape).cpu()
+        for i in range(b.shape[0]):
+            start = 0
+            ends = done[i].nonzero().flatten().tolist()
+            for end in ends + [None]:
+                stop = b.shape[1] if end is None else end + 1
+                piece = {"observation": obs[i, start:stop], "action": act[i, start:stop], "reward": rew[i, start:stop]}
+                prev = self._pending.pop(i, None)
+                if prev is not None:
+                    piece = {k: torch.cat([prev[k], v]) for k, v in piece.items()}
+                if end is None:
+                    if piece["reward"].shape[0]:
+                        self._pending[i] = piece
+                else:
+                    self.replay.add(piece["observation"], piece["action"], piece["reward"], step=frames)
+                    self.episodes += 1
+                start = stop
+        losses, updates = None, 0
+        while self.episodes >= self.next_round:
+            losses, n = self._round()
+            updates += n
+            self.next_round = self.episodes + self.cfg.pcn_step_episodes
+        self.eval_policy.stale = True
+        return losses, updates
+
+    def _round(self):
+        """``pcn_model_updates`` updates, then a new command for the next episodes."""
+        losses = None
+        for i in range(self.cfg.pcn_model_updates):
+            try:
+                losses = self.update(None)
+            except NonFiniteLossError as err:
+                err.updates_done = i
+                raise
+        desired, horizon = self.replay.choose_command(self.cfg.pcn_er_episodes, generator=self.generator)
+        self.command.set_command(desired, horizon)
+        self.explore_policy.random_actions = False
+        self.rounds += 1
+        return losses, self.cfg.pcn_model_updates
+
+    def update(self, buffer=None) -> TensorDictBase:
+        obs, action, ret, horizon = self.replay.sample(self.cfg.batch_size, generator=self.generator)
+        td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
+                        [obs.shape[0]], device=self.device)
+        out = self.loss(td)
+        total = out["loss_pcn"]
+        if not torch.isfinite(total):
+            raise NonFiniteLossError(f"non-finite loss {{'loss_pcn': {total.item()}}}; the network was left as it was")
+        opt = self.optimizers["policy"]
+        opt.zero_grad(set_to_none=True)
+        total.backward()
+        opt.step()
+        return out.detach()
+
+    def eval_commands(self, n: int):
+        """``(returns [n, k], horizons [n])`` of the evaluation (zeros and 1 before any episode)."""
+        if not len(self.replay):
+            k = self.max_return.numel()
+            return torch.zeros(n, k), torch.ones(n)
+        return self.replay.top_commands(n)
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        state = super().state_dict()
+        state.update(replay=self.replay.state_dict(), pending=dict(self._pending), episodes=self.episodes,
+                     next_round=self.next_round, rounds=self.rounds, generator=self.generator.get_state(),
+                     command=(self.command.command_return.clone(), self.command.command_horizon.clone()),
+                     random_actions=self.explore_policy.random_actions)
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.replay.load_state_dict(state["replay"])
+        self._pending = dict(state["pending"])
+        self.episodes, self.next_round, self.rounds = state["episodes"], state["next_round"], state["rounds"]
+        self.generator.set_state(state["generator"])
+        self.command.set_command(state["command"][0], float(state["command"][1]))
+        self.explore_policy.random_actions = state["random_actions"]
+        self.eval_policy.stale = True
+
+
+def _command_transform(env) -> DesiredReturnConditioning:
+    from morl_trl.runs.env_state import transforms_of
+
+    for t in transforms_of(env):
+        if isinstance(t, DesiredReturnConditioning):
+            return t
+    raise ValueError("the PCN agent needs a training env with DesiredReturnConditioning (make_pcn_training_env)")
+
+
+def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
+    """The PCN :class:`PCNAgent` of ``cfg`` for ``env`` (:func:`make_pcn_training_env`); discrete or continuous actions."""
+    spec = action_spec(env)
+    k = num_objectives(env)
+    discrete = is_discrete(spec)
+    scale = list(cfg.pcn_scaling_factor) if cfg.pcn_scaling_factor is not None else [0.1] * (k + 1)
+    if len(scale) != k + 1:
+        raise ValueError(f"config key 'pcn_scaling_factor' is {scale}; valid: {k + 1} numbers (the desired return's "
+                         f"{k} and the horizon's) or null")
+    shape = obs_shape(env)
+    obs_dim = shape[0] if len(shape) == 1 else shape
+    action_dim = spec.space.n if discrete else int(spec.shape[-1])
+    net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.pcn_hidden, discrete=discrete).to(device)
+    loss = PCNLoss(net)
+    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.lr)
+    explore = PCNPolicy(net, spec, mode="explore", noise=cfg.pcn_noise)
+    holder: dict = {}
+    evalp = PCNPolicy(net, spec, mode="eval", weights=energy_weights(k, cfg.eval_weights).float(),
+                      commands=lambda: holder["agent"].eval_commands(cfg.eval_weights))
+    replay = EpisodeReplay(cfg.pcn_buffer_episodes, gamma)
+    agent = PCNAgent(cfg, loss, explore, evalp, optimizer, replay, _command_transform(env), device=device,
+                     max_return=_max_return(cfg, k))
+    holder["agent"] = agent
+    return agent

@@ -1,0 +1,343 @@
+"""PGMORL (Xu et al. 2020): the agent that ``morl-trl train pgmorl`` trains.
+
+A population of ``P`` PPO agents with vector critics, run as ONE batched module
+(:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
+owns sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration: every member
+collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps), then
+:meth:`PGMORLAgent.learn`:
+
+1. per-objective GAE on the normalised rewards (TorchRL's ``generalized_advantage_estimate``,
+   :func:`~morl_trl.objectives.pgmorl.vector_gae`), the advantage scalarised with the member's
+   weight and standardised per member and minibatch;
+2. ``pgmorl_epochs`` epochs of ``pgmorl_minibatches`` minibatches per member with TorchRL's
+   ``ClipPPOLoss`` (ratio and value clip ``pgmorl_clip``, no entropy bonus, value loss
+   ``0.5 * 0.5 * max(unclipped, clipped)``), the loss scaled by ``P`` so each member's gradient
+   is its own, each member's gradient norm clipped to ``max_grad_norm`` (0.5), Adam (eps 1e-5);
+3. after ``pgmorl_warmup`` iterations and then every ``pgmorl_evo_iterations``: every member's
+   evaluation enters the performance buffer, the Pareto archive and the prediction model, and
+   the prediction-guided task selection (:mod:`morl_trl.recipes.pgmorl_evolution`) gives each
+   slot a (policy of the buffer, weight) pair: the slot takes a copy of that policy (its Adam
+   moments reset, as the authors' fresh optimizer) and trains it with that weight.
+
+The initial weights are the first ``P`` of the authors' grid ``generate_weights(delta_weight)``.
+Training observations are normalised by TorchRL's ``VecNorm`` (running mean and variance over
+all sub-envs) and clipped at +-10; each objective's reward is normalised by ``VecNorm`` into
+``"reward_norm"`` and clipped at +-10 (on the collected batch, statistics updated with it first) (the authors' ``NormalizeObservation`` /
+``MONormalizeReward`` / clip wrappers of ``mo_ppo.make_env``).
+
+Evaluation acts, for each weight, with the population member of nearest weight, sampling
+its actions (the authors' ``MOPPO.eval``). ``pgmorl_eval_obs="raw"`` (default) feeds it raw
+observations as the authors' evaluation did (SPEC §5, 12), ``"normalized"`` applies the
+training normalisation (frozen) first.
+
+Known differences from the authors (named, documented): a member's evaluation is the mean
+discounted (raw-reward) return of its episodes that ended in the iteration's rollout (its
+policy before that iteration's update) instead of a separate evaluation episode; TorchRL's
+``VecNorm`` standardises the rewards (mean and std of the reward) where gym's
+``NormalizeReward`` scales them by the std of the discounted return; episodes continue across
+iterations (the authors reset the envs at each iteration) and truncation bootstraps; the sparsity
+of the task selection is computed on the non-dominated subset (:func:`morl_trl.metrics.sparsity`).
+
+Example:
+    >>> from morl_trl.recipes import resolve_config
+    >>> cfg = resolve_config("pgmorl", "MOHalfCheetahDR-v5", quick=True, pgmorl_pop=2, num_envs=2,
+    ...                      pgmorl_envs_per_member=1, hidden=(8,))
+    >>> env = make_pgmorl_training_env(cfg, torch.device("cpu"))
+    >>> agent = make_pgmorl_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    >>> agent.weights.tolist()
+    [[0.0, 1.0], [0.20000000298023224, 0.800000011920929]]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs import ClipTransform, VecNorm
+from torchrl.envs.utils import ExplorationType, exploration_type
+from torchrl.objectives import ClipPPOLoss
+
+from morl_trl.envs import domain_of, make_env
+from morl_trl.objectives.pgmorl import (
+    make_population_actor,
+    make_population_critic,
+    scalarize_advantage,
+    vector_gae,
+)
+from morl_trl.recipes.agent import (
+    Agent,
+    NonFiniteLossError,
+    action_spec,
+    eval_exploration,
+    is_discrete,
+    num_objectives,
+    obs_shape,
+)
+from morl_trl.recipes.pgmorl_evolution import (
+    PerformanceBuffer,
+    PerformancePredictor,
+    generate_weights,
+    nondominated,
+    select_tasks,
+)
+from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
+
+__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env"]
+
+
+def _check_layout(cfg) -> int:
+    P, E = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member
+    if cfg.num_envs != P * E:
+        raise ValueError(f"config key 'num_envs' is {cfg.num_envs}; valid: pgmorl_pop x pgmorl_envs_per_member = "
+                         f"{P} x {E} = {P * E} (each member collects on its own sub-envs)")
+    if cfg.frames_per_batch % cfg.num_envs:
+        raise ValueError(f"config key 'frames_per_batch' is {cfg.frames_per_batch}; valid: a multiple of num_envs "
+                         f"({cfg.num_envs}): each sub-env collects frames_per_batch / num_envs steps per iteration")
+    return cfg.frames_per_batch // cfg.num_envs
+
+
+def make_pgmorl_training_env(cfg, device: torch.device):
+    """``P x E`` sub-envs of ``cfg.env_id`` + history + ``VecNorm``/clip on observations + vector returns
+    (the rewards are normalised on the collected batch, :attr:`PGMORLAgent.reward_norm`: a second reward
+    key in the env would make its reward key ambiguous)."""
+    _check_layout(cfg)
+    gamma = cfg.gamma if cfg.gamma is not None else domain_of(cfg.env_id).gamma
+    env = compose_policy_env(make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed),
+                             history_len=cfg.history_len)
+    spec = action_spec(env)
+    if not is_discrete(spec):  # the authors' ClipAction: the env gets the clipped action, the rollout keeps the sample
+        env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
+                                           low=float(spec.space.low.min()), high=float(spec.space.high.max())))
+    env.append_transform(VecNorm(in_keys=["observation"], decay=1.0, eps=1e-8, new_api=True, reduce_batch_dims=True))
+    env.append_transform(ClipTransform(in_keys=["observation"], low=-10.0, high=10.0))
+    env.append_transform(DiscountedVectorReturn(gamma))
+    return env
+
+
+class PGMORLEvalPolicy(TensorDictModuleBase):
+    """For each row: the population member whose weight is nearest to ``"preference"`` acts on
+    ``"observation"`` (raw, or normalised with the training ``VecNorm``'s frozen statistics)."""
+
+    def __init__(self, head, weights_fn, obs_norm=None, *, low=None, high=None) -> None:
+        super().__init__()
+        self.head, self.weights_fn, self.obs_norm = head, weights_fn, obs_norm
+        self.low, self.high = low, high
+        self.in_keys, self.out_keys = ["observation", "preference"], ["action"]
+
+    def forward(self, td: TensorDictBase) -> TensorDictBase:
+        obs = td.get("observation").float()
+        if self.obs_norm is not None:
+            loc, scale = self.obs_norm.loc["observation"], self.obs_norm.scale["observation"]
+            obs = ((obs - loc.to(obs.device)) / scale.to(obs.device)).clamp(-10.0, 10.0)
+        w = td.get("preference").float()
+        weights = self.weights_fn().to(w.device)
+        member = torch.cdist(w.reshape(-1, w.shape[-1]), weights).argmin(-1)
+        flat = obs.reshape(-1, obs.shape[-1])
+        P = weights.shape[0]
+        loc, scale = self.head(flat.unsqueeze(0).expand(P, *flat.shape))
+        rows = torch.arange(flat.shape[0], device=flat.device)
+        loc, scale = loc[member, rows], scale[member, rows]
+        action = loc + scale * torch.randn_like(loc) if exploration_type() == ExplorationType.RANDOM else loc
+        if self.low is not None:  # the env's bounds (the authors' ClipAction)
+            action = torch.maximum(torch.minimum(action, self.high.to(action.device)), self.low.to(action.device))
+        return td.set("action", action.reshape(*obs.shape[:-1], -1))
+
+
+class PGMORLAgent(Agent):
+    """The PGMORL :class:`~morl_trl.recipes.agent.Agent` (see the module)."""
+
+    def __init__(self, cfg, loss, actor, critic, eval_policy, optimizer, *, weights, steps, gamma, ref_point,
+                 device, obs_norm=None) -> None:
+        super().__init__(cfg, loss, actor, eval_policy, {"ppo": optimizer}, None, device=device,
+                         eval_exploration=eval_exploration(cfg))
+        self.actor, self.critic = actor, critic
+        self.obs_norm = obs_norm  # the training env's observation VecNorm (its statistics travel with the agent)
+        self.head = actor.module[0].module if hasattr(actor.module[0], "module") else actor.module[0]
+        self.weights = weights  # [P, k]
+        self.P, self.E, self.T = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member, steps
+        self.gamma, self.ref_point = gamma, np.asarray(ref_point, dtype=np.float64)
+        k = weights.shape[-1]
+        self.population = PerformanceBuffer(cfg.pgmorl_num_buffers, cfg.pgmorl_buffer_size, self.ref_point)
+        self.predictor = PerformancePredictor()
+        self.archive: list = []
+        self.evals_before = np.full((self.P, k), np.nan)  # NaN: no episode of the member has ended yet
+        self.performance = np.full((self.P, k), np.nan)
+        self.iteration = 0
+        self.generation = 0
+        self.rng = np.random.default_rng(cfg.seed)
+        self.generator = torch.Generator().manual_seed(cfg.seed + 11)
+        # TorchRL's VecNorm + clip on the batch's vector rewards -> ("next", "reward_norm")
+        self.reward_norm = VecNorm(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8, new_api=True,
+                                   reduce_batch_dims=True)
+        self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0)
+
+    # ------------------------------------------------------------------ learning
+    def learn(self, batch: TensorDictBase, buffer, frames: int):
+        P, E = self.P, self.E
+        b = batch.reshape(P, E, batch.shape[-1])
+        self._record_performance(b)
+        b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
+                     ("next", "done"), ("next", "terminated")).detach()
+        nxt = b.get("next")
+        self.reward_clip(self.reward_norm._step(b, nxt))  # the statistics take the batch, then normalise it
+        if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
+            self._evaluate_all(add_to_prediction=False)
+        with torch.no_grad():
+            value = self.critic.module(b.get("observation"))
+            next_value = self.critic.module(b.get(("next", "observation")))
+            adv, target = vector_gae(self.gamma, self.cfg.pgmorl_gae_lambda, value, next_value,
+                                     b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
+                                     b.get(("next", "terminated")))
+        flat = TensorDict({
+            "observation": b.get("observation"), "action": b.get("action"),
+            "action_log_prob": b.get("action_log_prob"), "state_value": value, "value_target": target,
+            "advantage_vector": adv,
+        }, [P, E, b.shape[-1]]).reshape(P, -1)
+        losses = None
+        n_updates = 0
+        N = flat.shape[1]
+        mb = max(1, N // self.cfg.pgmorl_minibatches)
+        members = torch.arange(P).unsqueeze(-1)
+        for _ in range(self.cfg.pgmorl_epochs):
+            perm = torch.rand(P, N, generator=self.generator).argsort(-1)
+            for start in range(0, N, mb):
+                td = flat[members, perm[:, start:start + mb]]
+                td.set("advantage", scalarize_advantage(td.get("advantage_vector"), self.weights, normalize_dims=(1,)))
+                try:
+                    losses = self._step(td)
+                except NonFiniteLossError as err:
+                    err.updates_done = n_updates
+                    raise
+                n_updates += 1
+        self.iteration += 1
+        W, G = self.cfg.pgmorl_warmup, self.cfg.pgmorl_evo_iterations
+        if self.iteration == W or (self.iteration > W and (self.iteration - W) % G == 0):
+            self._evaluate_all(add_to_prediction=True)
+            self._select_tasks()
+        return losses, n_updates
+
+    def _step(self, td: TensorDictBase) -> TensorDictBase:
+        out = self.loss(td)
+        total = (out["loss_objective"] + out["loss_critic"]) * self.P
+        if not torch.isfinite(total):
+            raise NonFiniteLossError(f"non-finite PPO loss {total.item()}; the population was left as it was")
+        opt = self.optimizers["ppo"]
+        opt.zero_grad(set_to_none=True)
+        total.backward()
+        params = [p for g in opt.param_groups for p in g["params"] if p.grad is not None]
+        sq = sum(p.grad.pow(2).reshape(self.P, -1).sum(-1) for p in params)
+        scale = (self.cfg.max_grad_norm / (sq.sqrt() + 1e-6)).clamp(max=1.0)
+        for p in params:
+            p.grad.mul_(scale.reshape(self.P, *([1] * (p.ndim - 1))))
+        opt.step()
+        return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
+
+    def _record_performance(self, b: TensorDictBase) -> None:
+        done = b.get(("next", "done")).squeeze(-1)  # [P, E, T]
+        ret = b.get(("next", "episode_discounted_return")).double()
+        for p in range(self.P):
+            if bool(done[p].any()):
+                self.performance[p] = ret[p][done[p]].mean(0).cpu().numpy()
+
+    def _member_state(self, p: int) -> dict:
+        return {"actor": self.head.member_state(p), "critic": self.critic.module.member_state(p)}
+
+    def _evaluate_all(self, *, add_to_prediction: bool) -> None:
+        for p in range(self.P):
+            perf = self.performance[p].copy()
+            if not np.isfinite(perf).all():
+                continue  # not evaluated yet (no episode of it has ended)
+            self.population.add(self._member_state(p), perf)
+            self.archive = nondominated(self.archive + [perf])
+            if add_to_prediction and np.isfinite(self.evals_before[p]).all():
+                self.predictor.add(self.weights[p].cpu().numpy(), self.evals_before[p], perf)
+            self.evals_before[p] = perf
+
+    def _select_tasks(self) -> None:
+        if len({tuple(a) for a in self.predictor.after}) < 4 or not self.population.individuals:
+            return  # the prediction model needs 4 distinct samples: the members keep their tasks
+        tasks = select_tasks(self.population, self.archive, self.predictor, self.P,
+                             delta_weight=self.cfg.pgmorl_delta_weight, ref_point=self.ref_point,
+                             sparsity_coef=self.cfg.pgmorl_sparsity, rng=self.rng)
+        individuals = self.population.individuals
+        opt = self.optimizers["ppo"]
+        for p, (i, w, _) in enumerate(tasks):
+            state = individuals[i]
+            self.head.load_member_state(p, state["actor"])
+            self.critic.module.load_member_state(p, state["critic"])
+            self.weights[p] = torch.as_tensor(w, dtype=self.weights.dtype)
+            for group in opt.param_groups:  # a fresh optimizer for the copy, as the authors' deepcopy
+                for param in group["params"]:
+                    st = opt.state.get(param, {})
+                    for key in ("exp_avg", "exp_avg_sq"):
+                        if key in st:
+                            st[key][p].zero_()
+        self.generation += 1
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        state = super().state_dict()
+        state.update(weights=self.weights.clone(), population=self.population.state_dict(), archive=list(self.archive),
+                     predictor=(list(self.predictor.weights), list(self.predictor.before), list(self.predictor.after)),
+                     evals_before=self.evals_before.copy(), performance=self.performance.copy(),
+                     iteration=self.iteration, generation=self.generation, rng=self.rng.bit_generator.state,
+                     generator=self.generator.get_state(), reward_norm=self.reward_norm.state_dict(),
+                     obs_norm=self.obs_norm.state_dict() if self.obs_norm is not None else None)
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.weights.copy_(state["weights"])
+        self.population.load_state_dict(state["population"])
+        self.archive = list(state["archive"])
+        self.predictor.weights, self.predictor.before, self.predictor.after = (list(x) for x in state["predictor"])
+        self.evals_before, self.performance = state["evals_before"].copy(), state["performance"].copy()
+        self.iteration, self.generation = state["iteration"], state["generation"]
+        self.rng.bit_generator.state = state["rng"]
+        self.generator.set_state(state["generator"])
+        self.reward_norm.load_state_dict(state["reward_norm"])
+        if self.obs_norm is not None and state.get("obs_norm") is not None:
+            self.obs_norm.load_state_dict(state["obs_norm"])
+
+
+def _obs_vecnorm(env):
+    from morl_trl.runs.env_state import transforms_of
+
+    for t in transforms_of(env):
+        if type(t).__name__.startswith("VecNorm"):
+            if "observation" in [k if isinstance(k, str) else k[-1] for k in t.in_keys]:
+                return t
+    raise ValueError("the PGMORL agent needs its training env (make_pgmorl_training_env)")
+
+
+def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORLAgent:
+    """The PGMORL :class:`PGMORLAgent` of ``cfg`` for ``env`` (:func:`make_pgmorl_training_env`; continuous actions)."""
+    steps = _check_layout(cfg)
+    spec = action_spec(env)
+    if is_discrete(spec):
+        raise ValueError(f"pgmorl needs continuous actions (the authors' MO-PPO); {cfg.env_id} has discrete ones")
+    k = num_objectives(env)
+    if k not in (2, 3):
+        raise ValueError(f"pgmorl's performance buffer supports 2 or 3 objectives; {cfg.env_id} has {k}")
+    obs_dim = int(np.prod(obs_shape(env)))
+    act_dim = int(spec.shape[-1])
+    P = cfg.pgmorl_pop
+    actor = make_population_actor(P, obs_dim, act_dim, cfg.hidden).to(device)
+    critic = make_population_critic(P, obs_dim, k, cfg.hidden).to(device)
+    loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.pgmorl_clip, entropy_bonus=False, critic_coeff=0.25,
+                       loss_critic_type="l2", normalize_advantage=False, clip_value=cfg.pgmorl_clip)
+    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.lr, eps=1e-5)
+    grid = torch.as_tensor(generate_weights(cfg.pgmorl_delta_weight, k))
+    weights = grid[torch.arange(P) % grid.shape[0]].clone().to(device)
+    head = actor.module[0].module
+    holder: dict = {}
+    obs_norm = _obs_vecnorm(env)
+    eval_policy = PGMORLEvalPolicy(head, lambda: holder["agent"].weights,
+                                   obs_norm if cfg.pgmorl_eval_obs == "normalized" else None, low=spec.space.low.float(),
+                                   high=spec.space.high.float())
+    ref = domain_of(cfg.env_id).hv_ref_point or (-100.0,) * k
+    agent = PGMORLAgent(cfg, loss, actor, critic, eval_policy, optimizer, weights=weights, steps=steps, gamma=gamma,
+                        ref_point=ref, device=device, obs_norm=obs_norm)
+    holder["agent"] = agent
+    return agent

@@ -1,0 +1,171 @@
+"""PCN: the episode replay's ranking and commands on a hand-made episode set, the agent's episode
+assembly, warm-up and rounds, resume state, and a short run from the CLI's entry point."""
+
+import doctest
+import importlib
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from morl_trl.data.episode_replay import EpisodeReplay, crowding_distance
+from morl_trl.recipes import resolve_config, train
+from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+
+
+def _episode(first_reward, length, k=2):
+    """An episode whose whole return is earned at its first step (gamma 1: return = first_reward)."""
+    r = torch.zeros(length, k)
+    r[0] = torch.tensor(first_reward)
+    return torch.zeros(length, 3), torch.zeros(length, dtype=torch.long), r
+
+
+# A(10,0) len 5, B(0,10) len 6, C(5,5) len 7, D(4,4) len 8 (dominated by C), E(5,5) len 9 (a copy of C)
+HAND_MADE = [((10.0, 0.0), 5), ((0.0, 10.0), 6), ((5.0, 5.0), 7), ((4.0, 4.0), 8), ((5.0, 5.0), 9)]
+
+
+def _replay(capacity=10):
+    rb = EpisodeReplay(capacity, gamma=1.0)
+    for ret, length in HAND_MADE:
+        rb.add(*_episode(ret, length))
+    return rb
+
+
+def test_returns_to_go_and_horizons_are_stored_per_step():
+    rb = EpisodeReplay(4, gamma=0.5)
+    rb.add(torch.arange(3.0).unsqueeze(-1), torch.tensor([0, 1, 2]), torch.tensor([[1.0, 0.0], [2.0, 4.0], [4.0, 8.0]]))
+    obs, action, rtg, horizon = rb.sample(64, generator=torch.Generator().manual_seed(0))
+    expected = {0: ([3.0, 4.0], 3.0), 1: ([4.0, 8.0], 2.0), 2: ([4.0, 8.0], 1.0)}  # R_t = r_t + 0.5 R_{t+1}
+    for o, a, r, h in zip(obs[:, 0].long().tolist(), action.tolist(), rtg.tolist(), horizon[:, 0].tolist()):
+        assert o == a and (r, h) == expected[o]
+    assert set(obs[:, 0].long().tolist()) == {0, 1, 2}
+
+
+def test_crowding_distance_is_the_authors():
+    # normalised x = (1, 0, .5, .4, .5), y = (0, 1, .5, .4, .5): neighbours' gaps summed, extremes 1 per objective
+    d = crowding_distance(torch.tensor([r for r, _ in HAND_MADE]))
+    assert torch.allclose(d, torch.tensor([2.0, 2.0, 0.2, 1.0, 1.0], dtype=torch.float64), atol=1e-6)
+
+
+def test_ranking_on_a_hand_made_episode_set():
+    rb = _replay()
+    best = rb.nlargest(3)
+    assert best.tolist() == [0, 1, 2]  # A, B and the first copy of (5, 5), from the 3rd best to the best
+    # non-dominated first copies: 0; D: -|D - C| - 1e-5; E (a copy): -1e-5; C's crowding 0.2 <= 0.2 doubles its 0
+    assert torch.allclose(rb.priority, torch.tensor([0.0, 0.0, 0.0, -(2 ** 0.5) - 1e-5, -1e-5], dtype=torch.float64))
+    assert rb.nlargest(4).tolist() == [4, 0, 1, 2]
+    returns, horizons = rb.top_commands(7)  # the 5 episodes ranked, repeated to 7
+    assert horizons.tolist() == [8.0, 9.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    assert returns[0].tolist() == [4.0, 4.0] and returns[2].tolist() == [10.0, 0.0]
+
+
+def test_commands_come_from_the_non_dominated_best_episodes():
+    rb = _replay()
+    std = torch.tensor([10.0, 0.0, 5.0]).std(unbiased=False).item()  # of E, A, B per objective (symmetric): 4.08
+    seen = set()
+    for seed in range(60):
+        desired, horizon = rb.choose_command(4, generator=torch.Generator().manual_seed(seed))
+        # among the 4 best (E, A, B, C) the non-dominated first copies are E, A and B: C (len 7) never
+        base = {7.0: (5.0, 5.0), 3.0: (10.0, 0.0), 4.0: (0.0, 10.0)}[horizon]  # horizon = length - 2
+        raised = desired - torch.tensor(base)
+        assert (raised >= 0).all() and int((raised > 0).sum()) <= 1 and float(raised.max()) < std
+        seen.add(horizon)
+    assert seen == {7.0, 3.0, 4.0}
+
+
+def test_a_full_replay_drops_the_lowest_ranked_episode():
+    rb = _replay(capacity=5)
+    rb.nlargest(5)
+    rb.add(*_episode((1.0, 1.0), 4))  # full: D (the lowest priority) leaves, the new one (priority 1) stays
+    assert sorted(rb.episode_lengths.tolist()) == [4, 5, 6, 7, 9]
+    assert rb.priority[-1].item() == 1.0
+    rb.add(*_episode((2.0, 2.0), 3))  # next lowest: E (-1e-5)
+    assert sorted(rb.episode_lengths.tolist()) == [3, 4, 5, 6, 7]
+    state = rb.state_dict()
+    other = EpisodeReplay(5, gamma=1.0)
+    other.load_state_dict(state)
+    assert torch.equal(other.episode_returns, rb.episode_returns) and torch.equal(other.priority, rb.priority)
+
+
+def _agent(**kw):
+    cfg = resolve_config("pcn", "MOLavaGridDR-v0", quick=True, num_envs=2, pcn_er_episodes=2, pcn_step_episodes=2,
+                         pcn_model_updates=3, batch_size=8, **kw)
+    env = make_pcn_training_env(cfg, torch.device("cpu"))
+    return cfg, env, make_pcn_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
+
+
+def _batch(done_at, T=6, k=2):
+    """A collected batch [2, T]: sub-env i's episodes end where done_at[i] says; reward (1, 0) per step."""
+    done = torch.zeros(2, T, 1, dtype=torch.bool)
+    for i, steps in enumerate(done_at):
+        for t in steps:
+            done[i, t] = True
+    obs = torch.zeros(2, T, 125)
+    return TensorDict({"observation": obs, "action": torch.zeros(2, T, dtype=torch.long),
+                       "next": {"reward": torch.tensor([1.0, 0.0]).expand(2, T, k).clone(), "done": done}}, [2, T])
+
+
+def test_agent_assembles_episodes_across_batches_then_warms_up_and_runs_rounds():
+    cfg, env, agent = _agent()
+    assert agent.explore_policy.random_actions
+    losses, n = agent.learn(_batch([[2], []]), None, 12)  # sub-env 0: one episode of 3 steps; sub-env 1 runs on
+    assert (len(agent.replay), n, losses) == (1, 0, None) and agent.explore_policy.random_actions
+    losses, n = agent.learn(_batch([[], [1]]), None, 24)  # sub-env 1's episode: 6 + 2 steps
+    assert sorted(agent.replay.episode_lengths.tolist()) == [3, 8]
+    assert n == 3 and losses is not None and not agent.explore_policy.random_actions  # warm-up over: one round
+    # the return of the 8-step episode with reward (1, 0) per step and gamma 0.995
+    assert agent.replay.episode_returns[1, 0].item() == pytest.approx(sum(0.995 ** t for t in range(8)), rel=1e-5)
+    desired, horizon = agent.command.command_return, agent.command.command_horizon
+    assert horizon.item() in (1.0, 6.0)  # a best episode's length - 2
+    losses, n = agent.learn(_batch([[5], []]), None, 36)  # 1 more episode: no round yet (every 2)
+    assert n == 0
+    state = agent.state_dict()
+    _, _, other = _agent()
+    other.load_state_dict(state)
+    assert other.episodes == 3 and other.next_round == 4 and torch.equal(other.command.command_return, desired)
+    assert sorted(other.replay.episode_lengths.tolist()) == [3, 8, 15]  # sub-env 0: 3 + 6 + 6 steps
+    assert sorted(other._pending) == [1] and other._pending[1]["reward"].shape[0] == 10  # 4 + 6 steps so far
+
+
+def test_eval_policy_acts_on_the_command_of_the_nearest_weight():
+    cfg, env, agent = _agent(eval_weights=3)
+    for ret, length in HAND_MADE:
+        agent.replay.add(torch.zeros(length, 125), torch.zeros(length, dtype=torch.long), _episode(ret, length)[2])
+    seen = {}
+    net = agent.eval_policy.network.module
+    orig = net.forward
+    net.forward = lambda obs, d, h: (seen.update(d=d.clone(), h=h.clone()), orig(obs, d, h))[1]
+    w = agent.eval_policy.weights
+    td = TensorDict({"observation": torch.zeros(3, 125), "preference": w[[2, 0, 1]] + 1e-3}, [3])
+    agent.eval_policy(td)
+    # the 3 best (A, B, C) in the authors' order; weight i gets command i
+    assert seen["h"][:, 0].tolist() == [7.0, 5.0, 6.0]
+    assert seen["d"].tolist() == [[5.0, 5.0], [10.0, 0.0], [0.0, 10.0]]
+
+
+@pytest.mark.parametrize("module", ["morl_trl.data.episode_replay", "morl_trl.objectives.pcn",
+                                    "morl_trl.transforms.command", "morl_trl.recipes.pcn"])
+def test_docstring_examples(module):
+    assert doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS).failed == 0
+
+
+def test_a_short_pcn_run_learns_and_resumes(tmp_path):
+    cfg = resolve_config("pcn", "MOLavaGridDR-v0", frames=1024, num_envs=4, frames_per_batch=256, pcn_er_episodes=2,
+                         pcn_step_episodes=2, pcn_model_updates=5, eval_interval=1024, eval_weights=3,
+                         checkpoint_interval=512, eval_contexts=("MOLavaGridRoom-v0",), progress=False,
+                         eval_random_baseline=False, run_dir=str(tmp_path / "run"))
+    summary = train(cfg)
+    assert summary["frames"] == 1024 and 0.0 <= summary["nhgr_mean"] <= 1.0
+    cfg.frames = 1536
+    summary = train(cfg, resume=tmp_path / "run")
+    assert summary["frames"] == 1536
+
+
+def test_pcn_network_takes_images_through_the_nature_cnn():
+    from morl_trl.objectives.pcn import PCNNetwork
+
+    net = PCNNetwork((4, 84, 84), 7, 3, [0.1] * 4, hidden=16)
+    logp = net(torch.zeros(2, 4, 84, 84, dtype=torch.uint8), torch.zeros(2, 3), torch.ones(2, 1))
+    assert logp.shape == (2, 7) and torch.allclose(logp.exp().sum(-1), torch.ones(2))
+    with pytest.raises(ValueError, match="scaling_factor needs num_objectives \\+ 1 = 4 values"):
+        PCNNetwork(8, 4, 3, [0.1] * 3)

@@ -1,0 +1,198 @@
+"""PGMORL: the prediction model on synthetic data, weight grid, performance buffer, task selection,
+vector GAE, the population's independence, the agent's evaluation policy, and a short run."""
+
+import doctest
+import importlib
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from morl_trl.objectives.pgmorl import PopulationMLP, scalarize_advantage, vector_gae
+from morl_trl.recipes import resolve_config, run_training
+from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
+
+
+def _model(x, A, a, b, c):
+    return A * np.tanh(a * (x - b) / 2.0) + c  # = A (e^{a(x-b)} - 1) / (e^{a(x-b)} + 1) + c
+
+
+TRUE = [(10.0, 4.0, 0.5, 2.0), (6.0, 3.0, 0.4, -1.0)]  # (A, a, b, c) per objective
+
+
+def _predictor(with_outlier=False):
+    pp = PerformancePredictor()
+    F = np.array([1000.0, 800.0])
+    for w0 in np.linspace(0.0, 1.0, 9):
+        w = np.array([w0, 1.0 - w0])
+        delta = np.array([_model(w[j], *TRUE[j]) for j in range(2)])
+        pp.add(w, F, F + delta)
+    if with_outlier:  # evaluated far from F: outside every neighbourhood that already holds 4 samples
+        pp.add(np.array([0.5, 0.5]), 3 * F, 3 * F + 400.0)
+    return pp, F
+
+
+@pytest.mark.parametrize("with_outlier", [False, True])
+def test_prediction_model_recovers_the_hyperbolic_improvement_on_synthetic_data(with_outlier):
+    pp, F = _predictor(with_outlier)
+    test_w = np.array([[0.3, 0.7], [0.8, 0.2], [0.55, 0.45]])
+    delta, nxt = pp.predict(test_w, F)
+    truth = np.array([[_model(w[j], *TRUE[j]) for j in range(2)] for w in test_w])
+    np.testing.assert_allclose(delta, truth, atol=0.3)
+    np.testing.assert_allclose(nxt, F + delta)
+
+
+def test_prediction_model_needs_four_distinct_samples():
+    pp = PerformancePredictor()
+    for _ in range(5):
+        pp.add([0.5, 0.5], [1.0, 1.0], [2.0, 2.0])
+    with pytest.raises(ValueError, match="at least 4 distinct samples, it has 1"):
+        pp.predict([[0.5, 0.5]], [1.0, 1.0])
+
+
+def test_weight_grid_is_the_authors():
+    np.testing.assert_allclose(generate_weights(0.2, 2), [[0, 1], [0.2, 0.8], [0.4, 0.6], [0.6, 0.4], [0.8, 0.2], [1, 0]],
+                               atol=1e-7)
+    w3 = generate_weights(0.25, 3)
+    assert len(w3) == 15 and np.allclose(w3.sum(-1), 1.0)
+    assert w3[:6].tolist() == [[0, 0, 1], [0, 0.25, 0.75], [0, 0.5, 0.5], [0, 0.75, 0.25], [0, 1, 0], [0.25, 0, 0.75]]
+    with pytest.raises(ValueError, match="delta must divide 1"):
+        generate_weights(0.3, 2)
+
+
+def test_performance_buffer_bins_keep_the_largest_norms():
+    buf = PerformanceBuffer(num_bins=2, size=2, origin=np.array([-1.0, -1.0]))
+    for name, ev in [("a", [9.0, 0.0]), ("b", [4.0, 0.0]), ("c", [6.0, 1.0]), ("d", [0.0, 5.0])]:
+        buf.add(name, np.array(ev))
+    # centred on -origin: angle from the 2nd objective; a, b, c share the bin near objective 1 (size 2: b leaves)
+    assert buf.bins == [["d"], ["c", "a"]]
+    buf3 = PerformanceBuffer(num_bins=3, size=1, origin=np.zeros(3))  # directions of generate_weights(0.5, 3)
+    assert buf3.num_bins == 6
+    buf3.add("x", np.array([0.0, 0.0, 2.0]))
+    buf3.add("y", np.array([0.0, 0.0, 1.0]))  # same bin, smaller norm: "x" stays
+    assert buf3.individuals == ["x"]
+
+
+def test_task_selection_prefers_the_predicted_hypervolume_gain():
+    pp, F = _predictor()
+    buf = PerformanceBuffer(num_bins=10, size=2, origin=np.zeros(2))
+    buf.add("pol", F)
+    tasks = select_tasks(buf, [F], pp, 2, delta_weight=0.2, ref_point=np.zeros(2), sparsity_coef=0.0,
+                         rng=np.random.default_rng(0))
+    # candidates: weights on the 0.1 grid; objective 0's improvement is up to 12, objective 1's up to 5 (at w=1):
+    # HV of {F, pred} grows most with the first objective raised -> w = (1, 0), then the next best distinct weight
+    assert [t[0] for t in tasks] == [0, 0]
+    assert tasks[0][1].tolist() == [1.0, 0.0]
+    assert tasks[1][1].tolist() != [1.0, 0.0]
+
+
+def test_vector_gae_matches_a_hand_computation_and_scalarizes_per_member():
+    r = torch.tensor([[[1.0, 2.0], [0.0, 1.0], [3.0, 0.0]]])  # [1, T=3, k=2]
+    v = torch.tensor([[[0.5, 0.5], [1.0, 0.0], [0.0, 2.0]]])
+    nv = torch.tensor([[[1.0, 0.0], [0.0, 2.0], [4.0, 4.0]]])
+    done = torch.tensor([[[False], [True], [False]]])  # step 1 ends (terminated): no bootstrap, the trace stops
+    adv, target = vector_gae(0.9, 0.5, v, nv, r, done, done)
+    d2 = r[0, 2] + 0.9 * nv[0, 2] - v[0, 2]
+    d1 = r[0, 1] - v[0, 1]
+    d0 = r[0, 0] + 0.9 * nv[0, 0] - v[0, 0]
+    expected = torch.stack([d0 + 0.45 * d1, d1, d2])
+    assert torch.allclose(adv[0], expected) and torch.allclose(target, adv + v)
+    a = scalarize_advantage(torch.tensor([[[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.0, 1.0]]]),
+                            torch.tensor([[1.0, 0.0], [0.25, 0.75]]))
+    assert a.squeeze(-1).tolist() == [[1.0, 0.0], [0.25, 0.75]]
+
+
+def test_population_members_are_independent():
+    net = PopulationMLP(3, 4, 2, (8,))
+    x = torch.randn(3, 5, 4)
+    net(x)[1].sum().backward()  # member 1's output only
+    for w in net.weights:
+        assert w.grad[0].abs().sum() == 0 and w.grad[2].abs().sum() == 0 and w.grad[1].abs().sum() > 0
+    state = net.member_state(0)
+    net.load_member_state(2, state)
+    same_input = x[[2]].expand(3, 5, 4)
+    assert torch.allclose(net(same_input)[2], net(same_input)[0])  # member 2 is now a copy of member 0
+    assert not torch.allclose(net(same_input)[1], net(same_input)[0])
+
+
+def _agent(**kw):
+    cfg = resolve_config("pgmorl", "MOHalfCheetahDR-v5", quick=True, pgmorl_pop=2, num_envs=2, pgmorl_envs_per_member=1,
+                         frames_per_batch=32, hidden=(8,), **kw)
+    env = make_pgmorl_training_env(cfg, torch.device("cpu"))
+    return cfg, env, make_pgmorl_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+
+
+@pytest.mark.parametrize("eval_obs", ["raw", "normalized"])
+def test_eval_policy_acts_with_the_nearest_member(eval_obs):
+    cfg, env, agent = _agent(pgmorl_eval_obs=eval_obs)
+    head = agent.eval_policy.head
+    obs = torch.randn(2, env.observation_spec["observation"].shape[-1])
+    prefs = torch.tensor([[0.9, 0.1], [0.05, 0.95]])  # nearest: member 1 (0.2, 0.8) for both... and member 0 (0, 1)
+    agent.weights.copy_(torch.tensor([[0.0, 1.0], [1.0, 0.0]]))
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        act = agent.eval_policy(TensorDict({"observation": obs, "preference": prefs}, [2]))["action"]
+    x = obs
+    if eval_obs == "normalized":
+        norm = agent.eval_policy.obs_norm
+        x = ((obs - norm.loc["observation"]) / norm.scale["observation"]).clamp(-10, 10)
+    loc, _ = head(x.unsqueeze(0).expand(2, *x.shape))
+    expected = torch.stack([loc[1, 0], loc[0, 1]]).clamp(-1, 1)
+    assert torch.allclose(act, expected)
+
+
+def test_learn_runs_ppo_on_every_member_and_state_round_trips():
+    cfg, env, agent = _agent(pgmorl_epochs=2, pgmorl_minibatches=2)
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):  # as the collector
+        batch = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [2, 16]
+    before = [p.detach().clone() for p in agent.loss.parameters()]
+    losses, n = agent.learn(batch, None, 32)
+    assert n == 4 and torch.isfinite(losses["loss_objective"]) and agent.iteration == 1
+    moved = [(p.detach() - b).reshape(2, -1).abs().sum(-1) for p, b in zip(agent.loss.parameters(), before)]
+    assert all(bool((m > 0).all()) for m in moved if m.numel())  # both members were updated
+    state = agent.state_dict()
+    _, _, other = _agent(pgmorl_epochs=2, pgmorl_minibatches=2)
+    other.load_state_dict(state)
+    assert other.iteration == 1 and torch.equal(other.weights, agent.weights)
+    # the observation statistics travel with the agent (a re-evaluation with normalised observations needs them)
+    assert torch.equal(other.obs_norm.loc["observation"], agent.obs_norm.loc["observation"])
+    assert torch.equal(other.reward_norm.loc["reward"], agent.reward_norm.loc["reward"])
+
+
+@pytest.mark.parametrize("module", ["morl_trl.objectives.pgmorl", "morl_trl.recipes.pgmorl_evolution",
+                                    "morl_trl.recipes.pgmorl"])
+def test_docstring_examples(module):
+    assert doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS).failed == 0
+
+
+@pytest.mark.slow
+def test_a_short_pgmorl_run_selects_tasks(tmp_path):
+    cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=4, num_envs=4, pgmorl_envs_per_member=1,
+                         frames_per_batch=4 * 256, frames=6 * 1024, pgmorl_warmup=2, pgmorl_evo_iterations=2,
+                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(16,), eval_interval=6 * 1024, eval_weights=3,
+                         eval_contexts=("MOHopperDefault-v5",), progress=False, eval_random_baseline=False,
+                         run_dir=str(tmp_path / "run"))
+    summary, agent, _, _ = run_training(cfg)
+    assert summary["frames"] == 6 * 1024 and 0.0 <= summary["nhgr_mean"] <= 1.0
+    assert agent.iteration == 6 and agent.generation >= 1  # warm-up 2, then task selections at 2, 4, 6
+    assert len(agent.predictor) >= 4 and agent.population.individuals
+
+
+def test_a_tiny_pgmorl_run_resumes_with_its_population(tmp_path):
+    cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=2, pgmorl_envs_per_member=1,
+                         frames_per_batch=128, frames=256, pgmorl_warmup=1, pgmorl_evo_iterations=1,
+                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(8,), eval_interval=256, eval_weights=3,
+                         checkpoint_interval=128, eval_contexts=("MOHopperDefault-v5",), progress=False,
+                         eval_random_baseline=False, run_dir=str(tmp_path / "run"))
+    _, first, _, _ = run_training(cfg)
+    cfg.frames = 384
+    summary, agent, _, _ = run_training(cfg, resume=tmp_path / "run")
+    assert summary["frames"] == 384 and agent.iteration == first.iteration + 1 == 3
+    n = len(first.predictor)  # the prediction samples of the first part carried over, one more evaluation added
+    assert n >= 2 and len(agent.predictor) == n + 2
+    assert all(np.array_equal(a, b) for a, b in zip(agent.predictor.after[:n], first.predictor.after))
