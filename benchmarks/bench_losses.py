@@ -25,6 +25,13 @@ re-creation of its update loops (same networks, same tensor work: the target net
 evaluated on batch x N x N rows for Envelope, separate critic/actor passes for CAPQL),
 and the output says so.
 
+Ours is ``Agent.update`` as the recipes run it (fused Adam, sampling and priority updates
+included). ``--device cuda`` runs ours (and MORL-Baselines, when installed) on the GPU and adds
+rows for the captured update (``compile``, ``cudagraphs``, ``both``: see
+``morl_trl.recipes.capture``) with their speed-up over the eager one:
+
+    python benchmarks/bench_losses.py --device cuda [--capture cudagraphs both]
+
 Ours and the peer alternate in rounds so that machine load hits both alike; the
 median rate over rounds is reported. On a shared machine, ``--threads 1 --clock cpu``
 (process CPU time) gives steadier figures than wall time.
@@ -47,12 +54,14 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from tensordict import TensorDict  # noqa: E402
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
-from torchrl.objectives import HardUpdate, SoftUpdate  # noqa: E402
+from torchrl.objectives import HardUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
+from morl_trl.recipes.agent import adam  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
+    PolyakUpdate,
     make_gaussian_actor,
     make_vector_critic,
     make_vector_q_network,
@@ -102,57 +111,59 @@ def as_tensordict(tr) -> TensorDict:
 
 
 # ------------------------------------------------------------------------------------ ours
-def ours_envelope(tr, buffer_size):
+def _agent_step(loss, optimizers, updater, rb, device, *, max_grad_norm=None, prioritized=False, capture=None):
+    """``Agent.update`` on ``rb``, as the recipe runs it: eager, or captured (``"compile"``,
+    ``"cudagraphs"``, ``"both"``) with the non-finite flag read every 100 updates."""
+    from types import SimpleNamespace
+
+    from morl_trl.recipes.agent import Agent
+
+    cfg = SimpleNamespace(max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
+                          compile=capture in ("compile", "both"), compile_mode=None,
+                          cudagraphs=capture in ("cudagraphs", "both"))
+    agent = Agent(cfg, loss, None, None, optimizers, updater, device=device)
+
+    def step():
+        agent.update(rb)
+
+    return step
+
+
+def ours_envelope(tr, buffer_size, device=torch.device("cpu"), capture=None):
     c = ENVELOPE
     loss = EnvelopeQLoss(
         make_vector_q_network(c["obs"], c["actions"], c["k"], num_cells=NET),
         num_preference_samples=c["n_w"],
         homotopy_lambda=c["lam"],
         preference_distribution="gaussian",
-    )
+    ).to(device)
     loss.make_value_estimator(gamma=GAMMA)
     updater = HardUpdate(loss, value_network_update_interval=c["target_every"])
-    optim = torch.optim.Adam(loss.parameters(), lr=LR)
-    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4)
-    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), sampler=sampler, batch_size=c["batch"])
-    rb.extend(as_tensordict(tr))
-    params = list(loss.parameters())
-
-    def step():
-        batch = rb.sample()
-        out = loss(batch)
-        optim.zero_grad()
-        out["loss_qvalue"].backward()
-        torch.nn.utils.clip_grad_norm_(params, 1.0)
-        optim.step()
-        rb.update_tensordict_priority(batch)
-        updater.step()
-
+    optim = adam(loss.parameters(), LR)
+    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4, device=device)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), sampler=sampler,
+                                batch_size=c["batch"])
+    rb.extend(as_tensordict(tr).to(device))
+    step = _agent_step(loss, {"qvalue": optim}, updater, rb, device, max_grad_norm=1.0, prioritized=True,
+                       capture=capture)
     return step, type(sampler).__name__
 
 
-def ours_capql(tr, buffer_size):
+def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
     c = CAPQL
-    spec = Bounded(-1.0, 1.0, (c["act"],))
+    spec = Bounded(-1.0, 1.0, (c["act"],), device=device)
     loss = CAPQLLoss(
-        make_gaussian_actor(c["obs"], spec, c["k"], num_cells=NET),
-        make_vector_critic(c["obs"], c["act"], c["k"], num_cells=NET),
+        make_gaussian_actor(c["obs"], spec, c["k"], num_cells=NET).to(device),
+        make_vector_critic(c["obs"], c["act"], c["k"], num_cells=NET).to(device),
         alpha=c["alpha"],
     )
     loss.make_value_estimator(gamma=GAMMA)
-    updater = SoftUpdate(loss, tau=c["tau"])
-    optim = torch.optim.Adam(loss.parameters(), lr=LR)
-    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size), batch_size=c["batch"])
-    rb.extend(as_tensordict(tr))
-
-    def step():
-        out = loss(rb.sample())
-        optim.zero_grad()
-        (out["loss_qvalue"] + out["loss_actor"]).backward()
-        optim.step()
-        updater.step()
-
-    return step
+    updater = PolyakUpdate(loss, tau=c["tau"])
+    optimizers = {"actor": adam(loss.actor_network_params.values(True, True), LR),
+                  "qvalue": adam(loss.qvalue_network_params.values(True, True), LR)}
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), batch_size=c["batch"])
+    rb.extend(as_tensordict(tr).to(device))
+    return _agent_step(loss, optimizers, updater, rb, device, capture=capture)
 
 
 # ------------------------------------------------------------------- MORL-Baselines itself
@@ -170,7 +181,7 @@ def _spaces_env(obs, action_space, k):
     return SpacesOnly()
 
 
-def mb_envelope(tr, buffer_size):
+def mb_envelope(tr, buffer_size, device="cpu"):
     import gymnasium as gym
     from morl_baselines.multi_policy.envelope.envelope import Envelope
 
@@ -193,7 +204,7 @@ def mb_envelope(tr, buffer_size):
         max_grad_norm=1.0,
         log=False,
         seed=0,
-        device="cpu",
+        device=device,
     )
     for i in range(len(tr["obs"])):
         agent.replay_buffer.add(tr["obs"][i], tr["action"][i], tr["reward"][i], tr["next_obs"][i], tr["done"][i])
@@ -206,7 +217,7 @@ def mb_envelope(tr, buffer_size):
     return step
 
 
-def mb_capql(tr, buffer_size):
+def mb_capql(tr, buffer_size, device="cpu"):
     import gymnasium as gym
     from morl_baselines.multi_policy.capql.capql import CAPQL as MBCAPQL
 
@@ -224,7 +235,7 @@ def mb_capql(tr, buffer_size):
         learning_starts=0,
         log=False,
         seed=0,
-        device="cpu",
+        device=device,
     )
     for i in range(len(tr["obs"])):
         agent.replay_buffer.push(tr["obs"][i], tr["action"][i], tr["w"][i], tr["reward"][i], tr["next_obs"][i], tr["done"][i])
@@ -361,32 +372,49 @@ def rec_capql(tr, buffer_size):
 
 # ------------------------------------------------------------------------------- harness
 CLOCK = time.perf_counter
+SYNC = None  # torch.cuda.synchronize on a CUDA device: the rate covers the work, not its launch
 
 
 def rate(step, n):
+    if SYNC:
+        SYNC()
     t = CLOCK()
     for _ in range(n):
         step()
+    if SYNC:
+        SYNC()
     return n / (CLOCK() - t)
 
 
-def compare(name, ours, peer, *, warmup, updates, rounds):
+def compare(name, variants, peer, *, warmup, updates, rounds):
+    """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios."""
     for _ in range(warmup):
-        ours()
-        peer()
-    r_ours, r_peer = [], []
+        for step in variants.values():
+            step()
+        if peer is not None:
+            peer()
+    rates = {label: [] for label in variants}
+    r_peer = []
     for _ in range(rounds):
-        r_ours.append(rate(ours, updates))
-        r_peer.append(rate(peer, updates))
-    a, b = statistics.median(r_ours), statistics.median(r_peer)
-    print(f"{name:<10} {a:>12.1f} {b:>12.1f} {a / b:>8.2f}x")
-    return a / b
+        for label, step in variants.items():
+            rates[label].append(rate(step, updates))
+        if peer is not None:
+            r_peer.append(rate(peer, updates))
+    b = statistics.median(r_peer) if peer is not None else float("nan")
+    eager = statistics.median(rates["eager"])
+    for label in variants:
+        a = statistics.median(rates[label])
+        vs_peer = f"{b:>10.1f} {a / b:>8.2f}x" if peer is not None else f"{'-':>10} {'-':>9}"
+        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x")
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a short sanity run (1 round of 8 updates)")
-    p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation"], default="auto")
+    p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation", "none"], default="auto")
+    p.add_argument("--device", default="cpu", help="cpu or cuda: where ours (and MORL-Baselines) run")
+    p.add_argument("--capture", nargs="*", default=None, choices=["compile", "cudagraphs", "both"],
+                   help="captured variants timed beside the eager update (default: all three on cuda, none on cpu)")
     p.add_argument("--updates", type=int, default=40, help="updates per round")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -397,11 +425,19 @@ def main(argv=None) -> int:
         help="wall time (default), or this process's CPU time: steadier on a shared machine, with --threads 1",
     )
     args = p.parse_args(argv)
-    global CLOCK
+    global CLOCK, SYNC
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
+    device = torch.device(args.device)
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise SystemExit("--device cuda: no CUDA device here")
+        SYNC = torch.cuda.synchronize
     if args.threads:
         torch.set_num_threads(args.threads)
+    capture = args.capture if args.capture is not None else (["compile", "cudagraphs", "both"]
+                                                             if device.type == "cuda" else [])
     warmup, updates, rounds = (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
+    warmup = max(warmup, 8) if capture else warmup  # compile and graph capture happen in the warm-up
     buffer_size, filled = (4_096, 4_096) if args.quick else (100_000, 20_000)
 
     peer = args.peer
@@ -413,24 +449,35 @@ def main(argv=None) -> int:
         except ImportError as err:
             if args.peer == "morl-baselines":
                 raise SystemExit(f"morl-baselines is not importable ({err}); see this script's docstring.")
-            peer = "recreation"
+            peer = "recreation" if device.type == "cpu" else "none"
     if peer == "morl-baselines":
         from importlib.metadata import version
 
-        peer_label = f"MORL-Baselines {version('morl-baselines')}"
-    else:
+        peer_label = f"MORL-Baselines {version('morl-baselines')} on {device}"
+    elif peer == "recreation":
+        if device.type != "cpu":
+            raise SystemExit("the re-created peer runs on the CPU only; pass --peer none or install morl-baselines")
         peer_label = "re-creation of MORL-Baselines' update loops (MORL-Baselines not importable)"
+    else:
+        peer_label = "none"
     torch.manual_seed(0)
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock; peer: {peer_label}")
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock, device {device}; "
+          f"peer: {peer_label}")
     print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
     env_tr = random_transitions(filled, ENVELOPE["obs"], ENVELOPE["k"], num_actions=ENVELOPE["actions"])
     cap_tr = random_transitions(filled, CAPQL["obs"], CAPQL["k"], act_dim=CAPQL["act"], seed=1)
-    ours_env, sampler_name = ours_envelope(env_tr, buffer_size)
-    peer_env = (mb_envelope if peer == "morl-baselines" else rec_envelope)(env_tr, buffer_size)
-    ours_cap = ours_capql(cap_tr, buffer_size)
-    peer_cap = (mb_capql if peer == "morl-baselines" else rec_capql)(cap_tr, buffer_size)
-    print(f"(our prioritized sampler: {sampler_name})")
-    print(f"{'loss':<10} {'ours/s':>12} {'peer/s':>12} {'ratio':>9}")
+    ours_env = {"eager": ours_envelope(env_tr, buffer_size, device)[0]}
+    ours_cap = {"eager": ours_capql(cap_tr, buffer_size, device)}
+    for mode in capture:
+        ours_env[mode] = ours_envelope(env_tr, buffer_size, device, capture=mode)[0]
+        ours_cap[mode] = ours_capql(cap_tr, buffer_size, device, capture=mode)
+    peers = {"morl-baselines": (mb_envelope, mb_capql), "recreation": (rec_envelope, rec_capql)}.get(peer)
+    peer_env = peers[0](env_tr, buffer_size, **({"device": str(device)} if peer == "morl-baselines" else {})) \
+        if peers else None
+    peer_cap = peers[1](cap_tr, buffer_size, **({"device": str(device)} if peer == "morl-baselines" else {})) \
+        if peers else None
+    print("(ours: Agent.update as the recipe runs it: fused Adam, our prioritized sampler for Envelope)")
+    print(f"{'loss':<10} {'update':<11} {'ours/s':>10} {'peer/s':>10} {'ratio':>9} {'vs eager':>10}")
     compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds)
     compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds)
     return 0

@@ -16,7 +16,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 Policies: :class:`MOQValueModule`, the greedy action ``argmax_a w · Q(s, a, w)`` of a vector
 Q-network (chain it after the network; TorchRL's ``EGreedyModule`` after it explores).
 
-Networks: :mod:`morl_trl.objectives.networks`.
+Networks: :mod:`morl_trl.objectives.networks`. Target updates: :class:`PolyakUpdate` (TorchRL's
+``SoftUpdate`` in one ``foreach`` step).
 """
 
 from morl_trl.objectives.capql import CAPQLLoss
@@ -36,6 +37,7 @@ from morl_trl.objectives.networks import (
 from morl_trl.objectives.pcn import PCNLoss, PCNNetwork, make_pcn_network
 from morl_trl.objectives.pgmorl import PopulationMLP, make_population_actor, make_population_critic, vector_gae
 from morl_trl.objectives.qvalue import MOQValueModule, scalarized_argmax
+from morl_trl.objectives.updaters import PolyakUpdate
 from morl_trl.objectives.value import VectorTD0Estimator, vector_td0_return_estimate
 from morl_trl.objectives.population import PopulationMOSACLoss
 
@@ -49,6 +51,7 @@ __all__ = [
     "NatureCNN",
     "PCNLoss",
     "PCNNetwork",
+    "PolyakUpdate",
     "PopulationMLP",
     "PreferenceConditionedMLP",
     "VectorTD0Estimator",

@@ -28,6 +28,7 @@ from torchrl.objectives.utils import _cache_values, _vmap_func, distance_loss
 
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference, module_output
 from morl_trl.objectives.envelope import action_index
+from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 
 __all__ = ["DiscreteMOSACLoss", "MOSACLoss"]
 
@@ -47,6 +48,10 @@ class _MOSACBase(MultiObjectiveLossModule):
 
     _schedulable_buffers = frozenset({"log_alpha"})
     critic_ensemble_mode: str = "auto"
+    #: Evaluate networks built by :mod:`morl_trl.objectives.networks` from the parameter
+    #: leaves (:mod:`morl_trl.objectives.fast_path`): the same operations without swapping
+    #: parameters into the modules. ``False`` forces TorchRL's generic path.
+    fast_networks: bool = True
 
     def _setup(
         self,
@@ -171,6 +176,18 @@ class _MOSACBase(MultiObjectiveLossModule):
     def _cached_detached_qvalue_params(self):
         return self.qvalue_network_params.detach()
 
+    def _ensemble_mode(self, device: torch.device) -> str:
+        mode = self.critic_ensemble_mode
+        if mode == "auto":
+            mode = "loop" if self.deactivate_vmap or device.type == "cpu" else "vmap"
+        return mode
+
+    def _fast_critics(self, plan: FunctionalNetwork, leaves: list[Tensor], inputs: list[Tensor]) -> Tensor:
+        """``[n, *B, ...]``: :meth:`_critic_ensemble` on the fast path (``leaves`` stacked over the ensemble)."""
+        if self._ensemble_mode(leaves[0].device) == "vmap":
+            return plan(leaves, inputs)
+        return torch.stack([plan([leaf[i] for leaf in leaves], inputs) for i in range(self.num_qvalue_nets)])
+
     def _critic_ensemble(self, td: TensorDictBase, params: TensorDictBase, key: NestedKey) -> Tensor:
         """``[n, *B, ...]``: every critic of the ensemble on ``td``.
 
@@ -179,11 +196,7 @@ class _MOSACBase(MultiObjectiveLossModule):
         ``addmm`` of the same size there). ``critic_ensemble_mode`` picks: ``"auto"``
         (loop on CPU or with ``deactivate_vmap=True``, ``vmap`` elsewhere), ``"loop"`` or ``"vmap"``.
         """
-        mode = self.critic_ensemble_mode
-        if mode == "auto":
-            on_cpu = next(iter(params.values(True, True))).device.type == "cpu"
-            mode = "loop" if self.deactivate_vmap or on_cpu else "vmap"
-        if mode == "vmap":
+        if self._ensemble_mode(next(iter(params.values(True, True))).device) == "vmap":
             return self._vmap_qnetworkN0(td, params).get(key)
         values = []
         for i in range(self.num_qvalue_nets):
@@ -450,12 +463,63 @@ class MOSACLoss(_MOSACBase):
         next_value = self._select_min(q_next, w) - self._alpha * next_log_prob.unsqueeze(-1)
         return self.value_estimator.value_estimate(data, next_value=next_value)
 
+    def _fast_plans(self):
+        """``(actor plan, critic plan)`` when both networks take the fast path, else ``None``."""
+        if not self.fast_networks:
+            return None
+        cache = self.__dict__.get("_fast_plans_cache")
+        if cache is None:
+            actor = GaussianActorPlan.of(self.actor_network, self.actor_network_params)
+            critic = FunctionalNetwork.of(self.qvalue_network, self.qvalue_network_params)
+            cache = self.__dict__["_fast_plans_cache"] = (actor, critic) if actor and critic else False
+        return cache or None
+
+    def _inputs(self, in_keys, data: TensorDictBase, w: Tensor, action: Tensor | None = None) -> list[Tensor]:
+        """A network's positional inputs from ``data``, with the preference ``w`` (and ``action``) substituted."""
+        keys = self.tensor_keys
+        return [w if key == keys.preference else action if action is not None and key == keys.action else data.get(key)
+                for key in in_keys]
+
+    def _fast_forward(self, tensordict: TensorDictBase, data: TensorDictBase, w: Tensor, plans) -> TensorDictBase:
+        """:meth:`forward` on the fast path: the same operations and random draws, no parameter swapping."""
+        actor, critic = plans
+        next_data = data.get("next")
+        actor_leaves = actor.mlp.leaves(self.actor_network_params)
+        q_leaves = critic.leaves(self.qvalue_network_params)
+        with torch.no_grad():
+            target_leaves = critic.leaves(self.target_qvalue_network_params)
+            next_action, next_log_prob = compute_rsample_log_prob(
+                actor.dist(actor_leaves, self._inputs(actor.mlp.in_keys, next_data, w)))
+            q_next = self._fast_critics(critic, target_leaves, self._inputs(critic.in_keys, next_data, w, next_action))
+            next_value = self._select_min(q_next, w) - self._alpha * next_log_prob.unsqueeze(-1)
+            target = self.value_estimator.value_estimate(data, next_value=next_value)
+        q = self._fast_critics(critic, q_leaves, self._inputs(critic.in_keys, data, w))
+        loss_qvalue, td_error = self._critic_objective(q, target, w)
+
+        action, log_prob = compute_rsample_log_prob(actor.dist(actor_leaves, self._inputs(actor.mlp.in_keys, data, w)))
+        q_pi = self._fast_critics(critic, [leaf.detach() for leaf in q_leaves],
+                                  self._inputs(critic.in_keys, data, w, action))
+        return self._losses(tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error)
+
+    def _losses(self, tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error) -> TensorDictBase:
+        loss_actor = self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
+        loss_alpha = self._alpha_objective(log_prob.detach())
+        losses = {
+            "loss_actor": self._reduce(loss_actor, data),
+            "loss_qvalue": self._reduce(loss_qvalue, data),
+            "loss_alpha": self._reduce(loss_alpha, data),
+        }
+        return self._output(tensordict, losses, log_prob, td_error)
+
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``."""
         self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
         data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
         w = self._batch_preferences(data)
+        plans = self._fast_plans()
+        if plans is not None:
+            return self._fast_forward(tensordict, data, w, plans)
         data_w = self._with_preference(data, w)
 
         target = self._target(data_w, w)
@@ -464,15 +528,7 @@ class MOSACLoss(_MOSACBase):
 
         action, log_prob = self._actor_sample(data_w, self.actor_network_params)
         q_pi = self._critics(data_w, action, self._cached_detached_qvalue_params)
-        loss_actor = self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
-        loss_alpha = self._alpha_objective(log_prob.detach())
-
-        losses = {
-            "loss_actor": self._reduce(loss_actor, data),
-            "loss_qvalue": self._reduce(loss_qvalue, data),
-            "loss_alpha": self._reduce(loss_alpha, data),
-        }
-        return self._output(tensordict, losses, log_prob, td_error)
+        return self._losses(tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error)
 
 
 class DiscreteMOSACLoss(_MOSACBase):

@@ -198,6 +198,71 @@ class PreferenceConditionedMLP(nn.Module):
         out = self.mlp(x)
         return out.reshape(*out.shape[:-1], *self.out_shape)
 
+    @property
+    def supports_forward_with(self) -> bool:
+        """Whether :meth:`forward_with` applies: no encoder, and only ``nn.Linear`` layers hold state."""
+        if self.encoder is not None:
+            return False
+        layers = [*(self.trunk or ()), *self.mlp]
+        return all(isinstance(m, nn.Linear) or not any(True for _ in m.parameters()) and not any(True for _ in m.buffers())
+                   for m in layers)
+
+    def forward_with(self, params: Sequence[torch.Tensor], first: torch.Tensor, *rest: torch.Tensor) -> torch.Tensor:
+        """:meth:`forward` with the ``nn.Linear`` weights and biases taken from ``params``.
+
+        ``params`` lists them in ``named_parameters()`` order (weight, bias per layer), e.g. the
+        leaves of a loss's functional parameters. Nothing is swapped into the module: this is
+        how the losses evaluate their networks with functional (target, detached, ensemble)
+        parameters at a fraction of ``TensorDict.to_module``'s cost, with the same operations
+        as :meth:`forward`. Weights of shape ``[n, out, in]`` evaluate an ensemble of ``n``
+        networks on the same inputs in one batched matmul per layer (output ``[n, *B, *out_shape]``).
+
+        Example:
+            >>> net = PreferenceConditionedMLP(5 + 2, 3, num_cells=(8,))
+            >>> x, w = torch.randn(4, 5), torch.rand(4, 2)
+            >>> params = [p.detach() for p in net.parameters()]
+            >>> torch.equal(net.forward_with(params, x, w), net(x, w))
+            True
+            >>> ensemble = [torch.stack([p, p]) for p in params]
+            >>> torch.allclose(net.forward_with(ensemble, x, w)[1], net(x, w), atol=1e-6)
+            True
+        """
+        if not self.supports_forward_with:
+            raise ValueError("forward_with needs a network without encoder whose only stateful layers are nn.Linear")
+        return self._forward_with(params, first, *rest)
+
+    def _forward_with(self, params: Sequence[torch.Tensor], first: torch.Tensor, *rest: torch.Tensor) -> torch.Tensor:
+        """:meth:`forward_with` without the structure check (done once by the caller)."""
+        it = iter(params)
+        ensemble = params[0].ndim == 3
+        if ensemble:  # the members share the inputs
+            n = params[0].shape[0]
+            first = first.expand(n, *first.shape)
+            rest = tuple(r.expand(n, *r.shape) for r in rest)
+
+        def run(layers, x):
+            for m in layers:
+                if isinstance(m, nn.Linear):
+                    weight = next(it)
+                    bias = next(it) if m.bias is not None else None
+                    if ensemble:
+                        lead = x.shape[1:-1]
+                        flat = x.reshape(n, -1, x.shape[-1])
+                        y = torch.bmm(flat, weight.transpose(-1, -2)) if bias is None \
+                            else torch.baddbmm(bias.unsqueeze(-2), flat, weight.transpose(-1, -2))
+                        x = y.reshape(n, *lead, y.shape[-1])
+                    else:
+                        x = torch.nn.functional.linear(x, weight, bias)
+                else:
+                    x = m(x)
+            return x
+
+        if self.trunk is not None:
+            first = run(self.trunk, first)
+        x = torch.cat([first, *rest], dim=-1) if rest else first
+        out = run(self.mlp, x)
+        return out.reshape(*out.shape[:-1], *self.out_shape)
+
 
 def _encoder_and_width(obs_shape: int | Sequence[int], features_dim: int) -> tuple[nn.Module | None, int]:
     if isinstance(obs_shape, int):
@@ -312,7 +377,11 @@ class _LocScale(nn.Module):
         self.extractor = NormalParamExtractor()
 
     def forward(self, *inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.extractor(self.net(*inputs))
+        return self.head(self.net(*inputs))
+
+    def head(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loc, scale)`` from the MLP's output."""
+        return self.extractor(out)
 
 
 class _LocClampedLogStd(nn.Module):
@@ -327,7 +396,11 @@ class _LocClampedLogStd(nn.Module):
         self.log_std_min, self.log_std_max = float(log_std_min), float(log_std_max)
 
     def forward(self, *inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        loc, log_std = self.net(*inputs).chunk(2, -1)
+        return self.head(self.net(*inputs))
+
+    def head(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loc, scale)`` from the MLP's output."""
+        loc, log_std = out.chunk(2, -1)
         return loc, log_std.clamp(self.log_std_min, self.log_std_max).exp()
 
 

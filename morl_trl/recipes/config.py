@@ -6,8 +6,8 @@ frames, history, evaluation period and weights) -> the algorithm's defaults (SPE
 -> command-line flags.
 
 The keys are grouped as TorchRL's sota recipes group theirs (``run``, ``env``, ``collector``,
-``replay_buffer``, ``optim``, ``network``, ``exploration``, ``envelope``, ``actor_critic``,
-``gpi``, ``eval``): a config file may use ``[group]`` tables or flat keys, and
+``replay_buffer``, ``optim``, ``compile``, ``network``, ``exploration``, ``envelope``, ``actor_critic``,
+``pcn``, ``pgmorl``, ``morld``, ``gpi``, ``eval``): a config file may use ``[group]`` tables or flat keys, and
 ``TrainConfig.to_toml()`` (``morl-trl train ... --print-config``) writes the complete grouped
 config. Every value is checked (type and range) when the config is built: a bad one raises a
 ``ValueError`` naming the key, the value and what is valid; an unknown key lists the valid ones.
@@ -191,6 +191,16 @@ class TrainConfig:
     max_grad_norm: float | None = _key("optim", None, "clip each optimizer's gradient norm to this (null: no "
                                        "clipping; the authors' Envelope: 1.0)",
                                        _float(0.0, 1e12, optional=True, open_low=True))
+    # compile (the captured update: morl_trl.recipes.capture)
+    compile: bool = _key("compile", False, "torch.compile the update step (loss, backward, optimizer, Polyak "
+                         "target); the non-finite guard then stays on the device", _bool)
+    compile_mode: str | None = _key("compile", None, "torch.compile mode (null: the default; 'reduce-overhead', "
+                                    "'max-autotune', ...)", _str(optional=True))
+    cudagraphs: bool = _key("compile", False, "replay the update step as a CUDA graph (tensordict.nn."
+                            "CudaGraphModule; device cuda only)", _bool)
+    finite_check_interval: int = _key("compile", 100, "captured update and accelerators: updates between host "
+                                      "reads of the device's count of skipped non-finite updates (the eager CPU "
+                                      "update checks every one before applying it)", _int(1))
     # network
     hidden: tuple[int, ...] = _key("network", (256, 256, 256, 256), "hidden layer widths of every MLP", _hidden)
     # exploration (epsilon-greedy)
@@ -320,6 +330,9 @@ class TrainConfig:
             problem = check(value) if check is not None else None
             if problem is not None:
                 raise ValueError(f"config key {f.name!r} ({f.metadata['group']}) is {value!r}; valid: {problem}")
+        if self.cudagraphs and not str(self.device).startswith("cuda"):
+            raise ValueError(f"config key 'cudagraphs' (compile) is true but device is {self.device!r}; "
+                             "valid: cudagraphs=true with a cuda device (compile=true works on any device)")
         return self
 
     # ------------------------------------------------------------------ views and files
@@ -618,7 +631,8 @@ def quick_preset(algo: str | None = None) -> dict[str, Any]:
 #: the keys a resume may change (``morl-trl train ... --resume``): where and how fast it runs,
 #: how long (``frames``: extend a run, or stop it earlier), what it logs to. Every other key
 #: must equal the run's ``config.json``.
-RESUME_MAY_CHANGE = ("frames", "device", "num_threads", "logger", "progress", "run_dir")
+RESUME_MAY_CHANGE = ("frames", "device", "num_threads", "logger", "progress", "run_dir", "compile", "compile_mode",
+                     "cudagraphs", "finite_check_interval")
 
 
 def resume_config(saved: TrainConfig, given: dict[str, Any], source: str) -> TrainConfig:

@@ -35,6 +35,7 @@ from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_net
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
+    adam,
     eval_exploration,
     is_discrete,
     num_objectives,
@@ -65,6 +66,6 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
         priority=cfg.envelope_priority, use_prioritized_weights=cfg.per_importance_weights,
     )
     loss.make_value_estimator(gamma=gamma)
-    optimizers = {"qvalue": torch.optim.Adam(loss.parameters(), lr=cfg.lr)}
+    optimizers = {"qvalue": adam(loss.parameters(), cfg.lr)}
     return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
                  device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg))

@@ -1,0 +1,201 @@
+"""End-to-end training throughput of ``morl-trl train`` at the paper's settings, with the projected
+wall time of the paper's full run, against MORL-Baselines' own training loop in the same run.
+
+For each (algorithm, domain) pair and device this builds exactly what ``morl-trl train`` builds
+(the recipe's training env, agent, replay buffer and TorchRL collector, from
+``resolve_config(algo, env_id)``: the paper's batch sizes, 4 x 256 networks, prioritized replay
+for Envelope, one gradient update per collected frame) and times the loop's body:
+collect a batch → ``agent.learn`` (store + one update per frame) → schedules → policy sync.
+Evaluation and checkpoints are left out (they run every 50k-100k frames). Timing starts once
+learning has started (after ``init_random_frames`` and one batch of warm-up).
+
+Pairs: Envelope / MO-LunarLander (DR), Envelope / MO-LavaGrid (DR), CAPQL / MO-Hopper (DR).
+The projected time is the domain's training length (``DomainSpec.train_frames``) divided by
+the measured frames/s.
+
+The peer is MORL-Baselines' own ``train()`` loop (one env, one update per step) on the
+MO-Gymnasium env closest to each domain (``mo-lunar-lander-v3``, ``mo-hopper-v5``; it has no
+MO-LavaGrid), with the same networks, batch sizes and update settings, timed after its
+``learning_starts``. It needs ``morl-baselines`` importable (see ``bench_losses.py``'s docstring
+for the scratch venv); without it the table says so.
+
+    python benchmarks/bench_train.py --quick               # ~3 min on one free CPU core
+    python benchmarks/bench_train.py --quick --clock cpu   # on a shared machine: process CPU time
+    python benchmarks/bench_train.py --device cuda         # + compile=true cudagraphs=true rows
+    python benchmarks/bench_train.py --pairs capql:MOHopperDR-v5 --frames 2048
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import torch
+
+CLOCK = time.perf_counter
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+
+from morl_trl.envs import domain_of  # noqa: E402
+from morl_trl.recipes import build_agent, build_training_env, resolve_config  # noqa: E402
+from morl_trl.recipes.off_policy import _gamma, make_collector, make_replay_buffer  # noqa: E402
+
+warnings.filterwarnings("ignore")
+
+PAIRS = ("envelope:MOLunarLanderDR-v0", "envelope:MOLavaGridDR-v0", "capql:MOHopperDR-v5")
+PEER_ENVS = {"MOLunarLanderDR-v0": "mo-lunar-lander-v3", "MOHopperDR-v5": "mo-hopper-v5"}
+
+
+def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
+    """Frames/s and updates/s of the recipe's training loop, timed over ``frames`` frames after learning starts."""
+    cfg = resolve_config(algo, env_id, device=device, logger="none", progress=False, **overrides)
+    spec = domain_of(env_id)
+    dev = torch.device(device)
+    torch.manual_seed(cfg.seed)
+    env = build_training_env(cfg, dev)
+    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=dev)
+    buffer = make_replay_buffer(cfg, dev)
+    warm = cfg.init_random_frames + cfg.frames_per_batch
+    cfg.frames = warm + frames + cfg.frames_per_batch
+    collector = make_collector(cfg, env, agent.explore_policy, dev)
+    done, updates, t0, timed = 0, 0, None, 0
+    for batch in collector:
+        done += batch.numel()
+        _, n = agent.learn(batch, buffer, done)
+        agent.on_frames(done)
+        collector.update_policy_weights_()
+        if t0 is not None:
+            timed += batch.numel()
+            updates += n
+            if timed >= frames:
+                break
+        elif done >= warm:
+            if dev.type == "cuda":
+                torch.cuda.synchronize()
+            t0 = CLOCK()
+    if dev.type == "cuda":
+        torch.cuda.synchronize()
+    wall = CLOCK() - t0
+    collector.shutdown()
+    return {"fps": timed / wall, "ups": updates / wall, "train_frames": spec.train_frames}
+
+
+def peer(algo: str, env_id: str, device: str, frames: int) -> dict | None:
+    """MORL-Baselines' ``train()`` loop on the closest MO-Gymnasium env, or ``None`` when it has none."""
+    import mo_gymnasium as mo_gym
+    import numpy as np
+
+    gym_id = PEER_ENVS.get(env_id)
+    if gym_id is None:
+        return None
+    cfg = resolve_config(algo, env_id)
+    env = mo_gym.make(gym_id)
+    common = dict(learning_rate=cfg.lr, batch_size=cfg.batch_size, net_arch=list(cfg.hidden), log=False, seed=0,
+                  device=device, buffer_size=cfg.buffer_size)
+    if algo == "envelope":
+        from morl_baselines.multi_policy.envelope.envelope import Envelope
+
+        agent = Envelope(env, gamma=cfg.gamma or domain_of(env_id).gamma, num_sample_w=cfg.num_sampled_prefs,
+                         per=cfg.prioritized, per_alpha=cfg.per_alpha, initial_homotopy_lambda=cfg.homotopy_lambda0,
+                         final_homotopy_lambda=cfg.homotopy_lambda0, target_net_update_freq=cfg.target_update_period,
+                         tau=1.0, learning_starts=cfg.init_random_frames, max_grad_norm=cfg.max_grad_norm,
+                         initial_epsilon=cfg.eps_start, final_epsilon=cfg.eps_end, epsilon_decay_steps=cfg.eps_frames,
+                         **common)
+
+        def train(n, first):
+            agent.train(n, reset_num_timesteps=first, eval_freq=10**12)
+    else:
+        from morl_baselines.multi_policy.capql.capql import CAPQL
+
+        agent = CAPQL(env, gamma=cfg.gamma or domain_of(env_id).gamma, tau=cfg.tau, alpha=cfg.alpha, num_q_nets=2,
+                      learning_starts=cfg.init_random_frames, **common)
+        ref = np.zeros(agent.reward_dim)
+
+        def train(n, first):
+            agent.train(n, eval_env=env, ref_point=ref, eval_freq=10**12, reset_num_timesteps=first)
+    train(cfg.init_random_frames + 64, True)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    t0 = CLOCK()
+    train(frames, False)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    wall = CLOCK() - t0
+    return {"fps": frames / wall, "env": gym_id}
+
+
+def _hours(train_frames: int, fps: float) -> str:
+    h = train_frames / fps / 3600
+    return f"{h:,.1f} h" if h >= 1 else f"{h * 60:,.0f} min"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="time 128 frames per pair (default: --frames)")
+    p.add_argument("--frames", type=int, default=512, help="frames timed per pair after learning starts")
+    p.add_argument("--device", default="cpu", help="cpu, cuda, or 'all' (cpu and, when present, cuda)")
+    p.add_argument("--pairs", nargs="+", default=list(PAIRS), help="algo:env_id pairs")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (the recipe's default: 1)")
+    p.add_argument("--peer", choices=["auto", "none"], default="auto")
+    p.add_argument("--no-capture", action="store_true", help="on cuda, skip the compile/cudagraphs rows")
+    p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
+                   help="wall time (default), or this process's CPU time: steadier on a shared CPU machine "
+                        "(with --threads 1); meaningless on cuda, where the device works while the host waits")
+    args = p.parse_args(argv)
+    global CLOCK
+    CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
+    frames = 128 if args.quick else args.frames
+    torch.set_num_threads(args.threads)
+    devices = ["cpu", "cuda"] if args.device == "all" else [args.device]
+    devices = [d for d in devices if d != "cuda" or torch.cuda.is_available()]
+    if args.device in ("cuda", "all") and not torch.cuda.is_available():
+        print("no CUDA device here: the cuda rows are missing")
+    have_peer = False
+    if args.peer == "auto":
+        try:
+            from importlib.metadata import version
+
+            import morl_baselines  # noqa: F401
+
+            have_peer = True
+            peer_label = f"MORL-Baselines {version('morl-baselines')} train() loop"
+        except ImportError as err:
+            peer_label = f"none (morl-baselines not importable: {err})"
+    else:
+        peer_label = "none (--peer none)"
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s), {args.clock} clock; {frames} frames timed per row after "
+          f"learning starts; peer: {peer_label}")
+    print(f"{'algo':<9} {'domain':<20} {'device':<6} {'capture':<10} {'frames/s':>9} {'updates/s':>10} "
+          f"{'paper run':>10} {'projected':>10} | {'peer env':<20} {'peer f/s':>9} {'ratio':>7} {'projected':>10}")
+    for pair in args.pairs:
+        algo, env_id = pair.split(":")
+        for device in devices:
+            variants = [("eager", {})]
+            if device == "cuda" and not args.no_capture:
+                variants += [("compile", {"compile": True}), ("cudagraphs", {"cudagraphs": True}),
+                             ("both", {"compile": True, "cudagraphs": True})]
+            peer_row = None
+            if have_peer and (device == "cpu" or torch.cuda.is_available()):
+                peer_row = peer(algo, env_id, device, frames)
+            for label, overrides in variants:
+                try:
+                    r = ours(algo, env_id, device, frames, **overrides)
+                except Exception as err:  # a capture mode that fails here is reported, not fatal
+                    print(f"{algo:<9} {env_id:<20} {device:<6} {label:<10} failed: {type(err).__name__}: {err}")
+                    continue
+                line = (f"{algo:<9} {env_id:<20} {device:<6} {label:<10} {r['fps']:>9.1f} {r['ups']:>10.1f} "
+                        f"{r['train_frames'] / 1e6:>9.1f}M {_hours(r['train_frames'], r['fps']):>10} | ")
+                if peer_row is not None:
+                    line += (f"{peer_row['env']:<20} {peer_row['fps']:>9.1f} {r['fps'] / peer_row['fps']:>6.2f}x "
+                             f"{_hours(r['train_frames'], peer_row['fps']):>10}")
+                else:
+                    line += "no peer" if have_peer else "-"
+                print(line, flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,55 @@
+"""Target-network updaters."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+from torchrl.objectives import SoftUpdate
+
+__all__ = ["PolyakUpdate"]
+
+
+class PolyakUpdate(SoftUpdate):
+    r"""TorchRL's :class:`~torchrl.objectives.SoftUpdate` stepping every target leaf in one ``foreach`` lerp.
+
+    The same arithmetic (:math:`\theta^- \leftarrow \theta^- + \tau(\theta - \theta^-)`, the
+    ``lerp_`` ``SoftUpdate`` runs, bit-identical results), without building TensorDicts of the
+    parameters at every step: about 0.06 ms instead of 0.45 ms per step for two 4 x 256 critics
+    on a CPU core, and one kernel launch on an accelerator. :meth:`leaves` gives the
+    ``(sources, targets)`` lists, e.g. for a masked step inside a captured update.
+
+    Example:
+        >>> from torchrl.data import Bounded
+        >>> from morl_trl.objectives import CAPQLLoss, make_gaussian_actor, make_vector_critic
+        >>> loss = CAPQLLoss(make_gaussian_actor(4, Bounded(-1.0, 1.0, (2,)), 2, num_cells=(8,)),
+        ...                  make_vector_critic(4, 2, 2, num_cells=(8,)))
+        >>> updater = PolyakUpdate(loss, tau=0.5)
+        >>> sources, targets = updater.leaves()
+        >>> _ = [t.data.zero_() for t in targets]
+        >>> updater.step()
+        >>> torch.equal(targets[0], 0.5 * sources[0].detach())
+        True
+    """
+
+    def leaves(self) -> tuple[list[Tensor], list[Tensor]]:
+        """``(sources, targets)``: the online and target parameter tensors, paired in order."""
+        pairs = self.__dict__.get("_leaf_pairs")
+        if pairs is None:
+            for name in self._target_names:
+                getattr(self.loss_module, name)
+            sources, targets = [], []
+            for key, source in self._sources.items():
+                target = self._targets.get(f"target_{key}")
+                for leaf in source.keys(True, True):
+                    sources.append(source.get(leaf))
+                    targets.append(target.get(leaf))
+            pairs = self.__dict__["_leaf_pairs"] = (sources, targets)
+        return pairs
+
+    def step(self) -> None:
+        if not self.initialized:
+            raise Exception(f"{type(self).__name__} must be initialized (`{type(self).__name__}.init_()`) "
+                            "before calling step()")
+        sources, targets = self.leaves()
+        with torch.no_grad():
+            torch._foreach_lerp_(targets, sources, 1 - self.eps)

@@ -1,0 +1,152 @@
+"""The update step as one capturable function: ``torch.compile`` and CUDA graphs, TorchRL's sota way.
+
+:meth:`Agent.update <morl_trl.recipes.agent.Agent.update>` samples a batch, then runs
+*loss → backward → gradient clipping → optimizer steps → Polyak target update* and finally the
+priority update and hard target copies. With ``cfg.compile`` and/or ``cfg.cudagraphs`` (config
+group ``compile``, as in TorchRL's ``sota-implementations``) the middle part runs as one
+function wrapped by ``torch.compile(mode=cfg.compile_mode)`` and/or
+:class:`tensordict.nn.CudaGraphModule` (one graph launch per update on CUDA).
+
+On an accelerator the same step runs uncompiled by default (when the optimizers are fused), for
+its on-device guard: no host synchronisation per update there either.
+
+What changes so that nothing in it reads the host:
+
+* the non-finite guard stays on the device: the loss's ``isfinite`` flag is handed to the
+  fused optimizers as ``found_inf`` (the kernel skips the step, as ``GradScaler`` does), the
+  Polyak step is multiplied by it, and priorities of a skipped update are written as 0
+  (never NaN into the sampler's trees). Skipped updates are counted on the device and the
+  count is read every ``cfg.finite_check_interval`` updates: :class:`NonFiniteLossError` is
+  raised then, with the networks as the last finite update left them — the guarantee of the
+  eager path (a non-finite update is never applied), reported up to that many updates late;
+* the loss's input checks (which read the host) are off (``loss.validate_inputs = False``):
+  the batches come from the run's own replay buffer, and a non-finite reward makes the loss
+  non-finite, which the guard catches;
+* every optimizer must be fused (:func:`~morl_trl.recipes.agent.adam` makes them so); with
+  CUDA graphs they are made ``capturable``.
+
+The arithmetic is the eager update's: on the CPU the compiled update matches the eager one
+from the same state to float rounding (``tests/recipes/test_capture.py``); CUDA graphs replay
+the same kernels.
+
+Example:
+    >>> from morl_trl.envs import make_env
+    >>> from morl_trl.recipes import resolve_config, build_agent
+    >>> from morl_trl.recipes.off_policy import make_replay_buffer
+    >>> from morl_trl.transforms import compose_training_env
+    >>> cfg = resolve_config("capql", "MOHopperDR-v5", quick=True, hidden=(16,), batch_size=8,
+    ...                      compile=True, compile_mode=None, finite_check_interval=4)
+    >>> env = compose_training_env(make_env(cfg.env_id, num_envs=2), gamma=0.99)
+    >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    >>> agent.cfg.compile, agent.cfg.finite_check_interval
+    (True, 4)
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.objectives import SoftUpdate
+
+from morl_trl.objectives import PolyakUpdate
+
+__all__ = ["CapturedUpdate"]
+
+
+class CapturedUpdate:
+    """The capturable part of one agent's update; call it with a sampled batch and the buffer.
+
+    Args:
+        agent: the :class:`~morl_trl.recipes.agent.Agent` (its ``cfg`` holds ``compile``,
+            ``compile_mode``, ``cudagraphs``, ``finite_check_interval``).
+    """
+
+    def __init__(self, agent) -> None:
+        cfg = agent.cfg
+        self.agent = agent
+        self.interval = int(getattr(cfg, "finite_check_interval", 1))
+        not_fused = [name for name, opt in agent.optimizers.items()
+                     if not all(group.get("fused") for group in opt.param_groups)]
+        if not_fused:
+            raise ValueError(f"a captured update (compile/cudagraphs) needs fused optimizers, as "
+                             f"morl_trl.recipes.agent.adam makes them; {not_fused} are not fused")
+        cudagraphs = bool(getattr(cfg, "cudagraphs", False))
+        if cudagraphs and torch.device(agent.device).type != "cuda":
+            raise ValueError(f"cudagraphs=true needs device='cuda' (got {str(agent.device)!r}); "
+                             "use compile=true alone on other devices")
+        if cudagraphs:
+            for opt in agent.optimizers.values():
+                for group in opt.param_groups:
+                    group["capturable"] = True
+        if hasattr(agent.loss, "validate_inputs"):
+            agent.loss.validate_inputs = False
+        updater = agent.target_updater
+        self.soft = isinstance(updater, SoftUpdate)
+        if self.soft:
+            self.tau = 1.0 - float(updater.eps)
+            self.sources, self.targets = (updater.leaves() if isinstance(updater, PolyakUpdate)
+                                          else PolyakUpdate.leaves(updater))
+        self.skipped = torch.zeros((), device=agent.device)
+        self.since_check = 0
+        fn = self.step
+        if getattr(cfg, "compile", False):
+            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None))
+        if cudagraphs:
+            from tensordict.nn import CudaGraphModule
+
+            fn = CudaGraphModule(fn, in_keys=[], out_keys=[], warmup=5 if getattr(cfg, "compile", False) else 2)
+        self.fn = fn
+
+    def step(self, batch: TensorDictBase) -> TensorDictBase:
+        """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite."""
+        agent = self.agent
+        out = agent.loss(batch)
+        total = sum(out[k] for k in agent.loss_keys)
+        found_inf = (~torch.isfinite(total)).to(torch.float32)
+        for opt in agent.optimizers.values():
+            opt.zero_grad(set_to_none=True)
+        total.backward()
+        agent._clip_gradients()
+        for opt in agent.optimizers.values():
+            opt.found_inf = found_inf
+            opt.step()
+            opt.found_inf = None
+        if self.soft:
+            with torch.no_grad():
+                delta = torch._foreach_sub(self.sources, self.targets)
+                torch._foreach_mul_(delta, (1.0 - found_inf) * self.tau)
+                torch._foreach_add_(self.targets, delta)
+        self.skipped.add_(found_inf)
+        result = out.detach()
+        key = agent.loss.tensor_keys.priority
+        priority = batch.get(key, None)
+        if priority is not None:
+            result = result.set("_priority", torch.nan_to_num(priority.detach(), nan=0.0, posinf=0.0, neginf=0.0))
+        return result
+
+    def __call__(self, batch: TensorDictBase, buffer) -> TensorDictBase:
+        agent = self.agent
+        result = self.fn(batch)
+        if not self.soft:
+            agent.target_updater.step()  # a Python-side period counter: hard copies stay eager
+        priority = result.get("_priority", None)
+        if priority is not None:
+            result = result.exclude("_priority")
+            if agent.cfg.prioritized:
+                batch.set(agent.loss.tensor_keys.priority, priority)
+                buffer.update_tensordict_priority(batch)
+        self.since_check += 1
+        if self.since_check >= self.interval:
+            self.check()
+        return result
+
+    def check(self) -> None:
+        """Reads the device's count of skipped updates; raises :class:`NonFiniteLossError` if any."""
+        from morl_trl.recipes.agent import NonFiniteLossError
+
+        since, self.since_check = self.since_check, 0
+        skipped = int(self.skipped.item())
+        if skipped:
+            self.skipped.zero_()
+            raise NonFiniteLossError(f"{skipped} of the last {since} updates had a non-finite loss and were skipped "
+                                     "on the device; the networks are as the last finite update left them")

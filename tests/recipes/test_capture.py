@@ -1,0 +1,193 @@
+"""The captured update (compile / CUDA graphs) against the eager one, and its on-device guard."""
+
+import copy
+
+import pytest
+import torch
+
+from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes.agent import NonFiniteLossError, adam, obs_shape
+from morl_trl.recipes.capture import CapturedUpdate
+from morl_trl.recipes.off_policy import make_replay_buffer
+from tests.objectives._helpers import random_batch
+
+pytestmark = pytest.mark.filterwarnings("ignore:No target network updater")
+
+CPU = torch.device("cpu")
+CASES = {  # (algo, env id, discrete): Polyak targets + plain buffer / hard targets + PER + clipping
+    "capql": ("capql", "MOHopperDR-v5", False),
+    "envelope": ("envelope", "MOLavaGridDR-v0", True),
+}
+
+
+def setup(name, device=CPU, n=256, **overrides):
+    algo, env_id, discrete = CASES[name]
+    cfg = resolve_config(algo, env_id, quick=True, hidden=(32, 32), batch_size=16, buffer_size=1024,
+                         device=str(device), **overrides)
+    torch.manual_seed(0)
+    env = build_training_env(cfg, device)
+    agent = build_agent(cfg, env, gamma=0.99, device=device)
+    k = agent.loss.num_objectives
+    (obs,) = obs_shape(env)
+    if discrete:
+        data = random_batch(n, obs, k, num_actions=int(env.full_action_spec[env.action_key].space.n))
+    else:
+        data = random_batch(n, obs, k, action_dim=env.full_action_spec[env.action_key].shape[-1])
+    buffer = make_replay_buffer(cfg, device)
+    buffer.extend(data.to(device))
+    return cfg, agent, buffer
+
+
+def params_of(agent):
+    return {k: v.detach().clone() for k, v in agent.loss.state_dict().items()}
+
+
+def run(agent, buffer, updates, seed=1):
+    torch.manual_seed(seed)
+    losses = [agent.update(buffer) for _ in range(updates)]
+    return losses, params_of(agent)
+
+
+def same_start(name, **overrides):
+    """Two agents and buffers from the same state: eager, and one with ``overrides`` (the captured one)."""
+    cfg, eager, buf_e = setup(name)
+    _, captured, buf_c = setup(name, **overrides)
+    captured.loss.load_state_dict(eager.loss.state_dict())
+    return eager, buf_e, captured, buf_c
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_captured_step_without_compile_matches_the_eager_update(name):
+    eager, buf_e, captured, buf_c = same_start(name)
+    captured._captured = CapturedUpdate(captured)  # the captured path, run eagerly
+    start = params_of(eager)
+    out_e, params_e = run(eager, buf_e, 4)
+    out_c, params_c = run(captured, buf_c, 4)
+    for a, b in zip(out_e, out_c):
+        for key in eager.loss_keys:
+            torch.testing.assert_close(a[key], b[key], rtol=1e-6, atol=1e-7)
+    for key in params_e:
+        torch.testing.assert_close(params_e[key], params_c[key], rtol=1e-6, atol=1e-7, msg=key)
+    moved = [k for k in start if not torch.equal(start[k], params_e[k])]
+    assert any("target" in k for k in moved) == (name == "capql")  # Polyak moves targets; a hard copy waits
+    assert any("target" not in k and k.endswith("weight") for k in moved)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_a_non_finite_update_is_skipped_on_the_device_and_reported(name):
+    _, agent, buffer = setup(name, compile=True, finite_check_interval=3)
+    agent._captured = captured = CapturedUpdate.__new__(CapturedUpdate)
+    agent.cfg.compile = False  # build it uncompiled: the guard's logic, without the compile time
+    CapturedUpdate.__init__(captured, agent)
+    agent.update(buffer)  # one good update
+    before = params_of(agent)
+    steps = {n: [s["step"].clone() for s in o.state.values()] for n, o in agent.optimizers.items()}
+    poisoned = buffer.sample()
+    poisoned["next", "reward"][0, 0] = float("nan")
+    result = captured.step(poisoned)  # the poisoned update: nothing moves
+    assert not torch.isfinite(sum(result[k] for k in agent.loss_keys))
+    after = params_of(agent)
+    for key in before:
+        assert torch.equal(before[key], after[key]), key
+    for n, o in agent.optimizers.items():
+        assert [s["step"] for s in o.state.values()] == steps[n]
+    assert torch.isfinite(result["_priority"]).all()
+    assert captured.skipped.item() == 1.0
+    captured.since_check += 1  # the poisoned step, called directly
+    with pytest.raises(NonFiniteLossError, match="1 of the last 3 updates had a non-finite loss"):
+        agent.update(buffer)  # the third update since the check reads the flag
+    assert captured.skipped.item() == 0.0
+
+
+def test_captured_update_needs_fused_optimizers_and_cuda_for_graphs():
+    _, agent, _ = setup("capql", compile=True)
+    agent.optimizers["actor"] = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-3)
+    with pytest.raises(ValueError, match=r"needs fused optimizers.*\['actor'\]"):
+        CapturedUpdate(agent)
+    with pytest.raises(ValueError, match="'cudagraphs' .* is true but device is 'cpu'"):
+        resolve_config("capql", "MOHopperDR-v5", cudagraphs=True)
+    _, agent, _ = setup("capql")
+    agent.cfg.cudagraphs = True  # past the config's check
+    with pytest.raises(ValueError, match="cudagraphs=true needs device='cuda'"):
+        CapturedUpdate(agent)
+
+
+def test_adam_is_fused_and_matches_the_per_tensor_loop():
+    torch.manual_seed(0)
+    params = [torch.nn.Parameter(torch.randn(8, 4)), torch.nn.Parameter(torch.randn(4))]
+    twin = [torch.nn.Parameter(p.detach().clone()) for p in params]
+    fused, loop = adam(params, 1e-2), torch.optim.Adam(twin, lr=1e-2, foreach=False)
+    assert fused.defaults["fused"] and not loop.defaults["fused"]
+    for i in range(5):
+        for ps, opt in ((params, fused), (twin, loop)):
+            torch.manual_seed(i)
+            opt.zero_grad()
+            sum((p * torch.randn_like(p)).sum() for p in ps).backward()
+            opt.step()
+    for a, b in zip(params, twin):
+        torch.testing.assert_close(a, b, rtol=1e-6, atol=1e-7)
+    assert not torch.equal(params[0], twin[0] * 0)
+
+
+@pytest.mark.slow
+def test_compiled_update_matches_the_eager_update_on_cpu():
+    eager, buf_e, compiled, buf_c = same_start("capql", compile=True, finite_check_interval=2)
+    out_e, params_e = run(eager, buf_e, 3)
+    out_c, params_c = run(compiled, buf_c, 3)
+    assert isinstance(compiled._captured, CapturedUpdate) and compiled._captured.fn is not compiled._captured.step
+    for a, b in zip(out_e, out_c):
+        for key in eager.loss_keys:
+            torch.testing.assert_close(a[key], b[key], rtol=1e-5, atol=1e-6)
+    for key in params_e:
+        torch.testing.assert_close(params_e[key], params_c[key], rtol=1e-5, atol=1e-6, msg=key)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device (none here)")
+@pytest.mark.parametrize("name", list(CASES))
+def test_cuda_graphed_update_learns_and_skips_non_finite_updates_on_cuda(name):
+    """Graph replays draw other random numbers than eager calls, so this checks behaviour, not equality."""
+    cuda = torch.device("cuda")
+    _, agent, buffer = setup(name, device=cuda, cudagraphs=True, finite_check_interval=1000)
+    start = params_of(agent)
+    losses = [agent.update(buffer) for _ in range(8)]  # warm-up calls, the capture, then replays
+    assert all(torch.isfinite(out[k]).all() for out in losses for k in agent.loss_keys)
+    moved = [k for k, v in params_of(agent).items() if not torch.equal(v, start[k])]
+    assert any(k.endswith("weight") and "target" not in k for k in moved)
+    captured = agent._captured
+    before = params_of(agent)
+    poisoned = buffer.sample()
+    poisoned["next", "reward"][0, 0] = float("nan")
+    captured.fn(poisoned)  # the graph, replayed on a non-finite batch
+    for key, value in params_of(agent).items():
+        assert torch.equal(value, before[key]), key
+    assert captured.skipped.item() == 1.0
+
+
+def test_a_checkpoint_of_a_per_tensor_adam_keeps_the_agent_fused():
+    _, agent, buffer = setup("capql")
+    agent.update(buffer)
+    state = agent.state_dict()
+    for opt_state in state["optimizers"].values():  # as a checkpoint from before the fused optimizers
+        for group in opt_state["param_groups"]:
+            group["fused"] = None
+    _, other, _ = setup("capql")
+    other.load_state_dict(state)
+    for opt in other.optimizers.values():
+        assert all(group["fused"] is True for group in opt.param_groups)
+        assert all(st["step"].item() == 1.0 for st in opt.state.values())
+    other.update(buffer)  # steps with the fused kernel
+    assert all(st["step"].item() == 2.0 for opt in other.optimizers.values() for st in opt.state.values())
+
+
+def test_the_device_guard_is_used_on_accelerators_and_with_capture_only():
+    _, agent, _ = setup("capql")
+    assert agent._device_guard() is False  # the CPU checks on the host, at once
+    _, agent, _ = setup("capql")
+    agent.device = torch.device("cuda")  # (not run: the decision only)
+    assert agent._device_guard() is True
+    _, agent, _ = setup("capql")
+    agent.device = torch.device("cuda")
+    agent.optimizers["actor"] = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-3)
+    assert agent._device_guard() is False  # a per-tensor optimizer cannot skip on the device: host check
+    _, agent, _ = setup("capql", compile=True)
+    assert agent._device_guard() is True
