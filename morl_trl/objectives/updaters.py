@@ -6,7 +6,23 @@ import torch
 from torch import Tensor
 from torchrl.objectives import SoftUpdate
 
-__all__ = ["PolyakUpdate"]
+__all__ = ["PolyakUpdate", "polyak_"]
+
+
+def polyak_(targets, sources, tau: float) -> None:
+    r"""In place, in one ``foreach`` lerp: :math:`\theta^- \leftarrow \theta^- + \tau(\theta - \theta^-)` for
+    paired lists (or TensorDicts) of target and source parameters.
+
+    Example:
+        >>> t, s = [torch.zeros(2)], [torch.ones(2)]
+        >>> polyak_(t, s, 0.25)
+        >>> t[0]
+        tensor([0.2500, 0.2500])
+    """
+    if not isinstance(targets, (list, tuple)):
+        targets, sources = list(targets.values(True, True)), list(sources.values(True, True))
+    with torch.no_grad():
+        torch._foreach_lerp_([t.data for t in targets], [x.data for x in sources], tau)
 
 
 class PolyakUpdate(SoftUpdate):
@@ -51,5 +67,4 @@ class PolyakUpdate(SoftUpdate):
             raise Exception(f"{type(self).__name__} must be initialized (`{type(self).__name__}.init_()`) "
                             "before calling step()")
         sources, targets = self.leaves()
-        with torch.no_grad():
-            torch._foreach_lerp_(targets, sources, 1 - self.eps)
+        polyak_(targets, sources, 1 - self.eps)

@@ -69,14 +69,20 @@ class Agent:
         buffer.extend(batch.reshape(-1))
         if frames < self.cfg.init_random_frames:
             return None, 0
-        losses, n = None, self.cfg.updates_per_batch or batch.numel()
+        n = self.cfg.updates_per_batch or batch.numel()
+        return self.run_updates(buffer, n), n
+
+    def run_updates(self, buffer, n: int) -> TensorDictBase | None:
+        """``n`` :meth:`update` calls; returns the last losses (``None`` for ``n = 0``). A
+        :class:`NonFiniteLossError` carries ``updates_done``: the updates applied before it."""
+        losses = None
         for i in range(n):
             try:
                 losses = self.update(buffer)
             except NonFiniteLossError as err:
                 err.updates_done = i  # the loop counts the updates applied before it
                 raise
-        return losses, n
+        return losses
 
     def update(self, buffer) -> TensorDictBase:
         """One gradient step on a sampled batch; a non-finite loss is never applied.
@@ -94,7 +100,7 @@ class Agent:
         of skipped updates is read every ``cfg.finite_check_interval`` updates, raising
         :class:`NonFiniteLossError` then.
         """
-        batch = buffer.sample().to(self.device)
+        batch = self.sample(buffer)
         if self._device_guard():
             return self._captured_update(batch, buffer)
         out = self.loss(batch)
@@ -112,6 +118,10 @@ class Agent:
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
+
+    def sample(self, buffer) -> TensorDictBase:
+        """The batch of one update, on the agent's device (MORL/D: one per population member)."""
+        return buffer.sample().to(self.device)
 
     def _device_guard(self) -> bool:
         """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""

@@ -51,9 +51,9 @@ from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import make_env
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
-from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic
 from morl_trl.objectives.dynamics import model_inputs
-from morl_trl.objectives.gpi import gpi_action
+from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
+from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
 from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, is_discrete, num_objectives, obs_shape
 from morl_trl.runs.env_state import transforms_of
@@ -189,12 +189,7 @@ class GPIAgent(Agent):
                 self._dyna(buffer, prev, frames)
             gated = not self.continuous and frames < cfg.gpi_dynamics_rollout_starts  # (the authors' discrete GPIPD)
             n = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
-            for i in range(n):
-                try:
-                    losses = self.update(buffer)
-                except NonFiniteLossError as err:
-                    err.updates_done = i
-                    raise
+            losses = self.run_updates(buffer, n)
             if not self.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
                 self.target_updater.step()  # the authors' hard copy every target_update_period steps
         if frames >= self.iteration_end:
@@ -250,12 +245,12 @@ class GPIAgent(Agent):
         out["loss_qvalue"].backward()
         q_opt.step()
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
-        _polyak(self.loss.qvalue_network_params, self.loss.target_qvalue_network_params, tau)
+        polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
         if self._updates % self.cfg.gpi_policy_delay == 0:
             pi_opt.zero_grad(set_to_none=True)
             self.loss.actor_loss().backward()  # against the critics just updated, as the authors
             pi_opt.step()
-            _polyak(self.loss.actor_network_params, self.loss.target_actor_network_params, tau)
+            polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
         self._updates += 1
         if self.cfg.prioritized:
             if real is not batch:
@@ -332,12 +327,6 @@ class GPIAgent(Agent):
         if self.dynamics is not None and state.get("dynamics") is not None:
             self.dynamics.model.load_state_dict(state["dynamics"])
         self._apply_weights()
-
-
-def _polyak(params, target, tau: float) -> None:
-    with torch.no_grad():
-        for p, t in zip(params.values(True, True), target.values(True, True)):
-            t.data.lerp_(p.data, tau)
 
 
 def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:

@@ -167,40 +167,19 @@ class MORLDAgent(Agent):
             else:
                 self._member_frames += batch.numel() // self.population
                 n, self._member_frames = divmod(self._member_frames, self.cfg.update_frequency)
-            for i in range(n):
-                try:
-                    losses = self.update(buffer)
-                except NonFiniteLossError as err:
-                    err.updates_done = i
-                    raise
+            losses = self.run_updates(buffer, n)
         while frames >= self._next_exchange:
             self._next_exchange += self.cfg.exchange_every
             self.exchange()
         return losses, n
 
-    def update(self, buffer) -> TensorDictBase:
-        """One batched gradient step: ``P * batch_size`` transitions of the shared buffer, ``batch_size`` per member."""
+    def sample(self, buffer) -> TensorDictBase:
+        """``P * batch_size`` transitions of the shared buffer, ``batch_size`` per member (``[P, batch_size]``)."""
         p, b = self.population, self.cfg.batch_size
         with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
             warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
             batch = buffer.sample(p * b)
-        batch = batch.to(self.device).reshape(p, b)
-        out = self.loss(batch)
-        total = sum(out[k] for k in self.loss_keys)
-        if not torch.isfinite(total):
-            bad = {k: out[k].item() for k in self.loss_keys}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        for opt in self.optimizers.values():
-            opt.zero_grad(set_to_none=True)
-        total.backward()
-        if self.cfg.max_grad_norm is not None:
-            for opt in self.optimizers.values():
-                params = [q for g in opt.param_groups for q in g["params"]]
-                torch.nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm)
-        for opt in self.optimizers.values():
-            opt.step()
-        self.target_updater.step()
-        return out.detach()
+        return batch.to(self.device).reshape(p, b)
 
     def _record_returns(self, batch: TensorDictBase) -> None:
         nxt = batch.get("next")
