@@ -652,7 +652,7 @@ def resume_config(saved: TrainConfig, given: dict[str, Any], source: str) -> Tra
         if value != old:
             raise ValueError(
                 f"cannot resume: {key} is {value!r} in {source} but {old!r} in the run's config.json; "
-                f"a resume continues the run as it was (only {list(RESUME_MAY_CHANGE[:-1])} may change): "
+                f"a resume continues the run as it was (only {[k for k in RESUME_MAY_CHANGE if k != 'run_dir']} may change): "
                 f"drop {key} or start a new run"
             )
     return dataclasses.replace(saved, **changes).validate()

@@ -78,7 +78,8 @@ def test_resume_refuses_a_command_line_that_contradicts_the_run(run, args, messa
     out = cli("train", *args, "--resume", run)
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert message in out.stderr
-    assert "only ['frames', 'device', 'num_threads', 'logger', 'progress'] may change" in out.stderr
+    assert ("only ['frames', 'device', 'num_threads', 'logger', 'progress', 'compile', 'compile_mode', 'cudagraphs', "
+            "'finite_check_interval'] may change") in out.stderr
     assert _snapshot(run) == before  # nothing touched
 
 
