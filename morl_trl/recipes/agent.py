@@ -16,7 +16,7 @@ from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
 
-__all__ = ["Agent", "NonFiniteLossError", "is_discrete", "obs_shape", "num_objectives", "action_spec",
+__all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "eval_exploration", "adam"]
 
 
@@ -222,6 +222,11 @@ def target_updater(cfg, loss):
     return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
 
 
+def fused_choice(cfg) -> bool | None:
+    """:func:`adam`'s ``fused`` for a config: ``None`` (fused where torch can) unless ``cfg.fused_optimizer`` is false."""
+    return None if getattr(cfg, "fused_optimizer", True) else False
+
+
 def adam(params, lr: float, *, fused: bool | None = None) -> torch.optim.Adam:
     """``torch.optim.Adam`` over ``params``, fused when torch has a fused kernel for them.
 
@@ -245,9 +250,9 @@ def adam(params, lr: float, *, fused: bool | None = None) -> torch.optim.Adam:
 def actor_critic_optimizers(cfg, loss) -> dict:
     """Adam (:func:`adam`) for the actor, the critics and (when learned) the temperature."""
     opts = {
-        "actor": adam(loss.actor_network_params.values(True, True), cfg.lr),
-        "qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr),
+        "actor": adam(loss.actor_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),
+        "qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),
     }
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
-        opts["alpha"] = adam([loss.log_alpha], cfg.lr)
+        opts["alpha"] = adam([loss.log_alpha], cfg.lr, fused=fused_choice(cfg))
     return opts

@@ -37,6 +37,7 @@ from morl_trl.recipes.agent import (
     action_spec,
     adam,
     eval_exploration,
+    fused_choice,
     is_discrete,
     num_objectives,
     obs_shape,
@@ -66,6 +67,6 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
         priority=cfg.envelope_priority, use_prioritized_weights=cfg.per_importance_weights,
     )
     loss.make_value_estimator(gamma=gamma)
-    optimizers = {"qvalue": adam(loss.parameters(), cfg.lr)}
+    optimizers = {"qvalue": adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))}
     return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
                  device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg))

@@ -132,3 +132,19 @@ def test_mosac_is_evaluated_with_sampled_actions_as_the_paper():
     assert discrete.eval_exploration == ExplorationType.RANDOM
     for algo, env_id in (("envelope", "MOLavaGridDR-v0"), ("capql", "MOHopperDR-v5")):
         assert resolve_config(algo, env_id).eval_exploration == "deterministic"
+
+
+# ---------------------------------------------------------------- optimizers
+@pytest.mark.parametrize("algo, env_id, names", [
+    ("envelope", "MOLavaGridDR-v0", {"qvalue"}),
+    ("capql", "MOHopperDR-v5", {"actor", "qvalue"}),
+])
+def test_fused_adam_by_default_and_the_authors_per_tensor_adam_as_an_option(algo, env_id, names):
+    if algo == "capql":
+        pytest.importorskip("mujoco", reason="MO-Hopper needs the mujoco extra")
+    _, _, fused = _agent(algo, env_id)
+    _, _, plain = _agent(algo, env_id, fused_optimizer=False)
+    assert set(fused.optimizers) >= names and set(plain.optimizers) == set(fused.optimizers)
+    for name in names:
+        assert fused.optimizers[name].defaults["fused"] is True
+        assert plain.optimizers[name].defaults["fused"] is False
