@@ -1,20 +1,20 @@
 """Training recipes: each algorithm's training loop, written once; ``morl-trl train`` runs them.
 
-================== ============================================= ===================================
-algorithm          agent (networks, policies, loss, optimizers)  loop
-================== ============================================= ===================================
-``envelope``       :func:`~morl_trl.recipes.envelope.make_envelope_agent`          :mod:`~morl_trl.recipes.off_policy`
-``capql``          :func:`~morl_trl.recipes.actor_critic.make_capql_agent`         :mod:`~morl_trl.recipes.off_policy`
-``mosac``          :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`         :mod:`~morl_trl.recipes.off_policy`
-``mosac_discrete`` :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent` :mod:`~morl_trl.recipes.off_policy`
-``pcn``            :func:`~morl_trl.recipes.pcn.make_pcn_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pcn.PCNAgent`)
-``pgmorl``         :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`              :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`)
-``morld``          :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.morld.MORLDAgent`)
-``morld_psa``      :func:`~morl_trl.recipes.morld.make_morld_agent`               :mod:`~morl_trl.recipes.off_policy` (weight_adaptation="psa")
-``sac``            :func:`~morl_trl.recipes.sac.make_sac_agent`                   :mod:`~morl_trl.recipes.off_policy`
-``gpi_ls``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (:class:`~morl_trl.recipes.gpi.GPIAgent`: weight-support iterations)
-``gpi_pd``         :func:`~morl_trl.recipes.gpi.make_gpi_agent`                    :mod:`~morl_trl.recipes.off_policy` (+ Dyna with a dynamics ensemble)
-================== ============================================= ===================================
+Every algorithm runs in the one loop :func:`~morl_trl.recipes.off_policy.run_training`
+(collection, evaluation, checkpoints, logs, report); what differs is its agent, whose
+``learn`` decides what a collected batch does:
+
+* ``envelope``: :func:`~morl_trl.recipes.envelope.make_envelope_agent`
+* ``capql``, ``mosac``, ``mosac_discrete``: :mod:`morl_trl.recipes.actor_critic`
+* ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :func:`~morl_trl.recipes.morld.make_morld_agent`
+  (:class:`~morl_trl.recipes.morld.MORLDAgent`: a batched population, shared buffer, exchanges)
+* ``sac`` (the single-objective baseline): :func:`~morl_trl.recipes.sac.make_sac_agent`
+* ``pcn``: :func:`~morl_trl.recipes.pcn.make_pcn_agent` (:class:`~morl_trl.recipes.pcn.PCNAgent`:
+  episode replay, supervised updates)
+* ``pgmorl``: :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`
+  (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`: population PPO, evolution)
+* ``gpi_ls``, ``gpi_pd``: :func:`~morl_trl.recipes.gpi.make_gpi_agent`
+  (:class:`~morl_trl.recipes.gpi.GPIAgent`: weight-support iterations, + Dyna for GPI-PD)
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
 settings for the algorithm and domain; ``examples/`` holds ready config files.
