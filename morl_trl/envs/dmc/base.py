@@ -173,12 +173,7 @@ class DMCContextEnv(MujocoContextEnv):
         self._rngs = [_random_state(seed + i) for i in range(self.num_envs)]
 
     def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
-        context = context.cpu().numpy()
-        self._check_physics(context)  # before anything changes
-        ids = idx.cpu().numpy()
-        self._apply_contexts(ids, context)
-        self._sim.set_models(self._models)  # Batch's contract after editing a model
-        self._sim.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        ids = self._begin_reset(idx, context)
         data = self._scratch
         fields = {name: self._sim.bind(name) for name in self._STATE_FIELDS}
         for i in ids:
@@ -198,12 +193,7 @@ class DMCContextEnv(MujocoContextEnv):
 
     # ------------------------------------------------------------------ step
     def _step_subenvs(self, action: torch.Tensor):
-        ctrl = action.detach().to("cpu", torch.float64).numpy()
-        ids = None if self._active is None else np.flatnonzero(self._active.cpu().numpy())
-        if ids is None:
-            self._fields["ctrl"][:] = ctrl
-        else:
-            self._fields["ctrl"][ids] = ctrl[ids]
+        ctrl, ids = self._set_ctrl(action)
         self._advance(ids)
         reward, original = self._rewards(ctrl)
         obs = {"observation": self._to_tensor(self._observation())}

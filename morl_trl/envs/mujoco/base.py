@@ -233,14 +233,21 @@ class MujocoContextEnv(ContextualMOEnv):
         """``(qpos, qvel)`` of a fresh episode, drawn as the Gymnasium v5 env draws them."""
         raise NotImplementedError
 
-    def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
+    def _begin_reset(self, idx: torch.Tensor, context: torch.Tensor) -> np.ndarray:
+        """The shared start of a reset of the sub-envs ``idx``: check and write their contexts
+        ``[len(idx), c]`` (checked before anything changes), hand the models to the batch and
+        ``mj_resetData`` them; returns ``idx`` as a numpy array."""
         context = context.cpu().numpy()
         self._check_physics(context)  # before anything changes
         ids = idx.cpu().numpy()
         self._apply_contexts(ids, context)
         self._sim.set_models(self._models)  # Batch's contract after editing a model
-        # Gymnasium's reset: mj_resetData, noisy qpos/qvel, mj_forward
         self._sim.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        return ids
+
+    def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
+        # Gymnasium's reset: mj_resetData, noisy qpos/qvel, mj_forward
+        ids = self._begin_reset(idx, context)
         qpos, qvel = self._fields["qpos"], self._fields["qvel"]
         for i in ids:
             qpos[i], qvel[i] = self._reset_noise(self._rngs[i])
@@ -262,21 +269,28 @@ class MujocoContextEnv(ContextualMOEnv):
 
     def _step_subenvs(self, action: torch.Tensor):
         x_before = self._x_position()
-        ctrl = action.detach().to("cpu", torch.float64).numpy()
-        if self._active is None:  # the usual full step
-            ids = None
-            self._fields["ctrl"][:] = ctrl
+        ctrl, ids = self._set_ctrl(action)
+        if ids is None:  # the usual full step
             self._sim.step(nstep=self.frame_skip)
-        else:  # a TorchRL partial step: the other sub-envs keep their state
-            ids = np.flatnonzero(self._active.cpu().numpy())
-            self._fields["ctrl"][ids] = ctrl[ids]
-            if ids.size:
-                self._sim.step(ids, nstep=self.frame_skip)
+        elif ids.size:  # a TorchRL partial step: the other sub-envs keep their state
+            self._sim.step(ids, nstep=self.frame_skip)
         self._after_step(ids)
         x_velocity = (self._x_position() - x_before) / self.dt
         reward, original, terminated = self._rewards(x_velocity, ctrl)
         obs = {"observation": self._to_tensor(self._observation())}
         return obs, self._to_tensor(reward), self._to_tensor(original), torch.from_numpy(terminated).to(self.device)
+
+    def _set_ctrl(self, action: torch.Tensor) -> tuple[np.ndarray, np.ndarray | None]:
+        """Write the action into the controls of the sub-envs to step; returns ``(ctrl [N, nu]
+        float64, ids)``, ``ids`` ``None`` for a full step, else the active sub-envs (TorchRL's
+        partial step: the others keep their state)."""
+        ctrl = action.detach().to("cpu", torch.float64).numpy()
+        if self._active is None:
+            self._fields["ctrl"][:] = ctrl
+            return ctrl, None
+        ids = np.flatnonzero(self._active.cpu().numpy())
+        self._fields["ctrl"][ids] = ctrl[ids]
+        return ctrl, ids
 
     def _to_tensor(self, array: np.ndarray) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32)).to(self.device)
