@@ -196,9 +196,8 @@ class DMCContextEnv(MujocoContextEnv):
         ctrl, ids = self._set_ctrl(action)
         self._advance(ids)
         reward, original = self._rewards(ctrl)
-        obs = {"observation": self._to_tensor(self._observation())}
         terminated = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        return obs, self._to_tensor(reward), self._to_tensor(original), terminated
+        return self._observe(), self._to_tensor(reward), self._to_tensor(original), terminated
 
     def _advance(self, ids: np.ndarray | None) -> None:
         """One action of the sub-envs ``ids`` (``None``: all): dm_control's legacy step."""

@@ -277,8 +277,8 @@ class MujocoContextEnv(ContextualMOEnv):
         self._after_step(ids)
         x_velocity = (self._x_position() - x_before) / self.dt
         reward, original, terminated = self._rewards(x_velocity, ctrl)
-        obs = {"observation": self._to_tensor(self._observation())}
-        return obs, self._to_tensor(reward), self._to_tensor(original), torch.from_numpy(terminated).to(self.device)
+        terminated = torch.from_numpy(terminated).to(self.device)
+        return self._observe(), self._to_tensor(reward), self._to_tensor(original), terminated
 
     def _set_ctrl(self, action: torch.Tensor) -> tuple[np.ndarray, np.ndarray | None]:
         """Write the action into the controls of the sub-envs to step; returns ``(ctrl [N, nu]
