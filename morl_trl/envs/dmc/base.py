@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from morl_trl.envs.base import check_num_envs
-from morl_trl.envs.mujoco.base import MujocoContextEnv, _as_decimal_float64
+from morl_trl.envs.mujoco.base import MujocoContextEnv
 
 __all__ = ["DMCContextEnv", "suite_model"]
 
@@ -125,6 +125,7 @@ class DMCContextEnv(MujocoContextEnv):
 
     # ------------------------------------------------------------------ contexts
     def _read_context(self, model: mujoco.MjModel) -> np.ndarray:
+        # the default context is the suite's model unchanged (factors 1, the XML's gravity and timestep)
         return np.asarray(self.context_space_.default, dtype=np.float64)
 
     def _write_context(self, model: mujoco.MjModel, context: np.ndarray) -> None:
@@ -159,9 +160,8 @@ class DMCContextEnv(MujocoContextEnv):
                                  f"it must be >= 0")
 
     def _apply_contexts(self, ids, context: np.ndarray) -> None:
-        values = _as_decimal_float64(context)
-        for i, row in zip(ids, values):
-            self._write_context(self._models[i], row)
+        super()._apply_contexts(ids, context)
+        for i in ids:
             self._nsub[i] = self._substeps(self._models[i].opt.timestep)
 
     def substeps(self) -> np.ndarray:
