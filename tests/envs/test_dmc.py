@@ -235,3 +235,8 @@ def test_partial_step_advances_only_the_selected_sub_envs():
     td["_step"] = torch.tensor([True, False])
     env.step(td)
     assert np.array_equal(env.mj_data(1).qpos, qpos) and env.mj_data(0).time == pytest.approx(0.01)
+
+
+def test_negative_joint_stiffness_is_rejected():
+    with pytest.raises(ValueError, match=r"'joint_stiffness' is -2\.0 \(row 0\); it must be >= 0"):
+        make_env("DMCHopperDefault-v0", joint_stiffness=-2.0, allow_extrapolation=True)

@@ -521,3 +521,12 @@ def test_humanoid_original_reward_uses_ctrl_cost_0_001_and_keeps_healthy_term_as
             assert env.mj_data(0).qpos[2] <= 1.0 or env.mj_data(0).qpos[2] >= 2.0
             break
     assert seen == {"normal": True, "terminal": True}
+
+
+def test_negative_damping_is_rejected_with_its_name_and_row():
+    # allow_extrapolation lets a context past the declared bounds; MuJoCo must still not get
+    # a negative damping (the shared MujocoContextEnv check over its nonnegative columns)
+    with pytest.raises(ValueError, match=r"'damping_leg' is -0\.5 \(row 0\); it must be >= 0"):
+        make_env("MOHopperDefault-v5", damping_leg=-0.5, allow_extrapolation=True)
+    env = make_env("MOHopperDefault-v5", damping_leg=0.0, allow_extrapolation=True)  # 0: an undamped joint
+    assert env.mj_models[0].dof_damping[4] == 0.0

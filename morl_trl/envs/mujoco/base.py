@@ -117,6 +117,9 @@ class MujocoContextEnv(ContextualMOEnv):
     render_camera: dict = {"track_body": 1, "distance": 4.0, "elevation": -20.0}
     # MuJoCo data fields the domain reads from every sub-env, bound as live [N, ...] arrays
     _bound_fields: tuple[str, ...] = ("qpos", "qvel", "ctrl")
+    #: context entries MuJoCo must not get negative (the ContextSpace lets them through under
+    #: ``allow_extrapolation``); ``None``: the joint dampings, every ``damping_*``
+    nonnegative_context: tuple[str, ...] | None = None
 
     def __init__(
         self,
@@ -153,7 +156,10 @@ class MujocoContextEnv(ContextualMOEnv):
         self._default_f32 = np.asarray(self.context_space_.default, dtype=np.float32)
         self._body_mass = np.tile(base.body_mass, (num_envs, 1))
         names = self.context_space_.names
-        self._damping_columns = np.array([c for c, n in enumerate(names) if n.startswith("damping_")], dtype=np.int64)
+        nonnegative = self.nonnegative_context
+        if nonnegative is None:
+            nonnegative = tuple(n for n in names if n.startswith("damping_"))
+        self._nonnegative_columns = np.array([names.index(n) for n in nonnegative], dtype=np.int64)
         context = self._context.cpu().numpy()
         self._check_physics(context)
         self._apply_contexts(range(num_envs), context)
@@ -214,14 +220,15 @@ class MujocoContextEnv(ContextualMOEnv):
             self._body_mass[i] = self._models[i].body_mass
 
     def _check_physics(self, context: np.ndarray) -> None:
-        """Reject what the ContextSpace lets through but MuJoCo should not get (negative damping)."""
-        bad = context[:, self._damping_columns] < 0
+        """Reject what the ContextSpace lets through but MuJoCo should not get (a negative
+        :attr:`nonnegative_context` entry), before any state changes."""
+        bad = context[:, self._nonnegative_columns] < 0
         if bad.any():
             row, k = (int(v) for v in np.argwhere(bad)[0])
-            col = self._damping_columns[k]
+            col = self._nonnegative_columns[k]
             raise ValueError(
                 f"context parameter {self.context_space_.names[col]!r} is {float(context[row, col])} "
-                f"(row {row}); joint damping must be >= 0"
+                f"(row {row}); it must be >= 0"
             )
 
     # ------------------------------------------------------------------ seeding
