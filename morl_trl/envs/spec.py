@@ -42,6 +42,12 @@ class DomainSpec:
         train_frames: the paper's training length in environment frames.
         eval_interval: the paper's evaluation period in frames.
         eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
+
+    Example:
+        >>> from morl_trl.envs import domain_of
+        >>> spec = domain_of("MOHopperHard-v5")  # any id of the domain
+        >>> spec.train_id, spec.objective_names, spec.history_len, spec.train_frames
+        ('MOHopperDR-v5', ('forward', 'jump', 'energy'), 2, 3000000)
     """
 
     name: str
