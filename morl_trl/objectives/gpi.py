@@ -27,6 +27,7 @@ from morl_trl.objectives.common import MultiObjectiveLossModule
 from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear, dropout
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN
+from morl_trl.objectives.value import vector_td0_return_estimate
 
 __all__ = ["GPIQNetwork", "GPIPolicy", "GPILoss", "gpi_action", "thresholded_huber", "GPIActor", "GPIVectorCritic",
            "GPIContinuousPolicy", "GPIContinuousLoss"]
@@ -335,8 +336,8 @@ class GPILoss(MultiObjectiveLossModule):
             qt = self._q(self.target_value_network_params, next_obs, w, slice(0, 1))[0]
             nxt = qt.gather(1, best.view(b, 1, 1).expand(b, 1, qt.shape[-1])).squeeze(1)
         reward = data.get(("next", keys.reward))
-        not_done = 1.0 - data.get(("next", keys.terminated)).reshape(b, 1).to(reward.dtype)
-        td = reward + self.value_estimator.gamma * not_done * nxt - q_a
+        terminated = data.get(("next", keys.terminated)).reshape(b, 1)
+        td = vector_td0_return_estimate(self.value_estimator.gamma, nxt, reward, terminated) - q_a
         return torch.einsum("bk,bk->b", w, td).abs().clamp(min=self.min_priority)
 
     # ---------------------------------------------------------------- forward
@@ -361,10 +362,10 @@ class GPILoss(MultiObjectiveLossModule):
         else:
             w = w_now
         gamma = self.value_estimator.gamma
-        not_done = 1.0 - terminated.to(reward.dtype)
-        target = reward + gamma * not_done * self.td_target_value(next_obs, w)
+        target = vector_td0_return_estimate(gamma, self.td_target_value(next_obs, w), reward, terminated)
         if self.gpi_pd:
-            gpi_target = reward + gamma * not_done * self.gpi_target_value(next_obs, w, self._sampled_support())
+            gpi_value = self.gpi_target_value(next_obs, w, self._sampled_support())
+            gpi_target = vector_td0_return_estimate(gamma, gpi_value, reward, terminated)
 
         q = self._q(self.value_network_params, obs, w)  # [E, 2B, A, k]
         k = q.shape[-1]
@@ -585,7 +586,7 @@ class GPIContinuousLoss(MultiObjectiveLossModule):
             next_a = self._actor(self.target_actor_network_params, next_obs, w, self.policy_noise)
             qt = self._critic(self.target_qvalue_network_params, next_obs, next_a, w)  # [E, 2B, k]
             idx = torch.einsum("ebk,bk->eb", qt, w).argmin(0).view(1, -1, 1).expand(1, *qt.shape[1:])
-            target = reward + self.value_estimator.gamma * (1 - terminated.to(reward.dtype)) * qt.gather(0, idx)[0]
+            target = vector_td0_return_estimate(self.value_estimator.gamma, qt.gather(0, idx)[0], reward, terminated)
         q = self._critic(self.qvalue_network_params, obs, action, w)
         loss_q = torch.stack([F.mse_loss(q[e], target) for e in range(q.shape[0])]).mean()
         err = ((q[0] - target).detach().abs() * 0.05)[:b]

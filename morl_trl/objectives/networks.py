@@ -437,11 +437,7 @@ def make_gaussian_actor(
         >>> clamped(td)["action"].shape
         torch.Size([4, 2])
     """
-    if scale not in SCALE_PARAMETERIZATIONS:
-        raise ValueError(f"scale={scale!r}; valid values are {SCALE_PARAMETERIZATIONS}")
-    lo, hi = (float(b) for b in log_std_bounds)
-    if not lo < hi:
-        raise ValueError(f"log_std_bounds must be (min, max) with min < max, got {log_std_bounds!r}")
+    lo, hi = _check_scale(scale, log_std_bounds)
     action_dim = action_spec.shape[-1]
     in_keys = [observation_key]
     width = obs_dim
@@ -449,10 +445,29 @@ def make_gaussian_actor(
         in_keys.append(preference_key)
         width += num_objectives
     mlp = PreferenceConditionedMLP(width, 2 * action_dim, num_cells=num_cells, activation=activation)
-    net = _LocScale(mlp) if scale == "softplus" else _LocClampedLogStd(mlp, lo, hi)
-    module = TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"])
+    return _tanh_normal_actor(_gaussian_head(mlp, scale, (lo, hi)), in_keys, action_spec, action_key)
+
+
+def _check_scale(scale: str, log_std_bounds: tuple[float, float]) -> tuple[float, float]:
+    """Validates a Gaussian head's ``scale`` and ``log_std_bounds``; returns the bounds as floats."""
+    if scale not in SCALE_PARAMETERIZATIONS:
+        raise ValueError(f"scale={scale!r}; valid values are {SCALE_PARAMETERIZATIONS}")
+    lo, hi = (float(b) for b in log_std_bounds)
+    if not lo < hi:
+        raise ValueError(f"log_std_bounds must be (min, max) with min < max, got {log_std_bounds!r}")
+    return lo, hi
+
+
+def _gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float]) -> nn.Module:
+    """``net``'s output ``[..., 2 d]`` as ``(loc, scale)``: the biased softplus or the clamped log-std."""
+    lo, hi = _check_scale(scale, log_std_bounds)
+    return _LocScale(net) if scale == "softplus" else _LocClampedLogStd(net, lo, hi)
+
+
+def _tanh_normal_actor(net: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
+    """``ProbabilisticActor``: ``net`` writes ``(loc, scale)``, a ``TanhNormal`` within ``action_spec``'s bounds."""
     return ProbabilisticActor(
-        module,
+        TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"]),
         in_keys=["loc", "scale"],
         out_keys=[action_key],
         spec=Composite({action_key: action_spec}),
@@ -490,11 +505,15 @@ def make_categorical_actor(
         in_keys.append(preference_key)
         width += num_objectives
     net = PreferenceConditionedMLP(width, num_actions, num_cells=num_cells, activation=activation, encoder=encoder)
-    module = TensorDictModule(net, in_keys=in_keys, out_keys=["logits"])
     if action_spec is None:
         action_spec = Categorical(num_actions)
+    return _categorical_actor(net, in_keys, action_spec, action_key)
+
+
+def _categorical_actor(net: nn.Module, in_keys, action_spec: TensorSpec, action_key: NestedKey) -> ProbabilisticActor:
+    """``ProbabilisticActor``: ``net`` writes ``logits``, the categorical matching ``action_spec`` (one-hot or index)."""
     return ProbabilisticActor(
-        module,
+        TensorDictModule(net, in_keys=in_keys, out_keys=["logits"]),
         in_keys=["logits"],
         out_keys=[action_key],
         spec=Composite({action_key: action_spec}),

@@ -29,7 +29,21 @@ from torchrl.objectives.value.functional import generalized_advantage_estimate
 __all__ = ["PopulationMLP", "make_population_actor", "make_population_critic", "vector_gae", "scalarize_advantage"]
 
 
-class PopulationMLP(nn.Module):
+class _MemberStates:
+    """``member_state`` / ``load_member_state`` for a module whose every parameter has the population first."""
+
+    def member_state(self, p: int) -> dict[str, torch.Tensor]:
+        """A copy of member ``p``'s parameters (name -> tensor without the population dim)."""
+        return {name: t[p].detach().clone() for name, t in self.named_parameters()}
+
+    def load_member_state(self, p: int, state: dict[str, torch.Tensor]) -> None:
+        """Overwrite member ``p``'s parameters with ``state`` (from :meth:`member_state`)."""
+        with torch.no_grad():
+            for name, t in self.named_parameters():
+                t[p].copy_(state[name])
+
+
+class PopulationMLP(_MemberStates, nn.Module):
     """``P`` MLPs with their own weights, run as one batched module.
 
     Example:
@@ -67,18 +81,8 @@ class PopulationMLP(nn.Module):
                 h = torch.tanh(h)
         return h.reshape(*lead, self.out_features)
 
-    def member_state(self, p: int) -> dict[str, torch.Tensor]:
-        """A copy of member ``p``'s parameters (name -> tensor without the population dim)."""
-        return {name: t[p].detach().clone() for name, t in self.named_parameters()}
 
-    def load_member_state(self, p: int, state: dict[str, torch.Tensor]) -> None:
-        """Overwrite member ``p``'s parameters with ``state`` (from :meth:`member_state`)."""
-        with torch.no_grad():
-            for name, t in self.named_parameters():
-                t[p].copy_(state[name])
-
-
-class _GaussianHead(nn.Module):
+class _GaussianHead(_MemberStates, nn.Module):
     """``obs -> (loc, scale)``: the population's mean MLP and a log-std per member and action dim."""
 
     def __init__(self, mean: PopulationMLP, action_dim: int) -> None:
@@ -90,14 +94,6 @@ class _GaussianHead(nn.Module):
         loc = self.mean(obs)
         per_member = loc.reshape(self.mean.population, -1, loc.shape[-1])
         return loc, self.log_std.exp().expand_as(per_member).reshape(loc.shape)
-
-    def member_state(self, p: int) -> dict[str, torch.Tensor]:
-        return {name: t[p].detach().clone() for name, t in self.named_parameters()}
-
-    def load_member_state(self, p: int, state: dict[str, torch.Tensor]) -> None:
-        with torch.no_grad():
-            for name, t in self.named_parameters():
-                t[p].copy_(state[name])
 
 
 def make_population_actor(population: int, obs_dim: int, action_dim: int, num_cells: Sequence[int] = (64, 64)):

@@ -42,15 +42,20 @@ from tensordict import TensorDict, TensorDictBase, TensorDictParams
 from tensordict.nn import TensorDictModule, dispatch
 from tensordict.utils import NestedKey
 from torch import Tensor, nn
-from torchrl.data import Bounded, Categorical, Composite, TensorSpec
+from torchrl.data import Bounded, Categorical, TensorSpec
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.modules import ProbabilisticActor, TanhNormal
+from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import _cache_values
 
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
-from morl_trl.objectives.networks import DEFAULT_NUM_CELLS, _LocClampedLogStd, _LocScale, _discrete_distribution
+from morl_trl.objectives.networks import (
+    DEFAULT_NUM_CELLS,
+    _categorical_actor,
+    _gaussian_head,
+    _tanh_normal_actor,
+)
 
 __all__ = [
     "PopulationLinear",
@@ -203,33 +208,6 @@ class NearestMemberRouter(nn.Module):
 
 
 # ---------------------------------------------------------------------- builders
-def _gaussian_head(net: nn.Module, scale: str, log_std_bounds) -> nn.Module:
-    if scale == "softplus":
-        return _LocScale(net)
-    if scale == "clamped_log_std":
-        return _LocClampedLogStd(net, *log_std_bounds)
-    raise ValueError(f"scale={scale!r}; valid values are ('softplus', 'clamped_log_std')")
-
-
-def _gaussian_actor(module: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
-    return ProbabilisticActor(
-        TensorDictModule(module, in_keys=in_keys, out_keys=["loc", "scale"]),
-        in_keys=["loc", "scale"], out_keys=[action_key], spec=Composite({action_key: action_spec}),
-        distribution_class=TanhNormal,
-        distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high},
-        return_log_prob=False,
-    )
-
-
-def _categorical_actor(module: nn.Module, in_keys, action_spec: TensorSpec,
-                       action_key: NestedKey) -> ProbabilisticActor:
-    return ProbabilisticActor(
-        TensorDictModule(module, in_keys=in_keys, out_keys=["logits"]),
-        in_keys=["logits"], out_keys=[action_key], spec=Composite({action_key: action_spec}),
-        distribution_class=_discrete_distribution(action_spec), return_log_prob=False,
-    )
-
-
 def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: Bounded, *,
                                    num_cells: Sequence[int] = DEFAULT_NUM_CELLS, scale: str = "softplus",
                                    log_std_bounds: tuple[float, float] = (-20.0, 2.0),
@@ -242,7 +220,7 @@ def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: B
     with ``preference_key=None``.
     """
     mlp = PopulationMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
-    return _gaussian_actor(_gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
+    return _tanh_normal_actor(_gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
 
 
 def make_population_categorical_actor(population: int, obs_dim: int, num_actions: int, *,
@@ -288,7 +266,7 @@ def population_policies(actor: ProbabilisticActor, weights: Tensor) -> tuple[Pro
     spec = actor.spec
     action_key = actor.module[-1].out_keys[0]
     action_spec = spec[action_key]
-    make = _gaussian_actor if "loc" in tdm.out_keys else _categorical_actor
+    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
     explore = make(MemberRouter(head, population), tdm.in_keys, action_spec, action_key)
     evaluate = make(NearestMemberRouter(head, weights), [*tdm.in_keys, "preference"], action_spec, action_key)
     return explore, evaluate

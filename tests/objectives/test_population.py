@@ -157,3 +157,14 @@ def test_bad_batch_and_weights_raise():
         pop(_batch(torch.zeros(P, B, 2))[:2])
     with pytest.raises(ValueError, match="shape"):
         pop.set_weights(W[:2])
+
+
+def test_population_gaussian_head_is_the_single_actors():
+    spec = Bounded(-1.0, 1.0, (2,))
+    for scale, name in (("softplus", "_LocScale"), ("clamped_log_std", "_LocClampedLogStd")):
+        actor = make_population_gaussian_actor(P, OBS, spec, num_cells=(8,), scale=scale)
+        assert type(actor.module[0].module).__name__ == name
+    with pytest.raises(ValueError, match=r"scale='exp'; valid values are \('softplus', 'clamped_log_std'\)"):
+        make_population_gaussian_actor(P, OBS, spec, scale="exp")
+    with pytest.raises(ValueError, match="log_std_bounds must be"):
+        make_population_gaussian_actor(P, OBS, spec, scale="clamped_log_std", log_std_bounds=(2.0, -20.0))
