@@ -69,7 +69,9 @@ from morl_trl.recipes.agent import (
     Agent,
     NonFiniteLossError,
     action_spec,
+    adam,
     eval_exploration,
+    fused_choice,
     is_discrete,
     num_objectives,
     obs_shape,
@@ -327,7 +329,7 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     critic = make_population_critic(P, obs_dim, k, cfg.hidden).to(device)
     loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.pgmorl_clip, entropy_bonus=False, critic_coeff=0.25,
                        loss_critic_type="l2", normalize_advantage=False, clip_value=cfg.pgmorl_clip)
-    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.lr, eps=1e-5)
+    optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg), eps=1e-5)  # the authors' eps
     grid = torch.as_tensor(generate_weights(cfg.pgmorl_delta_weight, k))
     weights = grid[torch.arange(P) % grid.shape[0]].clone().to(device)
     head = actor.module[0].module
