@@ -186,10 +186,10 @@ class MORLDAgent(Agent):
         members' sums, on the device (member ``p`` owns rows ``p * N .. p * N + N - 1``): no host read."""
         nxt = batch.get("next")
         p = self.population
-        done = nxt.get("done").reshape(p, -1).to(self._return_sum.dtype)
+        done = nxt.get("done").reshape(p, -1, 1)
         ret = nxt.get("episode_discounted_return").detach().reshape(p, -1, self._return_sum.shape[-1])
-        self._return_sum += (ret.to(self._return_sum.dtype) * done.unsqueeze(-1)).sum(1)
-        self._return_count += done.sum(1).long()
+        self._return_sum += torch.where(done, ret.to(self._return_sum.dtype), 0.0).sum(1)
+        self._return_count += done.sum((1, 2))
 
     def member_evaluations(self) -> torch.Tensor:
         """``[P, k]``: each member's mean discounted return since the last exchange (NaN: no episode ended)."""

@@ -236,11 +236,14 @@ class PGMORLAgent(Agent):
         return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
 
     def _record_performance(self, b: TensorDictBase) -> None:
-        done = b.get(("next", "done")).squeeze(-1)  # [P, E, T]
-        ret = b.get(("next", "episode_discounted_return")).double()
-        for p in range(self.P):
-            if bool(done[p].any()):
-                self.performance[p] = ret[p][done[p]].mean(0).cpu().numpy()
+        """Each member's mean discounted return over its episodes ending in ``b`` (one host read)."""
+        k = self.performance.shape[-1]
+        done = b.get(("next", "done")).reshape(self.P, -1, 1)  # [P, E * T, 1]
+        ret = b.get(("next", "episode_discounted_return")).double().reshape(self.P, -1, k)
+        sums = torch.where(done, ret, 0.0).sum(1)
+        stats = torch.cat([sums, done.sum(1).double()], -1).cpu().numpy()  # [P, k + 1]: sums, count
+        ended = stats[:, k] > 0
+        self.performance[ended] = stats[ended, :k] / stats[ended, k:]
 
     def _member_state(self, p: int) -> dict:
         return {"actor": self.head.member_state(p), "critic": self.critic.module.member_state(p)}
