@@ -224,8 +224,7 @@ class GPIAgent(Agent):
         opt = self.optimizers["qvalue"]
         opt.zero_grad(set_to_none=True)
         total.backward()
-        if self.cfg.max_grad_norm is not None:
-            torch.nn.utils.clip_grad_norm_([p for g in opt.param_groups for p in g["params"]], self.cfg.max_grad_norm)
+        self._clip_gradients()
         opt.step()
         if self.cfg.prioritized:
             if real is not batch:
