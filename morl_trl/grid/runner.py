@@ -168,28 +168,14 @@ class GridProgress:
         """A ``ray.tune.Callback`` forwarding Tune's events to this object."""
         from ray import tune
 
-        progress = self
+        def forward(event):
+            return lambda _cb, *a, **k: getattr(self, event)(*a, **k)
 
-        class _Callback(tune.Callback):
-            def on_trial_start(self, *a, **k):
-                progress.on_trial_start(*a, **k)
+        return type("_Callback", (tune.Callback,), {event: forward(event) for event in _EVENTS})()
 
-            def on_trial_recover(self, *a, **k):
-                progress.on_trial_recover(*a, **k)
 
-            def on_trial_complete(self, *a, **k):
-                progress.on_trial_complete(*a, **k)
-
-            def on_trial_error(self, *a, **k):
-                progress.on_trial_error(*a, **k)
-
-            def on_step_begin(self, *a, **k):
-                progress.on_step_begin(*a, **k)
-
-            def on_experiment_end(self, *a, **k):
-                progress.on_experiment_end(*a, **k)
-
-        return _Callback()
+_EVENTS = ("on_trial_start", "on_trial_recover", "on_trial_complete", "on_trial_error", "on_step_begin",
+           "on_experiment_end")  # the Tune events a progress object follows
 
 
 def _init_ray(address: str | None, num_cpus: int | None, num_gpus: float | None) -> bool:

@@ -17,7 +17,7 @@ from torchrl.objectives import HardUpdate
 from morl_trl.objectives import PolyakUpdate
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers", "eval_exploration", "adam"]
+           "target_updater", "actor_critic_optimizers", "eval_exploration"]
 
 
 def _captures(cfg) -> bool:
@@ -227,14 +227,15 @@ def fused_choice(cfg) -> bool | None:
     return None if getattr(cfg, "fused_optimizer", True) else False
 
 
-def adam(params, lr: float, *, fused: bool | None = None) -> torch.optim.Adam:
+def adam(params, lr: float, *, fused: bool | None = None, **kwargs) -> torch.optim.Adam:
     """``torch.optim.Adam`` over ``params``, fused when torch has a fused kernel for them.
 
     The fused implementation updates every parameter in one kernel (on a CPU core ~4x faster
     than the per-tensor loop torch picks there by default) with Adam's arithmetic unchanged
     (results agree to float rounding), and it can skip a step on the device without reading
     the host (``found_inf``), which the captured update relies on. ``fused=None`` (the default):
-    fused when every parameter is a floating point tensor on the CPU or a CUDA device.
+    fused when every parameter is a floating point tensor on the CPU or a CUDA device. Other
+    keyword arguments (e.g. ``eps``) go to ``torch.optim.Adam``.
 
     Example:
         >>> opt = adam([torch.nn.Parameter(torch.zeros(3))], lr=1e-3)
@@ -244,7 +245,7 @@ def adam(params, lr: float, *, fused: bool | None = None) -> torch.optim.Adam:
     params = list(params)
     if fused is None:
         fused = all(p.is_floating_point() and p.device.type in ("cpu", "cuda") for p in params)
-    return torch.optim.Adam(params, lr=lr, fused=bool(fused))
+    return torch.optim.Adam(params, lr=lr, fused=bool(fused), **kwargs)
 
 
 def actor_critic_optimizers(cfg, loss) -> dict:

@@ -55,7 +55,8 @@ from morl_trl.objectives.dynamics import model_inputs
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
+                                    obs_shape)
 from morl_trl.runs.env_state import transforms_of
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -223,8 +224,7 @@ class GPIAgent(Agent):
         opt = self.optimizers["qvalue"]
         opt.zero_grad(set_to_none=True)
         total.backward()
-        if self.cfg.max_grad_norm is not None:
-            torch.nn.utils.clip_grad_norm_([p for g in opt.param_groups for p in g["params"]], self.cfg.max_grad_norm)
+        self._clip_gradients()
         opt.step()
         if self.cfg.prioritized:
             if real is not batch:
@@ -357,7 +357,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
                                       normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
         dynamics = DynamicsLoss(model, num_actions=num_actions)
     prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
-    optimizers = {"qvalue": torch.optim.Adam(loss.value_network_params.values(True, True), lr=cfg.lr)}
+    optimizers = {"qvalue": adam(loss.value_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg))}
     return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=egreedy, gamma=gamma,
                     preference_transform=prefs[-1] if prefs else None, num_actions=num_actions, dynamics=dynamics)
 
@@ -383,8 +383,8 @@ def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.de
                                       normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
         dynamics = DynamicsLoss(model, num_actions=None)
     prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
-    optimizers = {"qvalue": torch.optim.Adam(loss.qvalue_network_params.values(True, True), lr=cfg.lr),
-                  "actor": torch.optim.Adam(loss.actor_network_params.values(True, True), lr=cfg.lr)}
+    optimizers = {"qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),
+                  "actor": adam(loss.actor_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg))}
     return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=None, gamma=gamma,
                     preference_transform=prefs[-1] if prefs else None, num_actions=None, dynamics=dynamics,
                     gpi_policy=gpi_policy)

@@ -148,8 +148,8 @@ class MORLDAgent(Agent):
         self.num_envs_per_member = num_envs_per_member
         self.archive = ParetoArchive()
         k = loss.num_objectives
-        self._return_sum = torch.zeros(self.population, k, dtype=torch.float64)
-        self._return_count = torch.zeros(self.population, dtype=torch.long)
+        self._return_sum = torch.zeros(self.population, k, dtype=torch.float64, device=device)
+        self._return_count = torch.zeros(self.population, dtype=torch.long, device=device)
         self._next_exchange = cfg.exchange_every
         self._member_frames = 0  # member frames not yet turned into updates (update_frequency)
         self.exchanges = 0
@@ -182,21 +182,19 @@ class MORLDAgent(Agent):
         return batch.to(self.device).reshape(p, b)
 
     def _record_returns(self, batch: TensorDictBase) -> None:
+        """Add the discounted returns of the episodes ending in ``batch`` ``[P * N, T]`` to their
+        members' sums, on the device (member ``p`` owns rows ``p * N .. p * N + N - 1``): no host read."""
         nxt = batch.get("next")
-        done = nxt.get("done").squeeze(-1)  # [P * N, T]
-        if not done.any():
-            return
-        member = torch.arange(done.shape[0], device=done.device) // self.num_envs_per_member
-        member = member.view(-1, *([1] * (done.ndim - 1))).expand_as(done)[done].cpu()
-        ret = nxt.get("episode_discounted_return")[done].detach().double().cpu()
-        self._return_sum.index_add_(0, member, ret)
-        self._return_count.index_add_(0, member, torch.ones_like(member))
+        p = self.population
+        done = nxt.get("done").reshape(p, -1, 1)
+        ret = nxt.get("episode_discounted_return").detach().reshape(p, -1, self._return_sum.shape[-1])
+        self._return_sum += torch.where(done, ret.to(self._return_sum.dtype), 0.0).sum(1)
+        self._return_count += done.sum((1, 2))
 
     def member_evaluations(self) -> torch.Tensor:
         """``[P, k]``: each member's mean discounted return since the last exchange (NaN: no episode ended)."""
-        count = self._return_count.unsqueeze(-1).double()
-        nan = torch.full_like(self._return_sum, math.nan)
-        return torch.where(count > 0, self._return_sum / count.clamp(min=1), nan)
+        total, count = self._return_sum.cpu(), self._return_count.unsqueeze(-1).double().cpu()
+        return torch.where(count > 0, total / count.clamp(min=1), torch.full_like(total, math.nan))
 
     @torch.no_grad()
     def exchange(self) -> None:

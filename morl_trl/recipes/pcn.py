@@ -47,7 +47,8 @@ from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
-from morl_trl.recipes.agent import Agent, NonFiniteLossError, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
+                                    obs_shape)
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 from morl_trl.transforms.command import DesiredReturnConditioning
 
@@ -264,7 +265,7 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     action_dim = spec.space.n if discrete else int(spec.shape[-1])
     net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.pcn_hidden, discrete=discrete).to(device)
     loss = PCNLoss(net)
-    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.lr)
+    optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))
     explore = PCNPolicy(net, spec, mode="explore", noise=cfg.pcn_noise)
     holder: dict = {}
     evalp = PCNPolicy(net, spec, mode="eval", weights=energy_weights(k, cfg.eval_weights).float(),

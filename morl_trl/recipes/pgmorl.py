@@ -69,7 +69,9 @@ from morl_trl.recipes.agent import (
     Agent,
     NonFiniteLossError,
     action_spec,
+    adam,
     eval_exploration,
+    fused_choice,
     is_discrete,
     num_objectives,
     obs_shape,
@@ -234,11 +236,14 @@ class PGMORLAgent(Agent):
         return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
 
     def _record_performance(self, b: TensorDictBase) -> None:
-        done = b.get(("next", "done")).squeeze(-1)  # [P, E, T]
-        ret = b.get(("next", "episode_discounted_return")).double()
-        for p in range(self.P):
-            if bool(done[p].any()):
-                self.performance[p] = ret[p][done[p]].mean(0).cpu().numpy()
+        """Each member's mean discounted return over its episodes ending in ``b`` (one host read)."""
+        k = self.performance.shape[-1]
+        done = b.get(("next", "done")).reshape(self.P, -1, 1)  # [P, E * T, 1]
+        ret = b.get(("next", "episode_discounted_return")).double().reshape(self.P, -1, k)
+        sums = torch.where(done, ret, 0.0).sum(1)
+        stats = torch.cat([sums, done.sum(1).double()], -1).cpu().numpy()  # [P, k + 1]: sums, count
+        ended = stats[:, k] > 0
+        self.performance[ended] = stats[ended, :k] / stats[ended, k:]
 
     def _member_state(self, p: int) -> dict:
         return {"actor": self.head.member_state(p), "critic": self.critic.module.member_state(p)}
@@ -327,7 +332,7 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     critic = make_population_critic(P, obs_dim, k, cfg.hidden).to(device)
     loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.pgmorl_clip, entropy_bonus=False, critic_coeff=0.25,
                        loss_critic_type="l2", normalize_advantage=False, clip_value=cfg.pgmorl_clip)
-    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.lr, eps=1e-5)
+    optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg), eps=1e-5)  # the authors' eps
     grid = torch.as_tensor(generate_weights(cfg.pgmorl_delta_weight, k))
     weights = grid[torch.arange(P) % grid.shape[0]].clone().to(device)
     head = actor.module[0].module

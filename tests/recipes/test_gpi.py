@@ -109,3 +109,9 @@ def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
     assert n == 2 and len(agent.model_buffer) == 100  # 50 observations x 2 model steps
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
     assert agent.iteration == 2 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_optimizer_follows_fused_optimizer(fused):
+    _, _, agent = _agent("gpi_ls", fused_optimizer=fused)
+    assert [g["fused"] for g in agent.optimizers["qvalue"].param_groups] == [fused]

@@ -169,3 +169,9 @@ def test_pcn_network_takes_images_through_the_nature_cnn():
     assert logp.shape == (2, 7) and torch.allclose(logp.exp().sum(-1), torch.ones(2))
     with pytest.raises(ValueError, match="scaling_factor needs num_objectives \\+ 1 = 4 values"):
         PCNNetwork(8, 4, 3, [0.1] * 3)
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_optimizer_follows_fused_optimizer(fused):
+    _, _, agent = _agent(fused_optimizer=fused)
+    assert [g["fused"] for g in agent.optimizers["policy"].param_groups] == [fused]

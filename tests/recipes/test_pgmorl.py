@@ -196,3 +196,10 @@ def test_a_tiny_pgmorl_run_resumes_with_its_population(tmp_path):
     n = len(first.predictor)  # the prediction samples of the first part carried over, one more evaluation added
     assert n >= 2 and len(agent.predictor) == n + 2
     assert all(np.array_equal(a, b) for a, b in zip(agent.predictor.after[:n], first.predictor.after))
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_optimizer_follows_fused_optimizer_with_the_authors_eps(fused):
+    _, _, agent = _agent(fused_optimizer=fused)
+    (group,) = agent.optimizers["ppo"].param_groups
+    assert (group["fused"], group["eps"]) == (fused, 1e-5)
