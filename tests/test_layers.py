@@ -15,7 +15,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "morl_trl"
 ALLOWED = {
     "preferences": set(),
     "metrics": {"preferences"},
-    "data": set(),
+    "data": {"metrics", "preferences"},  # (metrics: the Pareto mathematics, e.g. PCN's non-dominated episodes)
     "envs": set(),
     "transforms": {"envs", "preferences"},
     "gym": {"envs"},

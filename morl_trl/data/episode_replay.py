@@ -17,9 +17,9 @@ again on tensors:
 
 from __future__ import annotations
 
-import moocore
-import numpy as np
 import torch
+
+from morl_trl.metrics.pareto import is_nondominated
 
 __all__ = ["EpisodeReplay", "crowding_distance", "nondominated_mask"]
 
@@ -28,8 +28,7 @@ def nondominated_mask(points: torch.Tensor) -> torch.Tensor:
     """``[n]`` bool: the first copy of every non-dominated row of ``points`` ``[n, k]`` (maximization)."""
     if points.shape[0] == 0:
         return torch.zeros(0, dtype=torch.bool)
-    arr = np.ascontiguousarray(points.detach().cpu().double().numpy())
-    return torch.from_numpy(moocore.is_nondominated(arr, maximise=True, keep_weakly=False).copy())
+    return torch.from_numpy(is_nondominated(points.detach().cpu().double()).copy())
 
 
 def crowding_distance(points: torch.Tensor) -> torch.Tensor:

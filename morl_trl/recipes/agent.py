@@ -54,6 +54,9 @@ class Agent:
         self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
         self._captured = None  # the compiled / CUDA-graphed / device-guarded update, built on first use
         self._guard = None
+        if _captures(cfg) and type(self).update is not Agent.update:
+            raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent "
+                             f"({type(self).__name__}) writes its own update: set compile=false and cudagraphs=false")
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:

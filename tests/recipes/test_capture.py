@@ -191,3 +191,14 @@ def test_the_device_guard_is_used_on_accelerators_and_with_capture_only():
     assert agent._device_guard() is False  # a per-tensor optimizer cannot skip on the device: host check
     _, agent, _ = setup("capql", compile=True)
     assert agent._device_guard() is True
+
+
+@pytest.mark.parametrize("algo, env_id", [("gpi_ls", "MOLavaGridDR-v0"), ("pcn", "MOLavaGridDR-v0")])
+def test_capture_is_refused_for_agents_with_their_own_update(algo, env_id):
+    from morl_trl.recipes import build_agent, build_training_env
+
+    cfg = resolve_config(algo, env_id, hidden=(16,), num_envs=2, compile=True)
+    env = build_training_env(cfg, torch.device("cpu"))
+    with pytest.raises(ValueError, match=rf"compile / cudagraphs capture Agent.update; {algo}'s agent .* writes "
+                                         r"its own update: set compile=false"):
+        build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
