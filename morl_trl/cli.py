@@ -108,6 +108,9 @@ def train_main(argv: list[str]) -> int:
                    "already reached its frames is left as it is")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the contents of a non-empty --run-dir (without it, a non-empty run dir is an error)")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="with --resume: accept a checkpoint of the old pickled format (loading it can run code "
+                   "stored in it; only for a run you trust). `morl-trl convert-run RUN` converts it once instead")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
     args = p.parse_intermixed_args(argv)
@@ -119,7 +122,7 @@ def train_main(argv: list[str]) -> int:
         if args.print_config:
             print(cfg.to_toml())
             return 0
-        return _run_training(lambda: train(cfg, resume=args.resume))
+        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle))
     reference = args.reference or _default_reference()
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
                  logger=args.logger, progress=False if args.no_progress else None)
@@ -181,6 +184,9 @@ def evaluate_main(argv: list[str]) -> int:
                    help="the preference of the recorded episodes (default: equal weights)")
     p.add_argument("--video-format", choices=("auto", "gif", "mp4", "pt"), default="auto",
                    help="clip format (default auto: mp4 if torchcodec is installed, else gif)")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="accept a checkpoint of the old pickled format (loading it can run code stored in it; only "
+                   "for a run you trust). `morl-trl convert-run RUN` converts it once instead")
     args = p.parse_args(argv)
     from morl_trl.recipes import evaluate_run
 
@@ -191,7 +197,22 @@ def evaluate_main(argv: list[str]) -> int:
         except ValueError:
             raise ValueError(f"--video-weight {args.video_weight!r}: give comma-separated numbers, e.g. 0.5,0.5") from None
     evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights,
-                 video=args.video, video_weight=weight, video_format=args.video_format)
+                 video=args.video, video_weight=weight, video_format=args.video_format, trust_pickle=args.trust_pickle)
+    return 0
+
+
+def convert_run_main(argv: list[str]) -> int:
+    p = _Parser(prog="morl-trl convert-run",
+                description="Rewrite a run's checkpoints of the old pickled format (before 2026-11-26) as tensors "
+                            "and plain data, once, so that loading the run never unpickles anything. This loads "
+                            "the old pickles one last time: convert only a run you trust.")
+    p.add_argument("run_dir")
+    args = p.parse_args(argv)
+    from morl_trl.recipes.convert import convert_run
+
+    done = convert_run(args.run_dir)
+    print(f"converted {len(done)} checkpoint(s) of {args.run_dir}" + (f": {', '.join(done)}" if done else
+                                                                       " (all were already in the current format)"))
     return 0
 
 
@@ -504,6 +525,7 @@ COMMANDS = {
     "reference-manifest": (reference_manifest_main, "check reference data against the published files' manifest "
                            "(or --write it)"),
     "floors": (floors_main, "NHGR of trivial policies (random, constant actions) per domain: the honest floors"),
+    "convert-run": (convert_run_main, "rewrite a run's old pickled checkpoints as tensors + plain data (once)"),
     "grid": (grid_main, "run algorithms x domains x seeds on Ray, resumable; grid report DIR: the paper's table"),
 }
 
@@ -521,11 +543,19 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if argv[0] not in COMMANDS:
         parser.error(f"unknown command {argv[0]!r}; valid: {sorted(COMMANDS)}")
+    from morl_trl.runs.lock import RunLockedError
+
     try:
         return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
-    except ValueError as err:  # bad input: say what is wrong and what is valid, no traceback
+    except (ValueError, RunLockedError) as err:  # bad input: say what is wrong and what is valid, no traceback
         print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:  # the machine's (a full disk, a read-only folder): what could not be done, no traceback
+        print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:  # a second Ctrl-C: exit at once
+        print(f"morl-trl {argv[0]}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -364,7 +364,10 @@ class TrainConfig:
         return "\n".join(lines)
 
     def save(self, path: str | Path) -> None:
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2, sort_keys=True))
+        """Write ``config.json`` atomically (a kill leaves the old file or the new one, never half)."""
+        from morl_trl.runs.atomic import atomic_write_text
+
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, sort_keys=True))
 
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":

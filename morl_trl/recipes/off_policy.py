@@ -32,6 +32,7 @@ from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
 from morl_trl.runs.checkpoint import (
     checkpoint_buffer,
+    checkpoint_format,
     checkpoint_frames,
     find_checkpoint,
     load_checkpoint,
@@ -168,7 +169,7 @@ def _default_run_dir(cfg: TrainConfig) -> Path:
 EXIT_NON_FINITE_LOSS = 3
 
 
-def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, Path, list[str]]:
+def _resume_point(cfg: TrainConfig | None, run_dir: Path, trust_pickle: bool = False) -> tuple[TrainConfig, Path, list[str]]:
     """The config to continue with and the newest intact checkpoint (with notes on skipped ones)."""
     saved = run_dir / "config.json"
     if not saved.is_file():
@@ -186,6 +187,8 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, 
         what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
         raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
                          f"start it again with --overwrite")
+    if checkpoint_format(ckpt) < 2 and not trust_pickle:  # refused before anything is built or written
+        load_checkpoint(ckpt)
     return cfg, ckpt, notes
 
 
@@ -202,7 +205,8 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
                              f"(it holds {held[:5]}): choose another --run-dir")
 
 
-def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:
+def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False,
+          trust_pickle: bool = False) -> dict:
     """Run (or resume) a training run; returns the last evaluation summary
     (:func:`morl_trl.train` returns the run directory, summary, config and the trained policy).
 
@@ -216,17 +220,19 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
       uninterrupted one, others restart their episodes.
     * A non-finite loss stops the run: the last good state is checkpointed, log.txt and
       report.md say so, and :class:`NonFiniteLossError` is raised.
+    * ``trust_pickle``: resume from a checkpoint of the old pickled format (it can run code
+      stored in it; ``morl-trl convert-run`` converts a run once instead).
 
     Example:
         >>> from morl_trl.recipes import resolve_config, train
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
-    return run_training(cfg, resume=resume, overwrite=overwrite)[0]
+    return run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)[0]
 
 
 def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = None,
-                 overwrite: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
+                 overwrite: bool = False, trust_pickle: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
     """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
     and the config it ran with."""
@@ -235,7 +241,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         if overwrite:
             raise ValueError("resume continues a run and overwrite replaces it: choose one")
         run_dir = Path(resume)
-        cfg, ckpt, notes = _resume_point(cfg, run_dir)
+        cfg, ckpt, notes = _resume_point(cfg, run_dir, trust_pickle)
         done = checkpoint_frames(ckpt)
         if done >= cfg.frames:
             msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
@@ -262,7 +268,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     frames, updates, next_eval, next_ckpt, last_eval = 0, 0, 0, cfg.checkpoint_interval, -1
     state = None
     if ckpt is not None:
-        state = load_checkpoint(ckpt, buffer, map_location=device)
+        state = load_checkpoint(ckpt, buffer, map_location=device, trust_pickle=trust_pickle)
         agent.load_state_dict(state["agent"])
         frames, updates, last_eval = state["frames"], state["updates"], state["last_eval"]
         next_eval, next_ckpt = state["next_eval"], state["next_ckpt"]
@@ -401,7 +407,7 @@ def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint)
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,
-                 video: bool = False, video_weight=None, video_format: str = "auto") -> dict:
+                 video: bool = False, video_weight=None, video_format: str = "auto", trust_pickle: bool = False) -> dict:
     """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite.
 
     With ``video``, also record one episode per evaluation context with ``video_weight``
@@ -417,17 +423,18 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         cfg.reference_dir = reference_dir
     if weights is not None:
         cfg.eval_weights = weights
-    ckpt, skipped = find_checkpoint(run_dir)
+    ckpt, skipped = find_checkpoint(run_dir, only=("state.pt",))  # (evaluating needs no replay buffer)
     for path, why in skipped:
         print(f"warning: skipped damaged checkpoint {path.name}: {why}", flush=True)
     if ckpt is None:
         raise ValueError(f"{str(run_dir)!r} has no intact checkpoint to evaluate")
+    state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle)  # (refused before anything is written)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
     _, agent, reference, evaluator = _build(cfg, spec, device)
-    agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
+    agent.load_state_dict(state["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")
     log.reference = reference
     frames = checkpoint_frames(ckpt)

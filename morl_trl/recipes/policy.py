@@ -130,9 +130,11 @@ class TrainedPolicy(TensorDictModuleBase):
 
 def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
     """The verified checkpoint: ``None`` -> the newest intact one; a frame count or a name or
-    path of a checkpoint directory -> that one (``ValueError`` if it is missing or damaged)."""
+    path of a checkpoint directory -> that one (``ValueError`` if it is missing or damaged).
+    Only ``state.pt`` is verified: acting never needs the replay buffer, and a running training
+    may be pruning an older checkpoint's buffer meanwhile."""
     if checkpoint is None:
-        ckpt, skipped = find_checkpoint(run_dir)
+        ckpt, skipped = find_checkpoint(run_dir, only=("state.pt",))
         if ckpt is None:
             what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
             raise ValueError(f"{str(run_dir)!r} has no intact checkpoint ({what})")
@@ -145,14 +147,14 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
             path = run_dir / "checkpoints" / path
     if not path.is_dir():
         raise ValueError(f"checkpoint {str(path)!r} does not exist")
-    problem = verify_checkpoint(path)
+    problem = verify_checkpoint(path, only=("state.pt",))
     if problem is not None:
         raise ValueError(f"checkpoint {str(path)!r} is damaged: {problem}")
     return path
 
 
 def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
-                device: str | torch.device = "cpu") -> TrainedPolicy:
+                device: str | torch.device = "cpu", *, trust_pickle: bool = False) -> TrainedPolicy:
     """The trained eval policy of a run directory (see the module docstring).
 
     Args:
@@ -160,6 +162,8 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
         checkpoint: ``None`` for the newest intact checkpoint, else a frame count, a
             checkpoint directory name (``"frames_000000002048"``) or path; it is verified.
         device: where the policy's parameters go.
+        trust_pickle: load a checkpoint of the old pickled format (it can run code stored in
+            it: only for a run you trust; ``morl-trl convert-run`` converts it once instead).
 
     Raises:
         ValueError: ``run_dir`` is not a run directory, or has no intact checkpoint (naming it).
@@ -177,7 +181,7 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
     agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
     env.close()
-    state = load_checkpoint(ckpt, map_location=device)
+    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)
     agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
                            device=device)
@@ -206,7 +210,7 @@ class TrainResult:
 
 def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
                  config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
-                 **overrides: Any) -> TrainResult:
+                 trust_pickle: bool = False, **overrides: Any) -> TrainResult:
     """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
 
     ``train_policy("envelope", "MOLavaGridDR-v0", quick=True, frames=4_000, run_dir="runs/a")``
@@ -226,6 +230,6 @@ def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = Non
         if env_id is None:
             raise ValueError("train_policy(algo, env_id, ...): env_id is missing")
         cfg = resolve_config(algo, env_id, quick=quick, config_file=config_file, **overrides)
-    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite)
+    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)
     policy = load_policy(run_dir, device=cfg.device)
     return TrainResult(run_dir=Path(run_dir), summary=summary, policy=policy, config=cfg, agent=agent)

@@ -2,10 +2,20 @@
 
 A checkpoint is a directory ``checkpoints/frames_<N>/`` with ``state.pt`` (networks,
 optimizers, target params, schedules, the env's and transforms' running state, the
-collector's carried TensorDict, RNG states, counters), ``buffer/`` (the replay buffer,
-TorchRL's own ``dumps`` format) and ``manifest.json`` (the size and SHA-256 of every other
-file, written last). It is written to a temporary directory and renamed into place, so a
-kill mid-write leaves the previous checkpoint intact; ``latest`` names the newest one.
+collector's carried TensorDict, RNG states, counters), ``buffer.pt`` (the replay buffer's
+``state_dict()``: storage, sampler, writer) and ``manifest.json`` (``"format": 2``, the size
+and SHA-256 of every other file, written last). Both ``.pt`` files hold tensors and plain data
+only (:mod:`morl_trl.runs.plain`) and are read with ``torch.load(weights_only=True)``: nothing
+in a run directory is unpickled, so a shared run cannot run code on the machine that loads it.
+Every file is fsynced in a temporary directory that is renamed into place (and the directory
+fsynced), so a kill or a power cut mid-write leaves the previous checkpoint intact; ``latest``
+names the newest one. A write that fails (a full disk) removes its temporary directory and
+raises an ``OSError`` naming the checkpoint (:class:`~morl_trl.runs.atomic.DiskFullError`).
+
+Checkpoints of format 1 (before 2026-11-26: pickled ``state.pt``, TorchRL's ``buffer/`` dump
+with ``prefetch.pkl``) are refused (:class:`UntrustedCheckpointError`) unless the caller says
+it trusts them (``trust_pickle=True``, ``--trust-pickle``: a warning says what that means), or
+after a one-time conversion (``morl-trl convert-run RUN``, :func:`convert_checkpoint`).
 
 The ``keep`` newest checkpoints are kept, and only the newest holds the replay buffer (by far
 the largest part): once a newer checkpoint is complete, an older one's manifest is rewritten
@@ -25,16 +35,27 @@ import json
 import os
 import random
 import shutil
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from morl_trl.runs.atomic import atomic_write_text, disk_error, fsync_dir, fsync_tree
+from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain
+
 __all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "find_checkpoint", "verify_checkpoint",
-           "checkpoint_frames", "checkpoint_buffer", "rng_state", "set_rng_state", "MANIFEST"]
+           "checkpoint_frames", "checkpoint_buffer", "checkpoint_format", "convert_checkpoint", "rng_state",
+           "set_rng_state", "MANIFEST", "FORMAT", "UntrustedCheckpointError"]
 
 MANIFEST = "manifest.json"
+#: the checkpoint format written now (2: tensors and plain data only; 1: pickled, before 2026-11-26)
+FORMAT = 2
+
+
+class UntrustedCheckpointError(UnsafeFileError):
+    """A checkpoint of the old pickled format, refused because loading it could run code."""
 
 
 def rng_state() -> dict[str, Any]:
@@ -71,9 +92,11 @@ def checkpoint_frames(path: str | Path) -> int:
 
 
 def _write_manifest(directory: Path, manifest: dict[str, Any]) -> None:
-    tmp = directory / f".{MANIFEST}.tmp"
-    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
-    os.replace(tmp, directory / MANIFEST)
+    atomic_write_text(directory / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True))
+
+
+def _is_buffer(rel: str) -> bool:
+    return rel == "buffer.pt" or rel.startswith("buffer/")
 
 
 def _prune_buffer(ckpt: Path) -> None:
@@ -85,42 +108,59 @@ def _prune_buffer(ckpt: Path) -> None:
     except (OSError, ValueError):
         return  # a damaged checkpoint: left as it is for inspection
     if manifest.get("buffer") != "pruned" and ("buffer" in manifest.get("dirs", []) or manifest.get("buffer") == "saved"):
-        manifest["files"] = {k: v for k, v in manifest["files"].items() if not k.startswith("buffer/")}
+        manifest["files"] = {k: v for k, v in manifest["files"].items() if not _is_buffer(k)}
         manifest["dirs"] = [d for d in manifest.get("dirs", []) if d != "buffer" and not d.startswith("buffer/")]
         manifest["buffer"] = "pruned"
         _write_manifest(ckpt, manifest)
     if manifest.get("buffer") == "pruned":
         shutil.rmtree(ckpt / "buffer", ignore_errors=True)
+        (ckpt / "buffer.pt").unlink(missing_ok=True)
+
+
+def _save_pt(obj: Any, path: Path) -> None:
+    with path.open("wb") as fh:
+        save_plain(obj, fh)
 
 
 def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], replay_buffer=None, keep: int = 2) -> Path:
     """Atomically write a checkpoint at ``frames`` (with its manifest), keep the ``keep`` newest
-    and the replay buffer in the newest only (see the module docstring)."""
+    and the replay buffer in the newest only (see the module docstring).
+
+    ``state`` may hold tensors, plain data, TensorDicts and NumPy values (anything else is a
+    ``TypeError`` before anything is written). A failed write (``OSError``, e.g. a full disk)
+    leaves the previous checkpoints as they were and names the checkpoint it could not write."""
     if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
         raise ValueError(f"keep must be an int >= 1, got {keep!r}")
     root = Path(run_dir) / "checkpoints"
-    root.mkdir(parents=True, exist_ok=True)
     final = root / f"frames_{frames:012d}"
     tmp = root / f".tmp_frames_{frames:012d}"
-    for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
-        shutil.rmtree(stale, ignore_errors=True)
-    tmp.mkdir()
-    torch.save(state, tmp / "state.pt")
-    if replay_buffer is not None:
-        replay_buffer.dumps(tmp / "buffer")
-    manifest = {
-        "frames": int(frames),
-        "buffer": "saved" if replay_buffer is not None else "none",
-        "files": {p.relative_to(tmp).as_posix(): {"size": p.stat().st_size, "sha256": _sha256(p)} for p in _files(tmp)},
-        "dirs": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_dir()),
-    }
-    (tmp / MANIFEST).write_text(json.dumps(manifest, indent=1, sort_keys=True))  # last: its presence = complete
-    shutil.rmtree(final, ignore_errors=True)
-    os.replace(tmp, final)
-    latest = root / "latest"
-    tmp_link = root / ".latest_tmp"
-    tmp_link.write_text(final.name)
-    os.replace(tmp_link, latest)
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
+            shutil.rmtree(stale, ignore_errors=True)
+        tmp.mkdir()
+        _save_pt(state, tmp / "state.pt")
+        if replay_buffer is not None:
+            _save_pt(replay_buffer.state_dict(), tmp / "buffer.pt")
+        manifest = {
+            "format": FORMAT,
+            "frames": int(frames),
+            "buffer": "saved" if replay_buffer is not None else "none",
+            "files": {p.relative_to(tmp).as_posix(): {"size": p.stat().st_size, "sha256": _sha256(p)} for p in _files(tmp)},
+            "dirs": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_dir()),
+        }
+        (tmp / MANIFEST).write_text(json.dumps(manifest, indent=1, sort_keys=True))  # last: its presence = complete
+        fsync_tree(tmp)
+        shutil.rmtree(final, ignore_errors=True)
+        os.replace(tmp, final)
+        fsync_dir(root)
+        atomic_write_text(root / "latest", final.name)
+    except OSError as err:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise disk_error(err, f"checkpoint {final}") from err
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     # prune the older ones (newer ones can only be damaged checkpoints a resume skipped: they are
     # left for inspection and replaced when the run reaches their frame)
     older = sorted(p for p in root.glob("frames_*") if p.is_dir() and p.name < final.name)
@@ -145,9 +185,20 @@ def checkpoint_buffer(path: str | Path) -> str:
     return "saved" if "buffer" in manifest.get("dirs", []) else "none"  # (a manifest of an older version)
 
 
-def verify_checkpoint(path: str | Path) -> str | None:
+def checkpoint_format(path: str | Path) -> int:
+    """The format of a checkpoint (:data:`FORMAT` now; 1: pickled, written before 2026-11-26)."""
+    try:
+        manifest = json.loads((Path(path) / MANIFEST).read_text())
+        fmt = manifest.get("format", 1)
+    except (OSError, ValueError, AttributeError):
+        return 1
+    return fmt if isinstance(fmt, int) and not isinstance(fmt, bool) else 1
+
+
+def verify_checkpoint(path: str | Path, only: tuple[str, ...] | None = None) -> str | None:
     """``None`` if the checkpoint matches its manifest (every file present, same size and
-    SHA-256, nothing missing), else what is wrong. Files are only read."""
+    SHA-256, nothing missing), else what is wrong. Files are only read. ``only``: check just
+    these files (e.g. ``("state.pt",)`` for a reader that needs no replay buffer)."""
     path = Path(path)
     manifest_file = path / MANIFEST
     if not manifest_file.is_file():
@@ -159,17 +210,21 @@ def verify_checkpoint(path: str | Path) -> str | None:
         return f"unreadable {MANIFEST}: {err}"
     if "state.pt" not in files:
         return f"{MANIFEST} lists no state.pt"
-    for d in manifest.get("dirs", []):
-        if not (path / d).is_dir():
+    if not isinstance(files, dict) or not all(isinstance(w, dict) for w in files.values()):
+        return f"unreadable {MANIFEST}: 'files' is not a mapping of file -> size and sha256"
+    for d in manifest.get("dirs", []) if only is None else ():
+        if not (path / str(d)).is_dir():
             return f"{d}/ is missing"
     for rel, want in files.items():
+        if only is not None and rel not in only:
+            continue
         f = path / rel
         if not f.is_file():
             return f"{rel} is missing"
         size = f.stat().st_size
-        if size != want["size"]:
+        if size != want.get("size"):
             return f"{rel} has {size} bytes; {want['size']} were written"
-        if _sha256(f) != want["sha256"]:
+        if _sha256(f) != want.get("sha256"):
             return f"{rel} does not match its checksum"
     return None
 
@@ -186,15 +241,24 @@ def _candidates(run_dir: Path) -> list[Path]:
     return found
 
 
-def find_checkpoint(run_dir: str | Path) -> tuple[Path | None, list[tuple[Path, str]]]:
+def find_checkpoint(run_dir: str | Path, only: tuple[str, ...] | None = None,
+                    ) -> tuple[Path | None, list[tuple[Path, str]]]:
     """The newest intact checkpoint of a run (``None`` if there is none) and the damaged ones
-    skipped on the way, each with what is wrong."""
-    skipped = []
-    for cand in _candidates(Path(run_dir)):
-        problem = verify_checkpoint(cand)
-        if problem is None:
-            return cand, skipped
-        skipped.append((cand, problem))
+    skipped on the way, each with what is wrong. ``only``: as in :func:`verify_checkpoint`.
+
+    Safe while the run is going: a checkpoint that a training process deleted or pruned while
+    it was being checked is looked for again (the newer one that replaced it is then found)."""
+    run_dir = Path(run_dir)
+    for _ in range(5):
+        skipped = []
+        candidates = _candidates(run_dir)
+        for cand in candidates:
+            problem = verify_checkpoint(cand, only)
+            if problem is None:
+                return cand, skipped
+            skipped.append((cand, problem))
+        if _candidates(run_dir) == candidates:  # nothing changed under us: the skips are real damage
+            break
     return None, skipped
 
 
@@ -203,11 +267,77 @@ def latest_checkpoint(run_dir: str | Path) -> Path | None:
     return find_checkpoint(run_dir)[0]
 
 
-def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None) -> dict[str, Any]:
+def _refuse_pickle(path: Path) -> UntrustedCheckpointError:
+    run = path.parent.parent
+    return UntrustedCheckpointError(
+        f"checkpoint {str(path)!r} is of the old pickled format (written before 2026-11-26): loading it can run code "
+        f"stored in it, so it is refused. If you trust where this run comes from, convert it once with "
+        f"`morl-trl convert-run {run}` (or pass --trust-pickle / trust_pickle=True)")
+
+
+def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None, *, trust_pickle: bool = False
+                    ) -> dict[str, Any]:
     """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given and the checkpoint
-    holds one: see :func:`checkpoint_buffer`) of a verified checkpoint."""
+    holds one: see :func:`checkpoint_buffer`) of a verified checkpoint, with
+    ``torch.load(weights_only=True)``: a file that is not tensors and plain data is refused
+    (:class:`~morl_trl.runs.plain.UnsafeFileError`), nothing in it is run.
+
+    A checkpoint of the old pickled format is refused (:class:`UntrustedCheckpointError`)
+    unless ``trust_pickle=True``, which loads it with a warning."""
     path = Path(path)
-    state = torch.load(path / "state.pt", weights_only=False, map_location=map_location)
-    if replay_buffer is not None and checkpoint_buffer(path) == "saved":  # (verified: present as written)
-        replay_buffer.loads(path / "buffer")
+    if checkpoint_format(path) < 2:
+        if not trust_pickle:
+            raise _refuse_pickle(path)
+        warnings.warn(f"loading the pickled checkpoint {path} (trust_pickle=True): this runs any code stored in it; "
+                      f"convert the run once with `morl-trl convert-run {path.parent.parent}`", stacklevel=2)
+        state = torch.load(path / "state.pt", weights_only=False, map_location=map_location)
+        if replay_buffer is not None and checkpoint_buffer(path) == "saved":  # (verified: present as written)
+            replay_buffer.loads(path / "buffer")
+        return state
+    state = load_plain(path / "state.pt", map_location=map_location)
+    if replay_buffer is not None and checkpoint_buffer(path) == "saved":
+        replay_buffer.load_state_dict(load_plain(path / "buffer.pt", map_location=map_location))
     return state
+
+
+def convert_checkpoint(path: str | Path, replay_buffer=None) -> Path:
+    """Rewrite a pickled (format 1) checkpoint in the current format, in place (atomically: a
+    new directory renamed over the old one). Its pickles are loaded once, so call this only for
+    a checkpoint you trust. ``replay_buffer``: an empty buffer built as the run's (to read the
+    old buffer dump into); ``None`` drops the buffer (the checkpoint then says ``"pruned"``)."""
+    path = Path(path)
+    if checkpoint_format(path) >= FORMAT:
+        return path
+    problem = verify_checkpoint(path)
+    if problem is not None:
+        raise ValueError(f"checkpoint {str(path)!r} is damaged ({problem}): not converted")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        state = load_checkpoint(path, replay_buffer if checkpoint_buffer(path) == "saved" else None, trust_pickle=True)
+    had_buffer = checkpoint_buffer(path)
+    new = path.with_name(f".convert_{path.name}")
+    shutil.rmtree(new, ignore_errors=True)
+    try:
+        new.mkdir()
+        _save_pt(state, new / "state.pt")
+        keep_buffer = replay_buffer is not None and had_buffer == "saved"
+        if keep_buffer:
+            _save_pt(replay_buffer.state_dict(), new / "buffer.pt")
+        manifest = {
+            "format": FORMAT, "frames": checkpoint_frames(path),
+            "buffer": "saved" if keep_buffer else ("pruned" if had_buffer == "saved" else had_buffer),
+            "files": {p.relative_to(new).as_posix(): {"size": p.stat().st_size, "sha256": _sha256(p)} for p in _files(new)},
+            "dirs": [], "converted_from": 1,
+        }
+        (new / MANIFEST).write_text(json.dumps(manifest, indent=1, sort_keys=True))
+        fsync_tree(new)
+        old = path.with_name(f".old_{path.name}")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(path, old)
+        os.replace(new, path)
+        fsync_dir(path.parent)
+        shutil.rmtree(old, ignore_errors=True)
+    except OSError as err:
+        shutil.rmtree(new, ignore_errors=True)
+        raise disk_error(err, f"converted checkpoint {path}") from err
+    return path

@@ -11,6 +11,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from morl_trl.recipes import ALGORITHMS, AGENT_BUILDERS, TRAINING_ENV_BUILDERS, resolve_config
 from morl_trl.recipes.morld import MORLDAgent, ParetoArchive, make_morld_agent, psa_weights
 from morl_trl.transforms import DiscountedVectorReturn
+from morl_trl.runs import load_checkpoint
 
 CPU = torch.device("cpu")
 
@@ -217,5 +218,5 @@ def test_cli_trains_and_evaluates_morld_psa(tmp_path):
     assert code == 0
     rows = (run / "eval" / "metrics.csv").read_text().splitlines()
     assert len(rows) == 3  # header + frames 0 and 600, one context
-    state = torch.load(run / "checkpoints" / "frames_000000000600" / "state.pt", weights_only=False)
+    state = load_checkpoint(run / "checkpoints" / "frames_000000000600")
     assert state["agent"]["morld"]["exchanges"] == 2

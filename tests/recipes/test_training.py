@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from morl_trl.recipes import TrainConfig, evaluate_run, resolve_config, train
-from morl_trl.runs import latest_checkpoint
+from morl_trl.runs import latest_checkpoint, load_checkpoint
 
 TINY = dict(
     frames=512, num_envs=8, frames_per_batch=64, init_random_frames=128, updates_per_batch=2, batch_size=32,
@@ -130,12 +130,12 @@ def test_non_finite_loss_stops_with_a_clear_message_and_a_good_checkpoint(tmp_pa
     assert "**Run stopped early.** stopped: non-finite loss" in (run / "report.md").read_text()
     ckpt = latest_checkpoint(run)
     assert ckpt.name == "frames_000000000768"  # not the last periodic checkpoint (512): nothing is lost
-    state = torch.load(ckpt / "state.pt", weights_only=False)
+    state = load_checkpoint(ckpt)
     assert (state["frames"], state["updates"]) == (768, 20)
     assert state["stopped"].startswith("non-finite loss")
     saved = state["agent"]["loss"]
     assert params and all(torch.equal(saved[k], v) for k, v in params.items())  # the bad update was not applied
-    assert (ckpt / "buffer").is_dir()
+    assert (ckpt / "buffer.pt").is_file()
 
 
 def test_non_finite_loss_exits_3_with_one_line(tmp_path):

@@ -126,7 +126,8 @@ def test_checkpoints_carry_a_manifest_of_sizes_and_checksums(run):
     manifest = json.loads((ckpt / "manifest.json").read_text())
     assert manifest["frames"] == 512
     assert manifest["files"]["state.pt"]["size"] == (ckpt / "state.pt").stat().st_size
-    assert any(name.startswith("buffer/") for name in manifest["files"])
+    assert manifest["format"] == 2 and manifest["buffer"] == "saved"
+    assert sorted(manifest["files"]) == ["buffer.pt", "state.pt"]  # tensors and plain data only: no pickles
     assert verify_checkpoint(ckpt) is None
 
 
@@ -139,16 +140,16 @@ def _damage_truncate_state(ckpt: Path) -> str:
 
 
 def _damage_remove_buffer(ckpt: Path) -> str:
-    shutil.rmtree(ckpt / "buffer")
-    return "buffer/ is missing"
+    (ckpt / "buffer.pt").unlink()
+    return "buffer.pt is missing"
 
 
 def _damage_truncate_memmap(ckpt: Path) -> str:
-    biggest = max((p for p in (ckpt / "buffer").rglob("*") if p.is_file()), key=lambda p: p.stat().st_size)
-    size = biggest.stat().st_size
-    with biggest.open("r+b") as fh:
+    buffer = ckpt / "buffer.pt"
+    size = buffer.stat().st_size
+    with buffer.open("r+b") as fh:
         fh.truncate(size - 64)
-    return f"{biggest.relative_to(ckpt).as_posix()} has {size - 64} bytes; {size} were written"
+    return f"buffer.pt has {size - 64} bytes; {size} were written"
 
 
 def _damage_flip_a_byte(ckpt: Path) -> str:
@@ -199,7 +200,7 @@ def test_only_the_newest_checkpoint_keeps_the_buffer(tmp_path):
                          **{**TINY, "frames": 1024, "keep_checkpoints": 3}))  # checkpoints at 0, 256, ..., 1024
     ckpts = sorted(p for p in (run / "checkpoints").glob("frames_*"))
     assert [checkpoint_frames(p) for p in ckpts] == [512, 768, 1024]
-    assert [(p / "buffer").is_dir() for p in ckpts] == [False, False, True]
+    assert [(p / "buffer.pt").is_file() for p in ckpts] == [False, False, True]
     assert [checkpoint_buffer(p) for p in ckpts] == ["pruned", "pruned", "saved"]
     assert all(verify_checkpoint(p) is None for p in ckpts)
     assert find_checkpoint(run) == (ckpts[-1], [])
@@ -211,7 +212,7 @@ def test_an_interrupted_buffer_prune_leaves_an_intact_checkpoint(run):
     """A kill after the manifest is rewritten but before ``buffer/`` is gone: the stray buffer is never loaded."""
     old = run / "checkpoints" / "frames_000000000256"
     new = run / "checkpoints" / "frames_000000000512"
-    shutil.copytree(new / "buffer", old / "buffer")  # as if its deletion had not happened yet
+    shutil.copy(new / "buffer.pt", old / "buffer.pt")  # as if its deletion had not happened yet
     assert verify_checkpoint(old) is None and checkpoint_buffer(old) == "pruned"
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(4096))
     load_checkpoint(old, buffer)

@@ -8,6 +8,7 @@ from pathlib import Path
 import torch
 
 from morl_trl.recipes import resolve_config, train
+from morl_trl.runs import load_checkpoint
 from tests.runs._helpers import TINY, cli, run_and_kill, write_config
 
 # the files that must come out the same (log.txt and report.md hold times; checkpoints pickles)
@@ -62,7 +63,7 @@ def test_kill_and_resume_gives_the_files_of_an_uninterrupted_run(tmp_path):
     with (killed / "eval" / "metrics.csv").open() as fh:
         frames = [int(r["frames"]) for r in csv.DictReader(fh)]
     assert frames == [f for f in range(0, 1537, 256) for _ in range(2)]  # each evaluation once, in order
-    state = torch.load(killed / "checkpoints" / "frames_000000001536" / "state.pt", weights_only=False)
+    state = load_checkpoint(killed / "checkpoints" / "frames_000000001536")
     assert state["finished"] and state["frames"] == 1536
 
     # resuming a finished run changes nothing

@@ -1,0 +1,107 @@
+"""Saving run state as tensors and plain data only, loaded without unpickling code.
+
+``torch.load(weights_only=True)`` reads tensors, numbers, strings, ``None``, lists, tuples,
+dicts, ``torch.Size``/``dtype``/``device`` and nothing else: a file planted in a run
+directory cannot run code when it is read this way. :func:`to_plain` turns what a checkpoint
+holds beyond that (TensorDicts, NumPy arrays and scalars, e.g. NumPy's generator state) into
+marked dicts of such data, :func:`from_plain` turns them back; anything else is refused when
+the checkpoint is *written* (``TypeError`` naming where it is), never found out at load time.
+
+Example:
+    >>> import io, numpy as np, torch
+    >>> from tensordict import TensorDict
+    >>> state = {"td": TensorDict(a=torch.zeros(2), batch_size=[2]), "np": np.arange(3)}
+    >>> buf = io.BytesIO(); save_plain(state, buf); _ = buf.seek(0)
+    >>> back = load_plain(buf)
+    >>> type(back["td"]).__name__, back["np"].tolist()
+    ('TensorDict', [0, 1, 2])
+"""
+
+from __future__ import annotations
+
+import collections
+from typing import Any
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+
+__all__ = ["to_plain", "from_plain", "save_plain", "load_plain", "UnsafeFileError"]
+
+_MARK = "__morl_trl_plain__"
+_ATOMS = (type(None), bool, int, float, complex, str, bytes, torch.Size, torch.dtype, torch.device)
+
+
+class UnsafeFileError(ValueError):
+    """A file that is not tensors and plain data (e.g. a pickle of a Python object): not loaded."""
+
+
+def to_plain(obj: Any, where: str = "state") -> Any:
+    """``obj`` with TensorDicts and NumPy values replaced by marked dicts of tensors and plain data."""
+    if isinstance(obj, torch.Tensor):
+        return obj
+    if isinstance(obj, _ATOMS):
+        return obj
+    if isinstance(obj, TensorDictBase):
+        return {_MARK: "tensordict", "batch_size": list(obj.batch_size),
+                "device": None if obj.device is None else str(obj.device),
+                "items": {k: to_plain(v, f"{where}[{k!r}]") for k, v in obj.items()}}
+    if isinstance(obj, np.ndarray):
+        if obj.dtype.kind not in "biuf":
+            raise TypeError(f"{where}: a NumPy array of dtype {obj.dtype} cannot be saved as a tensor")
+        return {_MARK: "ndarray", "data": torch.from_numpy(np.ascontiguousarray(obj).copy()), "dtype": str(obj.dtype)}
+    if isinstance(obj, np.generic):
+        return {_MARK: "np_scalar", "value": obj.item(), "dtype": str(obj.dtype)}
+    if isinstance(obj, collections.OrderedDict):
+        out = collections.OrderedDict((k, to_plain(v, f"{where}[{k!r}]")) for k, v in obj.items())
+        if hasattr(obj, "_metadata"):  # (state_dict()s keep versions / TensorDict batch sizes there)
+            return {_MARK: "state_dict", "items": out, "metadata": to_plain(obj._metadata, f"{where}._metadata")}
+        return out
+    if isinstance(obj, dict):
+        return {k: to_plain(v, f"{where}[{k!r}]") for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        out = [to_plain(v, f"{where}[{i}]") for i, v in enumerate(obj)]
+        return out if isinstance(obj, list) else tuple(out)
+    raise TypeError(f"{where}: a {type(obj).__module__}.{type(obj).__qualname__} is not tensors or plain data; "
+                    f"give its state_dict() (or numbers, strings, lists, dicts of tensors) instead")
+
+
+def from_plain(obj: Any) -> Any:
+    """The inverse of :func:`to_plain`."""
+    if isinstance(obj, dict):
+        kind = obj.get(_MARK) if _MARK in obj else None
+        if kind == "tensordict":
+            return TensorDict({k: from_plain(v) for k, v in obj["items"].items()}, batch_size=obj["batch_size"],
+                              device=obj["device"])
+        if kind == "ndarray":
+            return obj["data"].numpy().astype(obj["dtype"], copy=False)
+        if kind == "np_scalar":
+            return np.dtype(obj["dtype"]).type(obj["value"])
+        if kind == "state_dict":
+            out = collections.OrderedDict((k, from_plain(v)) for k, v in obj["items"].items())
+            out._metadata = from_plain(obj["metadata"])
+            return out
+        items = ((k, from_plain(v)) for k, v in obj.items())
+        return collections.OrderedDict(items) if isinstance(obj, collections.OrderedDict) else dict(items)
+    if isinstance(obj, list):
+        return [from_plain(v) for v in obj]
+    if isinstance(obj, tuple):
+        return tuple(from_plain(v) for v in obj)
+    return obj
+
+
+def save_plain(obj: Any, file) -> None:
+    """``torch.save(to_plain(obj), file)``: readable by :func:`load_plain` without unpickling code."""
+    torch.save(to_plain(obj), file)
+
+
+def load_plain(file, map_location=None) -> Any:
+    """Read a file written by :func:`save_plain` with ``torch.load(weights_only=True)``;
+    :class:`UnsafeFileError` if it holds anything else (nothing in it is executed)."""
+    try:
+        data = torch.load(file, weights_only=True, map_location=map_location)
+    except Exception as err:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, ... for foreign files
+        name = getattr(file, "name", file)
+        raise UnsafeFileError(f"{str(name)!r} is not a file of tensors and plain data (refused, nothing in it was "
+                              f"run): {str(err).splitlines()[0]}") from None
+    return from_plain(data)
