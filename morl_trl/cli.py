@@ -201,6 +201,25 @@ def evaluate_main(argv: list[str]) -> int:
     return 0
 
 
+def export_main(argv: list[str]) -> int:
+    p = _Parser(prog="morl-trl export",
+                description="Write a run's trained policy (networks and acting state, config, preference spec; no "
+                            "optimizer state, no replay buffer) to one file that load_policy reads. Reads the newest "
+                            "complete checkpoint, also while the run trains.")
+    p.add_argument("run_dir")
+    p.add_argument("--out", required=True, help="the file to write, e.g. policy.pt")
+    p.add_argument("--checkpoint", help="a checkpoint's frame count or name (default: the newest intact one)")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="accept a checkpoint of the old pickled format (only for a run you trust)")
+    args = p.parse_args(argv)
+    from morl_trl.recipes.policy import export_policy
+
+    checkpoint = int(args.checkpoint) if args.checkpoint and args.checkpoint.isdigit() else args.checkpoint
+    out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle)
+    print(f"wrote {out} ({out.stat().st_size / 2**20:.2f} MiB)")
+    return 0
+
+
 def convert_run_main(argv: list[str]) -> int:
     p = _Parser(prog="morl-trl convert-run",
                 description="Rewrite a run's checkpoints of the old pickled format (before 2026-11-26) as tensors "
@@ -525,6 +544,7 @@ COMMANDS = {
     "reference-manifest": (reference_manifest_main, "check reference data against the published files' manifest "
                            "(or --write it)"),
     "floors": (floors_main, "NHGR of trivial policies (random, constant actions) per domain: the honest floors"),
+    "export": (export_main, "write a run's trained policy to one small file (load_policy reads it)"),
     "convert-run": (convert_run_main, "rewrite a run's old pickled checkpoints as tensors + plain data (once)"),
     "grid": (grid_main, "run algorithms x domains x seeds on Ray, resumable; grid report DIR: the paper's table"),
 }
@@ -553,8 +573,8 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # the machine's (a full disk, a read-only folder): what could not be done, no traceback
         print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # a second Ctrl-C: exit at once
-        print(f"morl-trl {argv[0]}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as err:  # Ctrl-C: one line (a run says where it checkpointed and how to resume)
+        print(f"morl-trl {argv[0]}: {err or 'interrupted'}", file=sys.stderr)
         return 130
 
 

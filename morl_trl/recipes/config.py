@@ -336,6 +336,13 @@ class TrainConfig:
         if self.cudagraphs and not str(self.device).startswith("cuda"):
             raise ValueError(f"config key 'cudagraphs' (compile) is true but device is {self.device!r}; "
                              "valid: cudagraphs=true with a cuda device (compile=true works on any device)")
+        if self.compile_mode is not None:  # (torch.compile checks it only at the first update: after a start)
+            from torch._inductor import list_mode_options
+
+            modes = sorted(list_mode_options())
+            if self.compile_mode not in modes:
+                raise ValueError(f"config key 'compile_mode' (compile) is {self.compile_mode!r}; valid: null or one of "
+                                 f"{modes}")
         return self
 
     # ------------------------------------------------------------------ views and files
@@ -376,8 +383,13 @@ class TrainConfig:
             data = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError) as err:
             raise ValueError(f"cannot read the config {str(path)!r}: {err}") from None
+        return cls.from_dict(data, str(path))
+
+    @classmethod
+    def from_dict(cls, data, where: str = "the config") -> "TrainConfig":
+        """The config of ``data`` (what :meth:`to_dict` gives), validated."""
         if not isinstance(data, dict):
-            raise ValueError(f"the config {str(path)!r} holds a {type(data).__name__}, not an object of keys")
+            raise ValueError(f"the config {where!r} holds a {type(data).__name__}, not an object of keys")
         return cls(**_coerce(data)).validate()
 
 

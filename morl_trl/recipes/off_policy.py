@@ -41,6 +41,11 @@ from morl_trl.runs.checkpoint import (
     set_rng_state,
 )
 from morl_trl.runs.env_state import env_state, load_context_sampler_state, load_env_state, transforms_of
+from morl_trl.preferences import check_simplex
+from morl_trl.runs.atomic import DiskFullError, disk_error
+from morl_trl.runs.interrupt import GracefulInterrupt, RunInterrupted
+from morl_trl.runs.lock import RunLock
+from morl_trl.runs.run_dir import NewRunDir, check_new_run_dir, check_writable
 from morl_trl.runs.run_log import RunLog, check_logger
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
@@ -192,17 +197,40 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path, trust_pickle: bool = F
     return cfg, ckpt, notes
 
 
-def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
-    if run_dir.exists() and not run_dir.is_dir():
-        raise ValueError(f"run directory {str(run_dir)!r} is a file")
-    if run_dir.is_dir() and any(run_dir.iterdir()):
-        held = sorted(p.name for p in run_dir.iterdir())
-        if not overwrite:
-            raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
-        if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
-            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
-                             f"(it holds {held[:5]}): choose another --run-dir")
+def check_buffer_memory(cfg: TrainConfig, env, device: torch.device) -> None:
+    """``ValueError`` before anything is written when ``cfg.buffer_size`` transitions of ``env``
+    cannot fit in the memory ``device`` has available (the storage is allocated at the first
+    write, so without this check a too large buffer fails only once the run has started)."""
+    fake = env.fake_tensordict()
+    rows = max(fake.numel(), 1)
+    row_bytes = sum(v.element_size() * v.numel() for v in fake.values(include_nested=True, leaves_only=True)
+                    if isinstance(v, torch.Tensor)) / rows
+    need = row_bytes * cfg.buffer_size
+    available = _available_memory(device)
+    if available is not None and need > available:
+        raise ValueError(f"config key 'buffer_size' (buffer) is {cfg.buffer_size:,}; its transitions need about "
+                         f"{need / 2**30:.1f} GiB ({row_bytes:,.0f} bytes each) but {device} has "
+                         f"{available / 2**30:.1f} GiB available: lower buffer_size")
+
+
+def _available_memory(device: torch.device) -> float | None:
+    if device.type == "cuda":
+        try:
+            return float(torch.cuda.mem_get_info(device)[0])
+        except (RuntimeError, AssertionError):
+            return None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None
+
+
+def _resume_command(cfg: TrainConfig, run_dir: Path) -> str:
+    return f"morl-trl train {cfg.algo} {cfg.env_id} --resume {run_dir}"
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False,
@@ -236,25 +264,33 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
     and the config it ran with."""
-    notes: list[str] = []
     if resume is not None:
         if overwrite:
             raise ValueError("resume continues a run and overwrite replaces it: choose one")
         run_dir = Path(resume)
-        cfg, ckpt, notes = _resume_point(cfg, run_dir, trust_pickle)
-        done = checkpoint_frames(ckpt)
-        if done >= cfg.frames:
-            msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
-                   f"pass a larger --frames to extend it")
-            print(msg, flush=True)
-            return {"frames": done, "finished": True}, None, run_dir, cfg
-    else:
-        if cfg is None:
-            raise ValueError("train() needs a config (or resume=<run dir>)")
-        ckpt = None
-        cfg.validate()
-        run_dir = Path(cfg.run_dir) if cfg.run_dir else _default_run_dir(cfg)
-        _prepare_run_dir(run_dir, overwrite)
+        if not (run_dir / "config.json").is_file():
+            raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
+        check_writable(run_dir)
+        with RunLock(run_dir, "training"):  # one writer: a second one is refused, naming this process
+            cfg, ckpt, notes = _resume_point(cfg, run_dir, trust_pickle)
+            done = checkpoint_frames(ckpt)
+            if done >= cfg.frames:
+                msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
+                       f"pass a larger --frames to extend it")
+                print(msg, flush=True)
+                return {"frames": done, "finished": True}, None, run_dir, cfg
+            return _train(cfg, run_dir, ckpt, notes, trust_pickle=trust_pickle)
+    if cfg is None:
+        raise ValueError("train() needs a config (or resume=<run dir>)")
+    cfg.validate()
+    run_dir = Path(cfg.run_dir) if cfg.run_dir else _default_run_dir(cfg)
+    check_new_run_dir(run_dir, overwrite)  # (and again just before the swap)
+    return _train(cfg, run_dir, None, [], overwrite=overwrite)
+
+
+def _train(cfg: TrainConfig, run_dir: Path, ckpt: Path | None, notes: list[str], *, overwrite: bool = False,
+           trust_pickle: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
+    resume = ckpt
     check_logger(cfg.logger)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
@@ -263,6 +299,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
 
     # everything is built before the run directory is touched: a failed start writes nothing
     env, agent, reference, evaluator = _build(cfg, spec, device)
+    check_buffer_memory(cfg, env, device)
     buffer = make_replay_buffer(cfg, device)
 
     frames, updates, next_eval, next_ckpt, last_eval = 0, 0, 0, cfg.checkpoint_interval, -1
@@ -284,19 +321,30 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames)
 
-    created = not run_dir.exists()
+    starting = None
+    if resume is None:  # everything is built: now the directory (an old run is swapped out, not yet deleted)
+        starting = NewRunDir(run_dir, overwrite)
+        lock = starting.start()
     try:
         if resume is None:
-            if overwrite and run_dir.exists():
-                shutil.rmtree(run_dir)
-            run_dir.mkdir(parents=True, exist_ok=True)
             cfg.run_dir = str(run_dir)
             cfg.save(run_dir / "config.json")
         log = RunLog(run_dir, cfg, spec)
     except BaseException:
-        if created:
-            shutil.rmtree(run_dir, ignore_errors=True)
+        if starting is not None:
+            starting.abort()
         raise
+    try:
+        return _loop(cfg, run_dir, spec, device, env, agent, reference, evaluator, buffer, collector, log, state, ckpt,
+                     exact, notes, frames, updates, next_eval, next_ckpt, last_eval, starting)
+    finally:
+        if starting is not None:
+            starting.lock.release()
+
+
+def _loop(cfg, run_dir, spec, device, env, agent, reference, evaluator, buffer, collector, log, state, ckpt, exact,
+          notes, frames, updates, next_eval, next_ckpt, last_eval, starting):
+    resume = ckpt
     log.reference = reference
     if reference is None:
         notes.append(no_reference_note(spec))
@@ -351,10 +399,19 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     def fps() -> float:
         return (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
 
+    interrupt = GracefulInterrupt()
+    started = state is not None
     try:
+        interrupt.__enter__()
         if state is None:  # a new run: the untrained policy, then a checkpoint to resume from
-            evaluate()
-            checkpoint(frames)
+            try:
+                evaluate()
+                checkpoint(frames)
+            except BaseException:
+                starting.abort()  # (the run it replaces, if any, is put back)
+                raise
+            starting.commit()  # the new run has started: the one it replaces is deleted now
+            started = True
         # One iteration = one batch: collect, store, update, then evaluate and checkpoint the
         # policy trained on `frames` frames. A checkpoint is the state at the end of a batch
         # (after its evaluation), so the batch after it is the same whether the run resumes or not.
@@ -382,6 +439,13 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
                 while next_ckpt <= frames:
                     next_ckpt += cfg.checkpoint_interval
                 checkpoint(frames)
+            if interrupt.requested and frames < cfg.frames:
+                path = checkpoint(frames, interrupted=True)
+                msg = (f"interrupted at {frames:,} frames; checkpointed in {path.name}; resume with: "
+                       f"{_resume_command(cfg, run_dir)}")
+                log.note(msg)
+                log.report_stop(msg)
+                raise RunInterrupted(msg)
         if last_eval != frames:
             evaluate()
         if cfg.eval_random_baseline:
@@ -389,11 +453,39 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         if log.last_result is not None:
             log.report(summary, fps=fps())
         checkpoint(frames, finished=True)
+    except RunInterrupted:
+        raise
+    except OSError as err:  # a full disk, a folder made read-only, ...: stop, keep the last good checkpoint
+        if not started:
+            raise
+        reason = err if isinstance(err, DiskFullError) else disk_error(err, "the run's files")
+        msg = (f"stopped: {reason.strerror or reason} at {frames:,} frames; the last good checkpoint is "
+               f"{_latest_name(run_dir)}; once the cause is fixed, resume with: {_resume_command(cfg, run_dir)}")
+        for say in (log.note, log.report_stop):
+            try:
+                say(msg)
+            except OSError:
+                pass  # (the disk may still be full)
+        raise type(reason)(reason.errno, msg) from None
+    except BaseException as err:
+        # a second Ctrl-C (it may surface as another error from where it landed): exit at once
+        if started and (isinstance(err, KeyboardInterrupt) or interrupt.count >= 2):
+            raise KeyboardInterrupt(f"interrupted; the last checkpoint is {_latest_name(run_dir)}; resume with: "
+                                    f"{_resume_command(cfg, run_dir)}") from None
+        raise
     finally:
+        interrupt.__exit__()
         bar.close()
         collector.shutdown()
         log.close()
     return summary, agent, run_dir, cfg
+
+
+def _latest_name(run_dir: Path) -> str:
+    found = find_checkpoint(run_dir, only=("state.pt",))[0]
+    return found.name if found is not None else "none"
+
+
 
 
 def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint) -> Path:
@@ -429,21 +521,33 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     if ckpt is None:
         raise ValueError(f"{str(run_dir)!r} has no intact checkpoint to evaluate")
     state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle)  # (refused before anything is written)
+    check_writable(run_dir)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = domain_of(cfg.env_id)
     _, agent, reference, evaluator = _build(cfg, spec, device)
     agent.load_state_dict(state["agent"])
-    log = RunLog(run_dir, cfg, spec, tag="reevaluation")
-    log.reference = reference
     frames = checkpoint_frames(ckpt)
-    summary = log.evaluation(frames, evaluator.evaluate())
-    log.report(summary, fps=None)
-    log.close()
-    if video:
-        summary["videos"] = record_videos(cfg, agent, evaluator.context_names, run_dir, frames, weight=video_weight,
-                                          video_format=video_format)
+    if video and video_weight is not None:  # (checked before anything is written)
+        k = len(spec.objective_names)
+        w = torch.as_tensor(video_weight, dtype=torch.float32)
+        if w.numel() != k:
+            raise ValueError(f"the video weight has {w.numel()} entries; {spec.name} has {k} objectives "
+                             f"{list(spec.objective_names)}")
+        check_simplex(w, k, name="video weight")
+    with RunLock(run_dir, "evaluating"):  # (a training of this run, or another evaluation, is refused)
+        result = evaluator.evaluate()  # everything that can fail before a row is written
+        log = RunLog(run_dir, cfg, spec, tag="reevaluation")
+        log.reference = reference
+        try:
+            summary = log.evaluation(frames, result)
+            log.report(summary, fps=None)
+        finally:
+            log.close()
+        if video:
+            summary["videos"] = record_videos(cfg, agent, evaluator.context_names, run_dir, frames,
+                                              weight=video_weight, video_format=video_format)
     return summary
 
 

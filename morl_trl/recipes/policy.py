@@ -20,6 +20,7 @@ Example:
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,10 +34,16 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.recipes.config import TrainConfig, resolve_config
 from morl_trl.recipes.off_policy import _gamma, run_training
+from morl_trl.runs.atomic import atomic_write
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
+from morl_trl.runs.plain import load_plain, save_plain
+from morl_trl.runs.run_dir import check_writable
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
-__all__ = ["TrainedPolicy", "TrainResult", "load_policy", "train_policy"]
+__all__ = ["TrainedPolicy", "TrainResult", "export_policy", "load_policy", "train_policy"]
+
+#: the key that marks a policy export (and its version)
+EXPORT_FORMAT = "morl_trl_policy_export"
 
 
 class TrainedPolicy(TensorDictModuleBase):
@@ -61,14 +68,16 @@ class TrainedPolicy(TensorDictModuleBase):
     preference_key = "preference"
 
     def __init__(self, module, *, config: TrainConfig, checkpoint: Path | None = None,
-                 exploration_type: ExplorationType = ExplorationType.DETERMINISTIC, device="cpu") -> None:
+                 exploration_type: ExplorationType = ExplorationType.DETERMINISTIC, device="cpu", agent=None,
+                 frames: int | None = None) -> None:
         super().__init__()
+        object.__setattr__(self, "_agent", agent)  # (what save() writes; not a submodule)
         self.module = module
         self.in_keys = list(module.in_keys)
         self.out_keys = list(module.out_keys)
         self.config = config
         self.checkpoint = None if checkpoint is None else Path(checkpoint)
-        self.frames = None if checkpoint is None else checkpoint_frames(checkpoint)
+        self.frames = frames if checkpoint is None or checkpoint.is_file() else checkpoint_frames(checkpoint)
         self.exploration_type = exploration_type
         self.device = torch.device(device)
 
@@ -122,6 +131,33 @@ class TrainedPolicy(TensorDictModuleBase):
         env.append_transform(pref)
         return env
 
+    def save(self, path: str | Path) -> Path:
+        """Write this policy as an export: what acting needs (the agent's networks and acting
+        state, no optimizer state, no replay buffer), the run's config and the preference
+        spec, as tensors and plain data (read with ``torch.load(weights_only=True)``), atomically.
+        :func:`load_policy` reads it back.
+
+        Example:
+            >>> policy = load_policy("runs/my_run")  # doctest: +SKIP
+            >>> policy.save("policy.pt")             # doctest: +SKIP
+            >>> load_policy("policy.pt")             # doctest: +SKIP
+        """
+        if self._agent is None:
+            raise ValueError("this TrainedPolicy was not built by load_policy / train_policy: nothing to save")
+        state = self._agent.state_dict()
+        state["optimizers"] = {}  # (refilled from a fresh agent on load: acting never reads them)
+        k = len(self.objective_names)
+        export = {
+            EXPORT_FORMAT: 1, "config": json.dumps(self.config.to_dict(), sort_keys=True), "frames": self.frames,
+            "agent": state, "exploration_type": self.exploration_type.name,
+            "objective_names": list(self.objective_names),
+            "preference": {"key": self.preference_key, "num_objectives": k, "space": "simplex (w >= 0, sum w = 1)"},
+            "observation": {"env_id": self.env_id, "history_len": self.history_len},
+        }
+        path = Path(path)
+        atomic_write(path, lambda fh: save_plain(export, fh))
+        return path
+
     def __repr__(self) -> str:
         where = f", checkpoint={self.checkpoint.name!r}" if self.checkpoint is not None else ""
         return (f"TrainedPolicy(algo={self.config.algo!r}, env_id={self.env_id!r}, "
@@ -153,12 +189,48 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
     return path
 
 
+def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
+    data = load_plain(path, map_location=device)
+    if not isinstance(data, dict) or data.get(EXPORT_FORMAT) != 1:
+        raise ValueError(f"{str(path)!r} is not a policy export (written by TrainedPolicy.save / morl-trl export)")
+    cfg = dataclasses.replace(TrainConfig.from_dict(json.loads(data["config"]), str(path)), device=str(device))
+    agent = _build_agent(cfg, device)
+    state = data["agent"]
+    state["optimizers"] = {k: o.state_dict() for k, o in agent.optimizers.items()}
+    agent.load_state_dict(state)
+    policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=path, device=device, agent=agent,
+                           exploration_type=ExplorationType[data["exploration_type"]], frames=data["frames"])
+    return policy.eval()
+
+
+def _build_agent(cfg: TrainConfig, device: torch.device):
+    from morl_trl.recipes import build_agent, build_training_env
+
+    spec = domain_of(cfg.env_id)
+    env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
+    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
+    env.close()
+    return agent
+
+
+def export_policy(run_dir: str | Path, out: str | Path, checkpoint: str | Path | int | None = None, *,
+                  trust_pickle: bool = False) -> Path:
+    """``morl-trl export RUN --out FILE``: :func:`load_policy` then :meth:`TrainedPolicy.save`.
+    Reads the newest complete checkpoint (also while the run trains) and writes only ``out``."""
+    out = Path(out)
+    if out.is_dir():
+        raise ValueError(f"--out {str(out)!r} is a folder; give a file name, e.g. {str(out / 'policy.pt')!r}")
+    check_writable(out.parent, "the export's folder")
+    return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle).save(out)
+
+
 def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
                 device: str | torch.device = "cpu", *, trust_pickle: bool = False) -> TrainedPolicy:
-    """The trained eval policy of a run directory (see the module docstring).
+    """The trained eval policy of a run directory, or of a policy export (see the module docstring).
 
     Args:
-        run_dir: a run directory (``config.json`` and ``checkpoints/``).
+        run_dir: a run directory (``config.json`` and ``checkpoints/``), or a file written by
+            :meth:`TrainedPolicy.save` / ``morl-trl export`` (no replay buffer needed either way).
         checkpoint: ``None`` for the newest intact checkpoint, else a frame count, a
             checkpoint directory name (``"frames_000000002048"``) or path; it is verified.
         device: where the policy's parameters go.
@@ -169,22 +241,21 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
         ValueError: ``run_dir`` is not a run directory, or has no intact checkpoint (naming it).
     """
     run_dir = Path(run_dir)
+    if run_dir.is_file():
+        if checkpoint is not None:
+            raise ValueError(f"{str(run_dir)!r} is a policy export: it holds one policy, no checkpoints to choose")
+        return _load_export(run_dir, torch.device(device))
     if not (run_dir / "config.json").is_file():
-        raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
+        raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json) nor a policy export")
     cfg = TrainConfig.load(run_dir / "config.json")
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = dataclasses.replace(cfg, device=str(device))
-    from morl_trl.recipes import build_agent, build_training_env
-
-    spec = domain_of(cfg.env_id)
-    env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
-    env.close()
-    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)
+    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)  # (refused before any build)
+    agent = _build_agent(cfg, device)
     agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
-                           device=device)
+                           device=device, agent=agent)
     return policy.eval()
 
 

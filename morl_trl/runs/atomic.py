@@ -31,8 +31,7 @@ def disk_error(err: OSError, what: str) -> OSError:
     """``err`` re-raised as one that names ``what`` was being written (a :class:`DiskFullError`
     for ENOSPC / EDQUOT)."""
     if err.errno in (errno.ENOSPC, errno.EDQUOT):
-        return DiskFullError(err.errno, f"disk full while writing {what} ({os.strerror(err.errno)}); "
-                                        f"free some space and resume")
+        return DiskFullError(err.errno, f"disk full while writing {what} ({os.strerror(err.errno)})")
     return OSError(err.errno, f"could not write {what}: {err.strerror or err}")
 
 
