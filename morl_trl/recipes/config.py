@@ -164,7 +164,7 @@ class TrainConfig:
                                _float(0.0, 1.0, optional=True))
     preference_distribution: str = _key("env", "dirichlet", "training preferences: 'dirichlet' (uniform on the "
                                         "simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or "
-                                        "'cone' (22.5 degrees around a random direction; the authors' CAPQL)",
+                                        "'cone' (22.5 degrees around the equal-weight direction; the authors' CAPQL)",
                                         _choice(("dirichlet", "gaussian", "cone")))
     preference_resample: str = _key("env", "episode", "a new training preference per 'episode' or per 'step' "
                                     "(the authors' CAPQL: step)", _choice(("episode", "step")))
