@@ -219,7 +219,7 @@ class ForeignMOEnv(ContextualMOEnv):
     Example:
         >>> from morl_trl.envs import make_env
         >>> env = make_env("deep-sea-treasure-v0", num_envs=2, seed=0)
-        >>> td = env.rollout(3)
+        >>> td = env.rollout(3, break_when_any_done=False)
         >>> td["next", "reward"].shape, env.objective_names, "original_reward" in td["next"].keys()
         (torch.Size([2, 3, 2]), ('treasure', 'time_penalty'), False)
     """

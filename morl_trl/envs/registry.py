@@ -148,7 +148,7 @@ def register_env(env, name: str | None = None, *, ref_point=None, objective_name
         >>> from torchrl.envs import MOGymEnv
         >>> from morl_trl.envs import make_env, register_env
         >>> env_id = register_env(lambda: MOGymEnv("deep-sea-treasure-v0"), name="my-dst", ref_point=[0, -25])
-        >>> make_env(env_id, num_envs=3, seed=0).rollout(2)["next", "reward"].shape
+        >>> make_env(env_id, num_envs=3, seed=0).rollout(2, break_when_any_done=False)["next", "reward"].shape
         torch.Size([3, 2, 2])
     """
     from morl_trl.envs.foreign import foreign_domain
