@@ -64,6 +64,25 @@ def _short(context: str) -> str:
     return re.sub(r"-v\d+$", "", context)
 
 
+def _labels(contexts: list[str]) -> dict[str, str]:
+    """Short names: version and the domain's common prefix dropped (``"MOLavaGridRoom-v0"`` ->
+    ``"Room"``), cut where every name goes on with a capital or a digit.
+
+    Example:
+        >>> list(_labels(["MOLunarLanderHighGravity-v0", "MOLunarLanderHard-v0"]).values())
+        ['HighGravity', 'Hard']
+    """
+    names = [_short(c) for c in contexts]
+    n = len(names[0]) if len(names) > 1 else 0
+    for name in names[1:]:
+        n = min(n, len(name))
+        while name[:n] != names[0][:n]:
+            n -= 1
+    while n > 0 and not all(len(x) > n and (x[n].isupper() or x[n].isdigit()) for x in names):
+        n -= 1
+    return {c: x[n:].lstrip("-") or x for c, x in zip(contexts, names)}
+
+
 def _formula(spec) -> str:
     """``f_SORL = ...`` as the paper writes it and, where it differs, as measured."""
     sorl = getattr(spec, "sorl", None)
@@ -123,13 +142,14 @@ def _plot_run(curves: dict[str, dict[int, float]], contexts: list[str], title: s
 
     cols = min(4, len(contexts))
     rows = math.ceil(len(contexts) / cols)
+    labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.7 * rows + 0.4), squeeze=False)
     for k, (ax, c) in enumerate(zip(axes.flat, contexts)):
         pts = sorted(curves.get(c, {}).items())
         if pts:
             x, y = zip(*pts)
             ax.plot(x, y, marker="o", ms=3, lw=1.3, color="C0")
-        ax.set_title(_short(c), fontsize=9)
+        ax.set_title(labels[c], fontsize=9)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
         if k % cols == 0:
@@ -162,6 +182,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
         return lines + [f"No f_SORL section: {name} emits no original scalar reward (`original_reward`), the reward "
                         "a single-objective agent would be trained on, so there is nothing to compare with.", ""]
     contexts = list(result.context_names)
+    labels = _labels(contexts)
     W = len(result.weights)
     curves = sorl_curves(run_dir)
     best = result.sorl_best()
@@ -178,7 +199,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     frames = max(max(p) for p in curves.values()) if curves else None
     at = f" at {frames:,} frames" if frames is not None else ""
     lines += [f"f_SORL max per context{at} (undiscounted; discounted with γ = {result.gamma:g}):", ""]
-    lines += ["| | " + " | ".join(_short(c) for c in contexts) + " |", "|---|" + "---|" * len(contexts)]
+    lines += ["| | " + " | ".join(labels[c] for c in contexts) + " |", "|---|" + "---|" * len(contexts)]
     lines.append("| f_SORL max | " + " | ".join(_fmt(best[c]["return_max"]) for c in contexts) + " |")
     lines.append("| discounted | " + " | ".join(_fmt(best[c]["discounted_return_max"]) for c in contexts) + " |")
     lines.append("")
@@ -186,7 +207,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
         return lines + ["No table of best weights: SAC does not read the weight.", ""]
     lines += [f"The weight that gave each context's f_SORL max{at} (the paper's Fig. 4 table; the largest "
               "component in bold):", ""]
-    lines += ["| objective | " + " | ".join(_short(c) for c in contexts) + " |", "|---|" + "---|" * len(contexts)]
+    lines += ["| objective | " + " | ".join(labels[c] for c in contexts) + " |", "|---|" + "---|" * len(contexts)]
     for o in result.objective_names:
         cells = []
         for c in contexts:
@@ -323,6 +344,7 @@ def plot_domain(domain: str, runs: dict[str, dict[int, Path]], path: str | Path,
         contexts = list(dict.fromkeys(c for d in data.values() for c in d))
     cols = min(4, len(contexts))
     rows = math.ceil(len(contexts) / cols)
+    labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.5 * cols, 2.8 * rows + 0.9), squeeze=False)
     order = sorted(data, key=lambda a: (ignores_weights(a), a))  # SAC drawn last, on top
     handles = {}
@@ -342,7 +364,7 @@ def plot_domain(domain: str, runs: dict[str, dict[int, Path]], path: str | Path,
             (line,) = ax.plot(frames, mean, marker="o", ms=2.5, **style)
             ax.fill_between(frames, mean - se, mean + se, color=style["color"], alpha=0.18, lw=0)
             handles.setdefault(f"{algo} ({len(ys)} seeds)", line)
-        ax.set_title(_short(c), fontsize=9)
+        ax.set_title(labels[c], fontsize=9)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
         if k % cols == 0:
@@ -398,6 +420,7 @@ def grid_section(runs: dict[str, dict[str, dict[int, Path]]], out_dir: str | Pat
         if png is not None:
             lines += [f"![f_SORL against frames, {domain}](report/{png.name})", ""]
         comparison = sac_comparison(finals, reps=reps)
+        labels = _labels(contexts)
         if not any(ignores_weights(a) for a in finals):
             lines += ["No SAC run in this grid for this domain: the methods' final f_SORL max only.", ""]
         lines += ["| context | method | f_SORL max (mean ± s.e., seeds) | SAC | method - SAC [95% CI] | verdict |",
@@ -407,7 +430,7 @@ def grid_section(runs: dict[str, dict[str, dict[int, Path]]], out_dir: str | Pat
             diff = "-" if r.difference is None else _fmt(r.difference)
             if r.ci is not None:
                 diff += f" [{_fmt(r.ci[0])}, {_fmt(r.ci[1])}]"
-            lines.append(f"| {_short(r.context)} | {r.method} | {_fmt(r.mean)} ± {_fmt(r.se)} ({r.seeds}) | {sac} "
+            lines.append(f"| {labels[r.context]} | {r.method} | {_fmt(r.mean)} ± {_fmt(r.se)} ({r.seeds}) | {sac} "
                          f"| {diff} | {r.verdict} |")
             all_rows.append({"domain": domain, **r.as_dict()})
         beats = sorted({r.method for r in comparison if r.verdict == "beats SAC"})
