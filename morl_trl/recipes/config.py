@@ -164,7 +164,7 @@ class TrainConfig:
                                _float(0.0, 1.0, optional=True))
     preference_distribution: str = _key("env", "dirichlet", "training preferences: 'dirichlet' (uniform on the "
                                         "simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or "
-                                        "'cone' (22.5 degrees around a random direction; the authors' CAPQL)",
+                                        "'cone' (22.5 degrees around the equal-weight direction; the authors' CAPQL)",
                                         _choice(("dirichlet", "gaussian", "cone")))
     preference_resample: str = _key("env", "episode", "a new training preference per 'episode' or per 'step' "
                                     "(the authors' CAPQL: step)", _choice(("episode", "step")))
@@ -564,7 +564,9 @@ _QUICK_ALGO = {
     **{a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")},
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,
-                   pgmorl_evo_iterations=2, pgmorl_minibatches=8, eval_interval=30_720),
+                   pgmorl_evo_iterations=2, pgmorl_minibatches=8,
+                   # an iteration counts one member's 4 x 256 frames (the authors' count): 10 iterations
+                   frames=10_240, eval_interval=5_120, checkpoint_interval=3_072),
 }
 
 

@@ -15,8 +15,9 @@ The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` override
    ``change_w_every_episode``); actions are epsilon-greedy around GPI over ``M`` and the
    sub-env's ``w``. PER priorities are recomputed for the whole buffer under ``w``.
 4. Updates (:class:`~morl_trl.objectives.GPILoss`): 1 per frame, ``gpi_gradient_updates``
-   (20) per frame once ``frames >= gpi_dynamics_rollout_starts`` (as the authors, for GPI-LS
-   too); a hard target copy every ``target_update_period`` frames.
+   per frame once ``frames >= gpi_dynamics_rollout_starts`` (the authors' gating, for GPI-LS
+   too; every script of theirs passes ``gradient_updates 1``, so 1 per frame throughout);
+   a hard target copy every ``target_update_period`` frames.
 5. GPI-PD only: every ``gpi_dynamics_train_freq`` frames the dynamics ensemble is refitted on
    the whole buffer (:func:`~morl_trl.objectives.fit_dynamics`); every
    ``gpi_dynamics_rollout_freq`` frames from ``gpi_dynamics_rollout_starts``,
