@@ -190,8 +190,9 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     lines += [_formula(spec) + ".", ""]
     how = (f"the best of its {W} evaluation episodes per context (SAC ignores the weight)" if baseline else
            f"the max over the {W} evaluation weights' episodes per context")
+    each = "episode" if baseline else "weight"
     lines += [f"The f_SORL return (undiscounted, the env's `original_reward` summed over the episode) is {how}, at "
-              "every evaluation (every weight's value: `eval/sorl.csv`).", ""]
+              f"every evaluation (every {each}'s value: `eval/sorl.csv`).", ""]
     if curves:
         png = _plot_run(curves, contexts, f"{algo} on {env_id}: f_SORL max over {W} weights", run_dir /
                         "report_fsorl.png")
@@ -206,7 +207,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     if baseline:
         return lines + ["No table of best weights: SAC does not read the weight.", ""]
     lines += [f"The weight that gave each context's f_SORL max{at} (the paper's Fig. 4 table; the largest "
-              "component in bold):", ""]
+              "component in bold; the first weight on ties):", ""]
     lines += ["| objective | " + " | ".join(labels[c] for c in contexts) + " |", "|---|" + "---|" * len(contexts)]
     for o in result.objective_names:
         cells = []
@@ -216,7 +217,11 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
             cells.append(f"**{cell}**" if w[o] == max(w.values()) else cell)
         lines.append(f"| {o} | " + " | ".join(cells) + " |")
     lines.append("| weight index | " + " | ".join(str(best[c]["best_weight_index"]) for c in contexts) + " |")
-    return lines + [""]
+    lines.append("")
+    if re.sub(r"[^a-z0-9]", "", algo.lower()) == "pcn":
+        lines += ["PCN does not read the weight: evaluation weight i stands for command i (the return and length of "
+                  "the i-th best replay episode, SPEC §2), so the table names commands, not trade-offs.", ""]
+    return lines
 
 
 # ---------------------------------------------------------------------------------- grid statistics
@@ -435,6 +440,10 @@ def grid_section(runs: dict[str, dict[str, dict[int, Path]]], out_dir: str | Pat
             all_rows.append({"domain": domain, **r.as_dict()})
         beats = sorted({r.method for r in comparison if r.verdict == "beats SAC"})
         lines += ["", f"Beat SAC in at least one context: {', '.join(beats) if beats else 'none'}.", ""]
+        few = min((r.paired for r in comparison if r.ci is not None), default=None)
+        if few is not None and few < 5:
+            lines += [f"With {few} paired seeds the bootstrap interval cannot be wider than the seeds' own range of "
+                      "differences: a description of these runs, not a test (the paper ran 5 seeds).", ""]
         from morl_trl.envs import domain_of
 
         try:
