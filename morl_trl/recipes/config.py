@@ -282,6 +282,11 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
+                                      "weight for support row i: 'authors' (their vectorised evaluator's "
+                                      "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "
+                                      "numbers) or 'support' (w_i, their single-env path)",
+                                      _choice(("authors", "support")))
     gpi_gradient_updates: int = _key("gpi", 20, "gradient updates per frame once frames reach "
                                      "gpi_dynamics_rollout_starts (1 before; updates_per_batch > 0 overrides both)",
                                      _int(1))
