@@ -23,7 +23,7 @@ from morl_trl.envs.registry import (
     load_domain_modules,
 )
 from morl_trl.envs.sampler import ContextSampler
-from morl_trl.envs.spec import DomainSpec
+from morl_trl.envs.spec import DomainSpec, SORLReward
 
 __all__ = [
     "ContextSampler",
@@ -31,6 +31,7 @@ __all__ = [
     "ContextualMOEnv",
     "DomainSpec",
     "NonFiniteStepError",
+    "SORLReward",
     "context_space",
     "domain_of",
     "evaluation_suite",
