@@ -26,7 +26,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.data import prioritized_sampler
-from morl_trl.envs import DomainSpec, domain_of, make_env
+from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
@@ -57,7 +57,7 @@ def make_training_env(cfg: TrainConfig, device: torch.device):
     """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
     policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
     episode or, with ``preference_resample="step"``, every step) + vector returns."""
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     return compose_training_env(env, gamma=_gamma(cfg, spec), history_len=cfg.history_len, preference_seed=cfg.seed + 1,
                                 preference_mode=cfg.preference_distribution, preference_resample=cfg.preference_resample)
@@ -73,9 +73,13 @@ def make_replay_buffer(cfg: TrainConfig, device: torch.device) -> TensorDictRepl
     return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
 
 
-def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frames_done: int = 0) -> Collector:
-    """TorchRL's ``Collector`` for the frames still to go (uniformly random before ``init_random_frames``)."""
+def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frames_done: int = 0,
+                   frames_to_go: int | None = None) -> Collector:
+    """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
+    frames_done``; uniformly random before ``init_random_frames``)."""
     per_batch = cfg.frames_per_batch
+    if frames_to_go is None:
+        frames_to_go = cfg.frames - frames_done
 
     def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
         return -(-max(frames, 0) // per_batch) * per_batch
@@ -84,7 +88,7 @@ def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frame
         env,
         policy,
         frames_per_batch=per_batch,
-        total_frames=max(whole_batches(cfg.frames - frames_done), per_batch),
+        total_frames=max(whole_batches(frames_to_go), per_batch),
         init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
         device=device,
         exploration_type=ExplorationType.RANDOM,
@@ -109,6 +113,7 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
         gamma=_gamma(cfg, spec),
         env_factory=env_factory,
         reference=reference,
+        ref_point=cfg.ref_point,
         exploration_type=agent.eval_exploration,
         device=device,
         seed=cfg.seed,
@@ -128,8 +133,18 @@ def _load_reference(cfg: TrainConfig, spec: DomainSpec):
 
 def no_reference_note(spec: DomainSpec) -> str:
     """What a run of a domain without reference data says about NHGR."""
+    if spec.foreign:
+        from morl_trl.reporting.report import foreign_nhgr_note
+
+        return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
+
+
+def _domain(cfg: TrainConfig) -> DomainSpec:
+    """The run's domain, after importing the config's ``domain_modules`` (a user's own domains)."""
+    load_domain_modules(cfg.domain_modules)
+    return domain_of(cfg.env_id)
 
 
 def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
@@ -295,7 +310,7 @@ def _train(cfg: TrainConfig, run_dir: Path, ckpt: Path | None, notes: list[str],
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
 
     # everything is built before the run directory is touched: a failed start writes nothing
     env, agent, reference, evaluator = _build(cfg, spec, device)
@@ -319,7 +334,8 @@ def _train(cfg: TrainConfig, run_dir: Path, ckpt: Path | None, notes: list[str],
             if "generator" in saved:
                 t.generator.set_state(saved["generator"])
         load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames,
+                               frames_to_go=agent.frames_to_collect(frames))
 
     starting = None
     if resume is None:  # everything is built: now the directory (an old run is swapped out, not yet deleted)
@@ -416,7 +432,7 @@ def _loop(cfg, run_dir, spec, device, env, agent, reference, evaluator, buffer, 
         # policy trained on `frames` frames. A checkpoint is the state at the end of a batch
         # (after its evaluation), so the batch after it is the same whether the run resumes or not.
         for batch in collector:
-            frames += batch.numel()
+            frames += agent.frames_of(batch)  # (PGMORL: one member's frames, as the authors count)
             log.training_episodes(frames, batch)
             try:
                 losses, done_updates = agent.learn(batch, buffer, frames)  # store + update (the algorithm's)
@@ -430,7 +446,7 @@ def _loop(cfg, run_dir, spec, device, env, agent, reference, evaluator, buffer, 
                 log.losses(frames, losses)
             agent.on_frames(frames)
             collector.update_policy_weights_()
-            bar.update(batch.numel())
+            bar.update(agent.frames_of(batch))
             last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
             bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:
@@ -525,7 +541,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     _, agent, reference, evaluator = _build(cfg, spec, device)
     agent.load_state_dict(state["agent"])
     frames = checkpoint_frames(ckpt)
