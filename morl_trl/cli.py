@@ -120,6 +120,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
     args = p.parse_intermixed_args(argv)
     args.overrides = parse_overrides([*args.overrides, *args.set_])
+    _check_config_env_id(args)
     from morl_trl.recipes import resolve_config, train
 
     if args.resume:
@@ -150,6 +151,18 @@ def _ref_point(text: str | None) -> tuple[float, ...] | None:
         raise ValueError(f"--ref-point {text!r}: give one number per objective, comma-separated, e.g. 0,-25") from None
 
 
+def _check_config_env_id(args) -> None:
+    """A --config file that names another env id than the command line's is an error (not a silent switch)."""
+    if not args.config:
+        return
+    from morl_trl.recipes.config import load_config_file
+
+    named = load_config_file(args.config).get("env_id")
+    if named is not None and named != args.env_id:
+        raise ValueError(f"config file {args.config!r} is for env_id {named!r} but the command line gives "
+                         f"{args.env_id!r}: give the same id (or drop env_id from the file)")
+
+
 def _resume_config(args):
     """The run's config.json, checked against what the command line gives (see ``--resume``)."""
     from morl_trl.recipes.config import TrainConfig, load_config_file, quick_preset, resume_config
@@ -163,9 +176,11 @@ def _resume_config(args):
         raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
     cfg = TrainConfig.load(run_dir / "config.json")
     from_file = load_config_file(args.config) if args.config else {}
-    cfg = resume_config(cfg, {"algo": args.algo, "env_id": from_file.get("env_id", args.env_id)}, "the command line")
-    if args.quick:
-        cfg = resume_config(cfg, {k: v for k, v in quick_preset(cfg.algo).items() if k != "frames"}, "the --quick preset")
+    cfg = resume_config(cfg, {"algo": args.algo, "env_id": args.env_id}, "the command line")
+    if args.quick:  # (what the file or --set gives wins over the preset, as when the run was started)
+        given = {*from_file, *args.overrides, "frames"}
+        cfg = resume_config(cfg, {k: v for k, v in quick_preset(cfg.algo).items() if k not in given},
+                            "the --quick preset")
     if from_file:
         cfg = resume_config(cfg, from_file, f"config file {args.config!r}")
     if args.overrides:

@@ -93,5 +93,5 @@ def test_progress_bar_shows_one_frame_rate():
 
     from morl_trl.recipes import off_policy
 
-    src = inspect.getsource(off_policy.run_training)
+    src = inspect.getsource(off_policy)  # (the training loop: run_training and the functions it calls)
     assert "set_postfix(nhgr=" in src and "fps=" not in src.split("set_postfix", 1)[1].split("\n", 1)[0]

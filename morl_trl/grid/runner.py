@@ -178,6 +178,43 @@ _EVENTS = ("on_trial_start", "on_trial_recover", "on_trial_complete", "on_trial_
            "on_experiment_end")  # the Tune events a progress object follows
 
 
+def check_grid_options(cells: list[Cell], *, address=None, num_cpus=None, num_gpus=None, max_concurrent=None,
+                       max_failures=2, progress_interval=30.0) -> None:
+    """``ValueError`` (naming the option and what is valid) before anything is written or started:
+    negative counts, and cells that reserve more than an embedded Ray has (they would wait as
+    pending forever)."""
+    def _count(name, value, low, optional=True):
+        if value is None and optional:
+            return
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= low:
+            raise ValueError(f"{name} is {value!r}; valid: a number >= {low}" + (" (or leave it out)" if optional else ""))
+
+    _count("--max-concurrent (max_concurrent)", max_concurrent, 1)
+    _count("--max-failures (max_failures)", max_failures, 0, optional=False)
+    _count("--num-cpus (num_cpus)", num_cpus, 1)
+    _count("--num-gpus (num_gpus)", num_gpus, 0)
+    if not (isinstance(progress_interval, (int, float)) and progress_interval > 0):
+        raise ValueError(f"--progress-interval is {progress_interval!r}; valid: seconds > 0")
+    if address:  # a cluster may grow (autoscaling): Ray decides
+        return
+    import ray
+    import torch
+
+    if ray.is_initialized():  # (a Ray started by the caller: what it has)
+        res = ray.cluster_resources()
+        have = {"cpus": float(res.get("CPU", 0)), "gpus": float(res.get("GPU", 0))}
+    else:
+        have = {"cpus": float(num_cpus if num_cpus is not None else os.cpu_count() or 1),
+                "gpus": float(num_gpus if num_gpus is not None else torch.cuda.device_count())}
+    for c in cells:
+        for kind, need in (("cpus", c.cpus), ("gpus", c.gpus)):
+            if need > have[kind]:
+                flag = {"cpus": "--cpus-per-run / resources.cpus", "gpus": "--gpus-per-run / resources.gpus"}[kind]
+                raise ValueError(f"cell {c.name} reserves {kind} = {need:g} but this machine's Ray has {have[kind]:g}: "
+                                 f"it would wait forever; lower {flag} (or give --num-{kind} / --address of a "
+                                 f"cluster that has them)")
+
+
 def _init_ray(address: str | None, num_cpus: int | None, num_gpus: float | None) -> bool:
     """Connect to (``address``) or start an embedded Ray; ``True`` if this call started it."""
     import ray
@@ -219,6 +256,8 @@ def run_grid(
     from ray.tune.logger import JsonLoggerCallback
 
     cells = spec.check()
+    check_grid_options(cells, address=address, num_cpus=num_cpus, num_gpus=num_gpus, max_concurrent=max_concurrent,
+                       max_failures=max_failures, progress_interval=progress_interval)
     grid_dir = Path(grid_dir).resolve()
     grid_dir.mkdir(parents=True, exist_ok=True)
     (grid_dir / "grid.json").write_text(json.dumps(spec.to_dict(), indent=1))

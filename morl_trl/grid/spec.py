@@ -114,9 +114,9 @@ def _seeds(value, source: str) -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
         value = [value]
     ok = isinstance(value, (list, tuple)) and value and all(
-        isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**63 for s in value)
+        isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**32 for s in value)
     if not ok:
-        raise ValueError(f"{source}: seeds is {value!r}; valid: a non-empty list of ints in [0, 2**63 - 1]")
+        raise ValueError(f"{source}: seeds is {value!r}; valid: a non-empty list of ints in [0, 2**32 - 1]")
     return tuple(dict.fromkeys(value))
 
 
@@ -171,7 +171,11 @@ class GridSpec:
         if unknown:
             raise ValueError(f"{source}: unknown key(s) {unknown}; valid: {list(_TOP_KEYS)}")
         blocks = []
-        raw_blocks = list(data.get("block", []))
+        raw_blocks = data.get("block", [])
+        if not isinstance(raw_blocks, list):
+            raise ValueError(f"{source}: block is {raw_blocks!r}; valid: [[block]] tables, each with algorithms and "
+                             f"domains")
+        raw_blocks = list(raw_blocks)
         if "algorithms" in data or "domains" in data:
             raw_blocks.insert(0, {"algorithms": data.get("algorithms"), "domains": data.get("domains")})
         if not raw_blocks:
@@ -199,6 +203,9 @@ class GridSpec:
         if not isinstance(name, str) or not name:
             raise ValueError(f"{source}: name is {name!r}; valid: a non-empty string")
         rules = []
+        if not isinstance(data.get("cell", []), list):
+            raise ValueError(f"{source}: cell is {data['cell']!r}; valid: [[cell]] tables (algorithm, domain, seed, "
+                             f"overrides, resources)")
         for i, r in enumerate(data.get("cell", [])):
             where = f"{source}: cell {i}"
             if not isinstance(r, dict) or set(r) - {"algorithm", "domain", "seed", "overrides", "resources"}:

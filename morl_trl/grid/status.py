@@ -82,11 +82,27 @@ def _last_logged_frames(run_dir: Path) -> int:
 
 
 def read_cell_record(grid_dir: str | Path, name: str) -> dict:
+    """``cells/<name>.json``, its fields checked: a damaged or hand-edited record (not JSON, not
+    an object, a field of the wrong type) loses the bad fields, never crashes ``grid status`` or
+    ``grid start`` (the run directory itself says how far the cell got)."""
     path = Path(grid_dir) / "cells" / f"{name}.json"
     try:
-        return json.loads(path.read_text())
+        record = json.loads(path.read_text())
     except (OSError, ValueError):
         return {}
+    if not isinstance(record, dict):
+        return {}
+    checks = {
+        "status": lambda v: v in STATUSES,
+        "attempts": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
+        "wall_s": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
+        "error": lambda v: isinstance(v, str),
+        "traceback": lambda v: isinstance(v, str),
+        "pid": lambda v: isinstance(v, int) and not isinstance(v, bool),
+        "host": lambda v: isinstance(v, str),
+        "updated": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+    }
+    return {k: v for k, v in record.items() if k not in checks or v is None or checks[k](v)}
 
 
 def write_cell_record(grid_dir: str | Path, name: str, **values) -> dict:
@@ -94,9 +110,9 @@ def write_cell_record(grid_dir: str | Path, name: str, **values) -> dict:
     folder = Path(grid_dir) / "cells"
     folder.mkdir(parents=True, exist_ok=True)
     record = {**read_cell_record(grid_dir, name), **values, "updated": time.time()}
-    tmp = folder / f".{name}.json.{os.getpid()}.tmp"
-    tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
-    os.replace(tmp, folder / f"{name}.json")
+    from morl_trl.runs.atomic import atomic_write_text
+
+    atomic_write_text(folder / f"{name}.json", json.dumps(record, indent=1, sort_keys=True))
     return record
 
 
@@ -150,7 +166,12 @@ def grid_status(grid_dir: str | Path, cells=None, *, running: set[str] | None = 
         spec_file = grid_dir / "grid.json"
         if not spec_file.is_file():
             raise ValueError(f"{str(grid_dir)!r} is not a grid directory (no grid.json)")
-        spec = GridSpec.from_dict(json.loads(spec_file.read_text()), str(spec_file))
+        try:
+            data = json.loads(spec_file.read_text())
+        except (OSError, ValueError) as err:
+            raise ValueError(f"{str(spec_file)!r} does not parse ({err}); run the grid again with its spec file to "
+                             f"rewrite it") from None
+        spec = GridSpec.from_dict(data, str(spec_file))
         cells = [(c.name, None) for c in spec.cells()]
     out = []
     for name, target in cells:

@@ -131,11 +131,26 @@ class MOGymnasiumEnv(gymnasium.Env):
         out = self.env.reset(td)
         return self._observation(out), self._info(out)
 
+    def _action_tensor(self, action) -> torch.Tensor:
+        """``action`` as the batched env's ``[1, ...]`` action, unconverted: the env checks it as it
+        checks any action (``step(1.5)``, ``step(True)``, ``step(nan)`` of a discrete env, NaN or
+        out-of-bounds continuous actions are ``ValueError``s naming the value and the valid range)."""
+        try:
+            arr = np.asarray(action)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{self.env_id}: action {action!r} is not a number or array ({err})") from None
+        if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_):
+            raise ValueError(f"{self.env_id}: action {action!r} is not numeric; valid: {self.action_space}")
+        shape = () if self._discrete else self.action_space.shape
+        if arr.size != int(np.prod(shape)):
+            raise ValueError(f"{self.env_id}: action has shape {arr.shape}; valid: {self.action_space} "
+                             f"(shape {shape})")
+        if not self._discrete and np.issubdtype(arr.dtype, np.floating):
+            arr = arr.astype(self.action_space.dtype)  # (NaN stays NaN: the env refuses it)
+        return torch.as_tensor(arr.reshape(1, *shape).copy())
+
     def step(self, action):
-        if self._discrete:
-            act = torch.as_tensor(np.asarray(action).reshape(()).astype(np.int64)).reshape(1)
-        else:
-            act = torch.as_tensor(np.asarray(action, dtype=self.action_space.dtype)).reshape(1, *self.action_space.shape)
+        act = self._action_tensor(action)
         td = TensorDict(action=act.to(self.env.device), batch_size=[1], device=self.env.device)
         nxt = self.env.step(td)["next"]
         reward = nxt["reward"][0].detach().cpu().numpy().astype(np.float32, copy=True)

@@ -150,7 +150,8 @@ class TrainConfig:
     algo: str = _key("run", "envelope", "algorithm", _choice(ALGORITHMS))
     env_id: str = _key("run", "MOLavaGridDR-v0", "training env id (a *DR-* id trains under domain randomization)",
                        _str())
-    seed: int = _key("run", 0, "one seed for contexts, preferences, networks and evaluation", _int(0, 2**63 - 1))
+    seed: int = _key("run", 0, "one seed for contexts, preferences, networks and evaluation (NumPy's seed range: "
+                     "below 2**32)", _int(0, 2**32 - 1))
     device: str = _key("run", "cpu", "torch device of envs, replay buffer and networks", _device)
     num_threads: int = _key("run", 1, "torch CPU threads (1 avoids OpenMP oversubscription with small nets; "
                             "0: torch's default)", _int(0, 4096))
@@ -351,6 +352,16 @@ class TrainConfig:
         if self.cudagraphs and not str(self.device).startswith("cuda"):
             raise ValueError(f"config key 'cudagraphs' (compile) is true but device is {self.device!r}; "
                              "valid: cudagraphs=true with a cuda device (compile=true works on any device)")
+        try:
+            from morl_trl.envs import domain_of
+
+            objectives = list(domain_of(self.env_id).objective_names)
+        except (ValueError, KeyError):
+            objectives = None  # (an unknown id is refused where the env is made, naming close matches)
+        if objectives is not None and self.eval_weights < len(objectives):
+            raise ValueError(f"config key 'eval_weights' (eval) is {self.eval_weights}; valid: an int >= "
+                             f"{len(objectives)} (the evaluation weights include the {len(objectives)} corners of the "
+                             f"simplex of the objectives {objectives})")
         if self.compile_mode is not None:  # (torch.compile checks it only at the first update: after a start)
             from torch._inductor import list_mode_options
 

@@ -531,6 +531,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         cfg.reference_dir = reference_dir
     if weights is not None:
         cfg.eval_weights = weights
+        cfg.validate()  # (--weights named as the config key it sets)
     ckpt, skipped = find_checkpoint(run_dir, only=("state.pt",))  # (evaluating needs no replay buffer)
     for path, why in skipped:
         print(f"warning: skipped damaged checkpoint {path.name}: {why}", flush=True)

@@ -208,10 +208,10 @@ def verify_checkpoint(path: str | Path, only: tuple[str, ...] | None = None) -> 
         files = manifest["files"]
     except (OSError, ValueError, KeyError, TypeError) as err:
         return f"unreadable {MANIFEST}: {err}"
-    if "state.pt" not in files:
-        return f"{MANIFEST} lists no state.pt"
     if not isinstance(files, dict) or not all(isinstance(w, dict) for w in files.values()):
         return f"unreadable {MANIFEST}: 'files' is not a mapping of file -> size and sha256"
+    if "state.pt" not in files:
+        return f"{MANIFEST} lists no state.pt"
     for d in manifest.get("dirs", []) if only is None else ():
         if not (path / str(d)).is_dir():
             return f"{d}/ is missing"

@@ -60,6 +60,9 @@ def test_a_run_with_a_gpu_share_trains_on_cuda():
     ({"overrides": {"lr": 1e-3, "seed": 3}}, r"overrides may not set \['seed'\]"),
     ({"overrides": {"lrr": 1}}, r"unknown config key\(s\) \['lrr'\]"),
     ({"cell": [{"domain": "MOHopperDR-v5", "overrides": {"lr": 1e-3}}]}, "matches no cell of the grid"),
+    ({"block": 5}, r"block is 5; valid: \[\[block\]\] tables, each with algorithms and domains"),
+    ({"cell": "x"}, r"cell is 'x'; valid: \[\[cell\]\] tables"),
+    ({"seeds": [2**32]}, r"seeds is \[4294967296\]; valid: a non-empty list of ints in \[0, 2\*\*32 - 1\]"),
 ])
 def test_bad_specs_are_refused_naming_the_fault(change, message):
     with pytest.raises(ValueError, match=message):
@@ -93,6 +96,13 @@ def test_shipped_grid_files():
     (["--algos", "envelope", "--domains", "MOLavaGridDR-v0", "--set", "lr=-1"], "cell envelope__MOLavaGridDR-v0__s0: "
      "config key 'lr'"),
     (["no/such/spec.toml"], "grid spec 'no/such/spec.toml' does not exist"),
+    (["--quick", "--max-failures", "-1"], "--max-failures (max_failures) is -1; valid: a number >= 0"),
+    (["--quick", "--max-concurrent", "-2"], "--max-concurrent (max_concurrent) is -2; valid: a number >= 1"),
+    (["--quick", "--max-concurrent", "0"], "--max-concurrent (max_concurrent) is 0; valid: a number >= 1"),
+    (["--quick", "--num-cpus", "2", "--cpus-per-run", "3"], "reserves cpus = 3 but this machine's Ray has 2: it "
+     "would wait forever; lower --cpus-per-run / resources.cpus"),
+    (["--quick", "--num-gpus", "0", "--gpus-per-run", "0.5"], "reserves gpus = 0.5 but this machine's Ray has 0"),
+    (["--quick", "--seeds", "4294967296"], "seeds is [4294967296]; valid: a non-empty list of ints in [0, 2**32 - 1]"),
 ])
 def test_grid_command_refuses_bad_input_before_running(capsys, tmp_path, args, message):
     from morl_trl.cli import main
@@ -100,6 +110,27 @@ def test_grid_command_refuses_bad_input_before_running(capsys, tmp_path, args, m
     assert main(["grid", *args, "--dir", str(tmp_path / "g")]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "g").exists()
+
+
+@pytest.mark.parametrize("text", ["{", "[1, 2]", '"running"', '{"status": 5, "attempts": "x", "wall_s": "y", '
+                                  '"error": 3}', ""])
+def test_a_corrupted_cell_record_does_not_break_status_or_start(tmp_path, text, capsys):
+    from morl_trl.cli import main
+    from morl_trl.grid.status import read_cell_record, write_cell_record
+
+    spec = GridSpec.from_dict(SPEC)
+    (tmp_path / "grid.json").write_text(json.dumps(spec.to_dict()))
+    name = spec.cells()[0].name
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "cells" / f"{name}.json").write_text(text)
+    assert main(["grid", "status", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"{name}  pending" in out
+    assert read_cell_record(tmp_path, name) == {}  # the bad fields are dropped
+    assert write_cell_record(tmp_path, name, status="running", attempts=1)["attempts"] == 1  # (grid start writes it)
+    (tmp_path / "grid.json").write_text("{")
+    assert main(["grid", "status", str(tmp_path)]) == 2
+    assert "grid.json' does not parse" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------- on Ray

@@ -1,5 +1,6 @@
 """Every id as a Gymnasium / MO-Gymnasium environment (morl_trl.gym)."""
 
+import re
 import subprocess
 import sys
 import warnings
@@ -114,3 +115,38 @@ def test_gymnasium_make_needs_no_import_with_the_module_prefix():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "(2,)"
+
+
+@pytest.mark.parametrize("action, message", [
+    (1.5, "discrete actions must be integers in [0, 3); got 1.5"),
+    (True, "discrete actions must be integers in [0, 3); got a torch.bool tensor"),
+    (float("nan"), "discrete actions must be integers in [0, 3); got nan"),
+    (3, "action 3 is out of the action space [0, 3)"),
+    ("left", "MOLavaGridDR-v0: action 'left' is not numeric; valid: Discrete(3)"),
+    ([1, 2], "MOLavaGridDR-v0: action has shape (2,); valid: Discrete(3) (shape ())"),
+])
+def test_discrete_actions_are_checked_as_the_torchrl_env_checks_them(action, message):
+    from morl_trl.gym import MOGymnasiumEnv
+
+    env = MOGymnasiumEnv("MOLavaGridDR-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        env.step(action)
+    obs, reward, *_ = env.step(np.int64(2))  # a valid action still steps
+    assert reward.shape == (2,)
+
+
+@pytest.mark.parametrize("action, message", [
+    (np.full(3, np.nan), "action contains NaN or inf"),
+    (np.full(3, 2.0), "action out of its bounds"),
+    (np.ones(2), "MOHopperDR-v5: action has shape (2,); valid: Box(-1.0, 1.0, (3,), float32) (shape (3,))"),
+    (np.array([True, False, True]), "continuous actions must be real numbers; got a torch.bool tensor"),
+])
+def test_continuous_actions_are_checked(action, message):
+    pytest.importorskip("mujoco")
+    from morl_trl.gym import MOGymnasiumEnv
+
+    env = MOGymnasiumEnv("MOHopperDR-v5")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        env.step(action)

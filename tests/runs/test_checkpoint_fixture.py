@@ -12,7 +12,8 @@ import torch
 from tensordict import TensorDict
 
 from morl_trl.recipes import TrainConfig, evaluate_run, load_policy, train
-from morl_trl.runs import latest_checkpoint
+from morl_trl.recipes.convert import convert_run
+from morl_trl.runs import UntrustedCheckpointError, checkpoint_format, latest_checkpoint
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "envelope_lavagrid_run"
 
@@ -30,15 +31,29 @@ def run(tmp_path) -> Path:
     return dst
 
 
+def test_fixture_is_refused_unless_trusted(run):
+    """It holds pickles (the format of 2026-11-26): loading it could run code, so it needs an opt-in."""
+    with pytest.raises(UntrustedCheckpointError, match="old pickled format .* `morl-trl convert-run"):
+        load_policy(run)
+    with pytest.raises(UntrustedCheckpointError):
+        train(TrainConfig.load(run / "config.json"), resume=run)
+
+
 def test_fixture_loads_with_the_trained_weights(run):
-    policy = load_policy(run)
+    with pytest.warns(UserWarning, match="loading the pickled checkpoint"):
+        policy = load_policy(run, trust_pickle=True)
     assert (policy.config.algo, policy.env_id, policy.frames) == ("envelope", "MOLavaGridDR-v0", 256)
     out = policy(TensorDict(observation=_OBS, preference=_PREF, batch_size=[2]))
     torch.testing.assert_close(out["action_value"].detach(), _Q, rtol=0, atol=1e-4)
     assert out["action"].tolist() == [1, 0]
 
 
-def test_fixture_resumes_and_evaluates(run, reference_dir):
+def test_fixture_converts_then_loads_resumes_and_evaluates(run, reference_dir):
+    assert convert_run(run) == ["frames_000000000256"]
+    assert checkpoint_format(run / "checkpoints" / "frames_000000000256") == 2
+    assert not (run / "checkpoints" / "frames_000000000256" / "buffer").exists()  # (no pickle left)
+    out = load_policy(run)(TensorDict(observation=_OBS, preference=_PREF, batch_size=[2]))
+    torch.testing.assert_close(out["action_value"].detach(), _Q, rtol=0, atol=1e-4)
     cfg = TrainConfig.load(run / "config.json")
     cfg.frames = 384  # two more batches of 64 frames
     summary = train(cfg, resume=run)

@@ -41,7 +41,7 @@ def cli(capsys, monkeypatch, tmp_path):
 def _snapshot(root: Path) -> dict[str, tuple[int, int, str]]:
     """size, mtime and hash of every file under ``root``."""
     return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
-            for p in sorted(root.rglob("*")) if p.is_file()}
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != ".lock"}  # (the lock file: not run content)
 
 
 def _outputs(run: Path) -> dict[str, bytes]:
