@@ -137,7 +137,7 @@ def test_own_trainer_tutorial_runs(outside_repo):
 
 def test_ray_grid_tutorial_runs(outside_repo):
     ns = _run_page("tutorials/ray-grid.md", outside_repo)
-    assert len(ns["cells"]) == 195 and len({(c.algo, c.domain) for c in ns["cells"]}) == 39
+    assert len(ns["cells"]) == 195 and len({(c.algo, c.env_id) for c in ns["cells"]}) == 39
 
 
 def test_tutorials_are_listed():
