@@ -26,6 +26,15 @@ buffer empty (:func:`checkpoint_buffer` says which case a checkpoint is).
 Before a checkpoint is used it is verified against its manifest, reading its files only
 (:func:`verify_checkpoint`); :func:`find_checkpoint` falls back to the newest intact one and
 says which it skipped and why.
+
+Example:
+    >>> import tempfile, torch
+    >>> run = tempfile.mkdtemp()
+    >>> path = save_checkpoint(run, 64, {"weights": torch.ones(2), "frames": 64})
+    >>> path.name, verify_checkpoint(path), checkpoint_format(path)
+    ('frames_000000000064', None, 2)
+    >>> load_checkpoint(path)["frames"]
+    64
 """
 
 from __future__ import annotations
