@@ -30,6 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from morl_trl.grid.spec import Cell, GridSpec
+from morl_trl.runs.atomic import atomic_write_text
 from morl_trl.grid.status import CellState, format_status, grid_status, read_cell_record, write_cell_record
 
 __all__ = ["run_grid", "run_cell", "GridProgress"]
@@ -123,7 +124,7 @@ class GridProgress:
 
     def show(self, per_cell: bool = True) -> None:
         states = self.states()
-        (self.grid_dir / "status.json").write_text(json.dumps([s.as_dict() for s in states], indent=1))
+        atomic_write_text(self.grid_dir / "status.json", json.dumps([s.as_dict() for s in states], indent=1))
         if self.stream is not False:
             print(format_status(states, time.perf_counter() - self.t0, per_cell=per_cell), file=self.stream,
                   flush=True)
@@ -260,7 +261,7 @@ def run_grid(
                        max_failures=max_failures, progress_interval=progress_interval)
     grid_dir = Path(grid_dir).resolve()
     grid_dir.mkdir(parents=True, exist_ok=True)
-    (grid_dir / "grid.json").write_text(json.dumps(spec.to_dict(), indent=1))
+    atomic_write_text(grid_dir / "grid.json", json.dumps(spec.to_dict(), indent=1))
     targets = {c.name: c.config(check_device=False).frames for c in cells}
     before = grid_status(grid_dir, [(c.name, targets[c.name]) for c in cells], running=set())
     todo = [c for c, s in zip(cells, before) if s.status != "done"]

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import random
-import shutil
 import time
 from pathlib import Path
 
@@ -340,7 +339,7 @@ def _train(cfg: TrainConfig, run_dir: Path, ckpt: Path | None, notes: list[str],
     starting = None
     if resume is None:  # everything is built: now the directory (an old run is swapped out, not yet deleted)
         starting = NewRunDir(run_dir, overwrite)
-        lock = starting.start()
+        starting.start()
     try:
         if resume is None:
             cfg.run_dir = str(run_dir)

@@ -61,13 +61,13 @@ def fsync_tree(root: str | Path) -> None:
     fsync_dir(root)
 
 
-def atomic_write(path: str | Path, write: Callable[[Any], None], *, mode: str = "wb") -> None:
+def atomic_write(path: str | Path, write: Callable[[Any], None], *, mode: str = "wb", **open_kwargs: Any) -> None:
     """Write ``path`` whole or not at all: ``write(fh)`` fills a temporary file beside it, which
     is fsynced and renamed over ``path``, then the directory is fsynced."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        with tmp.open(mode) as fh:
+        with tmp.open(mode, **open_kwargs) as fh:
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())

@@ -29,11 +29,12 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 import time
 from pathlib import Path
 
 from tqdm.auto import tqdm
+
+from morl_trl.runs.atomic import atomic_write, atomic_write_bytes
 
 
 __all__ = ["RunLog", "check_logger"]
@@ -54,11 +55,16 @@ def _append_rows(path: Path, rows: list[dict]) -> None:
                 old = list(csv.DictReader(fh))
             rows = old + rows
             new = True
-    with path.open("w" if new else "a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        if new:
+    if new:  # a whole file (the first rows, or all rows under a wider header): atomically
+        def write(fh) -> None:
+            w = csv.DictWriter(fh, fieldnames=keys)
             w.writeheader()
-        w.writerows(rows)
+            w.writerows(rows)
+
+        atomic_write(path, write, mode="w", newline="")
+        return
+    with path.open("a", newline="") as fh:  # appended rows: a line cut by a kill is dropped on resume (truncate)
+        csv.DictWriter(fh, fieldnames=keys).writerows(rows)
 
 
 def _cut_lines(path: Path, frames: int, *, header: bool) -> int:
@@ -86,9 +92,7 @@ def _cut_lines(path: Path, frames: int, *, header: bool) -> int:
         if keep and not keep[-1].endswith(b"\n"):  # a line cut mid-write by a kill
             keep.pop()
             removed += 1
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_bytes(b"".join(keep))
-        os.replace(tmp, path)
+        atomic_write_bytes(path, b"".join(keep))
     return removed
 
 

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from morl_trl.cli import main
-from morl_trl.recipes import evaluate_run, load_policy, resolve_config, train
+from morl_trl.recipes import load_policy, resolve_config, train
 from morl_trl.runs import find_checkpoint, verify_checkpoint
-from tests.runs._helpers import TINY, write_config
+from tests.runs._helpers import TINY
 
 
 @pytest.fixture(scope="module")
