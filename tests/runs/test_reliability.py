@@ -270,7 +270,7 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
     cfg = write_config(tmp_path / "c.toml", frames=128, init_random_frames=64)
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run)
     assert out.returncode == 2
-    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'logs']): " \
+    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'log.txt']): " \
            f"continue it with --resume '{run}', replace it with --overwrite, or choose another --run-dir" in out.stderr
     assert _snapshot(run) == before
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run, "--overwrite")
