@@ -218,3 +218,37 @@ def test_pcn_network_is_the_authors_net_arch():
     assert [m.out_features for m in net.fc if isinstance(m, torch.nn.Linear)] == [256, 256, 256, 3]
     _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)  # MORL-Baselines' hidden_dim: one hidden layer
     assert [m.out_features for m in old.loss.policy_network.module.fc if isinstance(m, torch.nn.Linear)] == [64, 3]
+
+
+# ---------------------------------------------------------------------- PGMORL / MORL/D evaluation
+def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread):
+    """The authors' PGMORL.eval: the archive snapshot of nearest weight acts (pgmorl.py:719-768)."""
+    pytest.importorskip("mujoco")
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+
+    cfg = resolve_config("pgmorl", "MOHalfCheetahDR-v5", quick=True, pgmorl_pop=2, num_envs=2,
+                         pgmorl_envs_per_member=1, frames_per_batch=32, hidden=(8,))
+    env = make_pgmorl_training_env(cfg, CPU)
+    agent = make_pgmorl_agent(cfg, env, gamma=0.99, device=CPU)
+
+    def snapshot(mean):  # a policy whose mean action is `mean` everywhere
+        state = agent.head.member_state(0)
+        for name, t in state.items():
+            t.zero_()
+        state[max(n for n in state if n.startswith("mean.biases"))].fill_(mean)
+        return state
+
+    agent._archive_snapshot(np.array([10.0, 0.0]), torch.tensor([0.9, 0.1]), snapshot(0.5))
+    agent._archive_snapshot(np.array([0.0, 10.0]), torch.tensor([0.1, 0.9]), snapshot(-0.5))
+    agent._archive_snapshot(np.array([-1.0, -1.0]), torch.tensor([0.5, 0.5]), snapshot(0.9))  # dominated: dropped
+    torch.testing.assert_close(torch.stack([e["weight"] for e in agent.archive_members]),
+                               torch.tensor([[0.9, 0.1], [0.1, 0.9]]))
+    obs = torch.randn(4, env.observation_spec["observation"].shape[-1])
+    td = TensorDict(observation=obs, preference=torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.6, 0.4], [0.45, 0.55]]),
+                    batch_size=[4])
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        action = agent.eval_policy(td)["action"]
+    torch.testing.assert_close(action, torch.tensor([0.5, -0.5, 0.5, -0.5]).unsqueeze(-1).expand(4, 6))
