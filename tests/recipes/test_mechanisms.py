@@ -252,3 +252,33 @@ def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         action = agent.eval_policy(td)["action"]
     torch.testing.assert_close(action, torch.tensor([0.5, -0.5, 0.5, -0.5]).unsqueeze(-1).expand(4, 6))
+
+
+def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread):
+    """The authors' MORL/D eval: the archive snapshot of nearest weight acts (morld.py:434-488)."""
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+
+    cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,))
+    env = make_morld_training_env(cfg, CPU)
+    agent = make_morld_agent(cfg, env, gamma=0.995, device=CPU)
+    params = agent.loss.actor_network_params.detach().cpu()
+
+    def snapshot(action):  # a policy that always prefers `action` (logits: 10 on it, 0 elsewhere)
+        one = params.apply(lambda x: torch.zeros_like(x[0]))
+        one["module", "0", "module", "mlp", "2", "bias"][action] = 10.0
+        return {"weight": torch.tensor([0.8, 0.2]), "actor": one} if action == 2 else \
+            {"weight": torch.tensor([0.3, 0.7]), "actor": one}
+
+    obs = torch.randn(4, 125)
+    td = lambda: TensorDict(observation=obs, preference=torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.6, 0.4], [0.5, 0.5]]),  # noqa: E731
+                            batch_size=[4])
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        before = agent.eval_policy(td())["action"]  # empty archive: the population's members
+        agent.archive.add(torch.tensor([[5.0, 1.0], [1.0, 5.0]]), [snapshot(2), snapshot(0)])
+        after = agent.eval_policy(td())["action"]
+    assert before.shape == (4,)
+    # nearest snapshot weight: [0.8, 0.2] (action 2) for [1, 0] and [0.6, 0.4]; [0.3, 0.7] (action 0) for the others
+    assert after.tolist() == [2, 0, 2, 0]
