@@ -205,7 +205,7 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path, trust_pickle: bool = F
     if ckpt is None:
         what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
         raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
-                         f"start it again with --overwrite")
+                         f"start it again with overwrite=True")
     if checkpoint_format(ckpt) < 2 and not trust_pickle:  # refused before anything is built or written
         load_checkpoint(ckpt)
     return cfg, ckpt, notes
@@ -290,7 +290,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             done = checkpoint_frames(ckpt)
             if done >= cfg.frames:
                 msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
-                       f"pass a larger --frames to extend it")
+                       f"pass a larger frames (--frames) to extend it")
                 print(msg, flush=True)
                 return {"frames": done, "finished": True}, None, run_dir, cfg
             return _train(cfg, run_dir, ckpt, notes, trust_pickle=trust_pickle)

@@ -61,10 +61,10 @@ def check_new_run_dir(run_dir: str | Path, overwrite: bool) -> None:
         held = run_dir_contents(run_dir)
         if held and not overwrite:
             raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
-        if held and not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
-            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
-                             f"(it holds {held[:5]}): choose another --run-dir")
+                             f"resume={str(run_dir)!r}, replace it with overwrite=True, or choose another run_dir=")
+        if held and not (run_dir / "config.json").is_file():  # overwrite deletes runs only, never any other folder
+            raise ValueError(f"overwrite=True replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another run_dir=")
 
 
 class NewRunDir:
@@ -103,7 +103,7 @@ class NewRunDir:
                 os.replace(staging, run_dir)  # (over an empty directory; a non-empty one is refused)
             except OSError:
                 raise ValueError(f"run directory {str(run_dir)!r} was filled by another process while this run "
-                                 f"started: choose another --run-dir") from None
+                                 f"started: choose another run_dir=") from None
             fsync_dir(parent)
         except BaseException:
             lock.release()

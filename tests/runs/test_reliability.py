@@ -110,7 +110,7 @@ def test_resume_of_a_finished_run_is_a_no_op(run, cli):
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--resume", run)
     assert out.returncode == 0
     assert out.stdout.strip().endswith("already reached 512 frames (frames = 512): nothing to do; "
-                                       "pass a larger --frames to extend it")
+                                       "pass a larger frames (--frames) to extend it")
     assert _snapshot(run) == before
 
 
@@ -272,7 +272,7 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run)
     assert out.returncode == 2
     assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'log.txt']): " \
-           f"continue it with --resume {run}, replace it with --overwrite, or choose another --run-dir" in out.stderr
+           f"continue it with --resume '{run}', replace it with --overwrite, or choose another --run-dir" in out.stderr
     assert _snapshot(run) == before
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run, "--overwrite")
     assert out.returncode == 0, out.stderr[-2000:]
