@@ -386,12 +386,31 @@ def rate(step, n):
     return n / (CLOCK() - t)
 
 
-def compare(name, variants, peer, *, warmup, updates, rounds):
-    """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios."""
-    for _ in range(warmup):
-        for step in variants.values():
-            step()
-        if peer is not None:
+TABLE = None  # --table FILE: each row appended, tab-separated (benchmarks/gpu/check.sh collects them)
+
+
+def _table(*fields) -> None:
+    if TABLE:
+        with open(TABLE, "a") as f:
+            f.write("\t".join(str(x) for x in fields) + "\n")
+
+
+def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu"):
+    """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios.
+
+    A variant that fails (e.g. a capture mode on a new device) is reported and skipped."""
+    failed = {}
+    for label, step in list(variants.items()):
+        try:
+            for _ in range(warmup):
+                step()
+        except Exception as err:
+            failed[label] = f"{type(err).__name__}: {str(err).splitlines()[0][:300] if str(err) else ''}"
+            del variants[label]
+            print(f"{name:<10} {label:<11} failed: {failed[label]}", flush=True)
+            _table("losses", name, device, label, "updates/s", "FAILED", "", "", failed[label])
+    if peer is not None:
+        for _ in range(warmup):
             peer()
     rates = {label: [] for label in variants}
     r_peer = []
@@ -401,16 +420,21 @@ def compare(name, variants, peer, *, warmup, updates, rounds):
         if peer is not None:
             r_peer.append(rate(peer, updates))
     b = statistics.median(r_peer) if peer is not None else float("nan")
-    eager = statistics.median(rates["eager"])
+    eager = statistics.median(rates["eager"]) if "eager" in rates else float("nan")
     for label in variants:
         a = statistics.median(rates[label])
         vs_peer = f"{b:>10.1f} {a / b:>8.2f}x" if peer is not None else f"{'-':>10} {'-':>9}"
-        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x")
+        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x", flush=True)
+        _table("losses", name, device, label, "updates/s", f"{a:.1f}", f"{b:.1f}" if peer is not None else "",
+               f"{a / b:.2f}x" if peer is not None else "", f"{a / eager:.2f}x vs eager")
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a short sanity run (1 round of 8 updates)")
+    p.add_argument("--tiny", action="store_true",
+                   help="a seconds-long dry run (small buffer, 2 updates): every row runs, nothing is measured")
+    p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation", "none"], default="auto")
     p.add_argument("--device", default="cpu", help="cpu or cuda: where ours (and MORL-Baselines) run")
     p.add_argument("--capture", nargs="*", default=None, choices=["compile", "cudagraphs", "both"],
@@ -425,7 +449,8 @@ def main(argv=None) -> int:
         help="wall time (default), or this process's CPU time: steadier on a shared machine, with --threads 1",
     )
     args = p.parse_args(argv)
-    global CLOCK, SYNC
+    global CLOCK, SYNC, TABLE
+    TABLE = args.table
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
     device = torch.device(args.device)
     if device.type == "cuda":
@@ -436,9 +461,9 @@ def main(argv=None) -> int:
         torch.set_num_threads(args.threads)
     capture = args.capture if args.capture is not None else (["compile", "cudagraphs", "both"]
                                                              if device.type == "cuda" else [])
-    warmup, updates, rounds = (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
+    warmup, updates, rounds = (1, 2, 1) if args.tiny else (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
     warmup = max(warmup, 8) if capture else warmup  # compile and graph capture happen in the warm-up
-    buffer_size, filled = (4_096, 4_096) if args.quick else (100_000, 20_000)
+    buffer_size, filled = (1_024, 1_024) if args.tiny else (4_096, 4_096) if args.quick else (100_000, 20_000)
 
     peer = args.peer
     if peer in ("auto", "morl-baselines"):
@@ -478,8 +503,8 @@ def main(argv=None) -> int:
         if peers else None
     print("(ours: Agent.update as the recipe runs it: fused Adam, our prioritized sampler for Envelope)")
     print(f"{'loss':<10} {'update':<11} {'ours/s':>10} {'peer/s':>10} {'ratio':>9} {'vs eager':>10}")
-    compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds)
-    compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds)
+    compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds, device=device)
+    compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds, device=device)
     return 0
 
 

@@ -90,7 +90,9 @@ class CapturedUpdate:
         self.since_check = 0
         fn = self.step
         if getattr(cfg, "compile", False):
-            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None))
+            # dynamic=False: a training run's shapes never change, and symbolic sizes broke
+            # dynamo on the preference draws (randn of a symbolic size) on the GPU
+            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None), dynamic=False)
         if cudagraphs:
             from tensordict.nn import CudaGraphModule
 
