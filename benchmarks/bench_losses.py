@@ -119,8 +119,9 @@ def _agent_step(loss, optimizers, updater, rb, device, *, max_grad_norm=None, pr
     from morl_trl.recipes.agent import Agent
 
     cfg = SimpleNamespace(max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
-                          compile=capture in ("compile", "both"), compile_mode=None,
-                          cudagraphs=capture in ("cudagraphs", "both"))
+                          compile=capture in ("compile", "both", "whole+compile"), compile_mode=None,
+                          cudagraphs=capture in ("cudagraphs", "both", "whole", "whole+compile"),
+                          capture_sampling=capture in ("whole", "whole+compile"))
     agent = Agent(cfg, loss, None, None, optimizers, updater, device=device)
 
     def step():
@@ -140,7 +141,9 @@ def ours_envelope(tr, buffer_size, device=torch.device("cpu"), capture=None):
     loss.make_value_estimator(gamma=GAMMA)
     updater = HardUpdate(loss, value_network_update_interval=c["target_every"])
     optim = adam(loss.parameters(), LR)
-    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4, device=device)
+    # the whole-update graph needs the pure-torch trees (TorchRL's native ones read the host)
+    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4, device=device,
+                                  backend="torch" if capture and capture.startswith("whole") else "auto")
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), sampler=sampler,
                                 batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
@@ -386,6 +389,7 @@ def rate(step, n):
     return n / (CLOCK() - t)
 
 
+CAPTURE_MODES = ("compile", "cudagraphs", "both", "whole", "whole+compile")
 TABLE = None  # --table FILE: each row appended, tab-separated (benchmarks/gpu/check.sh collects them)
 
 
@@ -437,8 +441,9 @@ def main(argv=None) -> int:
     p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation", "none"], default="auto")
     p.add_argument("--device", default="cpu", help="cpu or cuda: where ours (and MORL-Baselines) run")
-    p.add_argument("--capture", nargs="*", default=None, choices=["compile", "cudagraphs", "both"],
-                   help="captured variants timed beside the eager update (default: all three on cuda, none on cpu)")
+    p.add_argument("--capture", nargs="*", default=None, choices=list(CAPTURE_MODES),
+                   help="captured variants timed beside the eager update (default: all on cuda, none on cpu); "
+                        "whole: sampling + update + priority writes as one CUDA graph (Envelope only)")
     p.add_argument("--updates", type=int, default=40, help="updates per round")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -459,8 +464,7 @@ def main(argv=None) -> int:
         SYNC = torch.cuda.synchronize
     if args.threads:
         torch.set_num_threads(args.threads)
-    capture = args.capture if args.capture is not None else (["compile", "cudagraphs", "both"]
-                                                             if device.type == "cuda" else [])
+    capture = args.capture if args.capture is not None else (list(CAPTURE_MODES) if device.type == "cuda" else [])
     warmup, updates, rounds = (1, 2, 1) if args.tiny else (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
     warmup = max(warmup, 8) if capture else warmup  # compile and graph capture happen in the warm-up
     buffer_size, filled = (1_024, 1_024) if args.tiny else (4_096, 4_096) if args.quick else (100_000, 20_000)
@@ -495,7 +499,8 @@ def main(argv=None) -> int:
     ours_cap = {"eager": ours_capql(cap_tr, buffer_size, device)}
     for mode in capture:
         ours_env[mode] = ours_envelope(env_tr, buffer_size, device, capture=mode)[0]
-        ours_cap[mode] = ours_capql(cap_tr, buffer_size, device, capture=mode)
+        if not mode.startswith("whole"):  # CAPQL's uniform replay: nothing more to capture
+            ours_cap[mode] = ours_capql(cap_tr, buffer_size, device, capture=mode)
     peers = {"morl-baselines": (mb_envelope, mb_capql), "recreation": (rec_envelope, rec_capql)}.get(peer)
     peer_env = peers[0](env_tr, buffer_size, **({"device": str(device)} if peer == "morl-baselines" else {})) \
         if peers else None

@@ -88,7 +88,11 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
         torch.cuda.synchronize()
     wall = CLOCK() - t0
     collector.shutdown()
-    return {"fps": timed / wall, "ups": updates / wall, "train_frames": spec.train_frames}
+    captured = getattr(agent, "_captured", None)
+    path = ("whole update in one graph" if getattr(captured, "_whole", None) is not None
+            else "captured step" if captured is not None else "eager")
+    return {"fps": timed / wall, "ups": updates / wall, "train_frames": spec.train_frames,
+            "path": f"{path}; {type(getattr(buffer, '_sampler', None)).__name__}"}
 
 
 def peer(algo: str, env_id: str, device: str, frames: int) -> dict | None:
@@ -156,8 +160,10 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (the recipe's default: 1)")
     p.add_argument("--peer", choices=["auto", "none"], default="auto")
     p.add_argument("--no-capture", action="store_true", help="on cuda, skip the compile/cudagraphs rows")
-    p.add_argument("--capture", nargs="*", default=None, choices=["compile", "cudagraphs", "both"],
-                   help="captured rows on cuda beside the eager one (default: all three)")
+    p.add_argument("--capture", nargs="*", default=None,
+                   choices=["compile", "cudagraphs", "both", "whole", "whole+compile"],
+                   help="captured rows on cuda beside the eager one (default: all); whole: sampling and "
+                        "priority writes in the CUDA graph too (capture_sampling, Envelope)")
     p.add_argument("--tiny", action="store_true", help="a seconds-long dry run: every row runs, nothing is measured")
     p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
@@ -195,9 +201,13 @@ def main(argv=None) -> int:
         for device in devices:
             variants = [("eager", {})]
             modes = {"compile": {"compile": True}, "cudagraphs": {"cudagraphs": True},
-                     "both": {"compile": True, "cudagraphs": True}}
+                     "both": {"compile": True, "cudagraphs": True},
+                     "whole": {"cudagraphs": True, "capture_sampling": True},
+                     "whole+compile": {"compile": True, "cudagraphs": True, "capture_sampling": True}}
             if device == "cuda" and not args.no_capture:
-                variants += [(m, modes[m]) for m in (args.capture if args.capture is not None else modes)]
+                chosen = args.capture if args.capture is not None else list(modes)
+                # whole: prioritized replay's sampling in the graph (Envelope); elsewhere it is cudagraphs/both
+                variants += [(m, modes[m]) for m in chosen if not m.startswith("whole") or algo == "envelope"]
             peer_row = None
             if have_peer and (device == "cpu" or torch.cuda.is_available()):
                 peer_row = peer(algo, env_id, device, frames)
@@ -219,7 +229,7 @@ def main(argv=None) -> int:
                 print(line, flush=True)
                 _table(args.table, "train", f"{algo}/{env_id}", device, label, "frames/s", f"{r['fps']:.1f}",
                        f"{peer_row['fps']:.1f}" if peer_row else "", f"{r['fps'] / peer_row['fps']:.2f}x" if peer_row else "",
-                       f"{r['ups']:.1f} updates/s")
+                       f"{r['ups']:.1f} updates/s; {r['path']}")
     return 0
 
 

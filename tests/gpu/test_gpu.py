@@ -104,7 +104,8 @@ def _capture_modes():
         modes = ["step"] + (["cudagraphs", "both"] if device == "cuda" else [])
         for name in ("envelope", "capql"):
             for mode in modes:
-                yield pytest.param(device, name, mode, id=f"{device}-{name}-{mode}")
+                marks = [pytest.mark.slow] if mode == "both" else []  # a compile: minutes (not in the GPU check)
+                yield pytest.param(device, name, mode, marks=marks, id=f"{device}-{name}-{mode}")
 
 
 @pytest.mark.parametrize("device, name, mode", list(_capture_modes()))
@@ -139,3 +140,82 @@ def test_captured_update_equals_the_eager_update(device, name, mode):
     for key in end_e:
         torch.testing.assert_close(end_c[key], end_e[key], msg=key, **tol)
     assert any(not torch.equal(start[k], end_e[k]) for k in start if "target" not in k)
+
+
+def _whole_modes():
+    for device in DEVICES:
+        for mode in ["step"] + (["cudagraphs", "both"] if device == "cuda" else []):
+            marks = [pytest.mark.slow] if mode == "both" else []
+            yield pytest.param(device, mode, marks=marks, id=f"{device}-{mode}")
+
+
+@pytest.mark.parametrize("device, mode", list(_whole_modes()))
+def test_the_whole_envelope_update_in_one_graph_equals_the_eager_update(device, mode):
+    """``capture_sampling``: sampling from the sum tree, the update and the priority writes as
+    one host-free function (on CUDA one graph) give the eager update's parameters, priorities
+    and largest priority, from the same state and random stream."""
+    dev = torch.device(device)
+    overrides = {"step": {}, "cudagraphs": dict(cudagraphs=True), "both": dict(cudagraphs=True, compile=True)}[mode]
+    _, eager, buf_e = setup("envelope", device=dev)
+    _, whole, buf_w = setup("envelope", device=dev, finite_check_interval=4, **overrides)
+    whole.cfg.capture_sampling = True
+    whole.loss.load_state_dict(eager.loss.state_dict())
+    if mode == "step":
+        whole._captured = CapturedUpdate(whole)  # the host-free function, run eagerly
+    start = params_of(eager)
+    with torch._inductor.config.patch(fallback_random=True), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for i in range(8):
+            for agent, buffer in ((eager, buf_e), (whole, buf_w)):
+                torch.manual_seed(200 + i)
+                agent.update(buffer)
+    assert whole._captured._whole is not None  # the whole-update path ran
+    assert (whole._captured._graph is not None) == (mode != "step")
+    tol = dict(rtol=1e-5, atol=1e-6) if mode != "both" else dict(rtol=1e-3, atol=1e-3)
+    end_e, end_w = params_of(eager), params_of(whole)
+    for key in end_e:
+        torch.testing.assert_close(end_w[key], end_e[key], msg=key, **tol)
+    assert any(not torch.equal(start[k], end_e[k]) for k in start if "target" not in k)
+    se, sw = buf_e._sampler, buf_w._sampler
+    torch.testing.assert_close(sw._sum_tree._tree, se._sum_tree._tree, **tol)
+    torch.testing.assert_close(sw._min_tree._tree, se._min_tree._tree, **tol)
+    torch.testing.assert_close(torch.as_tensor(sw._max_priority[0]).cpu(), torch.as_tensor(se._max_priority[0]).cpu(), **tol)
+    assert not torch.equal(se._sum_tree.leaves().cpu(), torch.full_like(se._sum_tree.leaves().cpu(), 1.0))
+
+
+def test_assign_unchecked_keeps_the_last_write_of_a_repeated_index_like_setitem():
+    from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
+
+    for cls in (SumSegmentTree, MinSegmentTree):
+        a, b = cls(10), cls(10)
+        a[torch.arange(10)] = torch.arange(1.0, 11.0)
+        b[torch.arange(10)] = torch.arange(1.0, 11.0)
+        index = torch.tensor([3, 7, 3, 0, 7, 3])
+        value = torch.tensor([0.5, 2.0, 4.0, 8.0, 16.0, 32.0])
+        a[index] = value
+        b.assign_unchecked(index, value)
+        assert torch.equal(a._tree, b._tree)
+        assert float(b.query(0, 10)) == (55.0 - 1 - 4 - 8 + 8 + 32 + 16 if cls is SumSegmentTree else 2.0)
+
+
+@pytest.mark.slow  # dynamo traces the whole update: a minute or more on a CPU core
+@pytest.mark.parametrize("name", ["envelope", "capql"])
+def test_the_captured_functions_read_no_device_value(name):
+    """``torch._dynamo.explain`` over the captured function (Envelope: the whole update, sampling
+    and priority writes included; CAPQL: the step): no graph break with a reason, i.e. no
+    ``.item()``, ``bool(tensor)``, ``.cpu()`` or data-dependent branch -- nothing that would make
+    the host wait for the device. (The breaks dynamo always makes at ``backward()`` and the
+    optimizer step carry no reason.)"""
+    _, agent, buffer = setup(name)
+    agent.cfg.capture_sampling = True
+    captured = CapturedUpdate(agent)
+    if name == "envelope":
+        assert captured._samples_in_graph(buffer)
+        fn, args = captured._build_whole(buffer), ()
+    else:
+        assert not captured._samples_in_graph(buffer)  # uniform replay: the step alone is captured
+        fn, args = captured.step, (agent.sample(buffer),)
+    torch._dynamo.reset()
+    explained = torch._dynamo.explain(fn)(*args)
+    assert explained.graph_count >= 1 and explained.op_count > 20
+    assert [r.reason.splitlines()[0] for r in explained.break_reasons] == []
