@@ -19,9 +19,11 @@ from morl_trl.envs.registry import (
     list_envs,
     make_env,
     register_domain,
+    register_env,
+    load_domain_modules,
 )
 from morl_trl.envs.sampler import ContextSampler
-from morl_trl.envs.spec import DomainSpec
+from morl_trl.envs.spec import DomainSpec, SORLReward
 
 __all__ = [
     "ContextSampler",
@@ -29,6 +31,7 @@ __all__ = [
     "ContextualMOEnv",
     "DomainSpec",
     "NonFiniteStepError",
+    "SORLReward",
     "context_space",
     "domain_of",
     "evaluation_suite",
@@ -37,4 +40,6 @@ __all__ = [
     "list_envs",
     "make_env",
     "register_domain",
+    "register_env",
+    "load_domain_modules",
 ]
