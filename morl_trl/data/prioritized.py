@@ -204,8 +204,12 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         """``update_priority(index, priority)`` for ``[n]`` indices this sampler drew, without
         reading the host: the running largest priority is kept in one device tensor (updated in
         place), the trees written with :meth:`~morl_trl.data.segment_tree.SumSegmentTree.assign_unchecked`."""
+        self.write_priorities_unchecked(index, priority, self._pinned_max_priority())
+
+    def write_priorities_unchecked(self, index: torch.Tensor, priority: torch.Tensor, top: torch.Tensor) -> None:
+        """:meth:`update_priority_unchecked`'s tensor work, ``top`` the pinned largest priority
+        (tensor operations only: what ``torch.compile`` fuses)."""
         priority = priority.detach().reshape(-1)
-        top = self._pinned_max_priority()
         top.copy_(torch.maximum(priority.max().to(top.dtype), top))
         value = torch.pow(priority + self._eps, self._alpha)
         self._sum_tree.assign_unchecked(index, value)

@@ -163,16 +163,21 @@ class CapturedUpdate:
     def _build_whole(self, buffer):
         sampler, storage, batch_size = buffer._sampler, buffer._storage, buffer._batch_size
         step = self.fn if not self.cudagraphs else self.step  # our own graph replaces CudaGraphModule
-        if self.cudagraphs and self.compiled:
-            step = torch.compile(self.step, mode=getattr(self.agent.cfg, "compile_mode", None), dynamic=False)
+        draw, write = sampler.sample_unchecked, sampler.write_priorities_unchecked
+        if self.compiled:
+            mode = getattr(self.agent.cfg, "compile_mode", None)
+            if self.cudagraphs:
+                step = torch.compile(self.step, mode=mode, dynamic=False)
+            # the tree walks (one small op per level) fuse into a few kernels
+            draw, write = (torch.compile(f, mode=mode, dynamic=False) for f in (draw, write))
 
         def whole() -> TensorDictBase:
-            index, weight = sampler.sample_unchecked(batch_size)
+            index, weight = draw(batch_size)
             batch = storage._storage[index]
             batch.set("index", index)
             batch.set("priority_weight", weight)
             result = step(batch)
-            sampler.update_priority_unchecked(index, result.get("_priority").reshape(-1))
+            write(index, result.get("_priority").reshape(-1), sampler._pinned_max_priority())
             return result.exclude("_priority")
 
         return whole
