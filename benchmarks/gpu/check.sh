@@ -53,8 +53,8 @@ if [ "$TINY" = 1 ]; then
 else
   T_TESTS=70 T_LOSSES=45 T_LOSSES_COMPILED=60 T_TRAIN_PAIR=50
   if [ "$DEVICE" = cuda ]; then TEST_SELECT=(-k cuda); else TEST_SELECT=(); fi
-  LOSS_ARGS=(--quick --peer none)
-  TRAIN_ARGS=(--quick --peer none)
+  LOSS_ARGS=(--updates 100 --rounds 2 --peer none)   # a GPU update takes ms: time enough of them
+  TRAIN_ARGS=(--frames 512 --peer none)
   PAIRS=(envelope:MOLunarLanderDR-v0 envelope:MOLavaGridDR-v0 capql:MOHopperDR-v5)
 fi
 if [ "$DEVICE" = cuda ]; then
@@ -111,7 +111,7 @@ stage losses "$T_LOSSES" "$OUTDIR/losses.log" \
 
 if [ "$DEVICE" = cuda ] && [ "$TINY" = 0 ]; then  # the compiled variants apart: compiling takes tens of seconds
   stage "losses compiled" "$T_LOSSES_COMPILED" "$OUTDIR/losses.log" \
-    "$PY" benchmarks/bench_losses.py --device "$DEVICE" --quick --peer none --capture whole+compile both --table "$TABLE"
+    "$PY" benchmarks/bench_losses.py --device "$DEVICE" --updates 100 --rounds 1 --peer none --capture whole+compile both --table "$TABLE"
 fi
 
 # 3. end to end, one process per pair (its own limit)

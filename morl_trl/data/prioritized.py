@@ -195,6 +195,11 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         index lands on a written leaf) -- capturable in a CUDA graph."""
         rng = self._rng
         u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
+        return self.descend_unchecked(u)
+
+    def descend_unchecked(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`sample_unchecked` from its uniform draws ``u``: the tree walk and the weights
+        (tensor operations only: what ``torch.compile`` fuses, the draws staying eager's)."""
         p_sum, p_min = self._sum_tree._tree[1], self._min_tree._tree[1]
         index = self._sum_tree.scan_lower_bound(u.to(device=self.device, dtype=self.dtype) * p_sum)
         weight = torch.pow(self._sum_tree.leaf_values_unchecked(index) / p_min, -self._beta)

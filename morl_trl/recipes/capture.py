@@ -163,16 +163,19 @@ class CapturedUpdate:
     def _build_whole(self, buffer):
         sampler, storage, batch_size = buffer._sampler, buffer._storage, buffer._batch_size
         step = self.fn if not self.cudagraphs else self.step  # our own graph replaces CudaGraphModule
-        draw, write = sampler.sample_unchecked, sampler.write_priorities_unchecked
+        descend, write = sampler.descend_unchecked, sampler.write_priorities_unchecked
         if self.compiled:
             mode = getattr(self.agent.cfg, "compile_mode", None)
             if self.cudagraphs:
                 step = torch.compile(self.step, mode=mode, dynamic=False)
             # the tree walks (one small op per level) fuse into a few kernels
-            draw, write = (torch.compile(f, mode=mode, dynamic=False) for f in (draw, write))
+            descend, write = (torch.compile(f, mode=mode, dynamic=False) for f in (descend, write))
+        rng = sampler._rng
 
         def whole() -> TensorDictBase:
-            index, weight = draw(batch_size)
+            # the uniform draws stay eager (compiled code draws from its own generator)
+            u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else sampler.device)
+            index, weight = descend(u)
             batch = storage._storage[index]
             batch.set("index", index)
             batch.set("priority_weight", weight)
