@@ -200,7 +200,7 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, 
     if ckpt is None:
         what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
         raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
-                         f"start it again with --overwrite")
+                         f"start it again with overwrite=True")
     return cfg, ckpt, notes
 
 
@@ -211,10 +211,10 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
         held = sorted(p.name for p in run_dir.iterdir())
         if not overwrite:
             raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+                             f"resume={str(run_dir)!r}, replace it with overwrite=True, or choose another run_dir=")
         if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
-            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
-                             f"(it holds {held[:5]}): choose another --run-dir")
+            raise ValueError(f"overwrite=True replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another run_dir=")
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:
@@ -254,7 +254,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         done = checkpoint_frames(ckpt)
         if done >= cfg.frames:
             msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
-                   f"pass a larger --frames to extend it")
+                   f"pass a larger frames (--frames) to extend it")
             print(msg, flush=True)
             return {"frames": done, "finished": True}, None, run_dir, cfg
     else:
