@@ -140,8 +140,8 @@ def _plot_run(curves: dict[str, dict[int, float]], contexts: list[str], title: s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cols = min(4, len(contexts))
-    rows = math.ceil(len(contexts) / cols)
+    rows = math.ceil(len(contexts) / 4)  # at most 4 panels a row, rows filled evenly (6 -> 2 x 3)
+    cols = math.ceil(len(contexts) / rows)
     labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.7 * rows + 0.4), squeeze=False)
     for k, (ax, c) in enumerate(zip(axes.flat, contexts)):
@@ -347,8 +347,8 @@ def plot_domain(domain: str, runs: dict[str, dict[int, Path]], path: str | Path,
         return None
     if contexts is None:
         contexts = list(dict.fromkeys(c for d in data.values() for c in d))
-    cols = min(4, len(contexts))
-    rows = math.ceil(len(contexts) / cols)
+    rows = math.ceil(len(contexts) / 4)  # at most 4 panels a row, rows filled evenly (6 -> 2 x 3)
+    cols = math.ceil(len(contexts) / rows)
     labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.5 * cols, 2.8 * rows + 0.9), squeeze=False)
     order = sorted(data, key=lambda a: (ignores_weights(a), a))  # SAC drawn last, on top
