@@ -26,7 +26,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.data import prioritized_sampler
-from morl_trl.envs import DomainSpec, domain_of, make_env
+from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
@@ -51,7 +51,7 @@ def make_training_env(cfg: TrainConfig, device: torch.device):
     """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
     policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
     episode or, with ``preference_resample="step"``, every step) + vector returns."""
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     return compose_training_env(env, gamma=_gamma(cfg, spec), history_len=cfg.history_len, preference_seed=cfg.seed + 1,
                                 preference_mode=cfg.preference_distribution, preference_resample=cfg.preference_resample)
@@ -107,6 +107,7 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
         gamma=_gamma(cfg, spec),
         env_factory=env_factory,
         reference=reference,
+        ref_point=cfg.ref_point,
         exploration_type=agent.eval_exploration,
         device=device,
         seed=cfg.seed,
@@ -126,8 +127,18 @@ def _load_reference(cfg: TrainConfig, spec: DomainSpec):
 
 def no_reference_note(spec: DomainSpec) -> str:
     """What a run of a domain without reference data says about NHGR."""
+    if spec.foreign:
+        from morl_trl.reporting.report import foreign_nhgr_note
+
+        return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
+
+
+def _domain(cfg: TrainConfig) -> DomainSpec:
+    """The run's domain, after importing the config's ``domain_modules`` (a user's own domains)."""
+    load_domain_modules(cfg.domain_modules)
+    return domain_of(cfg.env_id)
 
 
 def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
@@ -257,7 +268,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
 
     # everything is built before the run directory is touched: a failed start writes nothing
     env, agent, reference, evaluator = _build(cfg, spec, device)
@@ -430,7 +441,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     _, agent, reference, evaluator = _build(cfg, spec, device)
     agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")

@@ -34,7 +34,8 @@ def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dic
 
 def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
     """A table of hypervolume and EUM, ours beside the uniformly random policy's, per context."""
-    metrics = [m for m in ("hypervolume", "eum") if any(v is not None for v in result.metric(m).values())]
+    metrics = [m for m in ("hypervolume", "hv_ratio", "eum", "igd")
+               if any(v is not None for v in result.metric(m).values())]
     if not metrics:
         return []
     head = " | ".join(f"{m} (ours) | {m} (random)" for m in metrics)
@@ -45,6 +46,15 @@ def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
         cells = " | ".join(f"{_fmt(ours.get(m))} | {_fmt(rand.get(m))}" for m in metrics)
         lines.append(f"| {'**mean**' if c is None else c} | {cells} |")
     return lines + [""]
+
+
+def foreign_nhgr_note(spec) -> str:
+    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead."""
+    extra = ", IGD and the ratio of its hypervolume to the true front's" if spec.true_front is not None else ""
+    return (f"NHGR: unavailable. {spec.train_id} is one environment without contexts: NHGR and EUGR measure "
+            f"generalization across contexts against specialists trained per context, which has no meaning here; "
+            f"this report gives hypervolume (reference point {list(spec.hv_ref_point or [])}), EUM{extra}, beside "
+            f"a uniformly random policy's (the floor).")
 
 
 def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
@@ -105,7 +115,8 @@ def _frame(ax, points: np.ndarray) -> None:
     ax.ticklabel_format(style="sci", scilimits=(-3, 4), useOffset=False)
 
 
-_CURVES = (("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"), ("eum", "EUM"))
+_CURVES = (("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"), ("hypervolume", "hypervolume"),
+           ("hv_ratio", "HV / true front's HV"), ("eum", "EUM"), ("igd", "IGD"))
 
 
 def learning_curves(metrics_csv: str | Path) -> dict[str, dict[str, list[tuple[int, float]]]]:
@@ -134,7 +145,8 @@ def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, di
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    metrics = [(m, label) for m, label in _CURVES if m in curves]
+    metrics = [(m, label) for m, label in _CURVES if m in curves
+               and not (m == "hypervolume" and "normalized_hypervolume" in curves)]  # (one HV panel)
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.4 * len(metrics), 3.3), squeeze=False)
     for ax, (metric, label) in zip(axes.flat, metrics):
         for k, c in enumerate(contexts):
@@ -148,7 +160,7 @@ def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, di
                 ax.axhline(floor[1][c], color=f"C{k % 10}", ls="--", lw=0.8, alpha=0.7)
         ax.set_xlabel("frames", fontsize=8)
         ax.set_ylabel(label, fontsize=8)
-        if metric in ("nhgr", "normalized_hypervolume"):
+        if metric in ("nhgr", "normalized_hypervolume", "hv_ratio"):
             ax.set_ylim(0, 1.02)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
@@ -229,7 +241,8 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     lines = [f"# {cfg.algo} on {cfg.env_id} (seed {cfg.seed})", ""]
     lines.append(f"Frames: {summary.get('frames')}" + (f" · frames/s: {fps:,.0f}" if fps else ""))
     lines.append("")
-    metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "eum", "eugr", "cardinality", "sparsity"]
+    metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "hv_ratio", "eum", "eugr", "igd", "cardinality",
+                    "sparsity"]
     present = [m for m in metric_names if any(v is not None for v in result.metric(m).values())]
     lines.append("| context | " + " | ".join(present) + " |")
     lines.append("|---|" + "---|" * len(present))
@@ -239,7 +252,10 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     lines.append("")
     if random_result is not None and not nhgr_cols:  # no NHGR: the random policy beside ours
         lines.extend(_random_rows(result, random_result, contexts))
-    if reference is None and "nhgr" not in present:
+    if getattr(spec, "foreign", False) and "nhgr" not in present:
+        lines.append(foreign_nhgr_note(spec))
+        lines.append("")
+    elif reference is None and "nhgr" not in present:
         lines.append(f"NHGR: unavailable. No reference data (per-context bounds and specialist fronts) exists for "
                      f"{spec.train_id}, so this report gives hypervolume and EUM only.")
         lines.append("")
