@@ -179,7 +179,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     lines = ["## f_SORL: the single-objective return (\"Scalar reward is not enough\")", ""]
     if not result.has_sorl:
         name = env_id or "this env"
-        return lines + [f"No f_SORL section: {name} emits no original scalar reward (`original_reward`), the reward "
+        return lines + [f"No f_SORL: {name} emits no original scalar reward (`original_reward`), the reward "
                         "a single-objective agent would be trained on, so there is nothing to compare with.", ""]
     contexts = list(result.context_names)
     labels = _labels(contexts)

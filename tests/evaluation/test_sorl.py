@@ -112,7 +112,7 @@ def test_an_env_without_an_original_reward_has_no_f_sorl_and_says_so_once(tmp_pa
     assert not any("sorl" in k for k in r.summary())
     lines = run_section(r, tmp_path, "envelope", None, "MyEnv-v0")
     said = [line for line in lines if "original scalar reward" in line]
-    assert len(said) == 1 and said[0].startswith("No f_SORL section: MyEnv-v0 emits no original scalar reward")
+    assert len(said) == 1 and said[0].startswith("No f_SORL: MyEnv-v0 emits no original scalar reward")
     assert not (tmp_path / "report_fsorl.png").exists()
 
 
