@@ -206,6 +206,9 @@ class TrainConfig:
                                     "'max-autotune', ...)", _str(optional=True))
     cudagraphs: bool = _key("compile", False, "replay the update step as a CUDA graph (tensordict.nn."
                             "CudaGraphModule; device cuda only)", _bool)
+    capture_sampling: bool = _key("compile", False, "with compile/cudagraphs and prioritized replay on the "
+                                  "pure-torch sampler: sampling and priority writes inside the captured update "
+                                  "(one CUDA graph per update, no host read); same draws and arithmetic", _bool)
     finite_check_interval: int = _key("compile", 100, "captured update and accelerators: updates between host "
                                       "reads of the device's count of skipped non-finite updates (the eager CPU "
                                       "update checks every one before applying it)", _int(1))
@@ -250,7 +253,9 @@ class TrainConfig:
     pcn_step_episodes: int = _key("pcn", 10, "episodes per command (num_step_episodes)", _int(1))
     pcn_model_updates: int = _key("pcn", 50, "supervised updates per command (num_model_updates)", _int(1))
     pcn_noise: float = _key("pcn", 0.1, "std of the Gaussian noise on continuous actions", _float(0.0, 1e6))
-    pcn_hidden: int = _key("pcn", 64, "width of PCN's embeddings and hidden layer (hidden_dim)", _int(1))
+    pcn_hidden: int | None = _key("pcn", None, "PCN's network: null = the widths of 'hidden' (the authors' net_arch: "
+                                  "embedding hidden[0], a Linear+ReLU per further width); an int h = embedding h and "
+                                  "one hidden layer h (MORL-Baselines' hidden_dim)", _int(1, optional=True))
     # PGMORL (Xu et al. 2020; MORL-Baselines' defaults, SPEC §4 per domain)
     pgmorl_pop: int = _key("pgmorl", 6, "population size (one PPO task per member)", _int(1))
     pgmorl_envs_per_member: int = _key("pgmorl", 4, "sub-envs per member (num_envs must be pgmorl_pop times this; "
@@ -287,6 +292,12 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    capql_deterministic_collection: bool = _key("collector", True, "CAPQL collects with the deterministic action "
+                                                "tanh(mean) after init_random_frames (the authors' capql.py:454-459); "
+                                                "false: sampled actions", _bool)
+    gpi_model_termination: str = _key("gpi", "authors", "GPI-PD's Hopper termination of imagined transitions: "
+                                      "'authors' (state[1:] < 100, their slip: no abs; what produced the paper's "
+                                      "numbers) or 'corrected' (|state[1:]| < 100)", _choice(("authors", "corrected")))
     gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
                                       "weight for support row i: 'authors' (their vectorised evaluator's "
                                       "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "
@@ -639,9 +650,11 @@ def resolve_config(
     values.update(_ALGO[algo])
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if spec.foreign:  # no paper record: MORL-Baselines' constructor defaults (recipes/foreign_defaults.py)
-        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
 
         values.update(FOREIGN_DEFAULTS.get(algo, {}))
+        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
+            values.update(FOREIGN_DEFAULTS_CONTINUOUS[algo])
     if quick:
         values.update(_QUICK)
         values.update(_QUICK_ALGO.get(algo, {}))
@@ -652,6 +665,17 @@ def resolve_config(
     return cfg
 
 
+def _discrete_actions(spec) -> bool:
+    """Whether the domain's env has discrete actions (one sub-env built to read its spec)."""
+    from morl_trl.envs import make_env
+
+    env = make_env(spec.train_id, num_envs=1, seed=0)
+    try:
+        return env.action_spec.domain == "discrete"
+    finally:
+        env.close()
+
+
 def check_env_fits(cfg: TrainConfig, spec) -> None:
     """Refuse, with a clear error, a run whose env the algorithm or the evaluation cannot handle:
     a hypervolume without a reference point, SAC without an original scalar reward, PGMORL on
@@ -660,7 +684,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
     ref = cfg.ref_point if cfg.ref_point is not None else spec.hv_ref_point
     if ref is None:
         raise ValueError(f"{spec.train_id} has no documented hypervolume reference point: pass one with "
-                         f"--ref-point (config key ref_point), {k} numbers that every return of interest dominates "
+                         f"ref_point=[...] (a config key), {k} numbers that every return of interest dominates "
                          f"(objectives {list(spec.objective_names)})")
     if len(ref) != k:
         raise ValueError(f"ref_point {list(ref)} has {len(ref)} numbers; {spec.train_id} has {k} objectives "
@@ -669,12 +693,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
         raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
                          f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
     if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
-        from morl_trl.envs import make_env
-
-        env = make_env(spec.train_id, num_envs=1, seed=0)
-        discrete = env.action_spec.domain == "discrete"
-        env.close()
-        if discrete:
+        if _discrete_actions(spec):
             raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
                              f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 

@@ -200,7 +200,7 @@ def _resume_point(cfg: TrainConfig | None, run_dir: Path) -> tuple[TrainConfig, 
     if ckpt is None:
         what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
         raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
-                         f"start it again with --overwrite")
+                         f"start it again with overwrite=True")
     return cfg, ckpt, notes
 
 
@@ -211,10 +211,10 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> None:
         held = sorted(p.name for p in run_dir.iterdir())
         if not overwrite:
             raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+                             f"resume={str(run_dir)!r}, replace it with overwrite=True, or choose another run_dir=")
         if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
-            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
-                             f"(it holds {held[:5]}): choose another --run-dir")
+            raise ValueError(f"overwrite=True replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another run_dir=")
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False) -> dict:
@@ -254,7 +254,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         done = checkpoint_frames(ckpt)
         if done >= cfg.frames:
             msg = (f"{run_dir} already reached {done:,} frames (frames = {cfg.frames:,}): nothing to do; "
-                   f"pass a larger --frames to extend it")
+                   f"pass a larger frames (--frames) to extend it")
             print(msg, flush=True)
             return {"frames": done, "finished": True}, None, run_dir, cfg
     else:
@@ -314,6 +314,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): "
                      f"the run takes uniformly random actions only and never learns; raise frames or lower "
                      f"init_random_frames")
+    log.note(_start_line(cfg, frames, resume is not None))  # (also makes log.txt exist on every run)
     for note in notes:
         log.note(note)
     if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
@@ -347,9 +348,13 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
 
     summary: dict = {}
 
+    eval_seconds: list[float] = []
+
     def evaluate() -> None:
         nonlocal summary, last_eval, next_eval
+        t0 = time.perf_counter()
         summary = log.evaluation(frames, evaluator.evaluate())
+        eval_seconds.append(time.perf_counter() - t0)
         last_eval = frames
         while next_eval <= frames:
             next_eval += cfg.eval_interval
@@ -357,6 +362,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
     t_start, frames_start = time.perf_counter(), frames
+    eta = _DurationEstimate(cfg, frames)
 
     def fps() -> float:
         return (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
@@ -380,10 +386,13 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
                 raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
             updates += done_updates
             if losses is not None and (updates % 50 == 0 or done_updates > 1):
-                log.losses(frames, losses)
+                log.losses(frames, losses, frames_per_second=fps(), epsilon=_epsilon(agent))
             agent.on_frames(frames)
             collector.update_policy_weights_()
             bar.update(agent.frames_of(batch))
+            line = eta.update(frames, eval_seconds, next_eval)
+            if line is not None:
+                log.note(line)
             last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
             bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:
@@ -404,6 +413,69 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         collector.shutdown()
         log.close()
     return summary, agent, run_dir, cfg
+
+
+def _start_line(cfg: TrainConfig, frames: int, resumed: bool) -> str:
+    """The first line of a run: what it will do and how much (the duration follows once measured)."""
+    evals = max(0, (cfg.frames - frames) // max(cfg.eval_interval, 1)) + 1
+    what = "resume" if resumed else "start"
+    return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
+            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), about "
+            f"{evals} evaluations of {cfg.eval_weights} weights; the estimated duration follows once the "
+            f"learning speed is measured")
+
+
+class _DurationEstimate:
+    """Measures the learning speed over the first batches after the random warm-up and says once,
+    in ``log.txt``, how long the rest of the run should take (tqdm's bar keeps an ETA after it)."""
+
+    def __init__(self, cfg: TrainConfig, frames: int) -> None:
+        self.cfg = cfg
+        self.start: tuple[int, float] | None = None
+        self.done = frames >= cfg.frames
+
+    def update(self, frames: int, eval_seconds: list[float], next_eval: int) -> str | None:
+        if self.done:
+            return None
+        now = time.perf_counter()
+        if self.start is None:
+            if frames > self.cfg.init_random_frames:
+                self.start = (frames, now)
+            return None
+        seen, dt = frames - self.start[0], now - self.start[1]
+        if frames >= self.cfg.frames:  # finished before a stable measurement: nothing to predict
+            self.done = True
+            return None
+        if dt < 15.0 or seen <= 0:  # some seconds of learning: a stable rate
+            return None
+        self.done = True
+        rate = seen / max(dt, 1e-9)
+        left = max(self.cfg.frames - frames, 0)
+        evals = (max(self.cfg.frames - next_eval, 0) // max(self.cfg.eval_interval, 1) + 1) if left else 0
+        per_eval = float(np.mean(eval_seconds)) if eval_seconds else 0.0
+        seconds = left / max(rate, 1e-9) + evals * per_eval
+        return (f"estimated duration: {_hms(seconds)} more ({left:,} frames at {rate:,.0f} frames/s learning, "
+                f"measured over {seen:,} frames, + {evals} evaluations of ~{per_eval:.0f} s)")
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
+
+
+def _epsilon(agent) -> float | None:
+    """The ε of an ε-greedy exploration module in the agent's exploration policy, if any."""
+    from torchrl.modules import EGreedyModule
+
+    policy = getattr(agent, "explore_policy", None)
+    if policy is None or not hasattr(policy, "modules"):
+        return None
+    for m in policy.modules():
+        if isinstance(m, EGreedyModule):
+            return float(m.eps)
+    return None
 
 
 def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint) -> Path:
