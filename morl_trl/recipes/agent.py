@@ -15,6 +15,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "eval_exploration"]
@@ -22,10 +23,6 @@ __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete",
 
 def _captures(cfg) -> bool:
     return bool(getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False))
-
-
-class NonFiniteLossError(RuntimeError):
-    """A loss came out NaN or infinite; the update was not applied."""
 
 
 class Agent:
@@ -107,20 +104,17 @@ class Agent:
         if self._device_guard():
             return self._captured_update(batch, buffer)
         out = self.loss(batch)
-        total = sum(out[k] for k in self.loss_keys)
-        if not torch.isfinite(total):
-            bad = {k: out[k].item() for k in self.loss_keys}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        for opt in self.optimizers.values():
-            opt.zero_grad(set_to_none=True)
-        total.backward()
-        self._clip_gradients()
-        for opt in self.optimizers.values():
-            opt.step()
+        optimizer_step(sum(out[k] for k in self.loss_keys), self.optimizers.values(),
+                       max_grad_norm=self.max_grad_norm, losses={k: out[k] for k in self.loss_keys})
         self.target_updater.step()
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
+
+    @property
+    def max_grad_norm(self) -> float | None:
+        """Each optimizer's parameters' gradient norm is clipped to this (``cfg.max_grad_norm``; ``None``: no clipping)."""
+        return getattr(self.cfg, "max_grad_norm", None)
 
     def sample(self, buffer) -> TensorDictBase:
         """The batch of one update, on the agent's device (MORL/D: one per population member)."""
@@ -134,13 +128,6 @@ class Agent:
             fused = all(group.get("fused") for opt in self.optimizers.values() for group in opt.param_groups)
             self._guard = _captures(self.cfg) or (torch.device(self.device).type != "cpu" and fused)
         return self._guard
-
-    def _clip_gradients(self) -> None:
-        max_norm = getattr(self.cfg, "max_grad_norm", None)
-        if max_norm is not None:
-            for opt in self.optimizers.values():
-                params = [p for group in opt.param_groups for p in group["params"]]
-                torch.nn.utils.clip_grad_norm_(params, max_norm)
 
     def _captured_update(self, batch: TensorDictBase, buffer) -> TensorDictBase:
         from morl_trl.recipes.capture import CapturedUpdate
@@ -173,23 +160,9 @@ class Agent:
         self.loss.load_state_dict(state["loss"])
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])
-            _keep_implementation(o)
+            keep_implementation(o)
         if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
             self.target_updater.counter = state["target_updater_counter"]
-
-
-def _keep_implementation(opt: torch.optim.Optimizer) -> None:
-    """After ``load_state_dict``: the optimizer keeps the implementation it was built with (a
-    checkpoint written by a per-tensor Adam would otherwise turn a fused one back), with its step
-    counters where that implementation keeps them."""
-    for group in opt.param_groups:
-        for key in ("fused", "foreach"):
-            if key in opt.defaults:
-                group[key] = opt.defaults[key]
-    if opt.defaults.get("fused"):
-        for param, st in opt.state.items():
-            if torch.is_tensor(st.get("step")):
-                st["step"] = st["step"].to(device=param.device, dtype=torch.float32)
 
 
 # ---------------------------------------------------------------------- shared by the builders
@@ -223,32 +196,6 @@ def target_updater(cfg, loss):
     if cfg.tau is not None:
         return PolyakUpdate(loss, tau=cfg.tau)
     return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
-
-
-def fused_choice(cfg) -> bool | None:
-    """:func:`adam`'s ``fused`` for a config: ``None`` (fused where torch can) unless ``cfg.fused_optimizer`` is false."""
-    return None if getattr(cfg, "fused_optimizer", True) else False
-
-
-def adam(params, lr: float, *, fused: bool | None = None, **kwargs) -> torch.optim.Adam:
-    """``torch.optim.Adam`` over ``params``, fused when torch has a fused kernel for them.
-
-    The fused implementation updates every parameter in one kernel (on a CPU core ~4x faster
-    than the per-tensor loop torch picks there by default) with Adam's arithmetic unchanged
-    (results agree to float rounding), and it can skip a step on the device without reading
-    the host (``found_inf``), which the captured update relies on. ``fused=None`` (the default):
-    fused when every parameter is a floating point tensor on the CPU or a CUDA device. Other
-    keyword arguments (e.g. ``eps``) go to ``torch.optim.Adam``.
-
-    Example:
-        >>> opt = adam([torch.nn.Parameter(torch.zeros(3))], lr=1e-3)
-        >>> opt.defaults["fused"]
-        True
-    """
-    params = list(params)
-    if fused is None:
-        fused = all(p.is_floating_point() and p.device.type in ("cpu", "cuda") for p in params)
-    return torch.optim.Adam(params, lr=lr, fused=bool(fused), **kwargs)
 
 
 def actor_critic_optimizers(cfg, loss) -> dict:

@@ -55,8 +55,8 @@ from morl_trl.objectives.dynamics import model_inputs
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
-                                    obs_shape)
+from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.runs.env_state import transforms_of
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -217,15 +217,8 @@ class GPIAgent(Agent):
             return self._update_continuous(buffer)
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        total = out["loss_qvalue"]
-        if not torch.isfinite(total):
-            raise NonFiniteLossError(f"non-finite loss {{'loss_qvalue': {total.item()}}}; the networks were left as "
-                                     f"they were before this update")
-        opt = self.optimizers["qvalue"]
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        self._clip_gradients()
-        opt.step()
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]], max_grad_norm=self.max_grad_norm,
+                       losses={"loss_qvalue": out["loss_qvalue"]})
         if self.cfg.prioritized:
             if real is not batch:
                 real.set("td_error", batch["td_error"][: real.shape[0]])
@@ -237,19 +230,13 @@ class GPIAgent(Agent):
         updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        if not (torch.isfinite(out["loss_qvalue"]) and torch.isfinite(out["loss_actor"])):
-            bad = {k: out[k].item() for k in ("loss_qvalue", "loss_actor")}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        q_opt, pi_opt = self.optimizers["qvalue"], self.optimizers["actor"]
-        q_opt.zero_grad(set_to_none=True)
-        out["loss_qvalue"].backward()
-        q_opt.step()
+        check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]])
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
         polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
         if self._updates % self.cfg.gpi_policy_delay == 0:
-            pi_opt.zero_grad(set_to_none=True)
-            self.loss.actor_loss().backward()  # against the critics just updated, as the authors
-            pi_opt.step()
+            # against the critics just updated, as the authors
+            optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
             polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
         self._updates += 1
         if self.cfg.prioritized:
