@@ -164,7 +164,7 @@ class TrainConfig:
                                _float(0.0, 1.0, optional=True))
     preference_distribution: str = _key("env", "dirichlet", "training preferences: 'dirichlet' (uniform on the "
                                         "simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or "
-                                        "'cone' (22.5 degrees around a random direction; the authors' CAPQL)",
+                                        "'cone' (22.5 degrees around the equal-weight direction; the authors' CAPQL)",
                                         _choice(("dirichlet", "gaussian", "cone")))
     preference_resample: str = _key("env", "episode", "a new training preference per 'episode' or per 'step' "
                                     "(the authors' CAPQL: step)", _choice(("episode", "step")))
@@ -282,6 +282,11 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
+                                      "weight for support row i: 'authors' (their vectorised evaluator's "
+                                      "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "
+                                      "numbers) or 'support' (w_i, their single-env path)",
+                                      _choice(("authors", "support")))
     gpi_gradient_updates: int = _key("gpi", 20, "gradient updates per frame once frames reach "
                                      "gpi_dynamics_rollout_starts (1 before; updates_per_batch > 0 overrides both)",
                                      _int(1))
@@ -564,7 +569,9 @@ _QUICK_ALGO = {
     **{a: dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1) for a in ("morld", "morld_psa")},
     "pcn": dict(pcn_er_episodes=50, init_random_frames=0),
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 256, init_random_frames=0, pgmorl_warmup=4,
-                   pgmorl_evo_iterations=2, pgmorl_minibatches=8, eval_interval=30_720),
+                   pgmorl_evo_iterations=2, pgmorl_minibatches=8,
+                   # an iteration counts one member's 4 x 256 frames (the authors' count): 10 iterations
+                   frames=10_240, eval_interval=5_120, checkpoint_interval=3_072),
 }
 
 
