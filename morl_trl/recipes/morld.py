@@ -62,6 +62,7 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["MORLDAgent", "ParetoArchive", "make_morld_agent", "make_morld_training_env", "psa_weights"]
@@ -237,8 +238,6 @@ def make_morld_training_env(cfg, device: torch.device):
     """``P * num_envs`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``num_envs``) + the
     policy's history + discounted vector returns (each member's evaluation). No preference: a
     member's weight lives in the loss, not in the data."""
-    from morl_trl.recipes.off_policy import _gamma
-
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
@@ -248,7 +247,7 @@ def make_morld_training_env(cfg, device: torch.device):
         raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
     env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
     env = compose_policy_env(env, history_len=cfg.history_len)
-    env.append_transform(DiscountedVectorReturn(_gamma(cfg, domain_of(cfg.env_id))))
+    env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
     return env
 
 

@@ -61,6 +61,7 @@ from torchrl.envs import ClipTransform, VecNorm
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
+from morl_trl._torchrl_compat import transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pgmorl import (
     make_population_actor,
@@ -207,7 +208,7 @@ class PGMORLAgent(Agent):
         b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
                      ("next", "done"), ("next", "terminated")).detach()
         nxt = b.get("next")
-        self.reward_clip(self.reward_norm._step(b, nxt))  # the statistics take the batch, then normalise it
+        self.reward_clip(transform_step(self.reward_norm, b, nxt))  # the statistics take the batch, then normalise it
         if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
             self._evaluate_all(add_to_prediction=False)
         with torch.no_grad():
