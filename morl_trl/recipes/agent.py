@@ -12,13 +12,14 @@ from tensordict import TensorDictBase
 from torch import nn
 from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
+from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers", "eval_exploration"]
+           "target_updater", "actor_critic_optimizers", "eval_exploration", "epsilon", "epsilon_greedy"]
 
 
 def _captures(cfg) -> bool:
@@ -149,14 +150,9 @@ class Agent:
     def on_frames(self, frames: int) -> None:
         """Advance the frame-based schedules (epsilon, homotopy)."""
         if self.exploration_module is not None:
-            self.exploration_module.eps.fill_(self._eps(frames))
+            self.exploration_module.eps.fill_(epsilon(self.cfg, frames))
         if hasattr(self.loss, "update_homotopy"):
             self.loss.update_homotopy(frames)
-
-    def _eps(self, frames: int) -> float:
-        cfg = self.cfg
-        frac = min(1.0, frames / max(1, cfg.eps_frames))
-        return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
@@ -176,6 +172,27 @@ class Agent:
 
 
 # ---------------------------------------------------------------------- shared by the builders
+def epsilon(cfg, frames: int) -> float:
+    """The ε of ε-greedy exploration after ``frames`` frames: linear from ``cfg.eps_start`` to
+    ``cfg.eps_end`` over ``cfg.eps_frames`` frames, then constant (the one ε schedule).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.05, eps_frames=100)
+        >>> epsilon(cfg, 0), epsilon(cfg, 50), epsilon(cfg, 1_000)
+        (1.0, 0.525, 0.05)
+    """
+    frac = min(1.0, frames / max(1, cfg.eps_frames))
+    return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
+
+
+def epsilon_greedy(cfg, env) -> EGreedyModule:
+    """TorchRL's ``EGreedyModule`` for ``env``'s actions at ``epsilon(cfg, 0)``; :meth:`Agent.on_frames`
+    sets its ε from :func:`epsilon` after every batch (TorchRL's own annealing, ``step()``, is not used)."""
+    return EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
+                         annealing_num_steps=max(1, cfg.eps_frames))
+
+
 def obs_shape(env) -> tuple[int, ...]:
     """The unbatched shape of the env's ``"observation"``."""
     return tuple(env.observation_spec["observation"].shape[len(env.batch_size):])

@@ -51,7 +51,6 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import make_env
@@ -60,7 +59,7 @@ from morl_trl.objectives.dynamics import model_inputs
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import Agent, action_spec, epsilon_greedy, is_discrete, num_objectives, obs_shape
 from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.runs.env_state import transforms_of
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
@@ -339,8 +338,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
     loss.make_value_estimator(gamma=gamma)
     greedy = GPIPolicy(qnet, include_preference=True)  # dropout on while acting, as the authors
-    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
-                            annealing_num_steps=max(1, cfg.eps_frames))
+    egreedy = epsilon_greedy(cfg, env)
     explore = TensorDictSequential(greedy, egreedy)
     eval_policy = GPIPolicy(qnet, dropout=False)  # the authors' q_net.eval() at evaluation
     dynamics = None
