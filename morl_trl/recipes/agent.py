@@ -147,6 +147,11 @@ class Agent:
             self._captured = CapturedUpdate(self)
         return self._captured(batch, buffer)
 
+    @property
+    def epsilon(self) -> float | None:
+        """The current ε of the ε-greedy exploration (``None`` without one)."""
+        return None if self.exploration_module is None else float(self.exploration_module.eps)
+
     def on_frames(self, frames: int) -> None:
         """Advance the frame-based schedules (epsilon, homotopy)."""
         if self.exploration_module is not None:

@@ -107,6 +107,11 @@ def _contexts(v):
     return None if ok else "a non-empty list of env ids of the training domain, or null for its evaluation suite"
 
 
+def _modules(v):
+    ok = isinstance(v, tuple) and all(isinstance(x, str) and x for x in v)
+    return None if ok else "a list of importable module names (e.g. ['my_pkg.domains'])"
+
+
 def _device(v):
     import torch
 
@@ -328,6 +333,11 @@ class TrainConfig:
                                      _str(optional=True))
     eval_random_baseline: bool = _key("eval", True, "also evaluate a uniformly random policy at the end",
                                       _bool)
+    ref_point: tuple[float, ...] | None = _key("eval", None, "hypervolume reference point, one number per objective "
+                                               "(null: the domain's; a foreign env without a documented one needs it)",
+                                               _floats)
+    domain_modules: tuple[str, ...] = _key("env", (), "Python modules imported before env_id is looked up (each "
+                                           "registers domains, e.g. a module with SPECS; --domain-module)", _modules)
 
     # ------------------------------------------------------------------ checks
     def validate(self) -> "TrainConfig":
@@ -425,7 +435,8 @@ def _coerce(values: dict[str, Any]) -> dict[str, Any]:
     for k, v in values.items():
         if v == "null":  # TOML has no null: a file or a key=value flag writes the string
             v = None
-        if k in ("hidden", "eval_contexts", "pcn_scaling_factor", "pcn_max_return", "gpi_dynamics_hidden") and isinstance(v, list):
+        if k in ("hidden", "eval_contexts", "pcn_scaling_factor", "pcn_max_return", "gpi_dynamics_hidden", "ref_point",
+                 "domain_modules") and isinstance(v, list):
             v = tuple(v)
         elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
@@ -622,8 +633,10 @@ def resolve_config(
     env_id = from_file.get("env_id", env_id)  # a recipe file may name its domain
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {list(ALGORITHMS)}")
-    from morl_trl.envs import domain_of
+    from morl_trl.envs import domain_of, load_domain_modules
 
+    modules = overrides.get("domain_modules") or from_file.get("domain_modules") or ()
+    load_domain_modules(modules)
     spec = domain_of(env_id)  # raises with close matches on an unknown id
     train_id = spec.train_id
     values: dict[str, Any] = {"algo": algo, "env_id": env_id}
@@ -631,12 +644,45 @@ def resolve_config(
                   eval_weights=spec.eval_weights)
     values.update(_ALGO[algo])
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
+    if spec.foreign:  # no paper record: MORL-Baselines' constructor defaults (recipes/foreign_defaults.py)
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+
+        values.update(FOREIGN_DEFAULTS.get(algo, {}))
     if quick:
         values.update(_QUICK)
         values.update(_QUICK_ALGO.get(algo, {}))
     values.update(from_file)
     values.update(_coerce({k: v for k, v in overrides.items() if v is not None}))
-    return TrainConfig(**_coerce(values)).validate()
+    cfg = TrainConfig(**_coerce(values)).validate()
+    check_env_fits(cfg, spec)
+    return cfg
+
+
+def check_env_fits(cfg: TrainConfig, spec) -> None:
+    """Refuse, with a clear error, a run whose env the algorithm or the evaluation cannot handle:
+    a hypervolume without a reference point, SAC without an original scalar reward, PGMORL on
+    discrete actions (the authors' PGMORL is continuous-only)."""
+    k = spec.num_objectives
+    ref = cfg.ref_point if cfg.ref_point is not None else spec.hv_ref_point
+    if ref is None:
+        raise ValueError(f"{spec.train_id} has no documented hypervolume reference point: pass one with "
+                         f"--ref-point (config key ref_point), {k} numbers that every return of interest dominates "
+                         f"(objectives {list(spec.objective_names)})")
+    if len(ref) != k:
+        raise ValueError(f"ref_point {list(ref)} has {len(ref)} numbers; {spec.train_id} has {k} objectives "
+                         f"{list(spec.objective_names)}")
+    if spec.foreign and cfg.algo == "sac":
+        raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
+                         f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
+    if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
+        from morl_trl.envs import make_env
+
+        env = make_env(spec.train_id, num_envs=1, seed=0)
+        discrete = env.action_spec.domain == "discrete"
+        env.close()
+        if discrete:
+            raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
+                             f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 
 
 def quick_preset(algo: str | None = None) -> dict[str, Any]:

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from morl_trl._torchrl_compat import collector_state, load_collector_state
-from morl_trl.envs import domain_of, make_env
+from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
@@ -38,6 +38,7 @@ from morl_trl.recipes.parts import (
     make_training_env,
     no_reference_note,
     run_discount,
+    run_domain,
 )
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, set_rng_state
 from morl_trl.runs.env_state import env_state, load_context_sampler_state, load_env_state, transforms_of
@@ -55,7 +56,7 @@ EXIT_NON_FINITE_LOSS = 3
 
 def build(cfg: TrainConfig, device: torch.device):
     """``(training env, agent, reference, evaluator)`` of a run: what training and re-evaluation share."""
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
     env = build_training_env(cfg, device)
     agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     reference = load_reference(cfg, spec)
@@ -110,7 +111,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
 
     # 1. the parts (everything is built before the run directory is touched: a failed start writes nothing)
     env, agent, reference, evaluator = build(cfg, device)
@@ -171,7 +172,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
                     raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
                 agent.on_frames(run.frames)  # the schedules (epsilon, homotopy)
                 collector.update_policy_weights_()
-                run.batch_done(frames, losses, updates)
+                run.batch_done(frames, losses, updates, epsilon=agent.epsilon)
                 if run.eval_due():
                     run.evaluate(evaluator)
                 if run.checkpoint_due():
@@ -207,7 +208,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
     _, agent, reference, evaluator = build(cfg, device)
     agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")

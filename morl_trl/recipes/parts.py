@@ -18,12 +18,18 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.data import prioritized_sampler
-from morl_trl.envs import DomainSpec, domain_of, make_env
+from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
-__all__ = ["run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
+__all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
            "load_reference", "no_reference_note"]
+
+
+def run_domain(cfg) -> DomainSpec:
+    """The run's domain, after importing the config's ``domain_modules`` (a user's own domains)."""
+    load_domain_modules(cfg.domain_modules)
+    return domain_of(cfg.env_id)
 
 
 def run_discount(cfg, spec: DomainSpec) -> float:
@@ -35,7 +41,7 @@ def make_training_env(cfg, device: torch.device):
     """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
     policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
     episode or, with ``preference_resample="step"``, every step) + vector returns."""
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     return compose_training_env(env, gamma=run_discount(cfg, spec), history_len=cfg.history_len,
                                 preference_seed=cfg.seed + 1, preference_mode=cfg.preference_distribution,
@@ -92,6 +98,7 @@ def make_evaluator(cfg, agent, spec: DomainSpec, reference=None) -> MultiContext
         gamma=run_discount(cfg, spec),
         env_factory=env_factory,
         reference=reference,
+        ref_point=cfg.ref_point,
         exploration_type=agent.eval_exploration,
         device=device,
         seed=cfg.seed,
@@ -111,5 +118,9 @@ def load_reference(cfg, spec: DomainSpec):
 
 def no_reference_note(spec: DomainSpec) -> str:
     """What a run of a domain without reference data says about NHGR."""
+    if spec.foreign:
+        from morl_trl.reporting.report import foreign_nhgr_note
+
+        return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")

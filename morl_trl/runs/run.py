@@ -44,6 +44,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
 from tqdm.auto import tqdm
 
 from morl_trl.runs.checkpoint import (
@@ -56,7 +57,7 @@ from morl_trl.runs.checkpoint import (
 )
 from morl_trl.runs.run_log import RunLog, check_logger
 
-__all__ = ["Run", "default_run_dir", "eval_line"]
+__all__ = ["Run", "default_run_dir", "eval_line", "start_line"]
 
 
 def default_run_dir(cfg) -> Path:
@@ -70,6 +71,56 @@ def eval_line(summary: dict) -> str:
     agg = summary["aggregate"]
     parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
     return f"[eval @ {summary['frames']:,} frames] mean over contexts: " + ", ".join(parts)
+
+
+def start_line(cfg, frames: int, resumed: bool) -> str:
+    """The first line of a run in log.txt: what it will do and how much (the duration follows once measured)."""
+    evals = max(0, (cfg.frames - frames) // max(cfg.eval_interval, 1)) + 1
+    what = "resume" if resumed else "start"
+    return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
+            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), about "
+            f"{evals} evaluations of {cfg.eval_weights} weights; the estimated duration follows once the "
+            f"learning speed is measured")
+
+
+class _DurationEstimate:
+    """Measures the learning speed over the first batches after the random warm-up and says once,
+    in ``log.txt``, how long the rest of the run should take (tqdm's bar keeps an ETA after it)."""
+
+    def __init__(self, cfg, frames: int) -> None:
+        self.cfg = cfg
+        self.start: tuple[int, float] | None = None
+        self.done = frames >= cfg.frames
+
+    def update(self, frames: int, eval_seconds: list[float], next_eval: int) -> str | None:
+        if self.done:
+            return None
+        now = time.perf_counter()
+        if self.start is None:
+            if frames > self.cfg.init_random_frames:
+                self.start = (frames, now)
+            return None
+        seen, dt = frames - self.start[0], now - self.start[1]
+        if frames >= self.cfg.frames:  # finished before a stable measurement: nothing to predict
+            self.done = True
+            return None
+        if dt < 15.0 or seen <= 0:  # some seconds of learning: a stable rate
+            return None
+        self.done = True
+        rate = seen / max(dt, 1e-9)
+        left = max(self.cfg.frames - frames, 0)
+        evals = (max(self.cfg.frames - next_eval, 0) // max(self.cfg.eval_interval, 1) + 1) if left else 0
+        per_eval = float(np.mean(eval_seconds)) if eval_seconds else 0.0
+        seconds = left / max(rate, 1e-9) + evals * per_eval
+        return (f"estimated duration: {_hms(seconds)} more ({left:,} frames at {rate:,.0f} frames/s learning, "
+                f"measured over {seen:,} frames, + {evals} evaluations of ~{per_eval:.0f} s)")
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
 
 
 def _check_new_run_dir(run_dir: Path, overwrite: bool) -> None:
@@ -114,6 +165,8 @@ class Run:
         self.reference = None
         self._bar = None
         self._clock = (time.perf_counter(), 0)
+        self._eval_seconds: list[float] = []
+        self._eta = None
 
     # ------------------------------------------------------------------ before anything is written
     @classmethod
@@ -195,6 +248,7 @@ class Run:
                 shutil.rmtree(self.dir, ignore_errors=True)
             raise
         self.reference = self.log.reference = reference
+        self.log.note(start_line(cfg, self.frames, self.resume_from is not None))  # (log.txt exists on every run)
         for note in [*self.notes, *notes]:
             self.log.note(note)
         if self.resume_from is not None:
@@ -209,6 +263,7 @@ class Run:
         self._bar = tqdm(total=cfg.frames, initial=self.frames, unit="frame", disable=not cfg.progress,
                          dynamic_ncols=True)
         self._clock = (time.perf_counter(), self.frames)
+        self._eta = _DurationEstimate(cfg, self.frames)
         return self
 
     def note(self, message: str) -> None:
@@ -234,13 +289,17 @@ class Run:
         t0, f0 = self._clock
         return (self.frames - f0) / max(time.perf_counter() - t0, 1e-9)
 
-    def batch_done(self, frames: int, losses=None, updates: int = 0) -> None:
+    def batch_done(self, frames: int, losses=None, updates: int = 0, *, epsilon: float | None = None) -> None:
         """After a batch of ``frames`` frames and ``updates`` updates: count them, log the losses
-        (every 50 updates, or every batch of several), advance the progress bar."""
+        (every 50 updates, or every batch of several; with the frame rate and ``epsilon``),
+        advance the progress bar, say the estimated duration once it is measured."""
         self.updates += updates
         if losses is not None and (self.updates % 50 == 0 or updates > 1):
-            self.log.losses(self.frames, losses)
+            self.log.losses(self.frames, losses, frames_per_second=self.fps(), epsilon=epsilon)
         self._bar.update(frames)
+        line = self._eta.update(self.frames, self._eval_seconds, self.next_eval)
+        if line is not None:
+            self.log.note(line)
         nhgr = self.summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
         self._bar.set_postfix(nhgr=f"{nhgr:.3f}" if nhgr == nhgr else "-")
 
@@ -254,7 +313,9 @@ class Run:
     # ------------------------------------------------------------------ evaluations, checkpoints, the end
     def evaluate(self, evaluator, *args) -> dict:
         """Evaluate now (``evaluator.evaluate(*args)``), log it and move the schedule on."""
+        t0 = time.perf_counter()
         self.summary = self.log.evaluation(self.frames, evaluator.evaluate(*args))
+        self._eval_seconds.append(time.perf_counter() - t0)
         self.last_eval = self.frames
         while self.next_eval <= self.frames:
             self.next_eval += self.cfg.eval_interval
