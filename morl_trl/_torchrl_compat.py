@@ -8,8 +8,7 @@ vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, whi
 (naming the attribute) when a TorchRL or tensordict release changes it.
 
 Example:
-    >>> from tensordict import TensorDict
-    >>> new_tensordict_unsafe({"a": torch.zeros(2)}, batch_size=[2]).batch_size
+    >>> new_tensordict_unsafe({"a": torch.zeros(2)}, batch_size=torch.Size([2])).batch_size
     torch.Size([2])
 """
 

@@ -183,9 +183,9 @@ def epsilon(cfg, frames: int) -> float:
 
     Example:
         >>> from types import SimpleNamespace
-        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.05, eps_frames=100)
+        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.5, eps_frames=100)
         >>> epsilon(cfg, 0), epsilon(cfg, 50), epsilon(cfg, 1_000)
-        (1.0, 0.525, 0.05)
+        (1.0, 0.75, 0.5)
     """
     frac = min(1.0, frames / max(1, cfg.eps_frames))
     return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
