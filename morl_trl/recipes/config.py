@@ -250,7 +250,9 @@ class TrainConfig:
     pcn_step_episodes: int = _key("pcn", 10, "episodes per command (num_step_episodes)", _int(1))
     pcn_model_updates: int = _key("pcn", 50, "supervised updates per command (num_model_updates)", _int(1))
     pcn_noise: float = _key("pcn", 0.1, "std of the Gaussian noise on continuous actions", _float(0.0, 1e6))
-    pcn_hidden: int = _key("pcn", 64, "width of PCN's embeddings and hidden layer (hidden_dim)", _int(1))
+    pcn_hidden: int | None = _key("pcn", None, "PCN's network: null = the widths of 'hidden' (the authors' net_arch: "
+                                  "embedding hidden[0], a Linear+ReLU per further width); an int h = embedding h and "
+                                  "one hidden layer h (MORL-Baselines' hidden_dim)", _int(1, optional=True))
     # PGMORL (Xu et al. 2020; MORL-Baselines' defaults, SPEC §4 per domain)
     pgmorl_pop: int = _key("pgmorl", 6, "population size (one PPO task per member)", _int(1))
     pgmorl_envs_per_member: int = _key("pgmorl", 4, "sub-envs per member (num_envs must be pgmorl_pop times this; "
