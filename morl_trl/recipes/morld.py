@@ -44,7 +44,7 @@ from torch import nn
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
-from morl_trl.objectives.networks import _categorical_actor, _tanh_normal_actor
+from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
     nearest_member,
@@ -198,7 +198,7 @@ def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
     """The evaluation actor of :class:`ArchiveSnapshotRouter` (reads ``"preference"`` too)."""
     tdm = actor.module[0]
     action_key = actor.module[-1].out_keys[0]
-    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
+    make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
     router = ArchiveSnapshotRouter(tdm.module, actor, weights, snapshots_fn)
     return make(router, [*tdm.in_keys, "preference"], actor.spec[action_key], action_key)
 
