@@ -524,6 +524,26 @@ COMMANDS = {
 }
 
 
+# Errors raised by the Python API name its arguments (``overwrite=True``, ``resume=DIR``, ...);
+# on the command line the same things are flags: the message is reworded, never rewritten.
+_API_TO_FLAG = (
+    (re.compile(r"\boverwrite=True\b"), "--overwrite"),
+    (re.compile(r"\bresume="), "--resume "),
+    (re.compile(r"\brun_dir=(?=\W|$)"), "--run-dir"),
+    (re.compile(r"\brun_dir="), "--run-dir "),
+    (re.compile(r"\bframes=(?=\W|$)"), "--frames"),
+    (re.compile(r"\bframes="), "--frames "),
+    (re.compile(r"\bref_point=\[\.\.\.\]"), "--ref-point"),
+)
+
+
+def cli_wording(message: str) -> str:
+    """``message`` (an API error) with the Python arguments it names spelled as this CLI's flags."""
+    for pattern, flag in _API_TO_FLAG:
+        message = pattern.sub(flag, message)
+    return message
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="morl-trl", description=__doc__.splitlines()[0])
@@ -540,7 +560,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
     except ValueError as err:  # bad input: say what is wrong and what is valid, no traceback
-        print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
+        print(f"morl-trl {argv[0]}: error: {cli_wording(str(err))}", file=sys.stderr)
         return 2
 
 

@@ -95,3 +95,23 @@ def test_progress_bar_shows_one_frame_rate():
 
     src = inspect.getsource(Run.batch_done)
     assert "set_postfix(nhgr=" in src and "fps=" not in src.split("set_postfix", 1)[1].split("\n", 1)[0]
+
+
+def test_api_errors_name_python_arguments_and_cli_errors_name_flags(tmp_path, capsys):
+    from morl_trl.cli import cli_wording, main
+    from morl_trl.recipes import resolve_config, train
+
+    run = tmp_path / "taken"
+    run.mkdir()
+    (run / "notes.txt").write_text("not a run")
+    with pytest.raises(ValueError) as api:
+        train(resolve_config("envelope", "MOLavaGridDR-v0", quick=True, run_dir=str(run)))
+    message = str(api.value)
+    assert f"continue it with resume={str(run)!r}, replace it with overwrite=True, or choose another run_dir=" in message
+    assert "--" not in message
+    assert main(["train", "envelope", "MOLavaGridDR-v0", "--quick", "--run-dir", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert f"continue it with --resume {str(run)!r}, replace it with --overwrite, or choose another --run-dir" in err
+    assert "overwrite=True" not in err and "resume=" not in err
+    assert cli_wording("pass one with ref_point=[...] (a config key)") == "pass one with --ref-point (a config key)"
+    assert cli_wording("config key 'frames' (collector) is 'x'") == "config key 'frames' (collector) is 'x'"

@@ -668,7 +668,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
     ref = cfg.ref_point if cfg.ref_point is not None else spec.hv_ref_point
     if ref is None:
         raise ValueError(f"{spec.train_id} has no documented hypervolume reference point: pass one with "
-                         f"--ref-point (config key ref_point), {k} numbers that every return of interest dominates "
+                         f"ref_point=[...] (a config key), {k} numbers that every return of interest dominates "
                          f"(objectives {list(spec.objective_names)})")
     if len(ref) != k:
         raise ValueError(f"ref_point {list(ref)} has {len(ref)} numbers; {spec.train_id} has {k} objectives "

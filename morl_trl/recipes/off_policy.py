@@ -106,7 +106,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     cfg = run.cfg
     if run.done:
         print(f"{run.dir} already reached {run.frames:,} frames (frames = {cfg.frames:,}): nothing to do; "
-              f"pass a larger --frames to extend it", flush=True)
+              f"pass a larger frames (--frames) to extend it", flush=True)
         return {"frames": run.frames, "finished": True}, None, run.dir, cfg
     _set_threads(cfg)
     _seed_everything(cfg.seed)

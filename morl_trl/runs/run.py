@@ -130,10 +130,10 @@ def _check_new_run_dir(run_dir: Path, overwrite: bool) -> None:
         held = sorted(p.name for p in run_dir.iterdir())
         if not overwrite:
             raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
-                             f"--resume {run_dir}, replace it with --overwrite, or choose another --run-dir")
+                             f"resume={str(run_dir)!r}, replace it with overwrite=True, or choose another run_dir=")
         if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
-            raise ValueError(f"--overwrite replaces run directories only; {str(run_dir)!r} has no config.json "
-                             f"(it holds {held[:5]}): choose another --run-dir")
+            raise ValueError(f"overwrite=True replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another run_dir=")
 
 
 class Run:
@@ -205,7 +205,7 @@ class Run:
         if ckpt is None:
             what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
             raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
-                             f"start it again with --overwrite")
+                             f"start it again with overwrite=True")
         run = cls(cfg, run_dir, resume_from=ckpt, notes=notes)
         run.frames = checkpoint_frames(ckpt)
         if not run.done:

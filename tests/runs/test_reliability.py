@@ -110,7 +110,7 @@ def test_resume_of_a_finished_run_is_a_no_op(run, cli):
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--resume", run)
     assert out.returncode == 0
     assert out.stdout.strip().endswith("already reached 512 frames (frames = 512): nothing to do; "
-                                       "pass a larger --frames to extend it")
+                                       "pass a larger frames (--frames) to extend it")
     assert _snapshot(run) == before
 
 
@@ -270,8 +270,8 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
     cfg = write_config(tmp_path / "c.toml", frames=128, init_random_frames=64)
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run)
     assert out.returncode == 2
-    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'logs']): " \
-           f"continue it with --resume {run}, replace it with --overwrite, or choose another --run-dir" in out.stderr
+    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'log.txt']): " \
+           f"continue it with --resume '{run}', replace it with --overwrite, or choose another --run-dir" in out.stderr
     assert _snapshot(run) == before
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run, "--overwrite")
     assert out.returncode == 0, out.stderr[-2000:]
