@@ -215,11 +215,16 @@ def evaluate_main(argv: list[str]) -> int:
 def envs_main(argv: list[str]) -> int:
     _Parser(prog="morl-trl envs", description="List domains and evaluation suites.").parse_args(argv)
     from morl_trl.envs import list_domains
+    from morl_trl.reporting.reference import PACKAGED_REFERENCE, list_reference_domains
 
+    with_reference = set(list_reference_domains(PACKAGED_REFERENCE))
     for spec in list_domains():
         print(f"{spec.name}  train: {spec.train_id}  objectives: {list(spec.objective_names)}")
         print(f"    context ({spec.context_space.dim}): {', '.join(group_names(spec.context_space.names))}")
         print(f"    evaluation suite: {', '.join(spec.evaluation_ids)}")
+        if spec.train_id not in with_reference:
+            print("    reference data: none (the authors published no bounds or specialist fronts): "
+                  "hypervolume and EUM, no NHGR")
         extra = [i for i in spec.contexts if i not in spec.evaluation_ids]
         if extra:
             print(f"    other fixed contexts: {', '.join(extra)}")

@@ -86,6 +86,12 @@ def test_envs_groups_numbered_parameters(capsys):
             "agent_x, agent_y, agent_dir") in out
     assert "context (7): gravity, wind_power, turbulence_power" in out
     assert group_names(["a1", "a2", "b", "c3", "c4", "c5"]) == ["a1", "a2", "b", "c3..c5 (3)"]
+    # the ids without reference data say so where they are listed
+    cont = out[out.index("train: MOLunarLanderContinuousDR-v0"):]
+    cont = cont[: cont.index("\nMO-SuperMarioBros")]
+    assert "reference data: none (the authors published no bounds or specialist fronts)" in cont
+    discrete = out[out.index("train: MOLunarLanderDR-v0"): out.index("train: MOLunarLanderContinuousDR-v0")]
+    assert "reference data: none" not in discrete
 
 
 def test_progress_bar_shows_one_frame_rate():

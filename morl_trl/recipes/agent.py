@@ -111,9 +111,9 @@ class Agent:
         of skipped updates is read every ``cfg.finite_check_interval`` updates, raising
         :class:`NonFiniteLossError` then.
         """
-        batch = self.sample(buffer)
         if self._device_guard():
-            return self._captured_update(batch, buffer)
+            return self._captured_update(None, buffer)  # samples itself (in the graph, where it can)
+        batch = self.sample(buffer)
         out = self.loss(batch)
         optimizer_step(sum(out[k] for k in self.loss_keys), self.optimizers.values(),
                        max_grad_norm=self.max_grad_norm, losses={k: out[k] for k in self.loss_keys})

@@ -206,6 +206,9 @@ class TrainConfig:
                                     "'max-autotune', ...)", _str(optional=True))
     cudagraphs: bool = _key("compile", False, "replay the update step as a CUDA graph (tensordict.nn."
                             "CudaGraphModule; device cuda only)", _bool)
+    capture_sampling: bool = _key("compile", False, "with compile/cudagraphs and prioritized replay on the "
+                                  "pure-torch sampler: sampling and priority writes inside the captured update "
+                                  "(one CUDA graph per update, no host read); same draws and arithmetic", _bool)
     finite_check_interval: int = _key("compile", 100, "captured update and accelerators: updates between host "
                                       "reads of the device's count of skipped non-finite updates (the eager CPU "
                                       "update checks every one before applying it)", _int(1))
