@@ -131,6 +131,11 @@ class Agent:
         """The batch of one update, on the agent's device (MORL/D: one per population member)."""
         return buffer.sample().to(self.device)
 
+    @property
+    def samples_one_batch(self) -> bool:
+        """Whether :meth:`sample` is this class's (one ``buffer.sample()``), which a captured update may replace."""
+        return type(self).sample is Agent.sample
+
     def _device_guard(self) -> bool:
         """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""
         if self._captured is not None:

@@ -141,9 +141,8 @@ class CapturedUpdate:
         from torchrl.data.replay_buffers.storages import LazyTensorStorage
 
         from morl_trl.data import TorchPrioritizedSampler
-        from morl_trl.recipes.agent import Agent
 
-        if not self.capture_sampling or type(self.agent).sample is not Agent.sample:
+        if not self.capture_sampling or not self.agent.samples_one_batch:
             return False
         sampler, storage = getattr(buffer, "_sampler", None), getattr(buffer, "_storage", None)
         return (type(buffer) is TensorDictReplayBuffer and isinstance(sampler, TorchPrioritizedSampler)
