@@ -177,6 +177,10 @@ class GridSpec:
         if not raw_blocks:
             raise ValueError(f"{source}: no cells: give algorithms and domains (or [[block]] tables)")
         valid = _algorithms()
+        from morl_trl.envs import load_domain_modules
+
+        # a user's own domains (overrides.domain_modules, as --domain-module) before their ids are checked
+        load_domain_modules(_table(data.get("overrides", {}), "overrides", source).get("domain_modules", ()))
         for i, b in enumerate(raw_blocks):
             where = f"{source}: block {i}"
             if not isinstance(b, dict) or set(b) - {"algorithms", "domains"}:

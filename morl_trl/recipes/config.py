@@ -650,9 +650,11 @@ def resolve_config(
     values.update(_ALGO[algo])
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if spec.foreign:  # no paper record: MORL-Baselines' constructor defaults (recipes/foreign_defaults.py)
-        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
 
         values.update(FOREIGN_DEFAULTS.get(algo, {}))
+        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
+            values.update(FOREIGN_DEFAULTS_CONTINUOUS[algo])
     if quick:
         values.update(_QUICK)
         values.update(_QUICK_ALGO.get(algo, {}))
@@ -661,6 +663,17 @@ def resolve_config(
     cfg = TrainConfig(**_coerce(values)).validate()
     check_env_fits(cfg, spec)
     return cfg
+
+
+def _discrete_actions(spec) -> bool:
+    """Whether the domain's env has discrete actions (one sub-env built to read its spec)."""
+    from morl_trl.envs import make_env
+
+    env = make_env(spec.train_id, num_envs=1, seed=0)
+    try:
+        return env.action_spec.domain == "discrete"
+    finally:
+        env.close()
 
 
 def check_env_fits(cfg: TrainConfig, spec) -> None:
@@ -680,12 +693,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
         raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
                          f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
     if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
-        from morl_trl.envs import make_env
-
-        env = make_env(spec.train_id, num_envs=1, seed=0)
-        discrete = env.action_spec.domain == "discrete"
-        env.close()
-        if discrete:
+        if _discrete_actions(spec):
             raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
                              f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 
