@@ -66,6 +66,10 @@ class PCNNetwork(nn.Module):
         if discrete:
             layers.append(nn.LogSoftmax(dim=-1))
         self.fc = nn.Sequential(*layers)
+        for m in self.modules():  # the authors' layer_init: orthogonal weights (gain 1), zero biases (pcn.py:100,112)
+            if isinstance(m, (nn.Linear, nn.Conv2d)):
+                nn.init.orthogonal_(m.weight)
+                nn.init.zeros_(m.bias)
 
     def forward(self, observation: torch.Tensor, desired_return: torch.Tensor, desired_horizon: torch.Tensor):
         c = torch.cat([desired_return, desired_horizon], -1).float() * self.scaling_factor

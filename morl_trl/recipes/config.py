@@ -292,6 +292,12 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    capql_deterministic_collection: bool = _key("collector", True, "CAPQL collects with the deterministic action "
+                                                "tanh(mean) after init_random_frames (the authors' capql.py:454-459); "
+                                                "false: sampled actions", _bool)
+    gpi_model_termination: str = _key("gpi", "authors", "GPI-PD's Hopper termination of imagined transitions: "
+                                      "'authors' (state[1:] < 100, their slip: no abs; what produced the paper's "
+                                      "numbers) or 'corrected' (|state[1:]| < 100)", _choice(("authors", "corrected")))
     gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
                                       "weight for support row i: 'authors' (their vectorised evaluator's "
                                       "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "

@@ -45,6 +45,8 @@ Example:
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import torch
 from tensordict import TensorDict
@@ -53,9 +55,9 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import HardUpdate
 
-from morl_trl.envs import make_env
+from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
-from morl_trl.objectives.dynamics import model_inputs
+from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
@@ -263,32 +265,42 @@ class GPIAgent(Agent):
 
     @torch.no_grad()
     def rollout_model(self, buffer) -> int:
-        """One model step from ``gpi_dynamics_rollout_batch`` stored observations (GPI actions for ``w``);
-        stores the confident ones in the model buffer and returns how many."""
+        """``gpi_dynamics_rollout_len`` model steps from ``ceil(gpi_dynamics_rollout_batch / 10k)`` chunks of
+        (at most) 10k start states sampled from the real buffer (by priority with PER), as the authors: GPI
+        actions for ``w`` (discrete) or the noisy actor (continuous); the confident transitions go to the
+        model buffer, terminated by the authors' termination function of the domain
+        (:func:`~morl_trl.objectives.dynamics.model_termination`), and the rollout continues from the
+        non-terminal ones. Returns how many were stored."""
         cfg, k = self.cfg, self.k
         added = 0
         total = cfg.gpi_dynamics_rollout_batch
-        chunks = -(-total // 10_000)  # the authors: chunks of at most 10k
-        size = -(-total // chunks)
+        chunks = -(-total // 10_000)  # the authors: ceil(batch / 10k) chunks of 10k start states (25k -> 30k)
+        size = min(total, 10_000)
         support = torch.as_tensor(self.support, dtype=torch.float32, device=self.device)
         w = torch.as_tensor(self.weight, dtype=torch.float32, device=self.device)
+        kind = MODEL_TERMINATION.get(domain_of(cfg.env_id).train_id)
         for _ in range(chunks):
-            index = torch.randint(len(buffer), (size,))
-            obs = buffer.storage[index]["observation"].to(self.device).float()
-            for _ in range(cfg.gpi_dynamics_rollout_len):  # (no termination model: every imagined step continues)
+            # start states drawn from the real buffer by priority (the authors' PER sample), uniformly without PER
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+                obs = buffer.sample(size)["observation"].to(self.device).float()
+            for _ in range(cfg.gpi_dynamics_rollout_len):
                 action = self._model_action(obs, w, support)
                 y, unc = self.dynamics.model.step(model_inputs(obs, action, self.num_actions))
                 next_obs = obs + y[:, k:]
+                term = model_termination(kind, next_obs, y[:, :k], hopper_abs=cfg.gpi_model_termination == "corrected")
                 keep = unc < cfg.gpi_uncertainty_threshold
                 n = int(keep.sum())
                 if n:
-                    false = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+                    done = term[keep].unsqueeze(-1)
                     self.model_buffer.extend(TensorDict({
                         "observation": obs[keep], "action": action[keep],
                         ("next", "observation"): next_obs[keep], ("next", "reward"): y[keep, :k],
-                        ("next", "terminated"): false, ("next", "done"): false}, batch_size=[n]))
+                        ("next", "terminated"): done, ("next", "done"): done.clone()}, batch_size=[n]))
                 added += n
-                obs = next_obs
+                obs = next_obs[~term]  # rollouts continue from the non-terminal predicted states
+                if not obs.shape[0]:
+                    break
         return added
 
     def _model_action(self, obs: torch.Tensor, w: torch.Tensor, support: torch.Tensor) -> torch.Tensor:

@@ -45,6 +45,7 @@ from torch import nn
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
+from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
     nearest_member,
@@ -70,7 +71,7 @@ from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_morld_agent",
-           "make_morld_training_env", "psa_weights"]
+           "make_morld_training_env", "orthogonal_population_init_", "psa_weights"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -328,6 +329,27 @@ def make_morld_training_env(cfg, device: torch.device):
     return env
 
 
+@torch.no_grad()
+def orthogonal_population_init_(module: nn.Module) -> nn.Module:
+    """Every member's layers as the authors' ``layer_init``: orthogonal weights (gain 1), zero biases.
+
+    Example:
+        >>> from morl_trl.objectives.population import PopulationLinear
+        >>> lin = orthogonal_population_init_(PopulationLinear(2, 4, 3))
+        >>> w = lin.weight[1]
+        >>> torch.allclose(w @ w.T, torch.eye(3), atol=1e-5), bool((lin.bias == 0).all())
+        (True, True)
+    """
+    for m in module.modules():
+        w = getattr(m, "weight", None)
+        if isinstance(w, torch.Tensor) and w.ndim == 3 and getattr(m, "population", None) == w.shape[0]:
+            for p in range(w.shape[0]):
+                nn.init.orthogonal_(w[p])
+            if getattr(m, "bias", None) is not None:
+                m.bias.zero_()
+    return module
+
+
 def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAgent:
     """The population (continuous or discrete, from the env's action spec), its loss, optimizers
     (one Adam per network kind over all members), targets and acting views."""
@@ -343,14 +365,17 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
         n = spec.space.n
         actor = make_population_categorical_actor(p, obs_dim, n, num_cells=cfg.hidden, action_spec=spec).to(device)
         critic = make_population_q_network(p, obs_dim, n, k, num_cells=cfg.hidden).to(device)
+        orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, num_actions=n, alpha_init=cfg.alpha,
                                    fixed_alpha=not cfg.learn_alpha, target_entropy_weight=cfg.target_entropy_scale)
     else:
         actor = make_population_gaussian_actor(p, obs_dim, spec.to(device), num_cells=cfg.hidden,
                                                scale=cfg.actor_scale).to(device)
         critic = make_population_critic(p, obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
+        orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, alpha_init=cfg.alpha,
                                    fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+    orthogonal_critic_copies_(loss, critic, orthogonal_population_init_)  # (the loss re-draws its critic copies)
     loss.make_value_estimator(gamma=gamma)
     explore, _ = population_policies(actor, loss.weights)
     holder: dict = {}
