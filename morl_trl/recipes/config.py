@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
-           "resume_config", "quick_preset"]
+           "resume_config", "quick_preset", "config_values"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
               "gpi_ls", "gpi_pd")
@@ -292,6 +292,12 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    capql_deterministic_collection: bool = _key("collector", True, "CAPQL collects with the deterministic action "
+                                                "tanh(mean) after init_random_frames (the authors' capql.py:454-459); "
+                                                "false: sampled actions", _bool)
+    gpi_model_termination: str = _key("gpi", "authors", "GPI-PD's Hopper termination of imagined transitions: "
+                                      "'authors' (state[1:] < 100, their slip: no abs; what produced the paper's "
+                                      "numbers) or 'corrected' (|state[1:]| < 100)", _choice(("authors", "corrected")))
     gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
                                       "weight for support row i: 'authors' (their vectorised evaluator's "
                                       "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "
@@ -591,6 +597,12 @@ _QUICK_ALGO = {
 }
 
 
+def config_values(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """The typed config keys of a mapping that may hold ``{group: {key: value}}`` tables (what a
+    config file or a grid's table gives); unknown keys raise, naming ``source`` and the valid keys."""
+    return _coerce(_flatten(values, source))
+
+
 def load_config_file(path: str | Path) -> dict[str, Any]:
     """Read overrides from a ``.toml`` or ``.json`` file (flat keys of :class:`TrainConfig`)."""
     path = Path(path)
@@ -608,7 +620,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {str(path)!r} does not parse: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} holds a {type(data).__name__}, not a table of keys")
-    return _coerce(_flatten(data, f"config file {str(path)!r}"))
+    return config_values(data, f"config file {str(path)!r}")
 
 
 def resolve_config(
