@@ -46,7 +46,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from morl_trl.envs import domain_of  # noqa: E402
 from morl_trl.recipes import build_agent, build_training_env, resolve_config  # noqa: E402
-from morl_trl.recipes.off_policy import _gamma, make_collector, make_replay_buffer  # noqa: E402
+from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount  # noqa: E402
 
 warnings.filterwarnings("ignore")
 
@@ -64,7 +64,7 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
     dev = torch.device(device)
     torch.manual_seed(cfg.seed)
     env = build_training_env(cfg, dev)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=dev)
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
     warm = cfg.init_random_frames + cfg.frames_per_batch
     cfg.frames = warm + frames + cfg.frames_per_batch

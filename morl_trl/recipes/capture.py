@@ -22,7 +22,7 @@ What changes so that nothing in it reads the host:
 * the loss's input checks (which read the host) are off (``loss.validate_inputs = False``):
   the batches come from the run's own replay buffer, and a non-finite reward makes the loss
   non-finite, which the guard catches;
-* every optimizer must be fused (:func:`~morl_trl.recipes.agent.adam` makes them so); with
+* every optimizer must be fused (:func:`~morl_trl.recipes.optim.adam` makes them so); with
   CUDA graphs they are made ``capturable``.
 
 With ``cfg.capture_sampling`` (off by default until measured on a GPU) and a prioritized
@@ -59,6 +59,7 @@ from tensordict import TensorDictBase
 from torchrl.objectives import SoftUpdate
 
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
 
 __all__ = ["CapturedUpdate"]
 
@@ -79,7 +80,7 @@ class CapturedUpdate:
                      if not all(group.get("fused") for group in opt.param_groups)]
         if not_fused:
             raise ValueError(f"a captured update (compile/cudagraphs) needs fused optimizers, as "
-                             f"morl_trl.recipes.agent.adam makes them; {not_fused} are not fused")
+                             f"morl_trl.recipes.optim.adam makes them; {not_fused} are not fused")
         cudagraphs = bool(getattr(cfg, "cudagraphs", False))
         if cudagraphs and torch.device(agent.device).type != "cuda":
             raise ValueError(f"cudagraphs=true needs device='cuda' (got {str(agent.device)!r}); "
@@ -119,16 +120,8 @@ class CapturedUpdate:
         """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite."""
         agent = self.agent
         out = agent.loss(batch)
-        total = sum(out[k] for k in agent.loss_keys)
-        found_inf = (~torch.isfinite(total)).to(torch.float32)
-        for opt in agent.optimizers.values():
-            opt.zero_grad(set_to_none=True)
-        total.backward()
-        agent._clip_gradients()
-        for opt in agent.optimizers.values():
-            opt.found_inf = found_inf
-            opt.step()
-            opt.found_inf = None
+        found_inf = optimizer_step(sum(out[k] for k in agent.loss_keys), agent.optimizers.values(),
+                                   max_grad_norm=agent.max_grad_norm, on_device=True)
         if self.soft:
             with torch.no_grad():
                 delta = torch._foreach_sub(self.sources, self.targets)
@@ -148,9 +141,8 @@ class CapturedUpdate:
         from torchrl.data.replay_buffers.storages import LazyTensorStorage
 
         from morl_trl.data import TorchPrioritizedSampler
-        from morl_trl.recipes.agent import Agent
 
-        if not self.capture_sampling or type(self.agent).sample is not Agent.sample:
+        if not self.capture_sampling or not self.agent.samples_one_batch:
             return False
         sampler, storage = getattr(buffer, "_sampler", None), getattr(buffer, "_storage", None)
         return (type(buffer) is TensorDictReplayBuffer and isinstance(sampler, TorchPrioritizedSampler)
@@ -234,8 +226,6 @@ class CapturedUpdate:
 
     def check(self) -> None:
         """Reads the device's count of skipped updates; raises :class:`NonFiniteLossError` if any."""
-        from morl_trl.recipes.agent import NonFiniteLossError
-
         since, self.since_check = self.since_check, 0
         skipped = int(self.skipped.item())
         if skipped:

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
-           "resume_config", "quick_preset"]
+           "resume_config", "quick_preset", "config_values"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
               "gpi_ls", "gpi_pd")
@@ -623,6 +623,12 @@ _QUICK_ALGO = {
 }
 
 
+def config_values(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """The typed config keys of a mapping that may hold ``{group: {key: value}}`` tables (what a
+    config file or a grid's table gives); unknown keys raise, naming ``source`` and the valid keys."""
+    return _coerce(_flatten(values, source))
+
+
 def load_config_file(path: str | Path) -> dict[str, Any]:
     """Read overrides from a ``.toml`` or ``.json`` file (flat keys of :class:`TrainConfig`)."""
     path = Path(path)
@@ -640,7 +646,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {str(path)!r} does not parse: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} holds a {type(data).__name__}, not a table of keys")
-    return _coerce(_flatten(data, f"config file {str(path)!r}"))
+    return config_values(data, f"config file {str(path)!r}")
 
 
 def resolve_config(

@@ -53,7 +53,6 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import domain_of, make_env
@@ -62,8 +61,8 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
-                                    obs_shape)
+from morl_trl.recipes.agent import Agent, action_spec, epsilon_greedy, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.runs.env_state import transforms_of
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -225,15 +224,8 @@ class GPIAgent(Agent):
             return self._update_continuous(buffer)
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        total = out["loss_qvalue"]
-        if not torch.isfinite(total):
-            raise NonFiniteLossError(f"non-finite loss {{'loss_qvalue': {total.item()}}}; the networks were left as "
-                                     f"they were before this update")
-        opt = self.optimizers["qvalue"]
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        self._clip_gradients()
-        opt.step()
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]], max_grad_norm=self.max_grad_norm,
+                       losses={"loss_qvalue": out["loss_qvalue"]})
         if self.cfg.prioritized:
             if real is not batch:
                 real.set("td_error", batch["td_error"][: real.shape[0]])
@@ -245,19 +237,13 @@ class GPIAgent(Agent):
         updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        if not (torch.isfinite(out["loss_qvalue"]) and torch.isfinite(out["loss_actor"])):
-            bad = {k: out[k].item() for k in ("loss_qvalue", "loss_actor")}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        q_opt, pi_opt = self.optimizers["qvalue"], self.optimizers["actor"]
-        q_opt.zero_grad(set_to_none=True)
-        out["loss_qvalue"].backward()
-        q_opt.step()
+        check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]])
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
         polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
         if self._updates % self.cfg.gpi_policy_delay == 0:
-            pi_opt.zero_grad(set_to_none=True)
-            self.loss.actor_loss().backward()  # against the critics just updated, as the authors
-            pi_opt.step()
+            # against the critics just updated, as the authors
+            optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
             polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
         self._updates += 1
         if self.cfg.prioritized:
@@ -364,8 +350,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
     loss.make_value_estimator(gamma=gamma)
     greedy = GPIPolicy(qnet, include_preference=True)  # dropout on while acting, as the authors
-    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
-                            annealing_num_steps=max(1, cfg.eps_frames))
+    egreedy = epsilon_greedy(cfg, env)
     explore = TensorDictSequential(greedy, egreedy)
     eval_policy = GPIPolicy(qnet, dropout=False)  # the authors' q_net.eval() at evaluation
     dynamics = None

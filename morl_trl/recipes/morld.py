@@ -44,7 +44,7 @@ from torch import nn
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
-from morl_trl.objectives.networks import _categorical_actor, _tanh_normal_actor
+from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
 from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
@@ -67,6 +67,7 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_morld_agent",
@@ -198,7 +199,7 @@ def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
     """The evaluation actor of :class:`ArchiveSnapshotRouter` (reads ``"preference"`` too)."""
     tdm = actor.module[0]
     action_key = actor.module[-1].out_keys[0]
-    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
+    make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
     router = ArchiveSnapshotRouter(tdm.module, actor, weights, snapshots_fn)
     return make(router, [*tdm.in_keys, "preference"], actor.spec[action_key], action_key)
 
@@ -315,8 +316,6 @@ def make_morld_training_env(cfg, device: torch.device):
     """``P * num_envs`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``num_envs``) + the
     policy's history + discounted vector returns (each member's evaluation). No preference: a
     member's weight lives in the loss, not in the data."""
-    from morl_trl.recipes.off_policy import _gamma
-
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
@@ -326,7 +325,7 @@ def make_morld_training_env(cfg, device: torch.device):
         raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
     env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
     env = compose_policy_env(env, history_len=cfg.history_len)
-    env.append_transform(DiscountedVectorReturn(_gamma(cfg, domain_of(cfg.env_id))))
+    env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
     return env
 
 

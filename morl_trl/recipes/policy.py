@@ -33,7 +33,9 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.off_policy import _gamma, run_training
+from morl_trl.recipes.algorithms import build_agent, build_training_env
+from morl_trl.recipes.off_policy import run_training
+from morl_trl.recipes.parts import run_discount, run_domain
 from morl_trl.runs.atomic import atomic_write
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from morl_trl.runs.plain import load_plain, save_plain
@@ -204,11 +206,9 @@ def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
 
 
 def _build_agent(cfg: TrainConfig, device: torch.device):
-    from morl_trl.recipes import build_agent, build_training_env
-
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
     env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     env.close()
     return agent
 

@@ -128,7 +128,7 @@ def test_overwrite_keeps_the_old_run_until_the_new_one_has_its_first_checkpoint(
     def first_checkpoint_fails(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    import morl_trl.recipes.off_policy as off_policy
+    import morl_trl.runs.run as off_policy  # (where the run writes its checkpoints)
 
     monkeypatch.setattr(off_policy, "save_checkpoint", first_checkpoint_fails)
     with pytest.raises(OSError):
