@@ -97,9 +97,9 @@ def test_envs_groups_numbered_parameters(capsys):
 def test_progress_bar_shows_one_frame_rate():
     import inspect
 
-    from morl_trl.recipes import off_policy
+    from morl_trl.runs.run import Run
 
-    src = inspect.getsource(off_policy.run_training)
+    src = inspect.getsource(Run.batch_done)
     assert "set_postfix(nhgr=" in src and "fps=" not in src.split("set_postfix", 1)[1].split("\n", 1)[0]
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["TrainConfig", "ALGORITHMS", "GROUPS", "RESUME_MAY_CHANGE", "resolve_config", "load_config_file",
-           "resume_config", "quick_preset"]
+           "resume_config", "quick_preset", "config_values"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
               "gpi_ls", "gpi_pd")
@@ -206,6 +206,9 @@ class TrainConfig:
                                     "'max-autotune', ...)", _str(optional=True))
     cudagraphs: bool = _key("compile", False, "replay the update step as a CUDA graph (tensordict.nn."
                             "CudaGraphModule; device cuda only)", _bool)
+    capture_sampling: bool = _key("compile", False, "with compile/cudagraphs and prioritized replay on the "
+                                  "pure-torch sampler: sampling and priority writes inside the captured update "
+                                  "(one CUDA graph per update, no host read); same draws and arithmetic", _bool)
     finite_check_interval: int = _key("compile", 100, "captured update and accelerators: updates between host "
                                       "reads of the device's count of skipped non-finite updates (the eager CPU "
                                       "update checks every one before applying it)", _int(1))
@@ -289,6 +292,12 @@ class TrainConfig:
     gpi_num_nets: int = _key("gpi", 2, "Q-networks in the ensemble", _int(1, 64))
     gpi_dropout: float = _key("gpi", 0.01, "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99))
     gpi_layer_norm: bool = _key("gpi", True, "LayerNorm in the Q-networks' hidden layers", _bool)
+    capql_deterministic_collection: bool = _key("collector", True, "CAPQL collects with the deterministic action "
+                                                "tanh(mean) after init_random_frames (the authors' capql.py:454-459); "
+                                                "false: sampled actions", _bool)
+    gpi_model_termination: str = _key("gpi", "authors", "GPI-PD's Hopper termination of imagined transitions: "
+                                      "'authors' (state[1:] < 100, their slip: no abs; what produced the paper's "
+                                      "numbers) or 'corrected' (|state[1:]| < 100)", _choice(("authors", "corrected")))
     gpi_eval_conditioning: str = _key("gpi", "authors", "continuous GPI at evaluation: the critic's conditioning "
                                       "weight for support row i: 'authors' (their vectorised evaluator's "
                                       "w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's "
@@ -588,6 +597,12 @@ _QUICK_ALGO = {
 }
 
 
+def config_values(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """The typed config keys of a mapping that may hold ``{group: {key: value}}`` tables (what a
+    config file or a grid's table gives); unknown keys raise, naming ``source`` and the valid keys."""
+    return _coerce(_flatten(values, source))
+
+
 def load_config_file(path: str | Path) -> dict[str, Any]:
     """Read overrides from a ``.toml`` or ``.json`` file (flat keys of :class:`TrainConfig`)."""
     path = Path(path)
@@ -605,7 +620,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {str(path)!r} does not parse: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} holds a {type(data).__name__}, not a table of keys")
-    return _coerce(_flatten(data, f"config file {str(path)!r}"))
+    return config_values(data, f"config file {str(path)!r}")
 
 
 def resolve_config(
@@ -641,9 +656,11 @@ def resolve_config(
     values.update(_ALGO[algo])
     values.update(_ALGO_DOMAIN.get((algo, train_id), {}))
     if spec.foreign:  # no paper record: MORL-Baselines' constructor defaults (recipes/foreign_defaults.py)
-        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
 
         values.update(FOREIGN_DEFAULTS.get(algo, {}))
+        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
+            values.update(FOREIGN_DEFAULTS_CONTINUOUS[algo])
     if quick:
         values.update(_QUICK)
         values.update(_QUICK_ALGO.get(algo, {}))
@@ -652,6 +669,17 @@ def resolve_config(
     cfg = TrainConfig(**_coerce(values)).validate()
     check_env_fits(cfg, spec)
     return cfg
+
+
+def _discrete_actions(spec) -> bool:
+    """Whether the domain's env has discrete actions (one sub-env built to read its spec)."""
+    from morl_trl.envs import make_env
+
+    env = make_env(spec.train_id, num_envs=1, seed=0)
+    try:
+        return env.action_spec.domain == "discrete"
+    finally:
+        env.close()
 
 
 def check_env_fits(cfg: TrainConfig, spec) -> None:
@@ -671,12 +699,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
         raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
                          f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
     if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
-        from morl_trl.envs import make_env
-
-        env = make_env(spec.train_id, num_envs=1, seed=0)
-        discrete = env.action_spec.domain == "discrete"
-        env.close()
-        if discrete:
+        if _discrete_actions(spec):
             raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
                              f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 
