@@ -139,13 +139,13 @@ def _resources(value, source: str) -> dict[str, float]:
 def _table(value, key: str, source: str) -> dict:
     if not isinstance(value, dict):
         raise ValueError(f"{source}: {key} is {value!r}; valid: a table of config keys")
-    from morl_trl.recipes.config import _coerce, _flatten
+    from morl_trl.recipes.config import coerce_values, flatten_tables
 
-    flat = _flatten(value, f"{source}: {key}")
+    flat = flatten_tables(value, f"{source}: {key}")
     bad = sorted(set(flat) & {"algo", "env_id", "seed", "run_dir"})
     if bad:
         raise ValueError(f"{source}: {key} may not set {bad}: the grid sets them per cell")
-    return _coerce(flat)
+    return coerce_values(flat)
 
 
 @dataclass

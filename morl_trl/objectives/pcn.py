@@ -28,6 +28,8 @@ class PCNNetwork(nn.Module):
     """``(observation, desired_return [k], desired_horizon [1]) -> log-probs [A]`` or ``action [A]``.
 
     ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first).
+    ``hidden``: the embedding width, then the head's hidden widths (the authors: ``[256] * 4``,
+    a 256 embedding and three 256 layers); an int ``h`` is ``(h, h)``.
 
     Example:
         >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=8)
@@ -37,7 +39,7 @@ class PCNNetwork(nn.Module):
     """
 
     def __init__(self, obs_dim, action_dim: int, num_objectives: int, scaling_factor: Sequence[float],
-                 hidden: int = 64, *, discrete: bool = True) -> None:
+                 hidden: int | Sequence[int] = 64, *, discrete: bool = True) -> None:
         super().__init__()
         scale = torch.as_tensor(scaling_factor, dtype=torch.float32).flatten()
         if scale.numel() != num_objectives + 1:
@@ -49,9 +51,17 @@ class PCNNetwork(nn.Module):
         # written for vector observations)
         encoder, width = _encoder_and_width(obs_dim, 512)
         self.obs_ndim = 1 if encoder is None else 3
-        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, hidden), nn.Sigmoid())
-        self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, hidden), nn.Sigmoid())
-        layers = [nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, action_dim)]
+        # hidden: the authors' net_arch (embedding width, then the head's hidden widths); an int h is (h, h)
+        widths = (hidden, hidden) if isinstance(hidden, int) else tuple(hidden)
+        if not widths:
+            raise ValueError("hidden must hold at least one width (the embedding width)")
+        emb = widths[0]
+        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, emb), nn.Sigmoid())
+        self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, emb), nn.Sigmoid())
+        layers = []
+        for a, b in zip(widths[:-1], widths[1:]):
+            layers += [nn.Linear(a, b), nn.ReLU()]
+        layers.append(nn.Linear(widths[-1], action_dim))
         if discrete:
             layers.append(nn.LogSoftmax(dim=-1))
         self.fc = nn.Sequential(*layers)
@@ -62,7 +72,8 @@ class PCNNetwork(nn.Module):
         return self.fc(self.s_emb(obs) * self.c_emb(c))
 
 
-def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor, hidden: int = 64, *,
+def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor,
+                     hidden: int | Sequence[int] = 64, *,
                      discrete: bool = True) -> TensorDictModule:
     """:class:`PCNNetwork` as a ``TensorDictModule`` reading ``observation``, ``desired_return`` and
     ``desired_horizon`` and writing ``"log_probs"`` (discrete) or ``"action_pred"`` (continuous)."""

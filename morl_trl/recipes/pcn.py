@@ -263,7 +263,7 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     shape = obs_shape(env)
     obs_dim = shape[0] if len(shape) == 1 else shape
     action_dim = spec.space.n if discrete else int(spec.shape[-1])
-    net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.pcn_hidden, discrete=discrete).to(device)
+    net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.hidden, discrete=discrete).to(device)
     loss = PCNLoss(net)
     optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))
     explore = PCNPolicy(net, spec, mode="explore", noise=cfg.pcn_noise)
