@@ -21,7 +21,7 @@ from morl_trl.envs.registry import (
     register_domain,
 )
 from morl_trl.envs.sampler import ContextSampler
-from morl_trl.envs.spec import DomainSpec
+from morl_trl.envs.spec import DomainSpec, SORLReward
 
 __all__ = [
     "ContextSampler",
@@ -29,6 +29,7 @@ __all__ = [
     "ContextualMOEnv",
     "DomainSpec",
     "NonFiniteStepError",
+    "SORLReward",
     "context_space",
     "domain_of",
     "evaluation_suite",

@@ -16,7 +16,51 @@ import torch
 
 from morl_trl.envs.context import ContextSpace
 
-__all__ = ["DomainSpec"]
+__all__ = ["DomainSpec", "SORLReward"]
+
+
+@dataclass(frozen=True)
+class SORLReward:
+    """A domain's single-objective reward f_SORL: the scalar a single-objective agent (the paper's
+    SAC baseline) is trained on, and the paper's "Scalar reward is not enough" analysis scores
+    every method by (its appendix "Single Objective Utility Function Results").
+
+    The env emits it per step as ``"original_reward"`` ``[*B, 1]`` (the authors'
+    ``info["original_scalar_reward"]``); the evaluator sums that entry. This record says what it
+    is in terms of the vector reward ``r_t`` ``[*B, k]``: per step ``weights . r_t + offset``
+    (``offset`` collects the terms the vector reward adds to every objective, e.g. a healthy
+    bonus), exactly when ``exact``; ``note`` says where the paper's formula, the authors' code
+    and the env differ.
+
+    Args:
+        paper: the paper's formula, as its appendix writes it (``""``: not in the paper).
+        weights: coefficient of each objective, in ``objective_names`` order.
+        offset: constant added per step.
+        exact: the env's ``original_reward`` equals ``weights . r_t + offset`` at every step.
+        note: where it differs, and why.
+
+    Example:
+        >>> import torch
+        >>> from morl_trl.envs import domain_of
+        >>> sorl = domain_of("MOHalfCheetahDR-v5").sorl
+        >>> sorl.paper, sorl.weights, sorl.exact
+        ('1.0 v_x + 0.1 c', (1.0, 0.1), True)
+        >>> sorl.scalarize(torch.tensor([[2.0, -3.0]]))    # 2.0 + 0.1 * -3.0
+        tensor([1.7000])
+    """
+
+    paper: str
+    weights: tuple[float, ...]
+    offset: float = 0.0
+    exact: bool = True
+    note: str = ""
+
+    def scalarize(self, reward: torch.Tensor) -> torch.Tensor:
+        """``weights . reward + offset`` over the last axis (``[*B, k] -> [*B]``)."""
+        w = torch.as_tensor(self.weights, dtype=reward.dtype, device=reward.device)
+        if reward.shape[-1] != w.numel():
+            raise ValueError(f"reward has {reward.shape[-1]} objectives; f_SORL weights {len(self.weights)}")
+        return (reward * w).sum(-1) + self.offset
 
 
 @dataclass(frozen=True)
@@ -42,6 +86,8 @@ class DomainSpec:
         train_frames: the paper's training length in environment frames.
         eval_interval: the paper's evaluation period in frames.
         eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
+        sorl: the domain's single-objective reward f_SORL in terms of the vector reward
+            (:class:`SORLReward`); ``None`` where the paper gives none.
 
     Example:
         >>> from morl_trl.envs import domain_of
@@ -66,11 +112,15 @@ class DomainSpec:
     train_frames: int = 1_000_000
     eval_interval: int = 50_000
     eval_weights: int = 100
+    sorl: SORLReward | None = None
 
     def __post_init__(self) -> None:
         missing = [e for e in self.evaluation_ids if e not in self.contexts]
         if missing:
             raise ValueError(f"{self.name}: evaluation ids {missing} have no context")
+        if self.sorl is not None and len(self.sorl.weights) != len(self.objective_names):
+            raise ValueError(f"{self.name}: f_SORL has {len(self.sorl.weights)} weights for "
+                             f"{len(self.objective_names)} objectives {self.objective_names}")
 
     @property
     def num_objectives(self) -> int:

@@ -112,6 +112,14 @@ class MultiContextEvaluator:
     ``normalized_hypervolume`` and ``normalized_eum``; with a ``reference`` (frozen bounds and
     specialist fronts, :class:`~morl_trl.reporting.DomainReference`) ``nhgr`` and ``eugr``.
 
+    Where the env emits the domain's original scalar reward (``sorl_key``, default
+    ``"original_reward"``: the reward the paper's SAC baseline trains on, its f_SORL) the
+    evaluator also sums it, undiscounted and discounted, over every episode
+    (``EvaluationResult.sorl_returns``), as the authors' evaluator did: per context, the best
+    weight's f_SORL return and that weight (:meth:`EvaluationResult.sorl_best`). A policy that
+    ignores the weight (SAC) gets as many episodes, and its best is the best of them. An env
+    without that entry has no f_SORL (``sorl_returns`` is ``None``).
+
     Args:
         policy: a callable ``TensorDict -> TensorDict`` writing ``"action"`` (a
             ``TensorDictModule``, a ``ProbabilisticActor``, ...), or ``"random"`` to sample the
@@ -159,6 +167,8 @@ class MultiContextEvaluator:
         preference_key: where the policy reads the preference.
         max_steps: safety horizon (default: the env's ``max_episode_steps``); episodes still
             running then are cut, with a warning.
+        sorl_key: the env's entry holding the original scalar reward ``[*B, 1]`` per step
+            (f_SORL); ``None``: do not record it.
 
     Example:
         >>> from morl_trl.evaluation import MultiContextEvaluator
@@ -190,12 +200,14 @@ class MultiContextEvaluator:
         reset_finished: bool = True,
         preference_key: str = "preference",
         max_steps: int | None = None,
+        sorl_key: str | tuple[str, ...] | None = "original_reward",
     ) -> None:
         if not (callable(policy) or policy == "random"):
             raise ValueError(f"policy must be a callable TensorDict -> TensorDict or 'random', got {policy!r}")
         self.policy = policy
         self.device = torch.device(device)
         self.preference_key = preference_key
+        self.sorl_key = sorl_key
         self.exploration_type = exploration_type
         self.reset_finished = bool(reset_finished)
         self.seed = int(seed)
@@ -404,11 +416,15 @@ class MultiContextEvaluator:
         pref_rows = self.weights.repeat_interleave(E, dim=0)
         if self.context_factories is None:
             ctx_rows = None if self.contexts is None else self.contexts.repeat_interleave(W * E, dim=0)
-            disc, und, lengths = self._run_pool(policy, self._env(None), ctx_rows, pref_rows.repeat(C, 1))
+            disc, und, lengths, sorl = self._run_pool(policy, self._env(None), ctx_rows, pref_rows.repeat(C, 1))
         else:
             runs = [self._run_pool(policy, self._env(name), None, pref_rows) for name in self.context_names]
-            disc, und, lengths = (torch.cat(parts) for parts in zip(*runs))
-        return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E))
+            disc, und, lengths = (torch.cat(parts) for parts in list(zip(*runs))[:3])
+            # f_SORL only where every context's env emits it
+            sorl = None if any(r[3] is None for r in runs) else torch.cat([r[3] for r in runs])
+        if sorl is not None:
+            sorl = sorl.reshape(C, W, E, 2)
+        return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E), sorl)
 
     __call__ = evaluate
 
@@ -467,6 +483,12 @@ class MultiContextEvaluator:
         action_key = inner.action_key
         action_spec = inner.full_action_spec[action_key] if policy == "random" else None
         everyone = torch.ones(m, dtype=torch.bool)
+        # f_SORL: the env's original scalar reward summed per episode, as the vector reward is
+        # (undiscounted; discounted with the factor gamma^t the return transform holds before step t)
+        sorl_key = self.sorl_key
+        discount_key = (*reward_key, _DISCOUNT)
+        sorl = None  # [n_rows, 2] (undiscounted, discounted), once the env shows it emits sorl_key
+        sorl_acc = None  # [m, 2] the running sums of the sub-envs
 
         def reset(td_in: TensorDictBase) -> TensorDictBase:
             # what the transforms read (the reset mask, the preferences given and the running
@@ -497,9 +519,20 @@ class MultiContextEvaluator:
                 if not bool(active.all()):
                     # TorchRL partial step: domains that can (Box2D, MuJoCo) skip the idle sub-envs
                     td.set("_step", active.to(out_dev).reshape(batch_size))
+                discount = td.get(discount_key) if sorl_key is not None else None
                 td = inner.step(td)
                 nxt = td.get("next")
                 returns._step(td, prefs._step(td, nxt))
+                if sorl_key is not None:
+                    scalar = nxt.get(sorl_key, None)
+                    if scalar is None:  # an env without the original scalar reward: no f_SORL
+                        sorl_key = None
+                    else:
+                        scalar = scalar.reshape(m).to(torch.float64)
+                        if sorl_acc is None:
+                            sorl_acc = torch.zeros(m, 2, dtype=torch.float64, device=scalar.device)
+                            sorl = torch.zeros(n_rows, 2, dtype=torch.float64)
+                        sorl_acc += torch.stack([scalar, scalar * discount.reshape(m).to(scalar)], -1)
                 run_len += active
                 done = nxt.get("done").reshape(m).cpu()
                 cut = active & (run_len >= horizon) & ~done
@@ -521,6 +554,10 @@ class MultiContextEvaluator:
                     und[r] = td.get(und_key)[idx_d].to("cpu", torch.float64)
                     lengths[r] = run_len[idx]
                     run_len[idx] = 0
+                    if sorl_key is not None:
+                        idx_s = idx.to(sorl_acc.device)
+                        sorl[r] = sorl_acc[idx_s].to("cpu")
+                        sorl_acc[idx_s] = 0.0
                     # hand the next pending rows to the sub-envs that just finished
                     take = min(len(idx), n_rows - next_row)
                     row[idx] = -1
@@ -545,10 +582,10 @@ class MultiContextEvaluator:
                     if fresh is not None and ctx_rows is not None:
                         self._check_contexts(td_next, fresh.to(out_dev), ctx_rows[row[fresh]].to(out_dev), row[fresh])
                 td = td_next
-        return disc, und, lengths
+        return disc, und, lengths, (sorl if sorl_key is not None else None)
 
     # ------------------------------------------------------------------ metrics
-    def _result(self, disc, und, lengths) -> EvaluationResult:
+    def _result(self, disc, und, lengths, sorl=None) -> EvaluationResult:
         values = disc.mean(dim=2).numpy()  # [C, W, k]
         per_context = {}
         eum_w = self.eum_weights.numpy()
@@ -595,6 +632,8 @@ class MultiContextEvaluator:
             gamma=self.gamma,
             per_context=per_context,
             aggregate=aggregate,
+            sorl_returns=None if sorl is None else sorl[..., 0].clone(),
+            sorl_discounted_returns=None if sorl is None else sorl[..., 1].clone(),
         )
 
     def close(self) -> None:

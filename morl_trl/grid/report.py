@@ -245,6 +245,7 @@ def grid_report(grid_dir: str | Path, *, reference_dir: str | Path | None = None
     import sys
 
     from morl_trl.grid.status import format_status, grid_status
+    from morl_trl.reporting.fsorl import grid_section
     from morl_trl.reporting.table import format_table
 
     if floors not in ("auto", "shipped", "none"):
@@ -275,6 +276,7 @@ def grid_report(grid_dir: str | Path, *, reference_dir: str | Path | None = None
     for domain, (_, contexts) in protocol.items():
         png = _curves(grid_dir, domain, runs[domain], contexts, floor_dict, out_dir / f"curves_{domain}.png")
         lines += [f"![NHGR against frames, {domain}](report/{png.name})", ""]
+    lines += grid_section(runs, out_dir)  # f_SORL against SAC (reporting/fsorl.py)
     failed = [s for s in states if s.status == "failed"]
     if failed:
         lines += ["## Failed cells", ""] + [f"- `{s.name}`: {s.error}" for s in failed] + [""]

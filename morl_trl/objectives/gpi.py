@@ -124,7 +124,8 @@ class GPIPolicy(TensorDictModuleBase):
 
     Reads ``observation`` and ``preference`` ``[*B, k]``; writes ``action`` (categorical index
     ``[*B]``) and ``policy_index``. ``include_preference`` adds each row's own ``w`` to the
-    support (always the case with an empty support).
+    support (always the case with an empty support). ``dropout``: whether the Q-network's dropout
+    is active (the authors: while acting in training, ``True``; not at evaluation, ``False``).
 
     Example:
         >>> from tensordict import TensorDict
@@ -135,11 +136,12 @@ class GPIPolicy(TensorDictModuleBase):
     """
 
     def __init__(self, qnet: GPIQNetwork, support: torch.Tensor | None = None, *, include_preference: bool = False,
-                 observation_key: NestedKey = "observation", preference_key: NestedKey = "preference",
-                 action_key: NestedKey = "action") -> None:
+                 dropout: bool = True, observation_key: NestedKey = "observation",
+                 preference_key: NestedKey = "preference", action_key: NestedKey = "action") -> None:
         super().__init__()
         self.qnet = qnet
         self.include_preference = include_preference
+        self.dropout = dropout  # the authors: on while acting in training, off at evaluation (q_net.eval())
         self.support = torch.zeros(0, qnet.num_objectives) if support is None else torch.as_tensor(support).float()
         self.in_keys = [observation_key, preference_key]
         self.out_keys = [action_key, "policy_index"]
@@ -157,7 +159,12 @@ class GPIPolicy(TensorDictModuleBase):
             support = torch.cat([support, w.unsqueeze(-2).float()], -2)
         m = support.shape[-2]
         obs_m = obs.unsqueeze(len(lead)).expand(*lead, m, *obs.shape[len(lead):])
-        q = self.qnet(obs_m, support, members=slice(0, 1))[0]  # [*B, M, A, k]
+        was = self.qnet.training
+        self.qnet.train(self.dropout)
+        try:
+            q = self.qnet(obs_m, support, members=slice(0, 1))[0]  # [*B, M, A, k]
+        finally:
+            self.qnet.train(was)
         action, policy = gpi_action(q, w)
         tensordict.set(self.out_keys[0], action)
         tensordict.set(self.out_keys[1], policy)
@@ -453,8 +460,16 @@ class GPIVectorCritic(nn.Module):
 
 class GPIContinuousPolicy(TensorDictModuleBase):
     """Acts with the actor for the row's ``w`` (``noise``: the authors' exploration, ``policy_noise`` clipped), or,
-    with ``gpi=True``, by GPI over the support: ``argmax_{i, j} w . Q_0(s, pi(s, w_j), w_i)`` (the authors use GPI
-    in the continuous case only to rank the corner weights).
+    with ``gpi=True``, by GPI over the support: the candidate actions ``a_j = pi(s, w_j)`` scored by
+    ``w . Q_0(s, a_j, w_i)``, the best ``(i, j)`` acting (the authors' ``eval``; the critic's dropout
+    stays as its mode is: the authors never switch it off).
+
+    ``context_table`` ``[E, c]`` (the evaluation contexts, in the evaluator's order) reproduces the
+    authors' vectorised evaluator (``gpi_pd_continuous_action.py:510-526``): for a row whose
+    ``"context"`` is evaluation context ``e`` of ``E``, the critic's conditioning weight of
+    candidate row ``i`` is ``w_floor((e * M + i) / E)`` instead of ``w_i`` (their
+    ``repeat_interleave(M * num_envs)``; a slip, SPEC §6). Without it (or a ``"context"``
+    entry) every row uses ``w_i``, as their single-env path.
 
     Example:
         >>> from tensordict import TensorDict
@@ -465,12 +480,25 @@ class GPIContinuousPolicy(TensorDictModuleBase):
     """
 
     def __init__(self, actor: GPIActor, critic: GPIVectorCritic | None = None, support=None, *, gpi: bool = False,
-                 noise: float | None = None, noise_clip: float | None = None) -> None:
+                 noise: float | None = None, noise_clip: float | None = None,
+                 context_table: torch.Tensor | None = None) -> None:
         super().__init__()
         self.actor, self.critic, self.gpi = actor, critic, gpi
         self.noise, self.noise_clip = noise, noise_clip
         self.support = torch.zeros(0, actor.num_objectives) if support is None else torch.as_tensor(support).float()
+        self.context_table = None if context_table is None else torch.as_tensor(context_table, dtype=torch.float32)
         self.in_keys, self.out_keys = ["observation", "preference"], ["action"]
+
+    def conditioning(self, tensordict: TensorDictBase, lead, m: int) -> torch.Tensor:
+        """``[*B, m, k]``: the critic's conditioning weight of each candidate row ``i`` (see the class)."""
+        support = self.support.to(tensordict.device or "cpu")
+        ctx = tensordict.get("context", None) if self.context_table is not None else None
+        if ctx is None:
+            return support.expand(*lead, m, support.shape[-1])
+        table = self.context_table.to(ctx.device)
+        e = torch.cdist(ctx.float().reshape(-1, ctx.shape[-1]), table).argmin(-1).reshape(lead)  # [*B]
+        index = (e.unsqueeze(-1) * m + torch.arange(m, device=e.device)) // table.shape[0]  # [*B, m]
+        return support.to(e.device)[index]
 
     def set_support(self, support) -> None:
         self.support = torch.as_tensor(support, dtype=torch.float32)
@@ -485,10 +513,11 @@ class GPIContinuousPolicy(TensorDictModuleBase):
         M = self.support.to(w.device).expand(*lead, m, w.shape[-1])
         obs_m = obs.unsqueeze(-2).expand(*lead, m, obs.shape[-1])
         actions = self.actor(obs_m, M)  # [*B, m(j), act]
+        cond = self.conditioning(tensordict, lead, m).to(w.device)  # [*B, m(i), k]: w_i (or the authors' slip)
         # Q_0(s, a_j, w_i): [*B, i, j, k]
         q = self.critic(obs_m.unsqueeze(-3).expand(*lead, m, m, obs.shape[-1]),
                         actions.unsqueeze(-3).expand(*lead, m, m, actions.shape[-1]),
-                        M.unsqueeze(-2).expand(*lead, m, m, w.shape[-1]))[0]
+                        cond.unsqueeze(-2).expand(*lead, m, m, w.shape[-1]))[0]
         best_j = gpi_action(q, w)[0]  # gpi_action's "action" axis is the candidate j
         tensordict.set("action", actions.gather(-2, best_j[..., None, None].expand(*lead, 1, actions.shape[-1])).squeeze(-2))
         return tensordict

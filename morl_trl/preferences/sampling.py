@@ -13,7 +13,7 @@ __all__ = ["PREFERENCE_DISTRIBUTIONS", "CONE_ANGLE_DEGREES", "sample_preferences
 #: ``"dirichlet"``: Dirichlet(``alpha``), uniform on the simplex for ``alpha=1``.
 #: ``"gaussian"``: ``|N(0, I)|`` normalised to sum one, MORL-Baselines'
 #: ``random_weights(dist="gaussian")``, which the paper's Envelope runs used.
-#: ``"cone"``: a weight within :data:`CONE_ANGLE_DEGREES` of a random direction
+#: ``"cone"``: a weight within :data:`CONE_ANGLE_DEGREES` of the equal-weight direction
 #: (:func:`sample_cone_preferences`), the authors' CAPQL acting preferences.
 PREFERENCE_DISTRIBUTIONS = ("dirichlet", "gaussian", "cone")
 
@@ -38,23 +38,21 @@ def sample_cone_preferences(
     dtype: torch.dtype = torch.float32,
     return_centre: bool = False,
 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
-    r"""Draw ``[*shape, k]`` preferences, each within ``angle`` degrees of its own random direction.
+    r"""Draw ``[*shape, k]`` preferences within ``angle`` degrees of the equal-weight direction.
 
-    The authors' CAPQL acting preferences (a new one every env step). Precisely, per row:
+    The authors' CAPQL acting preferences (a new one every env step; their ``capql.py:70-100``,
+    SPEC §6). Per row:
 
-    1. a centre direction :math:`c = |g| / \lVert g \rVert_2`, :math:`g \sim N(0, I_k)`: a random
-       direction in the non-negative orthant (a random point of the simplex seen as a ray);
-    2. a unit vector :math:`u = \cos\theta\, c + \sin\theta\, v` with
-       :math:`\cos\theta \sim U[\cos(\text{angle}), 1]` (uniform on the spherical cap when ``k = 3``)
-       and :math:`v` a uniformly random unit vector orthogonal to :math:`c` (a standard Gaussian
-       with its component along ``c`` removed, normalised);
-    3. :math:`w = \max(u, 0) / \sum_i \max(u_i, 0)`: negative entries (the cap can leave the
-       orthant near a face of the simplex) are clipped to zero, then the row is scaled to sum one.
+    1. the fixed centre :math:`c = \mathbf{1} / \sqrt{k}` (the equal-weight direction);
+    2. an angle :math:`\theta \sim U[0, \text{angle}]` and :math:`v` a uniformly random unit vector
+       orthogonal to :math:`c` (a standard Gaussian with its component along ``c`` removed,
+       normalised); :math:`u = \cos\theta\, c + \sin\theta\, v`;
+    3. :math:`w = \max(u, 0) / \sum_i \max(u_i, 0)` (L1 normalisation; the clip at 0 only acts
+       when the cone leaves the orthant: never for 22.5 degrees and ``k <= 6``).
 
-    Clipping only brings ``u`` closer to ``c`` (``c >= 0``, so dropping negative entries raises
-    :math:`u \cdot c` and lowers :math:`\lVert u \rVert`), and scaling keeps the direction, so every
-    draw has :math:`\angle(w, c) \le` ``angle``, :math:`w \ge 0` and :math:`\sum_i w_i = 1`. With
-    ``k = 1`` every draw is ``[1]``.
+    Every draw has :math:`\angle(w, c) \le` ``angle``, :math:`w \ge 0` and :math:`\sum_i w_i = 1`;
+    for 22.5 degrees the components stay in [0.293, 0.707] (``k = 2``) and [0.138, 0.529]
+    (``k = 3``). With ``k = 1`` every draw is ``[1]``.
 
     Args:
         shape: leading (batch) shape.
@@ -63,12 +61,12 @@ def sample_cone_preferences(
         generator: a :class:`torch.Generator` on ``device``; the global RNG when ``None``.
         device: where the draws are made.
         dtype: of the output.
-        return_centre: also return the unit centre directions ``c`` ``[*shape, k]``.
+        return_centre: also return the unit centre direction ``c`` (expanded to ``[*shape, k]``).
 
     Example:
         >>> g = torch.Generator().manual_seed(0)
-        >>> w = sample_cone_preferences(5, 3, generator=g)
-        >>> bool((w >= 0).all()), bool(torch.allclose(w.sum(-1), torch.ones(5)))
+        >>> w = sample_cone_preferences(5, 2, generator=g)
+        >>> bool((w >= 0.29).all() and (w <= 0.71).all()), bool(torch.allclose(w.sum(-1), torch.ones(5)))
         (True, True)
     """
     shape = _leading_shape(shape, num_objectives)
@@ -78,16 +76,13 @@ def sample_cone_preferences(
         device = generator.device
     size = (*shape, num_objectives)
     f64 = torch.float64
-    g = torch.randn(size, generator=generator, device=device, dtype=f64).abs().clamp_min(torch.finfo(f64).tiny)
-    c = g / g.norm(dim=-1, keepdim=True)
-    cos_max = math.cos(math.radians(float(angle)))
-    cos_t = 1.0 - torch.rand((*shape, 1), generator=generator, device=device, dtype=f64) * (1.0 - cos_max)
-    sin_t = (1.0 - cos_t**2).clamp_min(0.0).sqrt()
+    c = torch.full(size, 1.0 / math.sqrt(num_objectives), device=device, dtype=f64)
+    theta = torch.rand((*shape, 1), generator=generator, device=device, dtype=f64) * math.radians(float(angle))
     v = torch.randn(size, generator=generator, device=device, dtype=f64)
     v = v - (v * c).sum(-1, keepdim=True) * c
     norm = v.norm(dim=-1, keepdim=True)
     v = torch.where(norm > 1e-12, v / norm.clamp_min(1e-12), torch.zeros_like(v))  # k = 1: no room
-    u = (cos_t * c + sin_t * v).clamp_min(0.0)
+    u = (theta.cos() * c + theta.sin() * v).clamp_min(0.0)
     w = (u / u.sum(-1, keepdim=True)).to(dtype)
     return (w, c.to(dtype)) if return_centre else w
 

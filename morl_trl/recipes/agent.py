@@ -76,6 +76,16 @@ class Agent:
         n = self.cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
         return self.run_updates(buffer, n), n
 
+    def frames_of(self, batch: TensorDictBase) -> int:
+        """How many frames ``batch`` counts against the run's budget ``cfg.frames``: all of them
+        (PGMORL counts one member's, as the authors)."""
+        return batch.numel()
+
+    def frames_to_collect(self, frames_done: int) -> int:
+        """The frames the collector still has to collect when ``frames_done`` frames (as
+        :meth:`frames_of` counts them) are done: ``cfg.frames - frames_done``."""
+        return self.cfg.frames - frames_done
+
     def run_updates(self, buffer, n: int) -> TensorDictBase | None:
         """``n`` :meth:`update` calls; returns the last losses (``None`` for ``n = 0``). A
         :class:`NonFiniteLossError` carries ``updates_done``: the updates applied before it."""

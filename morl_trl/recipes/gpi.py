@@ -15,8 +15,9 @@ The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` override
    ``change_w_every_episode``); actions are epsilon-greedy around GPI over ``M`` and the
    sub-env's ``w``. PER priorities are recomputed for the whole buffer under ``w``.
 4. Updates (:class:`~morl_trl.objectives.GPILoss`): 1 per frame, ``gpi_gradient_updates``
-   (20) per frame once ``frames >= gpi_dynamics_rollout_starts`` (as the authors, for GPI-LS
-   too); a hard target copy every ``target_update_period`` frames.
+   per frame once ``frames >= gpi_dynamics_rollout_starts`` (the authors' gating, for GPI-LS
+   too; every script of theirs passes ``gradient_updates 1``, so 1 per frame throughout);
+   a hard target copy every ``target_update_period`` frames.
 5. GPI-PD only: every ``gpi_dynamics_train_freq`` frames the dynamics ensemble is refitted on
    the whole buffer (:func:`~morl_trl.objectives.fit_dynamics`); every
    ``gpi_dynamics_rollout_freq`` frames from ``gpi_dynamics_rollout_starts``,
@@ -26,7 +27,11 @@ The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` override
    of each batch from the real buffer and the rest from the model buffer.
 
 Evaluation (the off-policy loop's evaluator) acts by GPI over ``M`` for each evaluation
-weight, as the authors.
+weight, as the authors: discrete with dropout off, continuous over the candidate actions
+``pi(s, w_j)`` with the critic's dropout on and, by default, the critic conditioned as the
+authors' vectorised evaluator did (``gpi_eval_conditioning``, see
+:class:`~morl_trl.objectives.gpi.GPIContinuousPolicy`). The CCS values are Monte-Carlo
+discounted returns of the GPI policy on the training domain (``gpi_front_episodes`` per weight).
 
 Example:
     >>> from morl_trl.recipes import resolve_config
@@ -149,7 +154,8 @@ class GPIAgent(Agent):
         return values
 
     def _end_iteration(self) -> None:
-        values = self._evaluate(self.support, self.support)
+        # the CCS values: Monte-Carlo discounted returns of the GPI policy over M (the authors', both action types)
+        values = self._evaluate(self.support, self.support, self.gpi_policy)
         for v, w in zip(values, self.support):
             self.linear_support.add_solution(v, w)
 
@@ -345,11 +351,11 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
                        dropout=cfg.gpi_dropout, layer_norm=cfg.gpi_layer_norm).to(device)
     loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
     loss.make_value_estimator(gamma=gamma)
-    greedy = GPIPolicy(qnet, include_preference=True)
+    greedy = GPIPolicy(qnet, include_preference=True)  # dropout on while acting, as the authors
     egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
                             annealing_num_steps=max(1, cfg.eps_frames))
     explore = TensorDictSequential(greedy, egreedy)
-    eval_policy = GPIPolicy(qnet)
+    eval_policy = GPIPolicy(qnet, dropout=False)  # the authors' q_net.eval() at evaluation
     dynamics = None
     if pd:
         model = ProbabilisticEnsemble(shape[0] + num_actions, shape[0] + k, ensemble_size=cfg.gpi_dynamics_ensemble,
@@ -362,9 +368,25 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
                     preference_transform=prefs[-1] if prefs else None, num_actions=num_actions, dynamics=dynamics)
 
 
+def _evaluation_contexts(cfg) -> torch.Tensor | None:
+    """``[E, c]``: the evaluator's contexts in its order (``None`` where the registry has none)."""
+    from morl_trl.envs import domain_of
+    from morl_trl.envs.registry import evaluation_suite, is_randomized
+
+    try:
+        spec = domain_of(cfg.env_id)
+        ids = list(cfg.eval_contexts) if cfg.eval_contexts else (
+            evaluation_suite(spec.train_id) if is_randomized(spec.train_id) else [spec.train_id])
+        return torch.stack([torch.as_tensor(spec.context_of(i), dtype=torch.float32) for i in ids])
+    except Exception:  # (a domain without registered contexts: the single-env indexing)
+        return None
+
+
 def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.device) -> GPIAgent:
-    """The authors' ``GPIPDContinuousAction``: a TD3-style actor and an ensemble of vector critics; GPI only ranks
-    the corner weights (collection and evaluation act with the actor for the row's ``w``)."""
+    """The authors' ``GPIPDContinuousAction``: a TD3-style actor and an ensemble of vector critics. Collection acts
+    with the noisy actor for the row's ``w``; the CCS values and the corner weights use GPI over the support
+    (single-env indexing), and so does the evaluation, with the conditioning weight of the authors' vectorised
+    evaluator (``gpi_eval_conditioning="authors"``) or ``w_i`` (``"support"``)."""
     obs_dim, act_dim, k = obs_shape(env)[0], spec.shape[-1], num_objectives(env)
     actor = GPIActor(obs_dim, k, act_dim, low=spec.space.low, high=spec.space.high, hidden=cfg.hidden).to(device)
     critic = GPIVectorCritic(obs_dim, act_dim, k, hidden=cfg.hidden, num_nets=cfg.gpi_num_nets,
@@ -374,7 +396,8 @@ def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.de
     loss.make_value_estimator(gamma=gamma)
     actor_m, critic_m = loss.actor_network.module, loss.qvalue_network.module
     explore = GPIContinuousPolicy(actor_m, noise=cfg.gpi_policy_noise, noise_clip=cfg.gpi_noise_clip)
-    eval_policy = GPIContinuousPolicy(actor_m)
+    table = _evaluation_contexts(cfg) if cfg.gpi_eval_conditioning == "authors" else None
+    eval_policy = GPIContinuousPolicy(actor_m, critic_m, gpi=True, context_table=table)
     gpi_policy = GPIContinuousPolicy(actor_m, critic_m, gpi=True)
     dynamics = None
     if cfg.algo == "gpi_pd":

@@ -67,9 +67,13 @@ def make_replay_buffer(cfg: TrainConfig, device: torch.device) -> TensorDictRepl
     return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
 
 
-def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frames_done: int = 0) -> Collector:
-    """TorchRL's ``Collector`` for the frames still to go (uniformly random before ``init_random_frames``)."""
+def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frames_done: int = 0,
+                   frames_to_go: int | None = None) -> Collector:
+    """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
+    frames_done``; uniformly random before ``init_random_frames``)."""
     per_batch = cfg.frames_per_batch
+    if frames_to_go is None:
+        frames_to_go = cfg.frames - frames_done
 
     def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
         return -(-max(frames, 0) // per_batch) * per_batch
@@ -78,7 +82,7 @@ def make_collector(cfg: TrainConfig, env, policy, device: torch.device, *, frame
         env,
         policy,
         frames_per_batch=per_batch,
-        total_frames=max(whole_batches(cfg.frames - frames_done), per_batch),
+        total_frames=max(whole_batches(frames_to_go), per_batch),
         init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
         device=device,
         exploration_type=ExplorationType.RANDOM,
@@ -276,7 +280,8 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
             if "generator" in saved:
                 t.generator.set_state(saved["generator"])
         load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=frames,
+                               frames_to_go=agent.frames_to_collect(frames))
 
     created = not run_dir.exists()
     try:
@@ -353,7 +358,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         # policy trained on `frames` frames. A checkpoint is the state at the end of a batch
         # (after its evaluation), so the batch after it is the same whether the run resumes or not.
         for batch in collector:
-            frames += batch.numel()
+            frames += agent.frames_of(batch)  # (PGMORL: one member's frames, as the authors count)
             log.training_episodes(frames, batch)
             try:
                 losses, done_updates = agent.learn(batch, buffer, frames)  # store + update (the algorithm's)
@@ -367,7 +372,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
                 log.losses(frames, losses)
             agent.on_frames(frames)
             collector.update_policy_weights_()
-            bar.update(batch.numel())
+            bar.update(agent.frames_of(batch))
             last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
             bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:

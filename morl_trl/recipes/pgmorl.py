@@ -4,7 +4,10 @@ A population of ``P`` PPO agents with vector critics, run as ONE batched module
 (:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
 owns sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration: every member
 collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps), then
-:meth:`PGMORLAgent.learn`:
+:meth:`PGMORLAgent.learn`. As the authors, an iteration counts ONE member's frames
+(``E x 2048`` = 8192) against ``frames``, and the run ends after the warm-up and the whole
+generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 iterations,
+3.28M counted frames; every member collected them, 19.7M env steps in all):
 
 1. per-objective GAE on the normalised rewards (TorchRL's ``generalized_advantage_estimate``,
    :func:`~morl_trl.objectives.pgmorl.vector_gae`), the advantage scalarised with the member's
@@ -85,7 +88,26 @@ from morl_trl.recipes.pgmorl_evolution import (
 )
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env"]
+__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env", "pgmorl_iterations"]
+
+
+def pgmorl_iterations(frames: int, frames_per_iteration: int, warmup: int, evo_iterations: int) -> int:
+    """The PPO iterations PGMORL runs for a budget of ``frames`` (the authors' count: one member's
+    frames, ``frames_per_iteration`` = envs per member x steps per iteration = 8192).
+
+    As the authors' ``PGMORL.train`` (SPEC §6; hyperparameters.toml ``pgmorl.*.derived``):
+    ``max_iterations = frames // frames_per_iteration``; all ``warmup`` iterations, then whole
+    generations of ``evo_iterations`` while fewer than ``max_iterations`` have run, so the last
+    generation overruns the budget (Hopper: 3M frames -> 366 -> 400 iterations, 3.28M frames).
+
+    Example:
+        >>> pgmorl_iterations(3_000_000, 4 * 2048, warmup=200, evo_iterations=40)
+        400
+        >>> pgmorl_iterations(5_000_000, 4 * 2048, warmup=80, evo_iterations=20)
+        620
+    """
+    target = frames // frames_per_iteration
+    return warmup + -(-max(0, target - warmup) // evo_iterations) * evo_iterations
 
 
 def _check_layout(cfg) -> int:
@@ -173,6 +195,18 @@ class PGMORLAgent(Agent):
         self.reward_norm = VecNorm(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8, new_api=True,
                                    reduce_batch_dims=True)
         self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0)
+
+    # ------------------------------------------------------------------ frame budget
+    def frames_of(self, batch: TensorDictBase) -> int:
+        """One member's frames of the iteration (``E x T``, the authors' 8192): all ``P`` members
+        collect, but the authors' ``global_step`` counts one member's steps (SPEC §6)."""
+        return batch.numel() // self.P
+
+    def frames_to_collect(self, frames_done: int) -> int:
+        """The collector's frames (all members') of the iterations :func:`pgmorl_iterations` still runs."""
+        cfg, per = self.cfg, self.E * self.T
+        total = pgmorl_iterations(cfg.frames, per, cfg.pgmorl_warmup, cfg.pgmorl_evo_iterations)
+        return max(0, total - frames_done // per) * cfg.frames_per_batch
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int):

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from morl_trl.reporting.fsorl import run_section
+
 __all__ = ["write_report", "published_baselines", "floor_column", "learning_curves"]
 
 
@@ -281,6 +283,7 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
             lines.append("")
             lines.append(f"(Projections on {spec.objective_names[0]} × {spec.objective_names[1]}; the fronts are "
                          f"non-dominated in all {len(spec.objective_names)} objectives: see fronts/*.csv.)")
+    lines += run_section(result, run_dir, cfg.algo, spec, cfg.env_id)  # f_SORL (reporting/fsorl.py)
     path = run_dir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     from tqdm.auto import tqdm  # (above a training run's progress bar, never through it)

@@ -7,6 +7,9 @@ Layout of a run directory::
     logs/<tag>/...               TorchRL logger output (CSV by default; TensorBoard / W&B on request)
     eval/metrics.csv             one row per (evaluation, context): every metric
     eval/episodes.csv            one row per (evaluation, context, weight, episode): returns by objective
+    eval/sorl.csv                one row per (evaluation, context, weight): the f_SORL return (the
+                                 domain's original scalar reward), undiscounted and discounted, and
+                                 which weight was the context's best (absent if the env has none)
     fronts/frames_<N>.csv        the Pareto front of every context at that evaluation
     train/episodes.csv           one row per finished training episode: context, preference, returns
     report.md, report_*.png      the last evaluation against the specialists (and published baselines)
@@ -130,7 +133,7 @@ class RunLog:
         ``train/episodes.csv`` and the TorchRL CSV logger's scalars above it, fronts files after
         it. Returns the number of rows and files removed. TensorBoard / W&B output is left."""
         removed = 0
-        for rel in ("eval/metrics.csv", "eval/episodes.csv", "train/episodes.csv"):
+        for rel in ("eval/metrics.csv", "eval/episodes.csv", "eval/sorl.csv", "train/episodes.csv"):
             path = self.run_dir / rel
             if path.is_file():
                 removed += _cut_lines(path, frames, header=True)
@@ -194,6 +197,7 @@ class RunLog:
         rows = [{"frames": frames, **r} for r in result.metric_rows()]
         _append_rows(self.out_dir / "eval" / "metrics.csv", rows)
         _append_rows(self.out_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()])
+        _append_rows(self.out_dir / "eval" / "sorl.csv", [{"frames": frames, **r} for r in result.sorl_rows()])
         result.write_csv(self.out_dir / "fronts" / f"frames_{frames:012d}.csv", kind="fronts")
         for name, value in result.summary(prefix=f"{self.tag}_eval").items():
             self._scalar(name, value, frames)

@@ -31,7 +31,7 @@ class PreferenceConditioning(SeededTransform):
       uniform on the simplex (:func:`morl_trl.preferences.sample_preferences`).
     * ``"gaussian"``: ``|N(0, I)|`` normalised (MORL-Baselines' ``random_weights(dist="gaussian")``,
       the authors' Envelope training preferences).
-    * ``"cone"``: within 22.5 degrees of a random direction
+    * ``"cone"``: within 22.5 degrees of the equal-weight direction
       (:func:`morl_trl.preferences.sample_cone_preferences`, the authors' CAPQL preferences).
     * ``"cycle"`` (default with ``weights``): the rows of ``weights`` ``[m, k]`` in turn, in
       sub-env order, continuing from one reset to the next (``m`` sub-envs reset together

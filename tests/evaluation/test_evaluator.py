@@ -279,6 +279,8 @@ def test_rows_for_csv_logging_name_every_objective(tmp_path):
             "context": "a", "weight_index": 1, "episode": 0, "weight_progress": 0.0, "weight_time": 1.0,
             "return_progress": straight(0.5, 1.0)[0], "return_time": straight(0.5, 1.0)[1],
             "undiscounted_return_progress": 4.5, "undiscounted_return_time": -3.0, "length": 3,
+            # the toy's original_reward is progress + time (f_SORL)
+            "sorl_return": 1.5, "sorl_discounted_return": sum(straight(0.5, 1.0)),
         }
     )
     metric_rows = r.metric_rows()

@@ -11,7 +11,7 @@ from tensordict import TensorDict
 
 from morl_trl.objectives.pgmorl import PopulationMLP, scalarize_advantage, vector_gae
 from morl_trl.recipes import resolve_config, run_training
-from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
 from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
 
 
@@ -173,26 +173,26 @@ def test_docstring_examples(module):
 @pytest.mark.slow
 def test_a_short_pgmorl_run_selects_tasks(tmp_path):
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=4, num_envs=4, pgmorl_envs_per_member=1,
-                         frames_per_batch=4 * 256, frames=6 * 1024, pgmorl_warmup=2, pgmorl_evo_iterations=2,
-                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(16,), eval_interval=6 * 1024, eval_weights=3,
+                         frames_per_batch=4 * 256, frames=6 * 256, pgmorl_warmup=2, pgmorl_evo_iterations=2,
+                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(16,), eval_interval=6 * 256, eval_weights=3,
                          eval_contexts=("MOHopperDefault-v5",), progress=False, eval_random_baseline=False,
                          run_dir=str(tmp_path / "run"))
     summary, agent, _, _ = run_training(cfg)
-    assert summary["frames"] == 6 * 1024 and 0.0 <= summary["nhgr_mean"] <= 1.0
+    assert summary["frames"] == 6 * 256 and 0.0 <= summary["nhgr_mean"] <= 1.0  # one member's frames
     assert agent.iteration == 6 and agent.generation >= 1  # warm-up 2, then task selections at 2, 4, 6
     assert len(agent.predictor) >= 4 and agent.population.individuals
 
 
 def test_a_tiny_pgmorl_run_resumes_with_its_population(tmp_path):
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=2, pgmorl_envs_per_member=1,
-                         frames_per_batch=128, frames=256, pgmorl_warmup=1, pgmorl_evo_iterations=1,
-                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(8,), eval_interval=256, eval_weights=3,
-                         checkpoint_interval=128, eval_contexts=("MOHopperDefault-v5",), progress=False,
+                         frames_per_batch=128, frames=128, pgmorl_warmup=1, pgmorl_evo_iterations=1,
+                         pgmorl_minibatches=2, pgmorl_epochs=1, hidden=(8,), eval_interval=128, eval_weights=3,
+                         checkpoint_interval=64, eval_contexts=("MOHopperDefault-v5",), progress=False,
                          eval_random_baseline=False, run_dir=str(tmp_path / "run"))
     _, first, _, _ = run_training(cfg)
-    cfg.frames = 384
+    cfg.frames = 192  # (an iteration counts one member's 64 frames)
     summary, agent, _, _ = run_training(cfg, resume=tmp_path / "run")
-    assert summary["frames"] == 384 and agent.iteration == first.iteration + 1 == 3
+    assert summary["frames"] == 192 and agent.iteration == first.iteration + 1 == 3
     n = len(first.predictor)  # the prediction samples of the first part carried over, one more evaluation added
     assert n >= 2 and len(agent.predictor) == n + 2
     assert all(np.array_equal(a, b) for a, b in zip(agent.predictor.after[:n], first.predictor.after))
@@ -203,3 +203,28 @@ def test_optimizer_follows_fused_optimizer_with_the_authors_eps(fused):
     _, _, agent = _agent(fused_optimizer=fused)
     (group,) = agent.optimizers["ppo"].param_groups
     assert (group["fused"], group["eps"]) == (fused, 1e-5)
+
+
+@pytest.mark.parametrize("env_id, iterations, counted", [("MOHopperDR-v5", 400, 3_276_800),
+                                                         ("MOHalfCheetahDR-v5", 620, 5_079_040),
+                                                         ("MOHumanoidDR-v5", 1240, 10_158_080)])
+def test_the_paper_budget_gives_the_authors_ppo_iterations(env_id, iterations, counted):
+    """The authors count one member's 4 x 2048 steps per iteration and finish the generation that
+    reaches the budget (hyperparameters.toml pgmorl.*.derived: iterations_run, final_global_step)."""
+    cfg = resolve_config("pgmorl", env_id)
+    per = cfg.frames_per_batch // cfg.pgmorl_pop
+    assert per == 8192
+    n = pgmorl_iterations(cfg.frames, per, cfg.pgmorl_warmup, cfg.pgmorl_evo_iterations)
+    assert (n, n * per, n * cfg.frames_per_batch) == (iterations, counted, 6 * counted)
+
+
+def test_a_run_does_the_iterations_of_its_budget_counting_one_members_frames(tmp_path):
+    # 2 members x 1 env x 32 steps: 64 frames collected, 32 counted per iteration; budget 130 -> 4 iterations
+    # wanted, warm-up 1 + whole generations of 2 -> 5 iterations, 160 counted frames (320 collected)
+    cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=2, pgmorl_envs_per_member=1,
+                         frames_per_batch=64, frames=130, pgmorl_warmup=1, pgmorl_evo_iterations=2,
+                         pgmorl_minibatches=1, pgmorl_epochs=1, hidden=(8,), eval_interval=10_000, eval_weights=3,
+                         eval_contexts=("MOHopperDefault-v5",), progress=False, eval_random_baseline=False,
+                         run_dir=str(tmp_path / "run"))
+    summary, agent, _, _ = run_training(cfg)
+    assert agent.iteration == 5 and summary["frames"] == 160

@@ -14,6 +14,7 @@ from torchrl.data import Bounded, Categorical
 
 from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.sampler import ContextSampler
+from morl_trl.envs.lava_grid.spec import SORL
 from morl_trl.envs.lava_grid.context import (
     AGENT_DIR,
     AGENT_X,
@@ -40,7 +41,7 @@ LAVA_PENALTY = -20.0
 TIME_PENALTY = -3.0
 GOAL_BONUS = 100.0 * NUM_GOALS  # 300 * w_i, added to both objectives
 # the authors' single-objective reward (info["original_scalar_reward"]) for their SAC baseline
-ORIGINAL_REWARD_WEIGHTS = (0.9, 0.1)
+ORIGINAL_REWARD_WEIGHTS = SORL.weights  # (0.9, 0.1), written once in the domain's spec
 OBS_SIZE = 1 + NUM_GOALS + INNER * INNER  # 125
 
 

@@ -4,7 +4,7 @@ Data only: imports no simulator (Box2D) and not the registry, which reads :data:
 """
 
 from morl_trl.envs.context import ContextSpace
-from morl_trl.envs.spec import DomainSpec
+from morl_trl.envs.spec import DomainSpec, SORLReward
 
 LUNAR_LANDER_CONTEXT = ContextSpace(
     names=(
@@ -55,6 +55,18 @@ _CONTEXTS = {
 _SUITE = ("Default", "HighGravity", "Windy", "Turbulent", "Hard", "LowMainEngine", "LowSideEngine", "StartRight")
 OBJECTIVES = ("landing", "shaping", "main_fuel", "side_fuel")
 
+# f_SORL (the paper's appendix): l landing, s shaping, mc / sc main / side engine cost -- the
+# vector objectives, so the weights are the formula's coefficients
+SORL = SORLReward(
+    paper="l + s + 0.3 mc + 0.03 sc",
+    weights=(1.0, 1.0, 0.3, 0.03),
+    exact=False,
+    note="exact on every step but the terminating one: there Gymnasium's reward (the authors' "
+         "info['original_scalar_reward']) is replaced by the landing term +-100 alone, while the vector "
+         "reward keeps that step's shaping and fuel terms. An episode's f_SORL return is w . R minus the last "
+         "step's shaping - 0.3 mc - 0.03 sc (a few units; nothing for an episode cut at 1000 steps).",
+)
+
 SPECS = tuple(
     DomainSpec(
         name="MO-LunarLander" + ("-Continuous" if _continuous else ""),
@@ -71,6 +83,7 @@ SPECS = tuple(
         history_len=2,
         train_frames=3_000_000,
         eval_interval=50_000,
+        sorl=SORL,
     )
     for _prefix, _continuous in (("MOLunarLander", False), ("MOLunarLanderContinuous", True))
 )

@@ -4,7 +4,7 @@ Data only: imports no simulator (``mujoco``) and not the registry, which reads :
 """
 
 from morl_trl.envs.context import ContextSpace
-from morl_trl.envs.spec import DomainSpec
+from morl_trl.envs.spec import DomainSpec, SORLReward
 
 # Declared bounds of the MuJoCo contexts (the range the physics is valid in; the DR ranges
 # below are narrower, and every evaluation context lies inside):
@@ -118,6 +118,30 @@ _HUMANOID = {
     "Hard": _humanoid((8.9075, 2.2619, 6.6162, 0.7, 0.6, 0.5, 8.0, 7.0, 6.0, 0.1, 0.1, 5.0, 5.0), _LOW_DAMPING),
 }
 
+# ---------------------------------------------------------------- f_SORL (the paper's appendix
+# "Single Objective Utility Function Results"; v_x forward speed, c = -sum(a**2) the control
+# cost, h the healthy reward). The healthy bonus is in every vector objective (SPEC §1.2), so
+# it comes back as an offset: f = w . r + offset exactly, step by step (tests/envs/test_sorl.py).
+_HOPPER_SORL = SORLReward(
+    paper="1.5 v_x + 0.001 c + h",
+    # r = [v_x + 1, 10 dz + 1, c + 1]: f = (r0 - 1) + 0.001 (r2 - 1) + 1
+    weights=(1.0, 0.0, 0.001),
+    offset=-0.001,
+    note="the paper writes 1.5 v_x, but what was measured is 1.0 v_x: the authors' MOHopperDR has "
+         "forward_reward_weight=1.0 (Gymnasium Hopper-v5's default) and is registered without an override, "
+         "and its info['original_scalar_reward'] (SAC's reward, the summed single-objective return) uses it. "
+         "The healthy term h = 1 is paid on the terminating step too, as in the authors' env.",
+)
+_CHEETAH_SORL = SORLReward(paper="1.0 v_x + 0.1 c", weights=(1.0, 0.1))  # r = [v_x, c]
+_HUMANOID_SORL = SORLReward(
+    paper="1.25 v_x + 0.001 c + 2.0 h",
+    # r = [v_x + 2, c + 2]: f = 1.25 (r0 - 2) + 0.001 (r1 - 2) + 2
+    weights=(1.25, 0.001),
+    offset=-0.502,
+    note="the vector's forward objective drops the 1.25 (SPEC §5.9); the healthy term 2.0 is paid on the "
+         "terminating step too, as in the authors' env (Gymnasium Humanoid-v5: 5.0, the paper lowered it).",
+)
+
 SPECS = tuple(
     DomainSpec(
         name=f"MO-{_name}",
@@ -133,10 +157,12 @@ SPECS = tuple(
         history_len=2,
         train_frames=_frames,
         eval_interval=100_000,
+        sorl=_sorl,
     )
-    for _name, _space, _contexts, _objectives, _ref, _frames in (
-        ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3, 3_000_000),
-        ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0), 5_000_000),
-        ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0), 10_000_000),
+    for _name, _space, _contexts, _objectives, _ref, _frames, _sorl in (
+        ("Hopper", HOPPER_CONTEXT, _HOPPER, ("forward", "jump", "energy"), (-100.0,) * 3, 3_000_000, _HOPPER_SORL),
+        ("HalfCheetah", CHEETAH_CONTEXT, _CHEETAH, ("forward", "energy"), (-100.0, -500.0), 5_000_000, _CHEETAH_SORL),
+        ("Humanoid", HUMANOID_CONTEXT, _HUMANOID, ("forward", "energy"), (-100.0, -100.0), 10_000_000,
+         _HUMANOID_SORL),
     )
 )
