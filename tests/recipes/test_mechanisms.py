@@ -17,6 +17,8 @@ def _gpi(algo="gpi_ls", env_id="MOLavaGridDR-v0", gamma=0.995, **kw):
     base = dict(num_envs=4, frames_per_batch=32, init_random_frames=0, batch_size=16, hidden=(16, 16),
                 buffer_size=4096, gpi_iteration_frames=10_000, gpi_front_episodes=1, gpi_dynamics_hidden=(16,),
                 progress=False)
+    if algo != "gpi_pd":  # GPI-LS has no dynamics model (a key it does not have is an error)
+        del base["gpi_dynamics_hidden"]
     cfg = resolve_config(algo, env_id, **{**base, **kw})
     env = make_training_env(cfg, CPU)
     return cfg, env, make_gpi_agent(cfg, env, gamma=gamma, device=CPU)
