@@ -11,6 +11,10 @@ The top level gives the two entry points of a user who trains and then uses a po
 
 __version__ = "0.1.0"
 
+from morl_trl._quiet import quiet_dependencies as _quiet_dependencies
+
+_quiet_dependencies()  # narrow filters for two dependency messages (morl_trl/_quiet.py)
+
 __all__ = ["TrainResult", "TrainedPolicy", "load_policy", "train"]
 
 _LAZY = {

@@ -109,6 +109,11 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--overwrite", action="store_true",
                    help="replace the contents of a non-empty --run-dir (without it, a non-empty run dir is an error)")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--ref-point", metavar="X1,X2,...",
+                   help="hypervolume reference point, one number per objective (default: the env's; required for an "
+                        "env without a documented one)")
+    p.add_argument("--domain-module", action="append", default=[], metavar="PKG.MODULE",
+                   help="import this module first: it registers your own domains (its SPECS); repeatable")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
     args = p.parse_intermixed_args(argv)
     args.overrides = parse_overrides([*args.overrides, *args.set_])
@@ -122,13 +127,24 @@ def train_main(argv: list[str]) -> int:
         return _run_training(lambda: train(cfg, resume=args.resume))
     reference = args.reference or _default_reference()
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
-                 logger=args.logger, progress=False if args.no_progress else None)
+                 logger=args.logger, progress=False if args.no_progress else None,
+                 ref_point=_ref_point(args.ref_point), domain_modules=tuple(args.domain_module) or None)
     overrides = {**args.overrides, **{k: v for k, v in flags.items() if v is not None}}  # flags win
     cfg = resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
     if args.print_config:
         print(cfg.to_toml())
         return 0
     return _run_training(lambda: train(cfg, overwrite=args.overwrite))
+
+
+def _ref_point(text: str | None) -> tuple[float, ...] | None:
+    """``--ref-point 0,-25`` as a tuple of floats (a clear error for anything else)."""
+    if text is None:
+        return None
+    try:
+        return tuple(float(x) for x in text.replace(" ", "").strip("[]()").split(","))
+    except ValueError:
+        raise ValueError(f"--ref-point {text!r}: give one number per objective, comma-separated, e.g. 0,-25") from None
 
 
 def _resume_config(args):

@@ -19,6 +19,8 @@ from morl_trl.envs.registry import (
     list_envs,
     make_env,
     register_domain,
+    register_env,
+    load_domain_modules,
 )
 from morl_trl.envs.sampler import ContextSampler
 from morl_trl.envs.spec import DomainSpec, SORLReward
@@ -38,4 +40,6 @@ __all__ = [
     "list_envs",
     "make_env",
     "register_domain",
+    "register_env",
+    "load_domain_modules",
 ]

@@ -200,6 +200,8 @@ class ContextSpace:
                 f"context has shape {tuple(context.shape)}; expected [..., {self.dim}] "
                 f"with parameters {list(self.names)}"
             )
+        if self.dim == 0:  # a space without parameters (an env with no context): nothing to check
+            return context
         flat = context.reshape(-1, self.dim)
         _, _, _, floor, vlo, vhi = self._tensors(flat.device)
         valid = (flat > floor) & (flat < float("inf"))  # NaN fails both

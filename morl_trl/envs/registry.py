@@ -25,6 +25,8 @@ from morl_trl.envs.spec import DomainSpec
 __all__ = [
     "DomainSpec",
     "register_domain",
+    "register_env",
+    "load_domain_modules",
     "make_env",
     "list_envs",
     "evaluation_suite",
@@ -65,18 +67,97 @@ def _ensure_loaded() -> None:
         for module in _BUILTIN_SPECS:
             for spec in importlib.import_module(module).SPECS:
                 register_domain(spec)
+        _load_entry_points()
+
+
+#: the entry point group through which installed packages add domains: each entry names a
+#: module with ``SPECS`` (a tuple of :class:`DomainSpec`), a :class:`DomainSpec`, or a callable
+#: returning one or several
+ENTRY_POINT_GROUP = "morl_trl.domains"
+
+
+def _register_object(obj: Any, origin: str) -> list[str]:
+    """Register what a domain module or entry point offers; returns the training ids added."""
+    if inspect.ismodule(obj):
+        obj = getattr(obj, "SPECS", ())
+    elif callable(obj) and not isinstance(obj, DomainSpec):
+        obj = obj()
+    specs = [obj] if isinstance(obj, DomainSpec) else list(obj)
+    bad = [type(s).__name__ for s in specs if not isinstance(s, DomainSpec)]
+    if bad:
+        raise ValueError(f"{origin} gives {bad}; a domain module offers DomainSpec objects (a tuple SPECS)")
+    return [register_domain(s, replace=True).train_id for s in specs]
+
+
+def _load_entry_points() -> None:
+    import warnings
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            _register_object(ep.load(), f"entry point {ep.name} = {ep.value}")
+        except Exception as err:  # a broken plugin must not break the built-in domains
+            warnings.warn(f"morl_trl: the domain entry point {ep.name!r} ({ep.value}) failed to load: {err}",
+                          stacklevel=3)
+
+
+def load_domain_modules(modules) -> list[str]:
+    """Import each module named in ``modules`` (``"pkg.module"``) and register its domains (its
+    ``SPECS``; a module may also call :func:`register_domain` itself); returns the training ids
+    added. What ``--domain-module`` and the config key ``domain_modules`` do."""
+    _ensure_loaded()
+    added: list[str] = []
+    for name in [modules] if isinstance(modules, str) else list(modules or ()):
+        try:
+            module = importlib.import_module(name)
+        except ImportError as err:
+            raise ValueError(f"domain module {name!r} cannot be imported: {err}") from None
+        added += _register_object(module, f"domain module {name!r}")
+    return added
 
 
 def _lookup(env_id: str) -> DomainSpec:
     _ensure_loaded()
     try:
         return _IDS[env_id]
-    except KeyError:
+    except (KeyError, TypeError):
+        pass
+    from morl_trl.envs.foreign import foreign_domain, is_gym_id
+
+    if isinstance(env_id, str) and is_gym_id(env_id):  # a Gymnasium / MO-Gymnasium id: registered at first use
+        return register_domain(foreign_domain(env_id))
+    if not isinstance(env_id, str):
+        raise ValueError(f"an env id is a str; got {type(env_id).__name__} (register a callable or an EnvBase "
+                         f"first with morl_trl.envs.register_env(env, name=...))")
+    else:
         close = difflib.get_close_matches(str(env_id), list(_IDS), n=5, cutoff=0.5)
         hint = f"; did you mean {close}?" if close else ""
         raise ValueError(
-            f"unknown env id {env_id!r}{hint} (morl_trl.envs.list_envs() lists all {len(_IDS)} ids)"
-        ) from None
+            f"unknown env id {env_id!r}{hint} (morl_trl.envs.list_envs() lists all {len(_IDS)} ids; any "
+            f"Gymnasium / MO-Gymnasium id with a vector reward works too)"
+        )
+
+
+def register_env(env, name: str | None = None, *, ref_point=None, objective_names=None,
+                 max_episode_steps: int | None = None, env_kwargs: dict | None = None, replace: bool = True) -> str:
+    """Register a foreign env and return its id: a Gymnasium / MO-Gymnasium id (with options),
+    a callable returning a TorchRL ``EnvBase`` with a vector reward, or an ``EnvBase``
+    (see :mod:`morl_trl.envs.foreign`). ``name`` is the id (required but for Gymnasium ids).
+
+    Example:
+        >>> from torchrl.envs import MOGymEnv
+        >>> from morl_trl.envs import make_env, register_env
+        >>> env_id = register_env(lambda: MOGymEnv("deep-sea-treasure-v0"), name="my-dst", ref_point=[0, -25])
+        >>> make_env(env_id, num_envs=3, seed=0).rollout(2, break_when_any_done=False)["next", "reward"].shape
+        torch.Size([3, 2, 2])
+    """
+    from morl_trl.envs.foreign import foreign_domain
+
+    if isinstance(env, DomainSpec):
+        return register_domain(env, replace=replace).train_id
+    spec = foreign_domain(env, name=name, ref_point=ref_point, objective_names=objective_names,
+                          max_episode_steps=max_episode_steps, env_kwargs=env_kwargs)
+    return register_domain(spec, replace=replace).train_id
 
 
 def list_envs() -> list[str]:
@@ -174,7 +255,7 @@ def make_env(
                 f"{env_id}: unknown keyword(s) {unknown}; valid are the context parameters "
                 f"{list(space.names)} and the env options {accepted}"
             )
-    if env_id == spec.train_id:
+    if env_id == spec.train_id and space.dim:  # (an env without context parameters has nothing to draw)
         kwargs["context_sampler"] = ContextSampler(
             space, fixed=ctx_over, seed=seed, allow_extrapolation=allow_extrapolation
         )

@@ -8,7 +8,7 @@ neither the registry nor a simulator; :mod:`morl_trl.envs.registry` reads those 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -86,6 +86,11 @@ class DomainSpec:
         train_frames: the paper's training length in environment frames.
         eval_interval: the paper's evaluation period in frames.
         eval_weights: the paper's number of evaluation weights (energy weights, SPEC §2).
+        true_front: ``gamma -> [n, k]`` array of the env's true Pareto front (discounted with
+            ``gamma``), where the env knows it (MO-Gymnasium's ``pareto_front``); gives IGD and
+            the hypervolume ratio in evaluations.
+        foreign: an env from outside morl_trl (a MO-Gymnasium id, a user's TorchRL env;
+            :mod:`morl_trl.envs.foreign`): no context parameters, no paper protocol.
         sorl: the domain's single-objective reward f_SORL in terms of the vector reward
             (:class:`SORLReward`); ``None`` where the paper gives none.
 
@@ -112,6 +117,8 @@ class DomainSpec:
     train_frames: int = 1_000_000
     eval_interval: int = 50_000
     eval_weights: int = 100
+    true_front: Callable[[float], Any] | None = None
+    foreign: bool = False
     sorl: SORLReward | None = None
 
     def __post_init__(self) -> None:

@@ -29,6 +29,7 @@ from morl_trl.metrics import (
     cardinality,
     eum,
     hypervolume,
+    igd,
     interquartile_mean,
     normalize,
     normalized_hypervolume,
@@ -167,6 +168,10 @@ class MultiContextEvaluator:
         preference_key: where the policy reads the preference.
         max_steps: safety horizon (default: the env's ``max_episode_steps``); episodes still
             running then are cut, with a warning.
+        true_fronts: ``name -> [m, k]`` true Pareto front of a context (discounted with
+            ``gamma``): adds ``igd`` and ``hv_ratio`` (our hypervolume over the true front's).
+            Default: the domain's ``true_front(gamma)`` where it knows one (MO-Gymnasium's
+            ``pareto_front``, :mod:`morl_trl.envs.foreign`).
         sorl_key: the env's entry holding the original scalar reward ``[*B, 1]`` per step
             (f_SORL); ``None``: do not record it.
 
@@ -200,6 +205,7 @@ class MultiContextEvaluator:
         reset_finished: bool = True,
         preference_key: str = "preference",
         max_steps: int | None = None,
+        true_fronts: Mapping[str, object] | None = None,
         sorl_key: str | tuple[str, ...] | None = "original_reward",
     ) -> None:
         if not (callable(policy) or policy == "random"):
@@ -298,6 +304,9 @@ class MultiContextEvaluator:
                 raise ValueError(f"the reference has {reference.num_objectives} objectives, the env {k}")
         self.bounds = self._resolve_bounds(bounds, k)
         self.max_steps = max_steps
+        if true_fronts is None and self.domain is not None and self.domain.true_front is not None:
+            true_fronts = {c: self.domain.true_front(self.gamma) for c in self.context_names}
+        self.true_fronts = {c: np.asarray(f, dtype=np.float64).reshape(-1, k) for c, f in (true_fronts or {}).items()}
 
     # ------------------------------------------------------------------ setup helpers
     def _resolve_contexts(self, contexts, env_factory) -> tuple[tuple[str, ...], torch.Tensor | None]:
@@ -603,6 +612,12 @@ class MultiContextEvaluator:
             if b is not None:
                 m["normalized_hypervolume"] = normalized_hypervolume(front, b.lower, b.upper)
                 m["normalized_eum"] = eum(normalize(front, b.lower, b.upper), eum_w)
+            true = self.true_fronts.get(name)
+            if true is not None:
+                m["igd"] = igd(front, true)
+                if self.ref_point is not None:
+                    best = hypervolume(true, self.ref_point, drop_unbounded=True)
+                    m["hv_ratio"] = m["hypervolume"] / best if best > 0 else None
             if self.reference is not None:
                 m["nhgr"] = self.reference.nhgr(name, front)
                 try:

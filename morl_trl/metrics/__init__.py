@@ -3,7 +3,7 @@
 Fronts are ``[n, k]`` torch tensors or numpy arrays; every metric returns a Python float.
 
 * :func:`pareto_front`, :func:`hypervolume` (exact, ``moocore``), :func:`normalized_hypervolume`
-* :func:`eum`, :func:`nhgr`, :func:`eugr`, :func:`sparsity`, :func:`cardinality`
+* :func:`eum`, :func:`nhgr`, :func:`eugr`, :func:`sparsity`, :func:`cardinality`, :func:`igd`
 * aggregates over runs (rliable's definitions): :func:`interquartile_mean`,
   :func:`optimality_gap`, :func:`stratified_bootstrap_ci`
 * normalization bounds: :class:`Bounds`
@@ -28,6 +28,7 @@ from morl_trl.metrics.aggregate import (
     stratified_bootstrap_ci,
 )
 from morl_trl.metrics.bounds import Bounds
+from morl_trl.metrics.distance import igd
 from morl_trl.metrics.front_stats import cardinality, sparsity
 from morl_trl.metrics.generalization import eugr, nhgr
 from morl_trl.metrics.hypervolume import hypervolume, normalize, normalized_hypervolume
@@ -43,6 +44,7 @@ __all__ = [
     "eum",
     "nhgr",
     "eugr",
+    "igd",
     "sparsity",
     "cardinality",
     "interquartile_mean",

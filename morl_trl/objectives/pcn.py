@@ -1,9 +1,11 @@
 """Pareto Conditioned Networks (Reymond et al. 2022): the command-conditioned policy and its supervised loss.
 
-The network is the authors' (MORL-Baselines ``multi_policy/pcn/pcn.py``): the command
+The network is the authors' (their ``algos/multi_policy/pcn/pcn.py:52-112``): the command
 ``c = [desired_return, desired_horizon] * scaling_factor`` and the observation are embedded
-(``Linear + Sigmoid`` each), multiplied element-wise, then ``Linear, ReLU, Linear`` gives
-log-probabilities (discrete actions, ``LogSoftmax``) or the action itself (continuous).
+(``Linear + Sigmoid`` each, width ``hidden[0]``), multiplied element-wise, then ``Linear, ReLU``
+for each further width of ``hidden`` and a last ``Linear`` give log-probabilities (discrete
+actions, ``LogSoftmax``) or the action itself (continuous). The paper's ``net_arch`` is
+``[256] * 4``: a 256-wide embedding and three 256 layers.
 The loss is the cross-entropy of the stored action (discrete) or the mean squared error to it
 (continuous), on steps of the best episodes (:class:`~morl_trl.data.episode_replay.EpisodeReplay`).
 """
@@ -28,19 +30,25 @@ class PCNNetwork(nn.Module):
     """``(observation, desired_return [k], desired_horizon [1]) -> log-probs [A]`` or ``action [A]``.
 
     ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first).
-    ``hidden``: the embedding width, then the head's hidden widths (the authors: ``[256] * 4``,
-    a 256 embedding and three 256 layers); an int ``h`` is ``(h, h)``.
+    ``hidden``: the widths (the authors' ``net_arch``): the embeddings are ``hidden[0]`` wide and
+    each further width adds a ``Linear, ReLU``; an int ``h`` is ``(h, h)`` (MORL-Baselines'
+    ``hidden_dim``: one hidden layer).
 
     Example:
-        >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=8)
+        >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=(8, 8, 8))
         >>> logp = net(torch.zeros(5, 4), torch.zeros(5, 2), torch.ones(5, 1))
         >>> logp.shape, torch.allclose(logp.exp().sum(-1), torch.ones(5))
         (torch.Size([5, 3]), True)
+        >>> [m.out_features for m in net.fc if isinstance(m, nn.Linear)]
+        [8, 8, 3]
     """
 
     def __init__(self, obs_dim, action_dim: int, num_objectives: int, scaling_factor: Sequence[float],
-                 hidden: int | Sequence[int] = 64, *, discrete: bool = True) -> None:
+                 hidden: int | Sequence[int] = (256, 256, 256, 256), *, discrete: bool = True) -> None:
         super().__init__()
+        widths = (int(hidden), int(hidden)) if isinstance(hidden, int) else tuple(int(h) for h in hidden)
+        if not widths or min(widths) < 1:
+            raise ValueError(f"hidden must be a positive width or a non-empty sequence of them, got {hidden!r}")
         scale = torch.as_tensor(scaling_factor, dtype=torch.float32).flatten()
         if scale.numel() != num_objectives + 1:
             raise ValueError(f"scaling_factor needs num_objectives + 1 = {num_objectives + 1} values (the desired "
@@ -51,16 +59,9 @@ class PCNNetwork(nn.Module):
         # written for vector observations)
         encoder, width = _encoder_and_width(obs_dim, 512)
         self.obs_ndim = 1 if encoder is None else 3
-        # hidden: the authors' net_arch (embedding width, then the head's hidden widths); an int h is (h, h)
-        widths = (hidden, hidden) if isinstance(hidden, int) else tuple(hidden)
-        if not widths:
-            raise ValueError("hidden must hold at least one width (the embedding width)")
-        emb = widths[0]
-        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, emb), nn.Sigmoid())
-        self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, emb), nn.Sigmoid())
-        layers = []
-        for a, b in zip(widths[:-1], widths[1:]):
-            layers += [nn.Linear(a, b), nn.ReLU()]
+        self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, widths[0]), nn.Sigmoid())
+        self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, widths[0]), nn.Sigmoid())
+        layers = [m for a, b in zip(widths[:-1], widths[1:]) for m in (nn.Linear(a, b), nn.ReLU())]
         layers.append(nn.Linear(widths[-1], action_dim))
         if discrete:
             layers.append(nn.LogSoftmax(dim=-1))
@@ -73,8 +74,7 @@ class PCNNetwork(nn.Module):
 
 
 def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor,
-                     hidden: int | Sequence[int] = 64, *,
-                     discrete: bool = True) -> TensorDictModule:
+                     hidden: int | Sequence[int] = (256, 256, 256, 256), *, discrete: bool = True) -> TensorDictModule:
     """:class:`PCNNetwork` as a ``TensorDictModule`` reading ``observation``, ``desired_return`` and
     ``desired_horizon`` and writing ``"log_probs"`` (discrete) or ``"action_pred"`` (continuous)."""
     net = PCNNetwork(obs_dim, action_dim, num_objectives, scaling_factor, hidden, discrete=discrete)

@@ -93,6 +93,11 @@ def _domain(cfg: TrainConfig):
     return domain_of(cfg.env_id)
 
 
+def _ref(cfg: TrainConfig) -> tuple:
+    """The hypervolume reference point: ``ref_point``, else the domain's."""
+    return tuple(cfg.ref_point if cfg.ref_point is not None else _domain(cfg).hv_ref_point)
+
+
 def _gamma(cfg: TrainConfig) -> float:
     return cfg.gamma if cfg.gamma is not None else _domain(cfg).gamma
 
@@ -129,8 +134,7 @@ COMMON: dict[str, Any] = {
     "env_id": Same("env_id"),
     "test_envs": Same("eval_contexts", expect=lambda v, cfg: sorted(v),
                       ours=lambda cfg: sorted(cfg.eval_contexts or _domain(cfg).evaluation_ids)),
-    "ref_point": Same("DomainSpec.hv_ref_point", expect=lambda v, cfg: tuple(v),
-                      ours=lambda cfg: tuple(_domain(cfg).hv_ref_point)),
+    "ref_point": Same("ref_point", expect=lambda v, cfg: tuple(v), ours=lambda cfg: _ref(cfg)),
     "gamma": Same("gamma", ours=_gamma),
     "num_timesteps": Same("frames"),
     "obs_shape": Code("envs/ + StateActionHistory (tests/envs check the shapes)"),
@@ -155,8 +159,7 @@ COMMON: dict[str, Any] = {
     "init.rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
     "train.total_timesteps": Same("frames"),
     "train.eval_env": _EVALUATOR,
-    "train.ref_point": Same("DomainSpec.hv_ref_point", expect=lambda v, cfg: tuple(v),
-                            ours=lambda cfg: tuple(_domain(cfg).hv_ref_point)),
+    "train.ref_point": Same("ref_point", expect=lambda v, cfg: tuple(v), ours=lambda cfg: _ref(cfg)),
     "train.known_pareto_front": NotApplicable("no known front for these domains (None in every script)"),
     "train.test_generalization": NotApplicable("always: every run here is evaluated by the generalization evaluator"),
     "train.eval_mo_freq": Same("eval_interval"),
@@ -339,8 +342,6 @@ SAC = {
     "derived.eval_action": Same("eval_exploration", expect=lambda v, cfg: "random"),
 }
 
-_ARCHIVE_OPEN = "evaluation acts with the current population member of the nearest weight (the authors: the " \
-                "nearest snapshot of their Pareto archive)"
 MORLD = {
     "init.scalarization_method": Code("recipes.morld: weighted sum w . Q"),
     "init.evaluation_mode": Code("SER: discounted vector returns, as the evaluator computes them"),
@@ -383,8 +384,9 @@ MORLD = {
     "policy_args.seed": _SEED,
     "policy_args.parent_rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
     "policy_args.device": NotApplicable("`device` (the hardware; no effect on results)"),
-    "train.num_eval_episodes_for_front": Code("recipes.morld", open="members are not evaluated after each exchange "
-                                              "(the authors: 5 stochastic episodes per member for their archive)"),
+    "train.num_eval_episodes_for_front": Code("recipes.morld", open="a member's archived evaluation is the mean return "
+                                              "of its training episodes since the last exchange (the authors: 5 "
+                                              "separate stochastic episodes per member)"),
     "network.actor": Code("objectives.population (Gaussian / categorical actor)", open=_actor_open),
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
@@ -396,7 +398,7 @@ MORLD = {
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
     "network.init": _ACTOR_CRITIC_INIT,
-    "derived.eval_action": Code("recipes.morld (sampled actions: eval_exploration='random')", open=_ARCHIVE_OPEN),
+    "derived.eval_action": Code("recipes.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled actions"),
     "derived.exchanges_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "
                                          "(the authors: round robin, one member per exchange_every frames)"),
     "derived.own_env_steps_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "
@@ -404,8 +406,8 @@ MORLD = {
     "derived.updates_for_non_active_member_per_exchange": Code("recipes.morld", open="no catch-up updates after an "
                                                                "exchange (our members learn concurrently)"),
     "derived.psa_rule": Code("recipes.morld.psa_weights (tests/recipes/test_morld.py)"),
-    "derived.archive_eval_episodes_per_exchange": Code("recipes.morld", open="no archive evaluation after an "
-                                                       "exchange"),
+    "derived.archive_eval_episodes_per_exchange": Code("recipes.morld", open="no separate evaluation episodes after "
+                                                       "an exchange (the training episodes' returns are archived)"),
     "derived.env_reset_at_each_exchange": Code("recipes.morld", open="members keep their sub-envs' episodes going "
                                                "across exchanges"),
 }
@@ -432,9 +434,8 @@ PCN = {
     "network.combine": Code("objectives.pcn.PCNNetwork: elementwise product"),
     "network.head": Code("objectives.pcn.PCNNetwork: ReLU layers of hidden[1:], then the output"),
     "network.loss": Code("objectives.pcn.PCNLoss (cross-entropy / MSE)"),
-    "network.train_action": Code("recipes.pcn", open=lambda env_id: "one noise value shared by all action "
-                                 "dimensions (the authors: independent per dimension)" if _continuous(env_id)
-                                 else None),
+    "network.train_action": Code("recipes.pcn: sampled from the softmax / prediction + N(0, pcn_noise) per "
+                                 "dimension"),
     "network.eval_action": Code("recipes.pcn: argmax / the noiseless prediction"),
     "network.weight_input": Code("PCN is conditioned on its command, not on weights"),
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
@@ -444,8 +445,7 @@ PCN = {
     "network.optimizer": Same("lr", expect=lambda v, cfg: 3e-4),
     "derived.returns_stored": Code("data.episode_replay: discounted returns-to-go"),
     "derived.command_choice": Code("recipes.pcn (crowding-penalised top episodes, non-dominated, random pick)"),
-    "derived.eval_commands": Code("recipes.pcn", open="evaluation keeps the command fixed for the episode (the "
-                                  "authors: top-episode commands, updated after every step)"),
+    "derived.eval_commands": Code("recipes.pcn: top-episode commands, updated after every step"),
     "derived.command_update_in_episode": Code("transforms.command: desired return -= r, horizon - 1"),
     "derived.updates_per_loop_per_episodes": Same("(pcn_model_updates, pcn_step_episodes)",
                                                   expect=lambda v, cfg: (50, 10),
@@ -473,8 +473,7 @@ _PPO = {
 PGMORL = {
     **{f"init.{k}": v for k, v in _PPO.items()},
     **{f"moppo.{k}": v for k, v in _PPO.items() if k not in ("num_envs", "net_arch")},
-    "init.origin": Same("DomainSpec.hv_ref_point", expect=lambda v, cfg: tuple(v),
-                        ours=lambda cfg: tuple(_domain(cfg).hv_ref_point)),
+    "init.origin": Same("ref_point", expect=lambda v, cfg: tuple(v), ours=lambda cfg: _ref(cfg)),
     "init.pop_size": Same("pgmorl_pop"),
     "init.warmup_iterations": Same("pgmorl_warmup"),
     "init.evolutionary_iterations": Same("pgmorl_evo_iterations"),
@@ -522,9 +521,8 @@ PGMORL = {
     "derived.actual_env_steps": Code("recipes.pgmorl: one member's frames count against the budget (every member "
                                      "steps its sub-envs)"),
     "derived.member_evaluation": Code("recipes.pgmorl (5 sampled episodes per member on the DR env)"),
-    "derived.eval_action": Code("recipes.pgmorl (sampled actions, raw observations: pgmorl_eval_obs='raw')",
-                                open="evaluation acts with the current members (the authors: the nearest archive "
-                                     "snapshot)"),
+    "derived.eval_action": Code("recipes.pgmorl: the nearest archive snapshot, sampled actions, raw observations "
+                                "(pgmorl_eval_obs='raw')"),
 }
 
 _GPI_DISCRETE_NET = Code("objectives.gpi.GPIQNetwork (state x weight features, [Linear, Dropout, LayerNorm, ReLU] "

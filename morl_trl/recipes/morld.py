@@ -5,7 +5,8 @@ scalarization weight ``w_p`` (the authors: pymoo's energy weights for ``P``, ``s
 seed), all trained from ONE shared replay buffer (SB). Every ``exchange_every`` frames the members'
 recent returns go into a Pareto archive and, with ``weight_adaptation="psa"`` (SB+PSA), each weight
 moves by Pareto simulated annealing away from its nearest archived neighbour. Evaluation as the
-authors': for each evaluation weight the member whose weight is nearest acts, with sampled actions.
+authors': for each evaluation weight the Pareto archive's snapshot whose weight is nearest acts
+(:class:`ArchiveSnapshotRouter`), with sampled actions.
 
 Beyond MORL-Baselines (which trains one member at a time for ``exchange_every`` steps): the
 population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`),
@@ -39,11 +40,14 @@ import warnings
 
 import torch
 from tensordict import TensorDictBase
+from torch import nn
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
+from morl_trl.objectives.networks import _categorical_actor, _tanh_normal_actor
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
+    nearest_member,
     make_population_categorical_actor,
     make_population_critic,
     make_population_gaussian_actor,
@@ -64,7 +68,8 @@ from morl_trl.recipes.agent import (
 )
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["MORLDAgent", "ParetoArchive", "make_morld_agent", "make_morld_training_env", "psa_weights"]
+__all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_morld_agent",
+           "make_morld_training_env", "psa_weights"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -137,6 +142,66 @@ class ParetoArchive:
         self.individuals = list(state["individuals"])
 
 
+class ArchiveSnapshotRouter(nn.Module):
+    """Acting under the evaluator's preference: each row is driven by the Pareto archive's snapshot
+    whose weight is nearest (squared distance; ties: the first, the authors' a random one) to its
+    ``preference``, as the authors' MORL/D ``eval`` (``morld.py:434-488``); before the archive holds
+    any, by the population member of nearest weight.
+
+    ``net`` is the population network (``[P, *B, ...]``) of ``actor``; the used snapshots run
+    ``P`` at a time with their parameters swapped into ``actor`` (``snapshots_fn() -> (weights
+    [S, k], actor parameters [S, ...])`` or ``None``).
+    """
+
+    def __init__(self, net: nn.Module, actor: nn.Module, weights: torch.Tensor, snapshots_fn) -> None:
+        super().__init__()
+        self.net = net
+        self._actor = [actor]  # (not registered: the parameters are the training actor's)
+        self.weights = weights
+        self.snapshots_fn = snapshots_fn
+
+    def forward(self, *inputs: torch.Tensor):
+        *obs, preference = inputs
+        snapshots = self.snapshots_fn()
+        batch = preference.shape[:-1]
+        targets = self.weights if snapshots is None else snapshots[0]
+        idx = nearest_member(preference.reshape(-1, preference.shape[-1]), targets.to(preference.device))
+        m, P = idx.shape[0], self.weights.shape[0]
+        flat = [x.reshape(m, *x.shape[len(batch):]) for x in obs]
+        expanded = [x.unsqueeze(0).expand(P, *x.shape) for x in flat]
+        if snapshots is None:
+            chunks, params = [list(range(P))], None
+        else:
+            used = idx.unique().tolist()
+            chunks, params = [used[c:c + P] for c in range(0, len(used), P)], snapshots[1]
+        outputs = None
+        for chunk in chunks:
+            if params is None:
+                out = self.net(*expanded)
+            else:
+                padded = chunk + [chunk[0]] * (P - len(chunk))
+                with params[torch.as_tensor(padded)].to(preference.device).to_module(self._actor[0]):
+                    out = self.net(*expanded)
+            out = out if isinstance(out, tuple) else (out,)
+            if outputs is None:
+                outputs = [torch.empty(m, *o.shape[2:], dtype=o.dtype, device=o.device) for o in out]
+            for j, i in enumerate(chunk):
+                sel = idx == i
+                for dest, o in zip(outputs, out):
+                    dest[sel] = o[j][sel]
+        result = tuple(o.reshape(*batch, *o.shape[1:]) for o in outputs)
+        return result if len(result) > 1 else result[0]
+
+
+def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
+    """The evaluation actor of :class:`ArchiveSnapshotRouter` (reads ``"preference"`` too)."""
+    tdm = actor.module[0]
+    action_key = actor.module[-1].out_keys[0]
+    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
+    router = ArchiveSnapshotRouter(tdm.module, actor, weights, snapshots_fn)
+    return make(router, [*tdm.in_keys, "preference"], actor.spec[action_key], action_key)
+
+
 class MORLDAgent(Agent):
     """The MORL/D population (see the module docstring): store, update all members, exchange."""
 
@@ -153,6 +218,18 @@ class MORLDAgent(Agent):
         self._next_exchange = cfg.exchange_every
         self._member_frames = 0  # member frames not yet turned into updates (update_frequency)
         self.exchanges = 0
+        self._snapshots = (None, None)  # (archive version, stacked snapshots) cache of snapshots()
+
+    def snapshots(self):
+        """``(weights [S, k], actor parameters [S, ...])`` of the archive, or ``None`` while it is empty."""
+        if not len(self.archive):
+            return None
+        key = tuple(id(i) for i in self.archive.individuals)
+        if self._snapshots[0] != key:
+            people = self.archive.individuals
+            self._snapshots = (key, (torch.stack([p["weight"] for p in people]).float(),
+                                     torch.stack([p["actor"] for p in people])))
+        return self._snapshots[1]
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int):
@@ -276,6 +353,10 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
         loss = PopulationMOSACLoss(actor, critic, weights=weights, alpha_init=cfg.alpha,
                                    fixed_alpha=not cfg.learn_alpha, action_spec=spec)
     loss.make_value_estimator(gamma=gamma)
-    explore, evaluate = population_policies(actor, loss.weights)
-    return MORLDAgent(cfg, loss, explore, evaluate, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
-                      device=device, num_envs_per_member=cfg.num_envs, eval_exploration=eval_exploration(cfg))
+    explore, _ = population_policies(actor, loss.weights)
+    holder: dict = {}
+    evaluate = archive_eval_policy(actor, loss.weights, lambda: holder["agent"].snapshots())
+    agent = MORLDAgent(cfg, loss, explore, evaluate, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
+                       device=device, num_envs_per_member=cfg.num_envs, eval_exploration=eval_exploration(cfg))
+    holder["agent"] = agent
+    return agent

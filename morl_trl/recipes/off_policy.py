@@ -26,7 +26,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.data import prioritized_sampler
-from morl_trl.envs import DomainSpec, domain_of, make_env
+from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.recipes.agent import Agent, NonFiniteLossError
 from morl_trl.recipes.config import TrainConfig, resume_config
@@ -51,7 +51,7 @@ def make_training_env(cfg: TrainConfig, device: torch.device):
     """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
     policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
     episode or, with ``preference_resample="step"``, every step) + vector returns."""
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     return compose_training_env(env, gamma=_gamma(cfg, spec), history_len=cfg.history_len, preference_seed=cfg.seed + 1,
                                 preference_mode=cfg.preference_distribution, preference_resample=cfg.preference_resample)
@@ -107,6 +107,7 @@ def make_evaluator(cfg: TrainConfig, agent: Agent, spec: DomainSpec, reference=N
         gamma=_gamma(cfg, spec),
         env_factory=env_factory,
         reference=reference,
+        ref_point=cfg.ref_point,
         exploration_type=agent.eval_exploration,
         device=device,
         seed=cfg.seed,
@@ -126,8 +127,18 @@ def _load_reference(cfg: TrainConfig, spec: DomainSpec):
 
 def no_reference_note(spec: DomainSpec) -> str:
     """What a run of a domain without reference data says about NHGR."""
+    if spec.foreign:
+        from morl_trl.reporting.report import foreign_nhgr_note
+
+        return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
+
+
+def _domain(cfg: TrainConfig) -> DomainSpec:
+    """The run's domain, after importing the config's ``domain_modules`` (a user's own domains)."""
+    load_domain_modules(cfg.domain_modules)
+    return domain_of(cfg.env_id)
 
 
 def _gamma(cfg: TrainConfig, spec: DomainSpec) -> float:
@@ -257,7 +268,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
 
     # everything is built before the run directory is touched: a failed start writes nothing
     env, agent, reference, evaluator = _build(cfg, spec, device)
@@ -303,6 +314,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): "
                      f"the run takes uniformly random actions only and never learns; raise frames or lower "
                      f"init_random_frames")
+    log.note(_start_line(cfg, frames, resume is not None))  # (also makes log.txt exist on every run)
     for note in notes:
         log.note(note)
     if resume is not None and cfg.to_dict() != TrainConfig.load(run_dir / "config.json").to_dict():
@@ -336,9 +348,13 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
 
     summary: dict = {}
 
+    eval_seconds: list[float] = []
+
     def evaluate() -> None:
         nonlocal summary, last_eval, next_eval
+        t0 = time.perf_counter()
         summary = log.evaluation(frames, evaluator.evaluate())
+        eval_seconds.append(time.perf_counter() - t0)
         last_eval = frames
         while next_eval <= frames:
             next_eval += cfg.eval_interval
@@ -346,6 +362,7 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not cfg.progress, dynamic_ncols=True)
     t_start, frames_start = time.perf_counter(), frames
+    eta = _DurationEstimate(cfg, frames)
 
     def fps() -> float:
         return (frames - frames_start) / max(time.perf_counter() - t_start, 1e-9)
@@ -369,10 +386,13 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
                 raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
             updates += done_updates
             if losses is not None and (updates % 50 == 0 or done_updates > 1):
-                log.losses(frames, losses)
+                log.losses(frames, losses, frames_per_second=fps(), epsilon=_epsilon(agent))
             agent.on_frames(frames)
             collector.update_policy_weights_()
             bar.update(agent.frames_of(batch))
+            line = eta.update(frames, eval_seconds, next_eval)
+            if line is not None:
+                log.note(line)
             last_nhgr = summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
             bar.set_postfix(nhgr=f"{last_nhgr:.3f}" if not math.isnan(last_nhgr) else "-")
             if frames >= next_eval:
@@ -393,6 +413,69 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         collector.shutdown()
         log.close()
     return summary, agent, run_dir, cfg
+
+
+def _start_line(cfg: TrainConfig, frames: int, resumed: bool) -> str:
+    """The first line of a run: what it will do and how much (the duration follows once measured)."""
+    evals = max(0, (cfg.frames - frames) // max(cfg.eval_interval, 1)) + 1
+    what = "resume" if resumed else "start"
+    return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
+            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), about "
+            f"{evals} evaluations of {cfg.eval_weights} weights; the estimated duration follows once the "
+            f"learning speed is measured")
+
+
+class _DurationEstimate:
+    """Measures the learning speed over the first batches after the random warm-up and says once,
+    in ``log.txt``, how long the rest of the run should take (tqdm's bar keeps an ETA after it)."""
+
+    def __init__(self, cfg: TrainConfig, frames: int) -> None:
+        self.cfg = cfg
+        self.start: tuple[int, float] | None = None
+        self.done = frames >= cfg.frames
+
+    def update(self, frames: int, eval_seconds: list[float], next_eval: int) -> str | None:
+        if self.done:
+            return None
+        now = time.perf_counter()
+        if self.start is None:
+            if frames > self.cfg.init_random_frames:
+                self.start = (frames, now)
+            return None
+        seen, dt = frames - self.start[0], now - self.start[1]
+        if frames >= self.cfg.frames:  # finished before a stable measurement: nothing to predict
+            self.done = True
+            return None
+        if dt < 15.0 or seen <= 0:  # some seconds of learning: a stable rate
+            return None
+        self.done = True
+        rate = seen / max(dt, 1e-9)
+        left = max(self.cfg.frames - frames, 0)
+        evals = (max(self.cfg.frames - next_eval, 0) // max(self.cfg.eval_interval, 1) + 1) if left else 0
+        per_eval = float(np.mean(eval_seconds)) if eval_seconds else 0.0
+        seconds = left / max(rate, 1e-9) + evals * per_eval
+        return (f"estimated duration: {_hms(seconds)} more ({left:,} frames at {rate:,.0f} frames/s learning, "
+                f"measured over {seen:,} frames, + {evals} evaluations of ~{per_eval:.0f} s)")
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
+
+
+def _epsilon(agent) -> float | None:
+    """The ε of an ε-greedy exploration module in the agent's exploration policy, if any."""
+    from torchrl.modules import EGreedyModule
+
+    policy = getattr(agent, "explore_policy", None)
+    if policy is None or not hasattr(policy, "modules"):
+        return None
+    for m in policy.modules():
+        if isinstance(m, EGreedyModule):
+            return float(m.eps)
+    return None
 
 
 def _stop(log: RunLog, summary: dict, fps: float, reason: str, write_checkpoint) -> Path:
@@ -430,7 +513,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-    spec = domain_of(cfg.env_id)
+    spec = _domain(cfg)
     _, agent, reference, evaluator = _build(cfg, spec, device)
     agent.load_state_dict(load_checkpoint(ckpt, map_location=device)["agent"])
     log = RunLog(run_dir, cfg, spec, tag="reevaluation")

@@ -17,15 +17,18 @@ TorchRL's Collector, evaluation, checkpoints); :meth:`PCNAgent.learn` does what 
    (:meth:`~morl_trl.data.episode_replay.EpisodeReplay.choose_command`).
 
 While acting the command is updated per step (``desired_return = min(desired_return - r,
-max_return)``, ``horizon = max(horizon - 1, 1)``,
+max_return)`` with the undiscounted reward ``r``, ``horizon = max(horizon - 1, 1)``,
 :class:`~morl_trl.transforms.command.DesiredReturnConditioning`); discrete actions are sampled
-from the policy, continuous ones get one Gaussian noise value (``pcn_noise``) added to every
-action dimension, as the authors' ``np.random.normal(0, noise)``.
+from the policy, continuous ones get Gaussian noise (``pcn_noise``) drawn per action dimension,
+as the authors' ``np.random.normal(0, noise, size)`` (SPEC §6).
 
-Evaluation (SPEC §2): the ``n`` evaluation weights get the returns and lengths of the
+Evaluation (SPEC §2, §6): the ``n`` evaluation weights get the returns and lengths of the
 ``min(n, E)`` best replay episodes, repeated to ``n``; weight ``i`` (the row of the energy weight
-set nearest to the preference the evaluator gives) acts greedily on command ``i``, kept fixed
-over the episode (the authors' ``set_desired_return_and_horizon`` + ``eval``).
+set nearest to the preference the evaluator gives) acts greedily, starting each episode on
+command ``i`` and updating it after every step by the same rule as in training (the authors'
+evaluator: ``set_desired_return_and_horizon``, then ``eval`` with the vector reward, restored
+afterwards). The network's widths are the run's ``hidden`` (the authors'
+``net_arch``).
 
 Example:
     >>> from morl_trl.recipes import resolve_config
@@ -86,14 +89,21 @@ class PCNPolicy(TensorDictModuleBase):
     """Acts with a PCN network on ``observation`` and a command.
 
     ``mode="explore"``: the command is read from the TensorDict (``desired_return``,
-    ``desired_horizon``); discrete actions are sampled, continuous ones get one ``N(0, noise)``
-    value per sub-env added to every dimension; ``random_actions = True`` samples the action
-    spec instead (the warm-up). ``mode="eval"``: the command of the evaluation weight nearest to
-    ``"preference"`` (``commands()`` gives ``(returns [n, k], horizons [n])`` for the ``n`` rows
-    of ``weights``), greedy actions.
+    ``desired_horizon``); discrete actions are sampled, continuous ones get ``N(0, noise)`` noise
+    per action dimension; ``random_actions = True`` samples the action spec instead (the
+    warm-up). ``mode="eval"``: greedy actions; each episode starts on the command of the
+    evaluation weight nearest to ``"preference"`` (``commands()`` gives ``(returns [n, k],
+    horizons [n])`` for the ``n`` rows of ``weights``), which is then updated after every step:
+    ``desired_return = min(desired_return - r, max_return)``, ``horizon = max(horizon - 1, 1)``,
+    ``r`` the step's vector reward read as the change of the running undiscounted return
+    ``return_key``; an episode starts where the running discount ``discount_key`` is 1 (the
+    evaluator's keys; without them the command stays the starting one). The command acted on is
+    written to ``desired_return`` / ``desired_horizon``.
     """
 
-    def __init__(self, network, spec, *, mode: str, noise: float = 0.1, weights=None, commands=None) -> None:
+    def __init__(self, network, spec, *, mode: str, noise: float = 0.1, weights=None, commands=None,
+                 max_return=None, return_key: str = "eval_episode_return",
+                 discount_key: str = "eval_episode_discount") -> None:
         super().__init__()
         if mode not in ("explore", "eval"):
             raise ValueError(f"mode must be 'explore' or 'eval', got {mode!r}")
@@ -107,8 +117,11 @@ class PCNPolicy(TensorDictModuleBase):
             self._commands = commands
             self.stale = True
             self._cache = None
+            self.max_return = None if max_return is None else torch.as_tensor(max_return, dtype=torch.float32)
+            self.return_key, self.discount_key = return_key, discount_key
+            self._running = None  # (desired [*B, k], horizon [*B, 1], running return [*B, k]) of the episodes
 
-    def _eval_command(self, td: TensorDictBase):
+    def _start_command(self, td: TensorDictBase):
         if self.stale or self._cache is None:
             returns, horizons = self._commands()
             self._cache = (returns, horizons)
@@ -119,11 +132,31 @@ class PCNPolicy(TensorDictModuleBase):
         dev = td.device if td.device is not None else w.device
         return returns[idx].to(dev), horizons[idx].unsqueeze(-1).to(dev)
 
+    def _eval_command(self, td: TensorDictBase):
+        start_r, start_h = self._start_command(td)
+        ret, disc = td.get(self.return_key, None), td.get(self.discount_key, None)
+        if ret is None or disc is None:  # (no episode bookkeeping: the starting command)
+            return start_r, start_h
+        ret = ret.to(start_r.device, torch.float32)
+        start = (disc.to(start_r.device) == 1).reshape(*start_r.shape[:-1], 1)
+        if self._running is None or self._running[0].shape != start_r.shape:
+            start = torch.ones_like(start)
+            self._running = (start_r, start_h, ret)
+        desired, horizon, before = self._running
+        reward = ret - before  # the vector reward of the step just taken
+        mr = self.max_return.to(ret.device) if self.max_return is not None else torch.full_like(ret, torch.inf)
+        desired = torch.where(start, start_r, torch.minimum(desired - reward, mr))
+        horizon = torch.where(start, start_h, (horizon - 1).clamp_min(1.0))
+        self._running = (desired, horizon, ret)
+        return desired, horizon
+
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         if self.random_actions:
             return td.set("action", self.action_spec_.rand(td.batch_size))
         if self.mode == "eval":
             desired, horizon = self._eval_command(td)
+            td.set("desired_return", desired)
+            td.set("desired_horizon", horizon)
         else:
             desired, horizon = td.get("desired_return"), td.get("desired_horizon")
         out = self.network.module(td.get("observation"), desired, horizon)
@@ -134,7 +167,7 @@ class PCNPolicy(TensorDictModuleBase):
                 action = torch.distributions.Categorical(logits=out).sample()
             return td.set("action", action.to(self.action_spec_.dtype))
         if self.mode == "explore":
-            out = out + self.noise * torch.randn(*out.shape[:-1], 1, device=out.device)
+            out = out + self.noise * torch.randn_like(out)  # per dimension, as the authors (SPEC §6)
         else:  # the env's bounds (the training env clips the explored actions the same way)
             out = torch.maximum(torch.minimum(out, self.action_spec_.space.high.to(out.device)),
                                 self.action_spec_.space.low.to(out.device))
@@ -263,13 +296,14 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     shape = obs_shape(env)
     obs_dim = shape[0] if len(shape) == 1 else shape
     action_dim = spec.space.n if discrete else int(spec.shape[-1])
-    net = make_pcn_network(obs_dim, action_dim, k, scale, cfg.hidden, discrete=discrete).to(device)
+    widths = tuple(cfg.hidden)  # the authors' net_arch
+    net = make_pcn_network(obs_dim, action_dim, k, scale, widths, discrete=discrete).to(device)
     loss = PCNLoss(net)
     optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))
     explore = PCNPolicy(net, spec, mode="explore", noise=cfg.pcn_noise)
     holder: dict = {}
     evalp = PCNPolicy(net, spec, mode="eval", weights=energy_weights(k, cfg.eval_weights).float(),
-                      commands=lambda: holder["agent"].eval_commands(cfg.eval_weights))
+                      commands=lambda: holder["agent"].eval_commands(cfg.eval_weights), max_return=_max_return(cfg, k))
     replay = EpisodeReplay(cfg.pcn_buffer_episodes, gamma)
     agent = PCNAgent(cfg, loss, explore, evalp, optimizer, replay, _command_transform(env), device=device,
                      max_return=_max_return(cfg, k))

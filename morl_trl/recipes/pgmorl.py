@@ -28,8 +28,9 @@ all sub-envs) and clipped at +-10; each objective's reward is normalised by ``Ve
 ``"reward_norm"`` and clipped at +-10 (on the collected batch, statistics updated with it first) (the authors' ``NormalizeObservation`` /
 ``MONormalizeReward`` / clip wrappers of ``mo_ppo.make_env``).
 
-Evaluation acts, for each weight, with the population member of nearest weight, sampling
-its actions (the authors' ``MOPPO.eval``). ``pgmorl_eval_obs="raw"`` (default) feeds it raw
+Evaluation acts, for each weight, with the snapshot of nearest weight in the Pareto archive of
+every member evaluation so far (the authors' ``PGMORL.eval`` over their ``ParetoArchive``;
+the population member of nearest weight before the first evaluation), sampling its actions. ``pgmorl_eval_obs="raw"`` (default) feeds it raw
 observations as the authors' evaluation did (SPEC §5, 12), ``"normalized"`` applies the
 training normalisation (frozen) first.
 
@@ -62,6 +63,7 @@ from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
 from morl_trl.envs import domain_of, make_env
+from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
     make_population_actor,
     make_population_critic,
@@ -140,14 +142,38 @@ def make_pgmorl_training_env(cfg, device: torch.device):
 
 
 class PGMORLEvalPolicy(TensorDictModuleBase):
-    """For each row: the population member whose weight is nearest to ``"preference"`` acts on
-    ``"observation"`` (raw, or normalised with the training ``VecNorm``'s frozen statistics)."""
+    """For each row: the Pareto archive's snapshot whose weight is nearest to ``"preference"`` acts on
+    ``"observation"`` (raw, or normalised with the training ``VecNorm``'s frozen statistics), as the
+    authors' ``PGMORL.eval`` (ties: the first snapshot; theirs: a random one); before the archive holds
+    any, the population member of nearest weight. ``snapshots_fn() -> (weights [S, k], states)``:
+    ``states[s]`` is a member state of the actor head (:meth:`member_state`)."""
 
-    def __init__(self, head, weights_fn, obs_norm=None, *, low=None, high=None) -> None:
+    def __init__(self, head, weights_fn, obs_norm=None, *, low=None, high=None, snapshots_fn=None) -> None:
         super().__init__()
         self.head, self.weights_fn, self.obs_norm = head, weights_fn, obs_norm
+        self.snapshots_fn = snapshots_fn
         self.low, self.high = low, high
         self.in_keys, self.out_keys = ["observation", "preference"], ["action"]
+
+    def _snapshot_outputs(self, flat, member, states, P):
+        """``(loc, scale)`` per row of the snapshot ``member[row]``: the used snapshots run ``P`` at a time."""
+        from torch.func import functional_call
+
+        rows = torch.arange(flat.shape[0], device=flat.device)
+        loc = scale = None
+        used = member.unique().tolist()
+        x = flat.unsqueeze(0).expand(P, *flat.shape)
+        for c in range(0, len(used), P):
+            chunk = used[c:c + P]
+            padded = chunk + [chunk[0]] * (P - len(chunk))
+            params = {n: torch.stack([states[i][n] for i in padded]).to(flat.device) for n in states[padded[0]]}
+            l, sc = functional_call(self.head, params, (x,))
+            if loc is None:
+                loc, scale = torch.empty_like(l[0]), torch.empty_like(sc[0])
+            for j, i in enumerate(chunk):
+                sel = member == i
+                loc[sel], scale[sel] = l[j, rows[sel]], sc[j, rows[sel]]
+        return loc, scale
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         obs = td.get("observation").float()
@@ -156,12 +182,17 @@ class PGMORLEvalPolicy(TensorDictModuleBase):
             obs = ((obs - loc.to(obs.device)) / scale.to(obs.device)).clamp(-10.0, 10.0)
         w = td.get("preference").float()
         weights = self.weights_fn().to(w.device)
-        member = torch.cdist(w.reshape(-1, w.shape[-1]), weights).argmin(-1)
         flat = obs.reshape(-1, obs.shape[-1])
         P = weights.shape[0]
-        loc, scale = self.head(flat.unsqueeze(0).expand(P, *flat.shape))
-        rows = torch.arange(flat.shape[0], device=flat.device)
-        loc, scale = loc[member, rows], scale[member, rows]
+        snapshots = self.snapshots_fn() if self.snapshots_fn is not None else None
+        if snapshots is not None and len(snapshots[1]):
+            member = torch.cdist(w.reshape(-1, w.shape[-1]), snapshots[0].to(w.device, torch.float32)).argmin(-1)
+            loc, scale = self._snapshot_outputs(flat, member, snapshots[1], P)
+        else:
+            member = torch.cdist(w.reshape(-1, w.shape[-1]), weights).argmin(-1)
+            loc, scale = self.head(flat.unsqueeze(0).expand(P, *flat.shape))
+            rows = torch.arange(flat.shape[0], device=flat.device)
+            loc, scale = loc[member, rows], scale[member, rows]
         action = loc + scale * torch.randn_like(loc) if exploration_type() == ExplorationType.RANDOM else loc
         if self.low is not None:  # the env's bounds (the authors' ClipAction)
             action = torch.maximum(torch.minimum(action, self.high.to(action.device)), self.low.to(action.device))
@@ -184,7 +215,8 @@ class PGMORLAgent(Agent):
         k = weights.shape[-1]
         self.population = PerformanceBuffer(cfg.pgmorl_num_buffers, cfg.pgmorl_buffer_size, self.ref_point)
         self.predictor = PerformancePredictor()
-        self.archive: list = []
+        self.archive: list = []  # the Pareto archive's evaluations (the task selection's front)
+        self.archive_members: list[dict] = []  # its snapshots: {"perf", "weight", "actor"} (the evaluation acts with them)
         self.evals_before = np.full((self.P, k), np.nan)  # NaN: no episode of the member has ended yet
         self.performance = np.full((self.P, k), np.nan)
         self.iteration = 0
@@ -287,11 +319,25 @@ class PGMORLAgent(Agent):
             perf = self.performance[p].copy()
             if not np.isfinite(perf).all():
                 continue  # not evaluated yet (no episode of it has ended)
-            self.population.add(self._member_state(p), perf)
+            state = self._member_state(p)
+            self.population.add(state, perf)
             self.archive = nondominated(self.archive + [perf])
+            self._archive_snapshot(perf, self.weights[p].detach().cpu().clone(), state["actor"])
             if add_to_prediction and np.isfinite(self.evals_before[p]).all():
                 self.predictor.add(self.weights[p].cpu().numpy(), self.evals_before[p], perf)
             self.evals_before[p] = perf
+
+    def _archive_snapshot(self, perf, weight, actor_state) -> None:
+        """The authors' ``ParetoArchive.add``: keep the non-dominated (evaluation, policy copy) pairs."""
+        entries = self.archive_members + [{"perf": np.asarray(perf, np.float64), "weight": weight, "actor": actor_state}]
+        keep = is_nondominated(np.stack([e["perf"] for e in entries]))
+        self.archive_members = [e for e, k in zip(entries, keep) if k]
+
+    def snapshots(self):
+        """``(weights [S, k], actor states)`` of the archive (what the evaluation acts with)."""
+        if not self.archive_members:
+            return None
+        return torch.stack([e["weight"] for e in self.archive_members]), [e["actor"] for e in self.archive_members]
 
     def _select_tasks(self) -> None:
         if len({tuple(a) for a in self.predictor.after}) < 4 or not self.population.individuals:
@@ -318,6 +364,7 @@ class PGMORLAgent(Agent):
     def state_dict(self) -> dict:
         state = super().state_dict()
         state.update(weights=self.weights.clone(), population=self.population.state_dict(), archive=list(self.archive),
+                     archive_members=list(self.archive_members),
                      predictor=(list(self.predictor.weights), list(self.predictor.before), list(self.predictor.after)),
                      evals_before=self.evals_before.copy(), performance=self.performance.copy(),
                      iteration=self.iteration, generation=self.generation, rng=self.rng.bit_generator.state,
@@ -330,6 +377,7 @@ class PGMORLAgent(Agent):
         self.weights.copy_(state["weights"])
         self.population.load_state_dict(state["population"])
         self.archive = list(state["archive"])
+        self.archive_members = list(state.get("archive_members", []))
         self.predictor.weights, self.predictor.before, self.predictor.after = (list(x) for x in state["predictor"])
         self.evals_before, self.performance = state["evals_before"].copy(), state["performance"].copy()
         self.iteration, self.generation = state["iteration"], state["generation"]
@@ -374,7 +422,7 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     obs_norm = _obs_vecnorm(env)
     eval_policy = PGMORLEvalPolicy(head, lambda: holder["agent"].weights,
                                    obs_norm if cfg.pgmorl_eval_obs == "normalized" else None, low=spec.space.low.float(),
-                                   high=spec.space.high.float())
+                                   high=spec.space.high.float(), snapshots_fn=lambda: holder["agent"].snapshots())
     ref = domain_of(cfg.env_id).hv_ref_point or (-100.0,) * k
     agent = PGMORLAgent(cfg, loss, actor, critic, eval_policy, optimizer, weights=weights, steps=steps, gamma=gamma,
                         ref_point=ref, device=device, obs_norm=obs_norm)

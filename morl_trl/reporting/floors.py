@@ -52,6 +52,7 @@ __all__ = [
     "update_floors_file",
     "floors_markdown",
     "floors_main",
+    "floor_at_weights",
 ]
 
 FLOORS_FILE = "floors.json"
@@ -236,6 +237,77 @@ def update_floors_file(path: str | Path, floor: Floor, *, weights: int, seed: in
     tmp.write_text(json.dumps(data, indent=1, sort_keys=False) + "\n")
     tmp.replace(path)
     return data
+
+
+def _restricted(reference, contexts: Sequence[str]):
+    from morl_trl.reporting.reference import DomainReference
+
+    return DomainReference(reference.domain, {c: reference.bounds[c] for c in contexts},
+                           {c: reference.specialist_fronts[c] for c in contexts})
+
+
+def floor_at_weights(
+    train_id: str,
+    weights: int,
+    contexts: Sequence[str],
+    reference,
+    *,
+    cache: str | Path | None = None,
+    known: dict[str, dict[str, float]] | None = None,
+    shipped: dict | None = None,
+) -> tuple[Floor | None, str]:
+    """The best trivial policy of ``train_id`` at ``weights`` evaluation weights on ``contexts``,
+    and a sentence saying where it comes from.
+
+    A floor is only comparable with a NHGR at the same number of weights (a front of 8 episodes
+    is not a front of 100). In order: the shipped ``floors.json`` when it was computed at
+    ``weights`` and covers ``contexts``; the ``cache`` file (same layout) when it holds them;
+    otherwise every trivial policy is evaluated here (seed 0) and written to ``cache``.
+    ``known``: NHGR per context already evaluated at this protocol (e.g. ``{"random": ...}``
+    from the run's own random-policy evaluation), used instead of evaluating them again.
+    ``None`` (and the reason) when the domain has no reference data.
+    """
+    contexts = list(contexts)
+    if reference is None:
+        return None, f"no floor: {train_id} has no reference data (bounds and specialist fronts), so no NHGR"
+
+    def best_of(floors: dict) -> Floor | None:
+        dom = floors.get("domains", {}).get(train_id, {})
+        if dom.get("weights") != weights:
+            return None
+        entries = [f for f in floor_entries(floors, train_id) if set(contexts) <= set(f.nhgr)]
+        if not entries or dom.get("not_computed"):
+            return None
+        best = max(entries, key=lambda f: float(np.mean([f.nhgr[c] for c in contexts])))
+        return Floor(train_id, best.policy, {c: best.nhgr[c] for c in contexts})
+
+    shipped = load_floors() if shipped is None else shipped
+    found = best_of(shipped)
+    if found is not None:
+        return found, f"the shipped floors.json ({weights} weights, seed 0)"
+    if cache is not None and Path(cache).is_file():
+        found = best_of(load_floors(cache))
+        if found is not None:
+            return found, f"computed at this run's {weights} weights and {len(contexts)} contexts, seed 0 ({Path(cache).name})"
+    from morl_trl.envs.registry import domain_of
+
+    ref = _restricted(reference, contexts)
+    names = list(trivial_policies(train_id))
+    floors: list[Floor] = []
+    for name in names:
+        t0 = time.perf_counter()
+        if known and name in known and set(contexts) <= set(known[name]):
+            floor = Floor(train_id, name, {c: float(known[name][c]) for c in contexts})
+        else:
+            floor = evaluate_floor(train_id, name, ref, weights=weights, seed=0, contexts=contexts)
+        floors.append(floor)
+        if cache is not None:
+            update_floors_file(cache, floor, weights=weights, seed=0, gamma=float(domain_of(train_id).gamma),
+                               command=f"floor_at_weights({train_id!r}, {weights})",
+                               seconds=time.perf_counter() - t0, all_policies=names)
+    best = max(floors, key=lambda f: f.mean)
+    where = f"computed at this run's {weights} weights and {len(contexts)} contexts, seed 0"
+    return best, where + (f" (cached in {Path(cache).name})" if cache is not None else "")
 
 
 def floors_main(argv: list[str] | None = None) -> int:

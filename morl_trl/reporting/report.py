@@ -11,7 +11,7 @@ import numpy as np
 
 from morl_trl.reporting.fsorl import run_section
 
-__all__ = ["write_report", "published_baselines", "floor_column", "learning_curves"]
+__all__ = ["write_report", "published_baselines", "floor_column", "learning_curves", "training_curves"]
 
 
 def _fmt(v) -> str:
@@ -34,7 +34,8 @@ def published_baselines(reference_dir: str | Path, domain: str) -> dict[str, dic
 
 def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
     """A table of hypervolume and EUM, ours beside the uniformly random policy's, per context."""
-    metrics = [m for m in ("hypervolume", "eum") if any(v is not None for v in result.metric(m).values())]
+    metrics = [m for m in ("hypervolume", "hv_ratio", "eum", "igd")
+               if any(v is not None for v in result.metric(m).values())]
     if not metrics:
         return []
     head = " | ".join(f"{m} (ours) | {m} (random)" for m in metrics)
@@ -45,6 +46,15 @@ def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
         cells = " | ".join(f"{_fmt(ours.get(m))} | {_fmt(rand.get(m))}" for m in metrics)
         lines.append(f"| {'**mean**' if c is None else c} | {cells} |")
     return lines + [""]
+
+
+def foreign_nhgr_note(spec) -> str:
+    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead."""
+    extra = ", IGD and the ratio of its hypervolume to the true front's" if spec.true_front is not None else ""
+    return (f"NHGR: unavailable. {spec.train_id} is one environment without contexts: NHGR and EUGR measure "
+            f"generalization across contexts against specialists trained per context, which has no meaning here; "
+            f"this report gives hypervolume (reference point {list(spec.hv_ref_point or [])}), EUM{extra}, beside "
+            f"a uniformly random policy's (the floor).")
 
 
 def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
@@ -59,17 +69,26 @@ def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str
 
 
 def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> Path | None:
+    """Two objectives: one scatter per context. Three or more: one row per context, one column
+    per pair of objectives (every pairwise projection)."""
+    import itertools
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     names = list(result.context_names)
-    cols = min(4, len(names))
-    rows = math.ceil(len(names) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.2 * rows), squeeze=False)
-    i, j = 0, 1  # first two objectives; the CSVs hold every objective
-    for ax, name in zip(axes.flat, names):
+    pairs = list(itertools.combinations(range(len(objectives)), 2))
+    if len(pairs) == 1:
+        cols = min(4, len(names))
+        rows = math.ceil(len(names) / cols)
+        cells = [(name, pairs[0]) for name in names]
+    else:
+        cols, rows = len(pairs), len(names)
+        cells = [(name, pair) for name in names for pair in pairs]
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 3.0 * rows), squeeze=False)
+    for ax, (name, (i, j)) in zip(axes.flat, cells):
         front = result.front(name)
         shown = [front[:, [i, j]]]
         if reference is not None and name in reference.specialist_fronts:
@@ -81,15 +100,65 @@ def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> 
             shown.append(np.array([[b.lower[i], b.lower[j]], [b.upper[i], b.upper[j]]]))
         ax.scatter(front[:, i], front[:, j], s=22, c="C3", edgecolors="k", linewidths=0.4, label="ours", zorder=3)
         _frame(ax, np.concatenate(shown))
-        ax.set_title(name.replace("-v0", "").replace("-v5", "").replace("-v2", ""), fontsize=9)
+        ax.set_title(_short(name), fontsize=9)
         ax.set_xlabel(objectives[i], fontsize=8)
         ax.set_ylabel(objectives[j], fontsize=8)
         ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[len(names):]:
+    for ax in list(axes.flat)[len(cells):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=80 if len(pairs) > 1 else 110)
+    plt.close(fig)
+    return path
+
+
+def _short(name: str) -> str:
+    return name.replace("-v0", "").replace("-v5", "").replace("-v2", "")
+
+
+def _plot_parallel(result, reference, path: Path, objectives: tuple[str, ...]) -> Path:
+    """Fronts of three or more objectives as parallel coordinates: one panel per context, one
+    vertical axis per objective, one line per point of the front (ours red, the specialist's
+    grey), each objective scaled to the context's normalization bounds (else to the points' range)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(result.context_names)
+    k = len(objectives)
+    cols = min(4, len(names))
+    rows = math.ceil(len(names) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.8 * cols, 2.9 * rows), squeeze=False)
+    x = np.arange(k)
+    for ax, name in zip(axes.flat, names):
+        front = np.asarray(result.front(name), dtype=np.float64)
+        spec = None
+        if reference is not None and name in reference.specialist_fronts:
+            spec = np.asarray(reference.specialist_fronts[name], dtype=np.float64)
+        if reference is not None and name in reference.bounds:
+            lo = np.asarray(reference.bounds[name].lower, dtype=np.float64)
+            hi = np.asarray(reference.bounds[name].upper, dtype=np.float64)
+        else:
+            pts = front if spec is None else np.concatenate([front, spec])
+            lo, hi = pts.min(0), pts.max(0)
+        span = np.where(hi > lo, hi - lo, 1.0)
+        if spec is not None:
+            for row in (spec - lo) / span:
+                ax.plot(x, row, color="0.6", lw=0.6, alpha=0.6)
+        for row in (front - lo) / span:
+            ax.plot(x, row, color="C3", lw=1.2, marker="o", ms=3)
+        ax.set_xticks(x, list(objectives), fontsize=7, rotation=20)
+        ax.set_ylabel("scaled to bounds" if reference is not None else "scaled", fontsize=7)
+        ax.set_title(_short(name), fontsize=9)
+        ax.tick_params(labelsize=7)
+        for xi in x:
+            ax.axvline(xi, color="k", lw=0.5)
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
 
@@ -105,7 +174,8 @@ def _frame(ax, points: np.ndarray) -> None:
     ax.ticklabel_format(style="sci", scilimits=(-3, 4), useOffset=False)
 
 
-_CURVES = (("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"), ("eum", "EUM"))
+_CURVES = (("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"), ("hypervolume", "hypervolume"),
+           ("hv_ratio", "HV / true front's HV"), ("eum", "EUM"), ("igd", "IGD"))
 
 
 def learning_curves(metrics_csv: str | Path) -> dict[str, dict[str, list[tuple[int, float]]]]:
@@ -134,7 +204,8 @@ def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, di
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    metrics = [(m, label) for m, label in _CURVES if m in curves]
+    metrics = [(m, label) for m, label in _CURVES if m in curves
+               and not (m == "hypervolume" and "normalized_hypervolume" in curves)]  # (one HV panel)
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.4 * len(metrics), 3.3), squeeze=False)
     for ax, (metric, label) in zip(axes.flat, metrics):
         for k, c in enumerate(contexts):
@@ -148,7 +219,7 @@ def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, di
                 ax.axhline(floor[1][c], color=f"C{k % 10}", ls="--", lw=0.8, alpha=0.7)
         ax.set_xlabel("frames", fontsize=8)
         ax.set_ylabel(label, fontsize=8)
-        if metric in ("nhgr", "normalized_hypervolume"):
+        if metric in ("nhgr", "normalized_hypervolume", "hv_ratio"):
             ax.set_ylim(0, 1.02)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
@@ -157,6 +228,70 @@ def _plot_learning(curves, contexts: list[str], path: Path, floor: tuple[str, di
         axes.flat[0].set_title(f"dashed: {floor[0]}", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def training_curves(run_dir: str | Path) -> dict[str, list[tuple[int, float]]]:
+    """``{series: [(frames, value), ...]}`` of a run's training: every column of
+    ``train/losses.csv`` (losses, ε or α, frames per second) and the undiscounted return per
+    objective of ``train/episodes.csv`` (``return <objective>``, one point per episode)."""
+    import csv
+
+    out: dict[str, list[tuple[int, float]]] = {}
+    run_dir = Path(run_dir)
+    for rel, prefix in (("train/losses.csv", ""), ("train/episodes.csv", "return_")):
+        path = run_dir / rel
+        if not path.is_file():
+            continue
+        with path.open() as fh:
+            for row in csv.DictReader(fh):
+                for key, value in row.items():
+                    if key == "frames" or value in (None, "") or not key.startswith(prefix):
+                        continue
+                    try:
+                        v = float(value)
+                    except ValueError:
+                        continue
+                    name = f"return {key[len(prefix):]}" if prefix else key
+                    out.setdefault(name, []).append((int(float(row["frames"])), v))
+    return out
+
+
+def _plot_training(curves: dict[str, list[tuple[int, float]]], path: Path) -> Path:
+    """One panel per loss / schedule / throughput series, and one panel of the training returns
+    per objective (a running mean over episodes), against frames."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    returns = {k: v for k, v in curves.items() if k.startswith("return ")}
+    others = {k: v for k, v in curves.items() if not k.startswith("return ")}
+    panels = list(others) + (["returns per objective"] if returns else [])
+    cols = min(4, len(panels))
+    rows = math.ceil(len(panels) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.8 * cols, 2.8 * rows), squeeze=False)
+    for ax, name in zip(axes.flat, panels):
+        if name == "returns per objective":
+            for n, (label, pts) in enumerate(sorted(returns.items())):
+                x, y = (np.array(v, dtype=np.float64) for v in zip(*sorted(pts)))
+                w = max(1, min(50, len(y) // 10))
+                smooth = np.convolve(y, np.ones(w) / w, mode="valid")
+                ax.plot(x[w - 1:], smooth, lw=1.2, color=f"C{n % 10}", label=label.removeprefix("return "))
+            ax.legend(fontsize=6)
+            ax.set_title("training return per objective (running mean)", fontsize=8)
+        else:
+            x, y = zip(*sorted(others[name]))
+            ax.plot(x, y, lw=1.0)
+            ax.set_title(name, fontsize=8)
+        ax.set_xlabel("frames", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 4))
+    for ax in list(axes.flat)[len(panels):]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
 
@@ -193,6 +328,26 @@ def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Pa
     return path
 
 
+def _run_floor(log, result, reference, contexts, random_result):
+    """``((label, {context: NHGR}) or None, where it comes from)``: the floor at the run's weights."""
+    from morl_trl.reporting.floors import floor_at_weights
+
+    weights = int(result.weights.shape[0])
+    known = None
+    if random_result is not None and getattr(log.cfg, "seed", None) == 0:  # the same protocol, seed 0
+        rn = random_result.metric("nhgr")
+        if all(rn.get(c) is not None for c in contexts):
+            known = {"random": {c: float(rn[c]) for c in contexts}}
+    try:
+        best, where = floor_at_weights(log.spec.train_id, weights, contexts, reference,
+                                       cache=log.out_dir / "report_floors.json", known=known)
+    except (ValueError, ImportError) as err:  # e.g. a context outside the reference data
+        return None, f"the floor could not be computed ({err})"
+    if best is None:
+        return None, where
+    return (f"floor: {best.policy} ({weights} weights)", dict(best.nhgr)), where
+
+
 def write_report(log, summary: dict, fps: float | None) -> Path:
     """Write ``report.md`` (+ PNGs) into the run directory and print its table."""
     result = log.last_result
@@ -221,15 +376,18 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     else:
         baseline_note = ("No paper baselines: their published fronts are not shipped; pass the folder that holds "
                          "them with `--reference DIR` (config `reference_dir`) to add a column per algorithm.")
-    floor = floor_column(spec.train_id)
-    if floor is not None and nhgr_cols:
+    floor, floor_where = None, None
+    if nhgr_cols:
+        floor, floor_where = _run_floor(log, result, reference, contexts, random_result)
+    if floor is not None:
         nhgr_cols[floor[0]] = floor[1]
     nhgr_cols.update({f"{k} (paper)": v for k, v in baselines.items()})
 
     lines = [f"# {cfg.algo} on {cfg.env_id} (seed {cfg.seed})", ""]
     lines.append(f"Frames: {summary.get('frames')}" + (f" · frames/s: {fps:,.0f}" if fps else ""))
     lines.append("")
-    metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "eum", "eugr", "cardinality", "sparsity"]
+    metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "hv_ratio", "eum", "eugr", "igd", "cardinality",
+                    "sparsity"]
     present = [m for m in metric_names if any(v is not None for v in result.metric(m).values())]
     lines.append("| context | " + " | ".join(present) + " |")
     lines.append("|---|" + "---|" * len(present))
@@ -239,9 +397,14 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     lines.append("")
     if random_result is not None and not nhgr_cols:  # no NHGR: the random policy beside ours
         lines.extend(_random_rows(result, random_result, contexts))
-    if reference is None and "nhgr" not in present:
-        lines.append(f"NHGR: unavailable. No reference data (per-context bounds and specialist fronts) exists for "
-                     f"{spec.train_id}, so this report gives hypervolume and EUM only.")
+    if getattr(spec, "foreign", False) and "nhgr" not in present:
+        lines.append(foreign_nhgr_note(spec))
+        lines.append("")
+    elif reference is None and "nhgr" not in present:
+        lines.append(f"NHGR: unavailable. NHGR and EUGR need, per evaluation context, the normalization bounds and "
+                     f"the specialist front of agents trained on that context alone; the authors published none for "
+                     f"{spec.train_id} (they did not run this domain), and none are shipped, so this report gives "
+                     f"hypervolume and EUM only, beside a uniformly random policy's.")
         lines.append("")
     if nhgr_cols:
         lines.append("## NHGR per context")
@@ -262,9 +425,11 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append("")
         if floor is not None:
             lines.append(f"`{floor[0]}`: the NHGR of the best trivial policy (a constant action or random) "
-                         "under the paper's protocol (its number of weights, seed 0), shipped in "
-                         "`morl_trl/reporting/floors.json` (`morl-trl floors`); a score near it is no evidence "
-                         "of learning. Dashed on the plot.")
+                         f"at this run's {result.weights.shape[0]} evaluation weights, from {floor_where}; a score "
+                         "near it is no evidence of learning. Dashed on the plot.")
+            lines.append("")
+        elif floor_where:
+            lines.append(f"No floor: {floor_where}.")
             lines.append("")
     curves = learning_curves(run_dir / "eval" / "metrics.csv")
     if curves:
@@ -276,13 +441,32 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append("Every evaluation of the run, frame 0 (the untrained policy) included"
                      + ("; dashed: the floor's NHGR per context." if floor is not None else "."))
         lines.append("")
-    png = _plot_fronts(result, reference, run_dir / "report_fronts.png", tuple(spec.objective_names))
+    train_curves = training_curves(run_dir)
+    if train_curves:
+        png = _plot_training(train_curves, run_dir / "report_training.png")
+        lines.append("## Training curves")
+        lines.append("")
+        lines.append(f"![Losses, exploration, frames per second and training returns against frames]({png.name})")
+        lines.append("")
+        lines.append("From `train/losses.csv` (losses, ε or α, frames per second) and `train/episodes.csv` "
+                     "(undiscounted return per objective of every training episode, under its training preference).")
+        lines.append("")
+    objectives = tuple(spec.objective_names)
+    lines.append("## Pareto fronts")
+    lines.append("")
+    if len(objectives) > 2:
+        png = _plot_parallel(result, reference, run_dir / "report_fronts_parallel.png", objectives)
+        lines.append(f"![Pareto fronts per context, parallel coordinates]({png.name})")
+        lines.append("")
+        lines.append(f"Parallel coordinates: one line per point of the front over all {len(objectives)} objectives "
+                     "(ours red, the specialist's grey), each objective scaled to the context's normalization bounds. "
+                     "Below, every pairwise projection (the fronts are non-dominated in all objectives, not in "
+                     "each projection; fronts/*.csv hold the points).")
+        lines.append("")
+    png = _plot_fronts(result, reference, run_dir / "report_fronts.png", objectives)
     if png is not None:
         lines.append(f"![Pareto fronts per context]({png.name})")
-        if len(spec.objective_names) > 2:
-            lines.append("")
-            lines.append(f"(Projections on {spec.objective_names[0]} × {spec.objective_names[1]}; the fronts are "
-                         f"non-dominated in all {len(spec.objective_names)} objectives: see fronts/*.csv.)")
+        lines.append("")
     lines += run_section(result, run_dir, cfg.algo, spec, cfg.env_id)  # f_SORL (reporting/fsorl.py)
     path = run_dir / "report.md"
     path.write_text("\n".join(lines) + "\n")

@@ -12,6 +12,7 @@ Layout of a run directory::
                                  which weight was the context's best (absent if the env has none)
     fronts/frames_<N>.csv        the Pareto front of every context at that evaluation
     train/episodes.csv           one row per finished training episode: context, preference, returns
+    train/losses.csv             the losses, ε / α and frames per second, every 50 updates
     report.md, report_*.png      the last evaluation against the specialists (and published baselines)
     reevaluation/...             the same eval/, fronts/ and report written by ``morl-trl evaluate``
 
@@ -133,7 +134,7 @@ class RunLog:
         ``train/episodes.csv`` and the TorchRL CSV logger's scalars above it, fronts files after
         it. Returns the number of rows and files removed. TensorBoard / W&B output is left."""
         removed = 0
-        for rel in ("eval/metrics.csv", "eval/episodes.csv", "eval/sorl.csv", "train/episodes.csv"):
+        for rel in ("eval/metrics.csv", "eval/episodes.csv", "eval/sorl.csv", "train/episodes.csv", "train/losses.csv"):
             path = self.run_dir / rel
             if path.is_file():
                 removed += _cut_lines(path, frames, header=True)
@@ -161,10 +162,19 @@ class RunLog:
             self.logger.log_scalar(name, float(value), step=step)
 
     # ------------------------------------------------------------------ training
-    def losses(self, frames: int, losses) -> None:
+    def losses(self, frames: int, losses, **extra: float) -> None:
+        """Log the scalar losses (and ``extra`` scalars: frames per second, ε, α) to the TorchRL
+        logger and as a row of ``train/losses.csv`` (the report's training curves)."""
+        row: dict = {"frames": frames}
         for key, value in losses.items():
             if value.numel() == 1:
-                self._scalar(f"train/{key}", value.item(), frames)
+                row[key] = value.item()
+                self._scalar(f"train/{key}", row[key], frames)
+        for key, value in extra.items():
+            if value is not None and math.isfinite(value):
+                row[key] = float(value)
+                self._scalar(f"train/{key}", row[key], frames)
+        _append_rows(self.out_dir / "train" / "losses.csv", [row])
 
     def training_episodes(self, frames: int, batch) -> None:
         """Record the returns of the episodes that ended in this batch (needs DiscountedVectorReturn)."""

@@ -25,10 +25,10 @@ KNOWN_OPEN = {
         "init.update_passes", "train.num_eval_episodes_for_front", "network.init", "network.actor",
         "policy_args.policy_freq", "derived.exchanges_per_member", "derived.own_env_steps_per_member",
         "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange",
-        "derived.archive_eval_episodes_per_exchange", "derived.eval_action")),
-    ("pcn", "network.init"), ("pcn", "derived.eval_commands"), ("pcn", "network.train_action"),
+        "derived.archive_eval_episodes_per_exchange")),
+    ("pcn", "network.init"),
     ("pgmorl", "network.init"), ("pgmorl", "network.critic"), ("pgmorl", "network.actor_mean"),
-    ("pgmorl", "derived.vector_env_reset_each_iteration"), ("pgmorl", "derived.eval_action"),
+    ("pgmorl", "derived.vector_env_reset_each_iteration"),
     ("sac", "network.init"), ("sac", "init.policy_freq"), ("sac", "network.actor"),
 }
 

@@ -134,3 +134,153 @@ def test_discrete_gpi_acts_with_dropout_and_evaluates_without(single_thread):
     assert torch.equal(a1, a2) and qnet.training  # deterministic; the net's mode is restored
     q = [agent.explore_policy[0](td())["action"] for _ in range(5)]
     assert any(not torch.equal(q[0], x) for x in q[1:])  # dropout 0.5 while acting changes the greedy choice
+
+
+# ---------------------------------------------------------------------- PCN
+def _pcn(env_id="MOLavaGridDR-v0", **kw):
+    from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+
+    torch.manual_seed(0)
+    cfg = resolve_config("pcn", env_id, quick=True, num_envs=2, **kw)
+    env = make_pcn_training_env(cfg, CPU)
+    return cfg, env, make_pcn_agent(cfg, env, gamma=0.99 if "Lava" not in env_id else 0.995, device=CPU)
+
+
+class _Recorder(torch.nn.Module):
+    def __init__(self, policy):
+        super().__init__()
+        self.policy, self.seen = policy, []
+
+    def forward(self, td):
+        td = self.policy(td)
+        self.seen.append(td.select("desired_return", "desired_horizon", "eval_episode_return").clone())
+        return td
+
+
+def test_pcn_evaluation_updates_the_command_after_every_step(single_thread):
+    """The authors' evaluator: desired_return -= r (undiscounted vector reward, clipped above at max_return),
+    horizon = max(horizon - 1, 1), from the top episode's (return, length) at the start (SPEC §6)."""
+    from morl_trl.evaluation import MultiContextEvaluator
+
+    cfg, _, agent = _pcn(hidden=(16, 16), eval_weights=2)
+    obs = torch.zeros(4, 125)
+    agent.replay.add(obs, torch.zeros(4, dtype=torch.long), torch.tensor([[10.0, -3.0]] * 4))  # length 4
+    d0, h0 = agent.eval_commands(2)
+    torch.testing.assert_close(h0, torch.tensor([4.0, 4.0]))
+    rec = _Recorder(agent.eval_policy)
+    MultiContextEvaluator(rec, ["MOLavaGridRoom-v0"], weights=2, gamma=0.995, seed=0, max_steps=8).evaluate()
+    steps = torch.stack([td[0] for td in rec.seen])  # sub-env 0's first episode: 8 steps (cut at max_steps)
+    assert steps["desired_horizon"].flatten().tolist() == [4.0, 3.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0]
+    # every LavaGrid step costs -3 on objective 1 (no goal is within 8 steps of Room's start)
+    expected_1 = [d0[0, 1].item() + 3.0 * t for t in range(8)]
+    torch.testing.assert_close(steps["desired_return"][:, 1], torch.tensor(expected_1))
+    # objective 0: the start minus the undiscounted return so far (far below max_return 300: no clip)
+    torch.testing.assert_close(steps["desired_return"][:, 0], d0[0, 0] - steps["eval_episode_return"][:, 0].float())
+
+
+def test_pcn_clips_the_evaluation_command_at_max_return():
+    from tensordict import TensorDict
+
+    _, _, agent = _pcn(hidden=(16, 16), eval_weights=2, pcn_max_return=(300.0, 5.0))
+    agent.eval_policy._commands = lambda: (torch.tensor([[1.0, 2.0], [1.0, 2.0]]), torch.tensor([3.0, 3.0]))
+    agent.eval_policy.stale = True
+    w = torch.tensor([[1.0, 0.0]])
+    seen = []
+    for ret, disc in (([0.0, 0.0], 1.0), ([-1.0, -4.0], 0.995), ([-2.0, -5.0], 0.99)):  # rewards [-1,-4], [-1,-1]
+        td = TensorDict(observation=torch.zeros(1, 125), preference=w, eval_episode_return=torch.tensor([ret]),
+                        eval_episode_discount=torch.tensor([[disc]]), batch_size=[1])
+        td = agent.eval_policy(td)
+        seen.append(td["desired_return"][0].tolist() + td["desired_horizon"][0].tolist())
+    assert seen == [[1.0, 2.0, 3.0], [2.0, 5.0, 2.0], [3.0, 5.0, 1.0]]  # min(2 + 4, 5) = 5, min(5 + 1, 5) = 5
+
+
+def test_continuous_pcn_noise_is_drawn_per_action_dimension(single_thread):
+    pytest.importorskip("mujoco")
+    from tensordict import TensorDict
+
+    cfg, _, agent = _pcn("MOHalfCheetahDR-v5", hidden=(16, 16))
+    assert cfg.pcn_noise == 0.2
+    policy = agent.explore_policy
+    policy.random_actions = False
+    policy.network.module.fc[-1].weight.data.zero_()
+    policy.network.module.fc[-1].bias.data.zero_()  # prediction 0: the action is the noise
+    td = TensorDict(observation=torch.zeros(4000, 17 * 3 + 6 * 2), desired_return=torch.zeros(4000, 2),
+                    desired_horizon=torch.ones(4000, 1), batch_size=[4000])
+    a = policy(td)["action"]  # [4000, 6]
+    assert a.shape == (4000, 6) and abs(float(a.std()) - 0.2) < 0.01
+    corr = torch.corrcoef(a.T)  # independent dimensions (one shared value would give correlation 1)
+    assert float((corr - torch.eye(6)).abs().max()) < 0.1
+
+
+def test_pcn_network_is_the_authors_net_arch():
+    cfg, _, agent = _pcn(hidden=(256, 256, 256, 256))
+    assert cfg.pcn_hidden is None
+    net = agent.loss.policy_network.module
+    assert (net.s_emb[0].out_features, net.c_emb[0].out_features) == (256, 256)
+    assert [m.out_features for m in net.fc if isinstance(m, torch.nn.Linear)] == [256, 256, 256, 3]
+    _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)  # MORL-Baselines' hidden_dim: one hidden layer
+    assert [m.out_features for m in old.loss.policy_network.module.fc if isinstance(m, torch.nn.Linear)] == [64, 3]
+
+
+# ---------------------------------------------------------------------- PGMORL / MORL/D evaluation
+def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread):
+    """The authors' PGMORL.eval: the archive snapshot of nearest weight acts (pgmorl.py:719-768)."""
+    pytest.importorskip("mujoco")
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+
+    cfg = resolve_config("pgmorl", "MOHalfCheetahDR-v5", quick=True, pgmorl_pop=2, num_envs=2,
+                         pgmorl_envs_per_member=1, frames_per_batch=32, hidden=(8,))
+    env = make_pgmorl_training_env(cfg, CPU)
+    agent = make_pgmorl_agent(cfg, env, gamma=0.99, device=CPU)
+
+    def snapshot(mean):  # a policy whose mean action is `mean` everywhere
+        state = agent.head.member_state(0)
+        for name, t in state.items():
+            t.zero_()
+        state[max(n for n in state if n.startswith("mean.biases"))].fill_(mean)
+        return state
+
+    agent._archive_snapshot(np.array([10.0, 0.0]), torch.tensor([0.9, 0.1]), snapshot(0.5))
+    agent._archive_snapshot(np.array([0.0, 10.0]), torch.tensor([0.1, 0.9]), snapshot(-0.5))
+    agent._archive_snapshot(np.array([-1.0, -1.0]), torch.tensor([0.5, 0.5]), snapshot(0.9))  # dominated: dropped
+    torch.testing.assert_close(torch.stack([e["weight"] for e in agent.archive_members]),
+                               torch.tensor([[0.9, 0.1], [0.1, 0.9]]))
+    obs = torch.randn(4, env.observation_spec["observation"].shape[-1])
+    td = TensorDict(observation=obs, preference=torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.6, 0.4], [0.45, 0.55]]),
+                    batch_size=[4])
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        action = agent.eval_policy(td)["action"]
+    torch.testing.assert_close(action, torch.tensor([0.5, -0.5, 0.5, -0.5]).unsqueeze(-1).expand(4, 6))
+
+
+def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread):
+    """The authors' MORL/D eval: the archive snapshot of nearest weight acts (morld.py:434-488)."""
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+
+    cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,))
+    env = make_morld_training_env(cfg, CPU)
+    agent = make_morld_agent(cfg, env, gamma=0.995, device=CPU)
+    params = agent.loss.actor_network_params.detach().cpu()
+
+    def snapshot(action):  # a policy that always prefers `action` (logits: 10 on it, 0 elsewhere)
+        one = params.apply(lambda x: torch.zeros_like(x[0]))
+        one["module", "0", "module", "mlp", "2", "bias"][action] = 10.0
+        return {"weight": torch.tensor([0.8, 0.2]), "actor": one} if action == 2 else \
+            {"weight": torch.tensor([0.3, 0.7]), "actor": one}
+
+    obs = torch.randn(4, 125)
+    td = lambda: TensorDict(observation=obs, preference=torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.6, 0.4], [0.5, 0.5]]),  # noqa: E731
+                            batch_size=[4])
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        before = agent.eval_policy(td())["action"]  # empty archive: the population's members
+        agent.archive.add(torch.tensor([[5.0, 1.0], [1.0, 5.0]]), [snapshot(2), snapshot(0)])
+        after = agent.eval_policy(td())["action"]
+    assert before.shape == (4,)
+    # nearest snapshot weight: [0.8, 0.2] (action 2) for [1, 0] and [0.6, 0.4]; [0.3, 0.7] (action 0) for the others
+    assert after.tolist() == [2, 0, 2, 0]

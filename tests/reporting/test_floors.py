@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -135,12 +137,39 @@ def test_readme_table_from_the_floors_file():
     assert "| MO-LunarLander | 100 | " in shipped and "(noop)" in shipped
 
 
-def test_readme_floors_table_is_the_shipped_file():
+def test_docs_floors_table_is_generated_from_the_shipped_file():
+    import sys
     from pathlib import Path
 
     from morl_trl.reporting.floors import floors_markdown
 
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    start = readme.index("<!-- floors-table")
-    block = readme[readme.index("\n", start) + 1 : readme.index("<!-- /floors-table -->")].strip()
-    assert block == floors_markdown().strip()
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    page = (docs / "concepts" / "nhgr-and-floors.md").read_text()
+    assert "<!-- morl:floors -->" in page  # rendered by docs/hooks/generated.py at build time
+    sys.path.insert(0, str(docs / "hooks"))
+    import generated
+
+    assert generated.render("x\n<!-- morl:floors -->\ny") == "x\n" + floors_markdown() + "\ny"
+
+
+def test_floor_at_weights_uses_shipped_file_only_at_its_weights(tmp_path):
+    from morl_trl.reporting import load_domain_reference
+    from morl_trl.reporting.floors import floor_at_weights
+
+    ref = load_domain_reference("MOLavaGridDR-v0")
+    contexts = list(ref.contexts)[:2]
+    shipped = {"domains": {"MOLavaGridDR-v0": {"weights": 100, "not_computed": [], "policies": {
+        "random": {"nhgr": {c: 0.5 for c in ref.contexts}}, "forward": {"nhgr": {c: 0.25 for c in ref.contexts}}}}}}
+    best, where = floor_at_weights("MOLavaGridDR-v0", 100, contexts, ref, shipped=shipped)
+    assert best.policy == "random" and best.nhgr == {c: 0.5 for c in contexts} and "shipped" in where
+    # at 2 weights the shipped (100-weight) floors do not apply: every trivial policy is evaluated
+    cache = tmp_path / "floors.json"
+    known = {"random": {c: 0.0 for c in contexts}}
+    best, where = floor_at_weights("MOLavaGridDR-v0", 2, contexts, ref, cache=cache, known=known, shipped=shipped)
+    assert "2 weights" in where and cache.is_file()
+    cached = json.loads(cache.read_text())["domains"]["MOLavaGridDR-v0"]
+    assert cached["weights"] == 2 and set(cached["policies"]) == {"random", "left", "right", "forward"}
+    assert cached["policies"]["random"]["nhgr"] == {c: 0.0 for c in contexts}   # the known values, not re-evaluated
+    again, where2 = floor_at_weights("MOLavaGridDR-v0", 2, contexts, ref, cache=cache, shipped=shipped)
+    assert again.nhgr == best.nhgr and "floors.json" in where2
+    assert floor_at_weights("MOLunarLanderContinuousDR-v0", 8, contexts, None)[0] is None

@@ -120,6 +120,11 @@ def _contexts(v):
     return None if ok else "a non-empty list of env ids of the training domain, or null for its evaluation suite"
 
 
+def _modules(v):
+    ok = isinstance(v, tuple) and all(isinstance(x, str) and x for x in v)
+    return None if ok else "a list of importable module names (e.g. ['my_pkg.domains'])"
+
+
 def _device(v):
     import torch
 
@@ -250,5 +255,7 @@ KEYS: dict[str, Key] = {
     'eval_contexts': Key('eval', 'tuple[str, ...] | None', "evaluation env ids (null: the domain's suite)", _contexts),
     'reference_dir': Key('eval', 'str | None', "the published data for NHGR/EUGR and the paper's baselines (null: the bounds and specialist fronts shipped with the package, no baselines)", _str(optional=True)),
     'eval_random_baseline': Key('eval', 'bool', 'also evaluate a uniformly random policy at the end', _bool),
+    'ref_point': Key('eval', 'tuple[float, ...] | None', "hypervolume reference point, one number per objective (null: the domain's; a foreign env without a documented one needs it)", _floats),
+    'domain_modules': Key('env', 'tuple[str, ...]', 'Python modules imported before env_id is looked up (each registers domains, e.g. a module with SPECS; --domain-module)', _modules),
 }
 # fmt: on

@@ -17,12 +17,12 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import KEYS, SHARED_SECTIONS
+from morl_trl.recipes.config.keys import ALGORITHMS, KEYS, NOT_SET, SHARED_SECTIONS
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.train_config import RENAMED, TrainConfig, upgrade_keys, valid_keys
 
 __all__ = ["resolve_config", "load_config_file", "quick_preset", "coerce_values", "flatten_tables",
-           "RESUME_MAY_CHANGE", "resume_config"]
+           "RESUME_MAY_CHANGE", "resume_config", "check_env_fits", "defaults"]
 
 #: table names a config file may group keys under: the sections, the algorithms, and the groups of
 #: earlier versions (``[replay_buffer]``, ``[optim]``, ...)
@@ -97,7 +97,9 @@ def quick_preset(algo: str | None = None) -> dict[str, Any]:
 
 
 def defaults(algo: str, env_id: str) -> dict[str, Any]:
-    """``algo``'s values on ``env_id`` before any file or flag (the first lines of the module docstring)."""
+    """``algo``'s values on ``env_id`` before any file or flag (the first lines of the module docstring).
+    A foreign env (no paper record) starts from MORL-Baselines' constructor defaults
+    (:mod:`morl_trl.recipes.foreign_defaults`)."""
     from morl_trl.envs import domain_of
 
     spec = domain_of(env_id)  # raises with close matches on an unknown id
@@ -108,7 +110,23 @@ def defaults(algo: str, env_id: str) -> dict[str, Any]:
     values.update({f.name: f.default for f in dataclasses.fields(algo_spec.config)})
     values.update(algo_spec.shared)
     values.update(algo_spec.domains.get(spec.train_id, {}))
+    if spec.foreign:
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+
+        values.update(_own_keys(FOREIGN_DEFAULTS.get(algo, {}), algo))
     return values
+
+
+def _own_keys(values: dict[str, Any], algo: str) -> dict[str, Any]:
+    """``values`` in ``algo``'s keys: renamed keys mapped; keys it does not have dropped when they
+    hold the value that means "off" (e.g. ``prioritized = false`` for PCN), kept otherwise (an error)."""
+    out: dict[str, Any] = {}
+    for k, v in values.items():
+        if k in RENAMED:
+            out.update(RENAMED[k][1](v, algo))
+        elif k in valid_keys(algo) or KEYS[k].inert is NOT_SET or v != KEYS[k].inert:
+            out[k] = v
+    return out
 
 
 def resolve_config(
@@ -138,13 +156,45 @@ def resolve_config(
     if from_file:
         from_file = upgrade_keys(from_file, algo, f"config file {str(config_file)!r}")
     env_id = from_file.get("env_id", env_id)  # a recipe file may name its domain
+    from morl_trl.envs import domain_of, load_domain_modules
+
+    load_domain_modules(overrides.get("domain_modules") or from_file.get("domain_modules") or ())
     values = defaults(algo, env_id)
     if quick:
         values.update(quick_preset(algo))
     values.update(from_file)
     given = coerce_values({k: v for k, v in overrides.items() if v is not None})
     values.update(upgrade_keys(given, algo, "overrides"))
-    return TrainConfig(**coerce_values(values)).validate()
+    cfg = TrainConfig(**coerce_values(values)).validate()
+    check_env_fits(cfg, domain_of(env_id))
+    return cfg
+
+
+def check_env_fits(cfg: TrainConfig, spec) -> None:
+    """Refuse, with a clear error, a run whose env the algorithm or the evaluation cannot handle:
+    a hypervolume without a reference point, SAC without an original scalar reward, PGMORL on
+    discrete actions (the authors' PGMORL is continuous-only)."""
+    k = spec.num_objectives
+    ref = cfg.ref_point if cfg.ref_point is not None else spec.hv_ref_point
+    if ref is None:
+        raise ValueError(f"{spec.train_id} has no documented hypervolume reference point: pass one with "
+                         f"--ref-point (config key ref_point), {k} numbers that every return of interest dominates "
+                         f"(objectives {list(spec.objective_names)})")
+    if len(ref) != k:
+        raise ValueError(f"ref_point {list(ref)} has {len(ref)} numbers; {spec.train_id} has {k} objectives "
+                         f"{list(spec.objective_names)}")
+    if spec.foreign and cfg.algo == "sac":
+        raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
+                         f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
+    if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
+        from morl_trl.envs import make_env
+
+        env = make_env(spec.train_id, num_envs=1, seed=0)
+        discrete = env.action_spec.domain == "discrete"
+        env.close()
+        if discrete:
+            raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
+                             f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 
 
 #: the keys a resume may change (``morl-trl train ... --resume``): where and how fast it runs,

@@ -38,6 +38,7 @@ class EnvSection:
     num_envs: int = 16
     history_len: int = 0
     gamma: float | None = None
+    domain_modules: tuple[str, ...] = ()
 
 
 @dataclass
@@ -51,6 +52,7 @@ class EvalSection:
     eval_contexts: tuple[str, ...] | None = None
     reference_dir: str | None = None
     eval_random_baseline: bool = True
+    ref_point: tuple[float, ...] | None = None
 
 
 @dataclass

@@ -1,0 +1,51 @@
+"""A foreign env's run: MORL-Baselines' defaults, refusals with what is valid, IGD and HV ratio in evaluations."""
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("mo_gymnasium")
+
+from morl_trl.envs import domain_of  # noqa: E402
+from morl_trl.evaluation import MultiContextEvaluator  # noqa: E402
+from morl_trl.metrics import hypervolume, igd  # noqa: E402
+from morl_trl.recipes import resolve_config  # noqa: E402
+
+
+def test_foreign_env_gets_morl_baselines_constructor_defaults():
+    cfg = resolve_config("envelope", "deep-sea-treasure-v0")
+    # morl_baselines 1.3.0 Envelope.__init__: batch 256, 4 sampled weights, fixed epsilon 0.01,
+    # hard target copy every 200 steps, no homotopy (initial_homotopy_lambda 0 without decay)
+    assert (cfg.batch_size, cfg.num_sampled_prefs, cfg.eps_start, cfg.eps_end) == (256, 4, 0.01, 0.01)
+    assert (cfg.target_update_period, cfg.tau, cfg.homotopy_lambda0, cfg.gamma) == (200, None, 0.0, 0.99)
+    assert (cfg.num_envs, cfg.frames_per_batch, cfg.updates_per_batch, cfg.history_len) == (1, 1, 0, 0)
+    gpi = resolve_config("gpi_ls", "deep-sea-treasure-v0")
+    assert (gpi.batch_size, gpi.gpi_gradient_updates, gpi.gpi_iteration_frames, gpi.target_update_period) == \
+        (128, 20, 10_000, 1000)
+    # a paper domain keeps the paper's values
+    assert resolve_config("envelope", "MOLavaGridDR-v0").num_sampled_prefs == 4
+    assert resolve_config("envelope", "MOLunarLanderDR-v0").num_sampled_prefs == 8
+
+
+def test_methods_that_cannot_run_an_env_refuse_before_anything_is_built():
+    with pytest.raises(ValueError, match="pgmorl needs continuous actions .*continuous-only"):
+        resolve_config("pgmorl", "deep-sea-treasure-v0")
+    with pytest.raises(ValueError, match="sac trains on the env's original scalar reward"):
+        resolve_config("sac", "deep-sea-treasure-v0")
+    # resource-gathering-v0 has no documented reference point: the error says how to give one
+    with pytest.raises(ValueError, match="no documented hypervolume reference point: pass one with --ref-point"):
+        resolve_config("envelope", "resource-gathering-v0")
+    assert resolve_config("envelope", "resource-gathering-v0", ref_point=[-1, -1, -1]).ref_point == (-1.0, -1.0, -1.0)
+    with pytest.raises(ValueError, match=r"ref_point \[0.0\] has 1 numbers; deep-sea-treasure-v0 has 2 objectives"):
+        resolve_config("envelope", "deep-sea-treasure-v0", ref_point=[0.0])
+
+
+def test_evaluation_on_a_foreign_env_reports_igd_and_the_hypervolume_ratio():
+    down = lambda td: td.set("action", torch.ones(td.batch_size, dtype=torch.long))  # noqa: E731  first treasure
+    ev = MultiContextEvaluator(down, "deep-sea-treasure-v0", weights=2, gamma=0.99, seed=0)
+    m = ev.evaluate().per_context["deep-sea-treasure-v0"].metrics
+    true = domain_of("deep-sea-treasure-v0").true_front(0.99)
+    assert m["hypervolume"] == pytest.approx(0.7 * 24)  # (0.7, -1) against the reference point (0, -25)
+    assert m["igd"] == pytest.approx(igd(np.array([[0.7, -1.0]]), true), rel=1e-6)
+    assert m["hv_ratio"] == pytest.approx(0.7 * 24 / hypervolume(true, [0.0, -25.0]), rel=1e-6)
+    assert 0 < m["hv_ratio"] < 0.1
