@@ -214,11 +214,12 @@ def test_continuous_pcn_noise_is_drawn_per_action_dimension(single_thread):
 
 def test_pcn_network_is_the_authors_net_arch():
     cfg, _, agent = _pcn(hidden=(256, 256, 256, 256))
-    assert cfg.pcn_hidden is None
+    assert "pcn_hidden" not in cfg.keys()  # PCN's widths are hidden (pcn_hidden: a renamed key)
     net = agent.loss.policy_network.module
     assert (net.s_emb[0].out_features, net.c_emb[0].out_features) == (256, 256)
     assert [m.out_features for m in net.fc if isinstance(m, torch.nn.Linear)] == [256, 256, 256, 3]
-    _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)  # MORL-Baselines' hidden_dim: one hidden layer
+    with pytest.warns(DeprecationWarning, match="pcn_hidden"):  # MORL-Baselines' hidden_dim: one hidden layer
+        _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)
     assert [m.out_features for m in old.loss.policy_network.module.fc if isinstance(m, torch.nn.Linear)] == [64, 3]
 
 
