@@ -166,7 +166,7 @@ KEYS: dict[str, Key] = {
     'frames_per_batch': Key('collector', 'int', 'frames per collector batch (all sub-envs)', _int(1), inert=64),
     'init_random_frames': Key('collector', 'int', "uniformly random actions before learning starts (MORL-Baselines' learning_starts)", _int(0), inert=0),
     'buffer_size': Key('replay_buffer', 'int', 'transitions kept', _int(1), inert=1_000_000),
-    'batch_size': Key('replay_buffer', 'int', 'transitions per update', _int(1)),
+    'batch_size': Key('replay_buffer', 'int', 'transitions per update', _int(1), inert=128),  # (the unused buffer of PGMORL)
     'prioritized': Key('replay_buffer', 'bool', "prioritized replay (keyed by the loss's td_error)", _bool, inert=False),
     'per_alpha': Key('replay_buffer', 'float', 'priority exponent', _float(0.0, 1.0), inert=0.6),
     'per_beta': Key('replay_buffer', 'float', 'importance-sampling exponent', _float(0.0, 1.0), inert=0.4),
