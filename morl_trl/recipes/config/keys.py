@@ -39,7 +39,7 @@ class Key:
     algorithm has no such key (e.g. ``prioritized`` for PCN is ``False``).
     """
 
-    section: str
+    section: str  # its group in error messages and in an algorithm's table (the names of earlier versions)
     type: str
     help: str
     check: Callable[[Any], str | None] | None = None
@@ -155,14 +155,14 @@ KEYS: dict[str, Key] = {
     'run_dir': Key('run', 'str | None', 'where the run is written (null: runs/<algo>_<env>_s<seed>_<time>)', _str(optional=True)),
     'checkpoint_interval': Key('run', 'int', 'frames between checkpoints', _int(1)),
     'keep_checkpoints': Key('run', 'int', 'checkpoints kept (the newest holds the replay buffer, the older ones only the state)', _int(1)),
-    'logger': Key('logging', 'str', 'TorchRL logger', _choice(LOGGERS)),
-    'progress': Key('logging', 'bool', 'show a progress bar', _bool),
+    'logger': Key('run', 'str', 'TorchRL logger', _choice(LOGGERS)),
+    'progress': Key('run', 'bool', 'show a progress bar', _bool),
     'num_envs': Key('env', 'int', 'sub-environments stepped together', _int(1, 1 << 20)),
     'history_len': Key('env', 'int', 'StateActionHistory length (the paper: 2 for LunarLander and MuJoCo)', _int(0, 64)),
     'gamma': Key('env', 'float | None', "discount (null: the domain's evaluation discount)", _float(0.0, 1.0, optional=True)),
-    'preference_distribution': Key('preferences', 'str', "training preferences: 'dirichlet' (uniform on the simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or 'cone' (22.5 degrees around the equal-weight direction; the authors' CAPQL)", _choice(("dirichlet", "gaussian", "cone")), inert="dirichlet"),
-    'preference_resample': Key('preferences', 'str', "a new training preference per 'episode' or per 'step' (the authors' CAPQL: step)", _choice(("episode", "step")), inert="episode"),
-    'frames': Key('run', 'int', 'environment frames to train for', _int(1)),
+    'preference_distribution': Key('env', 'str', "training preferences: 'dirichlet' (uniform on the simplex), 'gaussian' (|N(0,I)| normalised; the authors' Envelope) or 'cone' (22.5 degrees around the equal-weight direction; the authors' CAPQL)", _choice(("dirichlet", "gaussian", "cone")), inert="dirichlet"),
+    'preference_resample': Key('env', 'str', "a new training preference per 'episode' or per 'step' (the authors' CAPQL: step)", _choice(("episode", "step")), inert="episode"),
+    'frames': Key('collector', 'int', 'environment frames to train for', _int(1)),
     'frames_per_batch': Key('collector', 'int', 'frames per collector batch (all sub-envs)', _int(1), inert=64),
     'init_random_frames': Key('collector', 'int', "uniformly random actions before learning starts (MORL-Baselines' learning_starts)", _int(0), inert=0),
     'buffer_size': Key('replay_buffer', 'int', 'transitions kept', _int(1), inert=1_000_000),
@@ -179,11 +179,11 @@ KEYS: dict[str, Key] = {
     'target_update_period': Key('optim', 'int', 'updates between hard target copies (when tau is null)', _int(1)),
     'tau': Key('optim', 'float | None', 'Polyak coefficient of the targets (null: hard copies)', _float(0.0, 1.0, optional=True, open_low=True), inert=None),
     'max_grad_norm': Key('optim', 'float | None', "clip each optimizer's gradient norm to this (null: no clipping; the authors' Envelope: 1.0)", _float(0.0, 1e12, optional=True, open_low=True), inert=None),
-    'fused_optimizer': Key('compute', 'bool', "fused Adam (one kernel for all parameters, ~4x faster per step on a CPU core; the same arithmetic up to float rounding, which a seed's trajectory amplifies); false: torch's default per-tensor Adam, as the authors", _bool),
-    'compile': Key('compute', 'bool', 'torch.compile the update step (loss, backward, optimizer, Polyak target); the non-finite guard then stays on the device', _bool),
-    'compile_mode': Key('compute', 'str | None', "torch.compile mode (null: the default; 'reduce-overhead', 'max-autotune', ...)", _str(optional=True)),
-    'cudagraphs': Key('compute', 'bool', 'replay the update step as a CUDA graph (tensordict.nn.CudaGraphModule; device cuda only)', _bool),
-    'finite_check_interval': Key('compute', 'int', "captured update and accelerators: updates between host reads of the device's count of skipped non-finite updates (the eager CPU update checks every one before applying it)", _int(1)),
+    'fused_optimizer': Key('optim', 'bool', "fused Adam (one kernel for all parameters, ~4x faster per step on a CPU core; the same arithmetic up to float rounding, which a seed's trajectory amplifies); false: torch's default per-tensor Adam, as the authors", _bool),
+    'compile': Key('compile', 'bool', 'torch.compile the update step (loss, backward, optimizer, Polyak target); the non-finite guard then stays on the device', _bool),
+    'compile_mode': Key('compile', 'str | None', "torch.compile mode (null: the default; 'reduce-overhead', 'max-autotune', ...)", _str(optional=True)),
+    'cudagraphs': Key('compile', 'bool', 'replay the update step as a CUDA graph (tensordict.nn.CudaGraphModule; device cuda only)', _bool),
+    'finite_check_interval': Key('compile', 'int', "captured update and accelerators: updates between host reads of the device's count of skipped non-finite updates (the eager CPU update checks every one before applying it)", _int(1)),
     'hidden': Key('network', 'tuple[int, ...]', 'hidden layer widths of every MLP (PCN: the embedding width, then its hidden layers; Mario: after the CNN)', _hidden),
     'eps_start': Key('exploration', 'float', 'initial epsilon', _float(0.0, 1.0)),
     'eps_end': Key('exploration', 'float', 'final epsilon', _float(0.0, 1.0)),

@@ -100,7 +100,7 @@ class TrainConfig:
         >>> TrainConfig(frames=-100).validate()
         Traceback (most recent call last):
         ...
-        ValueError: config key 'frames' (run) is -100; valid: an int in [1, inf]
+        ValueError: config key 'frames' (collector) is -100; valid: an int in [1, inf]
     """
 
     def __init__(self, **values: Any) -> None:
@@ -170,7 +170,7 @@ class TrainConfig:
             if problem is not None:
                 raise ValueError(f"config key {k!r} ({KEYS[k].section}) is {value!r}; valid: {problem}")
         if self.cudagraphs and not str(self.device).startswith("cuda"):
-            raise ValueError(f"config key 'cudagraphs' (compute) is true but device is {self.device!r}; "
+            raise ValueError(f"config key 'cudagraphs' (compile) is true but device is {self.device!r}; "
                              "valid: cudagraphs=true with a cuda device (compile=true works on any device)")
         return self
 
