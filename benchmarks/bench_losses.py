@@ -74,6 +74,7 @@ LR = 3e-4
 GAMMA = 0.99
 ENVELOPE = dict(obs=26, actions=4, k=4, batch=128, n_w=8, lam=0.95, per_alpha=0.6, target_every=1000)
 CAPQL = dict(obs=39, act=3, k=3, batch=256, alpha=0.2, tau=0.005)
+GPI = dict(obs=26, actions=4, k=4, batch=128, per_alpha=0.6)
 
 
 def random_transitions(n, obs, k, *, num_actions=None, act_dim=None, seed=0):
@@ -119,8 +120,9 @@ def _agent_step(loss, optimizers, updater, rb, device, *, max_grad_norm=None, pr
     from morl_trl.recipes.agent import Agent
 
     cfg = SimpleNamespace(max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
-                          compile=capture in ("compile", "both"), compile_mode=None,
-                          cudagraphs=capture in ("cudagraphs", "both"))
+                          compile=capture in ("compile", "both", "whole+compile"), compile_mode=None,
+                          cudagraphs=capture in ("cudagraphs", "both", "whole", "whole+compile"),
+                          capture_sampling=capture in ("whole", "whole+compile"))
     agent = Agent(cfg, loss, None, None, optimizers, updater, device=device)
 
     def step():
@@ -140,7 +142,9 @@ def ours_envelope(tr, buffer_size, device=torch.device("cpu"), capture=None):
     loss.make_value_estimator(gamma=GAMMA)
     updater = HardUpdate(loss, value_network_update_interval=c["target_every"])
     optim = adam(loss.parameters(), LR)
-    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4, device=device)
+    # the whole-update graph needs the pure-torch trees (TorchRL's native ones read the host)
+    sampler = prioritized_sampler(buffer_size, alpha=c["per_alpha"], beta=0.4, device=device,
+                                  backend="torch" if capture and capture.startswith("whole") else "auto")
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), sampler=sampler,
                                 batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
@@ -166,7 +170,75 @@ def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
     return _agent_step(loss, optimizers, updater, rb, device, capture=capture)
 
 
+def ours_gpi(tr, support, buffer_size, gpi_pd):
+    """``GPIAgent.update`` (discrete) at the MO-LunarLander settings: ``GPILoss`` on the authors'
+    Q-network (ensemble of 2, dropout 0.01, LayerNorm), fused Adam, prioritized replay (alpha 0.6,
+    min priority 0.01) with priority updates; ``gpi_pd``: GPI priorities over the support."""
+    from morl_trl.objectives import GPILoss, GPIQNetwork
+
+    g = GPI
+    loss = GPILoss(GPIQNetwork(g["obs"], g["actions"], g["k"], hidden=tuple(NET), num_nets=2, dropout=0.01,
+                               layer_norm=True), gpi_pd=gpi_pd, min_priority=0.01)
+    loss.make_value_estimator(gamma=GAMMA)
+    loss.set_weights(torch.as_tensor(support[0]), torch.as_tensor(support))
+    opt = adam(loss.value_network_params.values(True, True), LR)
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size),
+                                sampler=prioritized_sampler(buffer_size, alpha=g["per_alpha"], beta=0.4),
+                                batch_size=g["batch"], priority_key="td_error")
+    rb.extend(as_tensordict(tr).exclude("preference"))
+
+    def step():
+        batch = rb.sample()
+        out = loss(batch)
+        total = out["loss_qvalue"]
+        if not torch.isfinite(total):
+            raise RuntimeError("non-finite loss")
+        opt.zero_grad(set_to_none=True)
+        total.backward()
+        opt.step()
+        rb.update_tensordict_priority(batch)
+
+    return step
+
+
+def gpi_support(seed=0):
+    """The 4 extreme weights and 2 random ones (a weight support of 6, as mid-run)."""
+    rng = np.random.default_rng(seed)
+    k = GPI["k"]
+    return np.concatenate([np.eye(k), rng.dirichlet(np.ones(k), 2)]).astype(np.float32)
+
+
 # ------------------------------------------------------------------- MORL-Baselines itself
+def mb_gpi(tr, support, buffer_size, gpi_pd, device="cpu"):
+    """MORL-Baselines' ``GPIPD.update(w)`` (``gpi_pd=False``: GPI-LS; ``dyna=False``) on a filled
+    buffer. Its module-level imports for the linear support and plots (``cdd``, ``cvxpy``,
+    ``seaborn``) are stubbed: ``update`` uses none of them."""
+    import types
+
+    for name in ("cdd", "cvxpy", "seaborn"):
+        stub = types.ModuleType(name)
+        stub.SolverError = RuntimeError
+        sys.modules.setdefault(name, stub)
+    import gymnasium as gym
+    from morl_baselines.multi_policy.gpi_pd.gpi_pd import GPIPD
+
+    g = GPI
+    agent = GPIPD(_spaces_env(g["obs"], gym.spaces.Discrete(g["actions"]), g["k"]), learning_rate=LR, gamma=GAMMA,
+                  batch_size=g["batch"], net_arch=NET, num_nets=2, buffer_size=buffer_size, per=True, gpi_pd=gpi_pd,
+                  dyna=False, learning_starts=0, target_net_update_freq=1000, log=False, seed=0, device=device)
+    for i in range(len(tr["obs"])):
+        agent.replay_buffer.add(tr["obs"][i], tr["action"][i], tr["reward"][i], tr["next_obs"][i], tr["done"][i])
+    agent.set_weight_support(list(support))
+    w = torch.as_tensor(support[0])
+    agent.global_step = 1  # below dynamics_rollout_starts: one gradient update per call
+
+    def step():
+        agent.update(w)
+
+    return step
+
+
+
 def _spaces_env(obs, action_space, k):
     import gymnasium as gym
 
@@ -370,6 +442,67 @@ def rec_capql(tr, buffer_size):
     return step
 
 
+# ------------------------------------------------------------------------- know the limit
+def matmuls_of(step):
+    """The matrix products one call of ``step`` runs (forward and backward of every network it
+    touches): ``[(op, shapes)]``, recorded at the dispatcher (``torch.utils._python_dispatch``)."""
+    from torch.utils._python_dispatch import TorchDispatchMode
+
+    aten = torch.ops.aten
+    kinds = {aten.mm.default: "mm", aten.addmm.default: "addmm", aten.bmm.default: "bmm",
+             aten.baddbmm.default: "baddbmm"}
+
+    class Recorder(TorchDispatchMode):
+        calls: list = []
+
+        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+            if func in kinds:
+                a, b = (args[1], args[2]) if kinds[func] in ("addmm", "baddbmm") else (args[0], args[1])
+                self.calls.append((kinds[func], tuple(a.shape), tuple(b.shape), a.dtype))
+            return func(*args, **(kwargs or {}))
+
+    rec = Recorder()
+    rec.calls = []
+    with rec:
+        step()
+    return rec.calls
+
+
+def matmul_flops(calls) -> float:
+    """``2 m k n`` per product (``2 b m k n`` batched): the floating-point work of the matmuls."""
+    total = 0.0
+    for _, a, b, _ in calls:
+        batch = a[0] if len(a) == 3 else 1
+        m, k = a[-2], a[-1]
+        total += 2.0 * batch * m * k * b[-1]
+    return total
+
+
+def matmul_rate(calls, device, seconds=0.5) -> float:
+    """GFLOP/s of this machine's torch running exactly these products back to back (same shapes,
+    same threads, contiguous operands): the dense-matmul limit for this update's shapes."""
+    ops = []
+    for kind, a, b, dtype in calls:
+        x, y = torch.randn(a, device=device, dtype=dtype), torch.randn(b, device=device, dtype=dtype)
+        ops.append((torch.bmm if len(a) == 3 else torch.mm, x, y))
+    flops = matmul_flops(calls)
+    for f, x, y in ops:  # warm-up
+        f(x, y)
+    n, t = 0, CLOCK()
+    while True:
+        for f, x, y in ops:
+            f(x, y)
+        n += 1
+        if SYNC:
+            SYNC()
+        if CLOCK() - t >= seconds:
+            break
+    return n * flops / (CLOCK() - t) / 1e9
+
+
+LIMITS = []  # rows of the "know the limit" table: (name, GFLOP per update, updates/s, matmul GFLOP/s)
+
+
 # ------------------------------------------------------------------------------- harness
 CLOCK = time.perf_counter
 SYNC = None  # torch.cuda.synchronize on a CUDA device: the rate covers the work, not its launch
@@ -386,12 +519,33 @@ def rate(step, n):
     return n / (CLOCK() - t)
 
 
-def compare(name, variants, peer, *, warmup, updates, rounds):
-    """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios."""
-    for _ in range(warmup):
-        for step in variants.values():
-            step()
-        if peer is not None:
+CAPTURE_MODES = ("compile", "cudagraphs", "both", "whole", "whole+compile")
+FLOPS = True  # --no-flops: skip the "know the limit" table
+TABLE = None  # --table FILE: each row appended, tab-separated (benchmarks/gpu/check.sh collects them)
+
+
+def _table(*fields) -> None:
+    if TABLE:
+        with open(TABLE, "a") as f:
+            f.write("\t".join(str(x) for x in fields) + "\n")
+
+
+def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu"):
+    """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios.
+
+    A variant that fails (e.g. a capture mode on a new device) is reported and skipped."""
+    failed = {}
+    for label, step in list(variants.items()):
+        try:
+            for _ in range(warmup):
+                step()
+        except Exception as err:
+            failed[label] = f"{type(err).__name__}: {str(err).splitlines()[0][:300] if str(err) else ''}"
+            del variants[label]
+            print(f"{name:<10} {label:<11} failed: {failed[label]}", flush=True)
+            _table("losses", name, device, label, "updates/s", "FAILED", "", "", failed[label])
+    if peer is not None:
+        for _ in range(warmup):
             peer()
     rates = {label: [] for label in variants}
     r_peer = []
@@ -401,20 +555,33 @@ def compare(name, variants, peer, *, warmup, updates, rounds):
         if peer is not None:
             r_peer.append(rate(peer, updates))
     b = statistics.median(r_peer) if peer is not None else float("nan")
-    eager = statistics.median(rates["eager"])
+    eager = statistics.median(rates["eager"]) if "eager" in rates else float("nan")
     for label in variants:
         a = statistics.median(rates[label])
         vs_peer = f"{b:>10.1f} {a / b:>8.2f}x" if peer is not None else f"{'-':>10} {'-':>9}"
-        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x")
+        print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x", flush=True)
+        _table("losses", name, device, label, "updates/s", f"{a:.1f}", f"{b:.1f}" if peer is not None else "",
+               f"{a / b:.2f}x" if peer is not None else "", f"{a / eager:.2f}x vs eager")
+    if FLOPS and "eager" in variants:
+        calls = matmuls_of(variants["eager"])
+        peer_gf = matmul_flops(matmuls_of(peer)) / 1e9 if peer is not None else float("nan")
+        LIMITS.append((name, matmul_flops(calls) / 1e9, eager, matmul_rate(calls, device), len(calls), peer_gf, b))
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a short sanity run (1 round of 8 updates)")
+    p.add_argument("--tiny", action="store_true",
+                   help="a seconds-long dry run (small buffer, 2 updates): every row runs, nothing is measured")
+    p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
+    p.add_argument("--no-flops", action="store_true", help="skip the FLOP count / dense-matmul limit table")
+    p.add_argument("--methods", nargs="+", default=["envelope", "capql", "gpi_ls", "gpi_pd"],
+                   choices=["envelope", "capql", "gpi_ls", "gpi_pd"], help="which updates to time")
     p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation", "none"], default="auto")
     p.add_argument("--device", default="cpu", help="cpu or cuda: where ours (and MORL-Baselines) run")
-    p.add_argument("--capture", nargs="*", default=None, choices=["compile", "cudagraphs", "both"],
-                   help="captured variants timed beside the eager update (default: all three on cuda, none on cpu)")
+    p.add_argument("--capture", nargs="*", default=None, choices=list(CAPTURE_MODES),
+                   help="captured variants timed beside the eager update (default: all on cuda, none on cpu); "
+                        "whole: sampling + update + priority writes as one CUDA graph (Envelope only)")
     p.add_argument("--updates", type=int, default=40, help="updates per round")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -425,7 +592,9 @@ def main(argv=None) -> int:
         help="wall time (default), or this process's CPU time: steadier on a shared machine, with --threads 1",
     )
     args = p.parse_args(argv)
-    global CLOCK, SYNC
+    global CLOCK, SYNC, TABLE, FLOPS
+    TABLE = args.table
+    FLOPS = not (args.no_flops or args.tiny)
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
     device = torch.device(args.device)
     if device.type == "cuda":
@@ -434,11 +603,10 @@ def main(argv=None) -> int:
         SYNC = torch.cuda.synchronize
     if args.threads:
         torch.set_num_threads(args.threads)
-    capture = args.capture if args.capture is not None else (["compile", "cudagraphs", "both"]
-                                                             if device.type == "cuda" else [])
-    warmup, updates, rounds = (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
+    capture = args.capture if args.capture is not None else (list(CAPTURE_MODES) if device.type == "cuda" else [])
+    warmup, updates, rounds = (1, 2, 1) if args.tiny else (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
     warmup = max(warmup, 8) if capture else warmup  # compile and graph capture happen in the warm-up
-    buffer_size, filled = (4_096, 4_096) if args.quick else (100_000, 20_000)
+    buffer_size, filled = (1_024, 1_024) if args.tiny else (4_096, 4_096) if args.quick else (100_000, 20_000)
 
     peer = args.peer
     if peer in ("auto", "morl-baselines"):
@@ -464,22 +632,43 @@ def main(argv=None) -> int:
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock, device {device}; "
           f"peer: {peer_label}")
     print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
+    methods = args.methods if device.type == "cpu" else [m for m in args.methods if not m.startswith("gpi")]
     env_tr = random_transitions(filled, ENVELOPE["obs"], ENVELOPE["k"], num_actions=ENVELOPE["actions"])
     cap_tr = random_transitions(filled, CAPQL["obs"], CAPQL["k"], act_dim=CAPQL["act"], seed=1)
-    ours_env = {"eager": ours_envelope(env_tr, buffer_size, device)[0]}
-    ours_cap = {"eager": ours_capql(cap_tr, buffer_size, device)}
+    ours_env = {"eager": ours_envelope(env_tr, buffer_size, device)[0]} if "envelope" in methods else {}
+    ours_cap = {"eager": ours_capql(cap_tr, buffer_size, device)} if "capql" in methods else {}
     for mode in capture:
-        ours_env[mode] = ours_envelope(env_tr, buffer_size, device, capture=mode)[0]
-        ours_cap[mode] = ours_capql(cap_tr, buffer_size, device, capture=mode)
+        if "envelope" in methods:
+            ours_env[mode] = ours_envelope(env_tr, buffer_size, device, capture=mode)[0]
+        if "capql" in methods and not mode.startswith("whole"):  # CAPQL's uniform replay: nothing more to capture
+            ours_cap[mode] = ours_capql(cap_tr, buffer_size, device, capture=mode)
     peers = {"morl-baselines": (mb_envelope, mb_capql), "recreation": (rec_envelope, rec_capql)}.get(peer)
-    peer_env = peers[0](env_tr, buffer_size, **({"device": str(device)} if peer == "morl-baselines" else {})) \
-        if peers else None
-    peer_cap = peers[1](cap_tr, buffer_size, **({"device": str(device)} if peer == "morl-baselines" else {})) \
-        if peers else None
+    kw = {"device": str(device)} if peer == "morl-baselines" else {}
+    peer_env = peers[0](env_tr, buffer_size, **kw) if peers and "envelope" in methods else None
+    peer_cap = peers[1](cap_tr, buffer_size, **kw) if peers and "capql" in methods else None
     print("(ours: Agent.update as the recipe runs it: fused Adam, our prioritized sampler for Envelope)")
     print(f"{'loss':<10} {'update':<11} {'ours/s':>10} {'peer/s':>10} {'ratio':>9} {'vs eager':>10}")
-    compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds)
-    compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds)
+    if "envelope" in methods:
+        compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds, device=device)
+    if "capql" in methods:
+        compare("CAPQL", ours_cap, peer_cap, warmup=warmup, updates=updates, rounds=rounds, device=device)
+    support = gpi_support()
+    for name, pd in (("GPI-LS", False), ("GPI-PD", True)):
+        if name.lower().replace("-", "_") not in methods:
+            continue
+        peer_gpi = mb_gpi(env_tr, support, buffer_size, pd) if peer == "morl-baselines" else None
+        compare(name, {"eager": ours_gpi(env_tr, support, buffer_size, pd)}, peer_gpi, warmup=warmup, updates=updates,
+                rounds=rounds, device=device)
+    if LIMITS:
+        print("\nknow the limit (ours, eager): matmul FLOPs of one update (forward + backward of every network it "
+              "touches, counted at the dispatcher) x updates/s, beside torch running the same products back to back")
+        print(f"{'loss':<10} {'GFLOP/update':>13} {'matmuls':>8} {'updates/s':>10} {'GFLOP/s':>9} "
+              f"{'matmul GFLOP/s':>15} {'of limit':>9} | {'peer GFLOP/upd':>14} {'peer GFLOP/s':>13} {'of limit':>9}")
+        for name, gf, ups, peak, n, pgf, pups in LIMITS:
+            print(f"{name:<10} {gf:>13.3f} {n:>8d} {ups:>10.1f} {gf * ups:>9.1f} {peak:>15.1f} {gf * ups / peak:>8.0%} | "
+                  f"{pgf:>14.3f} {pgf * pups:>13.1f} {pgf * pups / peak:>8.0%}")
+            _table("limit", name, device, "eager", "GFLOP/s", f"{gf * ups:.1f}", f"{peak:.1f}", f"{gf * ups / peak:.0%}",
+                   f"{gf:.3f} GFLOP/update, {n} matmuls; peer column: dense matmul, same shapes")
     return 0
 
 

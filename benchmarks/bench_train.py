@@ -23,6 +23,11 @@ for the scratch venv); without it the table says so.
     python benchmarks/bench_train.py --quick --clock cpu   # on a shared machine: process CPU time
     python benchmarks/bench_train.py --device cuda         # + compile=true cudagraphs=true rows
     python benchmarks/bench_train.py --pairs capql:MOHopperDR-v5 --frames 2048
+    python benchmarks/bench_train.py --tiny --peer none    # a seconds-long dry run (benchmarks/gpu/check.sh)
+
+``--tiny`` shrinks the run (16 timed frames, 8 frames per batch, learning from the first batch) to
+check that every row runs, not to measure. ``--table FILE`` appends each row, tab-separated, to
+``FILE`` as it is measured (what ``benchmarks/gpu/check.sh`` collects into its table).
 """
 
 from __future__ import annotations
@@ -41,12 +46,15 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from morl_trl.envs import domain_of  # noqa: E402
 from morl_trl.recipes import build_agent, build_training_env, resolve_config  # noqa: E402
-from morl_trl.recipes.off_policy import _gamma, make_collector, make_replay_buffer  # noqa: E402
+from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount  # noqa: E402
 
 warnings.filterwarnings("ignore")
 
 PAIRS = ("envelope:MOLunarLanderDR-v0", "envelope:MOLavaGridDR-v0", "capql:MOHopperDR-v5")
 PEER_ENVS = {"MOLunarLanderDR-v0": "mo-lunar-lander-v3", "MOHopperDR-v5": "mo-hopper-v5"}
+
+
+TINY = dict(frames_per_batch=8, init_random_frames=8, buffer_size=1_024)
 
 
 def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
@@ -56,7 +64,7 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
     dev = torch.device(device)
     torch.manual_seed(cfg.seed)
     env = build_training_env(cfg, dev)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=dev)
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
     warm = cfg.init_random_frames + cfg.frames_per_batch
     cfg.frames = warm + frames + cfg.frames_per_batch
@@ -80,7 +88,11 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
         torch.cuda.synchronize()
     wall = CLOCK() - t0
     collector.shutdown()
-    return {"fps": timed / wall, "ups": updates / wall, "train_frames": spec.train_frames}
+    captured = getattr(agent, "_captured", None)
+    path = ("whole update in one graph" if getattr(captured, "_whole", None) is not None
+            else "captured step" if captured is not None else "eager")
+    return {"fps": timed / wall, "ups": updates / wall, "train_frames": spec.train_frames,
+            "path": f"{path}; {type(getattr(buffer, '_sampler', None)).__name__}"}
 
 
 def peer(algo: str, env_id: str, device: str, frames: int) -> dict | None:
@@ -127,6 +139,13 @@ def peer(algo: str, env_id: str, device: str, frames: int) -> dict | None:
     return {"fps": frames / wall, "env": gym_id}
 
 
+def _table(path, stage, name, device, variant, unit, value, peer, ratio, note) -> None:
+    """Appends one tab-separated row to ``path`` (``None``: nothing)."""
+    if path:
+        with open(path, "a") as f:
+            f.write("\t".join(str(x) for x in (stage, name, device, variant, unit, value, peer, ratio, note)) + "\n")
+
+
 def _hours(train_frames: int, fps: float) -> str:
     h = train_frames / fps / 3600
     return f"{h:,.1f} h" if h >= 1 else f"{h * 60:,.0f} min"
@@ -141,13 +160,20 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (the recipe's default: 1)")
     p.add_argument("--peer", choices=["auto", "none"], default="auto")
     p.add_argument("--no-capture", action="store_true", help="on cuda, skip the compile/cudagraphs rows")
+    p.add_argument("--capture", nargs="*", default=None,
+                   choices=["compile", "cudagraphs", "both", "whole", "whole+compile"],
+                   help="captured rows on cuda beside the eager one (default: all); whole: sampling and "
+                        "priority writes in the CUDA graph too (capture_sampling, Envelope)")
+    p.add_argument("--tiny", action="store_true", help="a seconds-long dry run: every row runs, nothing is measured")
+    p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
                    help="wall time (default), or this process's CPU time: steadier on a shared CPU machine "
                         "(with --threads 1); meaningless on cuda, where the device works while the host waits")
     args = p.parse_args(argv)
     global CLOCK
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
-    frames = 128 if args.quick else args.frames
+    frames = 16 if args.tiny else 128 if args.quick else args.frames
+    tiny = TINY if args.tiny else {}
     torch.set_num_threads(args.threads)
     devices = ["cpu", "cuda"] if args.device == "all" else [args.device]
     devices = [d for d in devices if d != "cuda" or torch.cuda.is_available()]
@@ -174,17 +200,24 @@ def main(argv=None) -> int:
         algo, env_id = pair.split(":")
         for device in devices:
             variants = [("eager", {})]
+            modes = {"compile": {"compile": True}, "cudagraphs": {"cudagraphs": True},
+                     "both": {"compile": True, "cudagraphs": True},
+                     "whole": {"cudagraphs": True, "capture_sampling": True},
+                     "whole+compile": {"compile": True, "cudagraphs": True, "capture_sampling": True}}
             if device == "cuda" and not args.no_capture:
-                variants += [("compile", {"compile": True}), ("cudagraphs", {"cudagraphs": True}),
-                             ("both", {"compile": True, "cudagraphs": True})]
+                chosen = args.capture if args.capture is not None else list(modes)
+                # whole: prioritized replay's sampling in the graph (Envelope); elsewhere it is cudagraphs/both
+                variants += [(m, modes[m]) for m in chosen if not m.startswith("whole") or algo == "envelope"]
             peer_row = None
             if have_peer and (device == "cpu" or torch.cuda.is_available()):
                 peer_row = peer(algo, env_id, device, frames)
             for label, overrides in variants:
                 try:
-                    r = ours(algo, env_id, device, frames, **overrides)
+                    r = ours(algo, env_id, device, frames, **tiny, **overrides)
                 except Exception as err:  # a capture mode that fails here is reported, not fatal
-                    print(f"{algo:<9} {env_id:<20} {device:<6} {label:<10} failed: {type(err).__name__}: {err}")
+                    msg = f"{type(err).__name__}: {str(err).splitlines()[0][:300] if str(err) else ''}"
+                    print(f"{algo:<9} {env_id:<20} {device:<6} {label:<10} failed: {msg}", flush=True)
+                    _table(args.table, "train", f"{algo}/{env_id}", device, label, "frames/s", "FAILED", "", "", msg)
                     continue
                 line = (f"{algo:<9} {env_id:<20} {device:<6} {label:<10} {r['fps']:>9.1f} {r['ups']:>10.1f} "
                         f"{r['train_frames'] / 1e6:>9.1f}M {_hours(r['train_frames'], r['fps']):>10} | ")
@@ -194,6 +227,9 @@ def main(argv=None) -> int:
                 else:
                     line += "no peer" if have_peer else "-"
                 print(line, flush=True)
+                _table(args.table, "train", f"{algo}/{env_id}", device, label, "frames/s", f"{r['fps']:.1f}",
+                       f"{peer_row['fps']:.1f}" if peer_row else "", f"{r['fps'] / peer_row['fps']:.2f}x" if peer_row else "",
+                       f"{r['ups']:.1f} updates/s; {r['path']}")
     return 0
 
 

@@ -215,11 +215,16 @@ def evaluate_main(argv: list[str]) -> int:
 def envs_main(argv: list[str]) -> int:
     _Parser(prog="morl-trl envs", description="List domains and evaluation suites.").parse_args(argv)
     from morl_trl.envs import list_domains
+    from morl_trl.reporting.reference import PACKAGED_REFERENCE, list_reference_domains
 
+    with_reference = set(list_reference_domains(PACKAGED_REFERENCE))
     for spec in list_domains():
         print(f"{spec.name}  train: {spec.train_id}  objectives: {list(spec.objective_names)}")
         print(f"    context ({spec.context_space.dim}): {', '.join(group_names(spec.context_space.names))}")
         print(f"    evaluation suite: {', '.join(spec.evaluation_ids)}")
+        if spec.train_id not in with_reference:
+            print("    reference data: none (the authors published no bounds or specialist fronts): "
+                  "hypervolume and EUM, no NHGR")
         extra = [i for i in spec.contexts if i not in spec.evaluation_ids]
         if extra:
             print(f"    other fixed contexts: {', '.join(extra)}")
@@ -559,6 +564,26 @@ COMMANDS = {
 }
 
 
+# Errors raised by the Python API name its arguments (``overwrite=True``, ``resume=DIR``, ...);
+# on the command line the same things are flags: the message is reworded, never rewritten.
+_API_TO_FLAG = (
+    (re.compile(r"\boverwrite=True\b"), "--overwrite"),
+    (re.compile(r"\bresume="), "--resume "),
+    (re.compile(r"\brun_dir=(?=\W|$)"), "--run-dir"),
+    (re.compile(r"\brun_dir="), "--run-dir "),
+    (re.compile(r"\bframes=(?=\W|$)"), "--frames"),
+    (re.compile(r"\bframes="), "--frames "),
+    (re.compile(r"\bref_point=\[\.\.\.\]"), "--ref-point"),
+)
+
+
+def cli_wording(message: str) -> str:
+    """``message`` (an API error) with the Python arguments it names spelled as this CLI's flags."""
+    for pattern, flag in _API_TO_FLAG:
+        message = pattern.sub(flag, message)
+    return message
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="morl-trl", description=__doc__.splitlines()[0])
@@ -575,7 +600,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
     except ValueError as err:  # bad input: say what is wrong and what is valid, no traceback
-        print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
+        print(f"morl-trl {argv[0]}: error: {cli_wording(str(err))}", file=sys.stderr)
         return 2
 
 

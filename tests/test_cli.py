@@ -86,12 +86,38 @@ def test_envs_groups_numbered_parameters(capsys):
             "agent_x, agent_y, agent_dir") in out
     assert "context (7): gravity, wind_power, turbulence_power" in out
     assert group_names(["a1", "a2", "b", "c3", "c4", "c5"]) == ["a1", "a2", "b", "c3..c5 (3)"]
+    # the ids without reference data say so where they are listed
+    cont = out[out.index("train: MOLunarLanderContinuousDR-v0"):]
+    cont = cont[: cont.index("\nMO-SuperMarioBros")]
+    assert "reference data: none (the authors published no bounds or specialist fronts)" in cont
+    discrete = out[out.index("train: MOLunarLanderDR-v0"): out.index("train: MOLunarLanderContinuousDR-v0")]
+    assert "reference data: none" not in discrete
 
 
 def test_progress_bar_shows_one_frame_rate():
     import inspect
 
-    from morl_trl.recipes import off_policy
+    from morl_trl.runs.run import Run
 
-    src = inspect.getsource(off_policy.run_training)
+    src = inspect.getsource(Run.batch_done)
     assert "set_postfix(nhgr=" in src and "fps=" not in src.split("set_postfix", 1)[1].split("\n", 1)[0]
+
+
+def test_api_errors_name_python_arguments_and_cli_errors_name_flags(tmp_path, capsys):
+    from morl_trl.cli import cli_wording, main
+    from morl_trl.recipes import resolve_config, train
+
+    run = tmp_path / "taken"
+    run.mkdir()
+    (run / "notes.txt").write_text("not a run")
+    with pytest.raises(ValueError) as api:
+        train(resolve_config("envelope", "MOLavaGridDR-v0", quick=True, run_dir=str(run)))
+    message = str(api.value)
+    assert f"continue it with resume={str(run)!r}, replace it with overwrite=True, or choose another run_dir=" in message
+    assert "--" not in message
+    assert main(["train", "envelope", "MOLavaGridDR-v0", "--quick", "--run-dir", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert f"continue it with --resume {str(run)!r}, replace it with --overwrite, or choose another --run-dir" in err
+    assert "overwrite=True" not in err and "resume=" not in err
+    assert cli_wording("pass one with ref_point=[...] (a config key)") == "pass one with --ref-point (a config key)"
+    assert cli_wording("config key 'frames' (collector) is 'x'") == "config key 'frames' (collector) is 'x'"

@@ -100,7 +100,12 @@ def test_getting_started_runs(outside_repo):
     assert ns["td"]["next", "reward"].shape == (16, 100, 4)
     assert ns["policy"].frames == 2048 and ns["trained"].summary["frames"] == 2048
     assert ns["episodes"]["next", "reward"].shape[:2] == (4, 256)
-    assert (outside_repo / "runs" / "lava-quick" / "log.txt").is_file()
+    run = outside_repo / "runs" / "lava-quick"
+    assert "start: envelope on MOLavaGridDR-v0, seed 0, cpu: frame budget 2,000" in (run / "log.txt").read_text()
+    report = (run / "report.md").read_text()
+    # a quick run evaluates 8 weights: its floor is at 8 weights (the shipped floors are at 100)
+    assert "| floor: forward (8 weights) |" in report and "at this run's 8 evaluation weights" in report
+    assert (run / "report_training.png").is_file() and (run / "train" / "losses.csv").is_file()
     nhgr = ns["result"].metric("nhgr")
     assert len(nhgr) == 8 and all(0.0 <= v <= 1.0 for v in nhgr.values())
 

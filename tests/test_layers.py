@@ -30,8 +30,12 @@ ALLOWED = {
 }
 
 
+#: modules at the package root every layer may use (they import no morl_trl package)
+ROOT_MODULES = {"_torchrl_compat", "_quiet"}
+
+
 def _imports(path: Path) -> set[str]:
-    """The morl_trl sub-packages ``path`` imports."""
+    """The morl_trl sub-packages ``path`` imports (the root modules of ROOT_MODULES left out)."""
     found = set()
     for node in ast.walk(ast.parse(path.read_text())):
         names = []
@@ -41,7 +45,7 @@ def _imports(path: Path) -> set[str]:
             names = [node.module] + [f"{node.module}.{a.name}" for a in node.names if node.module == "morl_trl"]
         for name in names:
             parts = name.split(".")
-            if parts[0] == "morl_trl" and len(parts) > 1:
+            if parts[0] == "morl_trl" and len(parts) > 1 and parts[1] not in ROOT_MODULES:
                 found.add(parts[1])
     return found
 
@@ -68,3 +72,141 @@ def test_no_package_imports_a_higher_layer(package):
         if up:
             bad[str(path.relative_to(PACKAGE.parent))] = sorted(up)
     assert not bad, f"{package} may import only {sorted(ALLOWED[package])}; found {bad}"
+
+
+# ---------------------------------------------------------------------- private names, cycles
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _resolve(node: ast.ImportFrom, here: str, is_package: bool) -> str | None:
+    """The absolute module an ``ImportFrom`` reads from (relative imports resolved)."""
+    if node.level == 0:
+        return node.module
+    base = here.split(".") if is_package else here.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _edges(name: str, path: Path):
+    """``(imported module, imported names)`` of every morl_trl import in a module (any depth)."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("morl_trl"):
+                    yield a.name, []
+        elif isinstance(node, ast.ImportFrom):
+            source = _resolve(node, name, path.name == "__init__.py")
+            if source and source.startswith("morl_trl"):
+                yield source, [a.name for a in node.names]
+
+
+def _is_private(part: str) -> bool:
+    return part.startswith("_") and not part.startswith("__")
+
+
+def _owner(module: str) -> str | None:
+    """The package a private module is private to (what precedes its first ``_name``), or ``None``."""
+    parts = module.split(".")
+    for i, part in enumerate(parts):
+        if _is_private(part):
+            return ".".join(parts[:i])
+    return None
+
+
+def test_no_module_imports_another_modules_private_names():
+    """``from morl_trl.x import _name`` from another module, or a private module (``_x``) from
+    outside the package that holds it, is an error: what two modules share is public (or lives
+    in one of them)."""
+    bad = []
+    for name, path in MODULES.items():
+        for source, names in _edges(name, path):
+            if source == name:
+                continue
+            owner = _owner(source)
+            if owner is not None and not (name == owner or name.startswith(owner + ".")):
+                bad.append(f"{name} imports the private module {source}")
+            for n in names:
+                if _is_private(n) and f"{source}.{n}" not in MODULES:
+                    bad.append(f"{name} imports {source}.{n}")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_private_import_check_knows_whose_private_module_it_is():
+    assert _owner("morl_trl.metrics._arrays") == "morl_trl.metrics"
+    assert _owner("morl_trl._torchrl_compat") == "morl_trl"
+    assert _owner("morl_trl.envs.mario._nes") == "morl_trl.envs.mario"
+    assert _owner("morl_trl.metrics.pareto") is None
+
+
+def _graph() -> dict[str, set[str]]:
+    graph = {}
+    for name, path in MODULES.items():
+        deps = set()
+        for source, names in _edges(name, path):
+            for n in names or [None]:
+                target = f"{source}.{n}" if n and f"{source}.{n}" in MODULES else source
+                if target in MODULES and target != name:
+                    deps.add(target)
+        graph[name] = deps
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_root_modules_import_no_morl_trl_package():
+    for name in ROOT_MODULES:
+        assert _imports(PACKAGE / f"{name}.py") == set(), f"morl_trl.{name} is below every layer"
+        assert not [s for s, _ in _edges(f"morl_trl.{name}", PACKAGE / f"{name}.py")]
+
+
+def test_the_private_import_check_catches_one(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("from morl_trl.recipes.off_policy import _seed_everything\n")
+    assert [(s, n) for s, n in _edges("morl_trl.grid.probe", probe)] == [("morl_trl.recipes.off_policy", ["_seed_everything"])]
+
+
+def test_the_cycle_finder_finds_cycles():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycles():
+    """No module imports (at module level or inside a function) one that imports it back,
+    directly or through others; a package's ``__init__`` counts as a module."""
+    cycles = _cycles(_graph())
+    assert not cycles, "import cycles: " + "; ".join(" <-> ".join(c) for c in cycles)

@@ -179,6 +179,65 @@ class TorchPrioritizedSampler(PrioritizedSampler):
             index = unravel_index(index, storage.shape)
         return index, {"priority_weight": weight}
 
+    # ----------------------------------------------- sync-free path (whole update in one graph)
+    def supports_unchecked(self, storage: Storage) -> bool:
+        """Whether :meth:`sample_unchecked` / :meth:`update_priority_unchecked` may stand in for
+        ``sample`` / ``update_priority`` on ``storage``: a 1-d storage with items, the trees on
+        their device, the largest priority tracked since construction (TorchRL's default)."""
+        return (storage.ndim == 1 and len(storage) > 0 and not self._max_priority_within_buffer
+                and self._sum_tree._written >= len(storage) and self._max_priority is not None
+                and self._tree_device_from_storage(storage) in (None, self.device))
+
+    def sample_unchecked(self, batch_size: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """``sample``'s ``(index, priority_weight)`` without reading the host: the same random
+        draws and arithmetic (hence the same indices), minus the checks that read device values
+        (positive total, indices in range: the descent never enters a zero-sum subtree, so every
+        index lands on a written leaf) -- capturable in a CUDA graph."""
+        rng = self._rng
+        u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
+        return self.descend_unchecked(u)
+
+    def descend_unchecked(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`sample_unchecked` from its uniform draws ``u``: the tree walk and the weights
+        (tensor operations only: what ``torch.compile`` fuses, the draws staying eager's)."""
+        p_sum, p_min = self._sum_tree._tree[1], self._min_tree._tree[1]
+        index = self._sum_tree.scan_lower_bound(u.to(device=self.device, dtype=self.dtype) * p_sum)
+        weight = torch.pow(self._sum_tree.leaf_values_unchecked(index) / p_min, -self._beta)
+        return index, weight
+
+    def update_priority_unchecked(self, index: torch.Tensor, priority: torch.Tensor) -> None:
+        """``update_priority(index, priority)`` for ``[n]`` indices this sampler drew, without
+        reading the host: the running largest priority is kept in one device tensor (updated in
+        place), the trees written with :meth:`~morl_trl.data.segment_tree.SumSegmentTree.assign_unchecked`."""
+        self.write_priorities_unchecked(index, priority, self._pinned_max_priority())
+
+    def write_priorities_unchecked(self, index: torch.Tensor, priority: torch.Tensor, top: torch.Tensor) -> None:
+        """:meth:`update_priority_unchecked`'s tensor work, ``top`` the pinned largest priority
+        (tensor operations only: what ``torch.compile`` fuses)."""
+        priority = priority.detach().reshape(-1)
+        top.copy_(torch.maximum(priority.max().to(top.dtype), top))
+        value = torch.pow(priority + self._eps, self._alpha)
+        self._sum_tree.assign_unchecked(index, value)
+        self._min_tree.assign_unchecked(index, value)
+
+    def _pinned_max_priority(self) -> torch.Tensor:
+        """The largest priority as one persistent 0-d tensor on the trees' device (what a
+        captured graph reads and writes), rebound into ``_max_priority`` after TorchRL's
+        ``update_priority`` replaced it."""
+        current = self._max_priority[0] if self._max_priority is not None else None
+        pinned = getattr(self, "_max_priority_pinned", None)
+        if pinned is None or pinned.device != self.device:
+            pinned = self._max_priority_pinned = torch.ones((), dtype=torch.float32, device=self.device)
+        if current is not None and current is not pinned:
+            pinned.copy_(torch.as_tensor(current, dtype=pinned.dtype).to(self.device))
+        self._max_priority = (pinned, None if self._max_priority is None else self._max_priority[1])
+        return pinned
+
+    def update_priority(self, index, priority, *, storage=None) -> None:
+        super().update_priority(index, priority, storage=storage)
+        if self._max_priority is not None and getattr(self, "_max_priority_pinned", None) is not None:
+            self._pinned_max_priority()  # TorchRL rebinds the tuple: copy into the captured tensor
+
     def _tree_argmax(self) -> tuple[torch.Tensor, torch.Tensor]:
         return self._sum_tree.leaves().max(0)
 
@@ -212,6 +271,8 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         self._max_priority = _clone_max_priority(state_dict["_max_priority"])
         self._sum_tree.load_state_dict(state_dict["_sum_tree"])
         self._min_tree.load_state_dict(state_dict["_min_tree"])
+        if self._max_priority is not None and getattr(self, "_max_priority_pinned", None) is not None:
+            self._pinned_max_priority()
 
     def dumps(self, path) -> None:
         path = Path(path).absolute()

@@ -83,6 +83,28 @@ class _SegmentTree:
             node = node // 2
             self._tree[node] = self._combine(self._tree[2 * node], self._tree[2 * node + 1])
 
+    def assign_unchecked(self, index: torch.Tensor, value: torch.Tensor) -> None:
+        """``tree[index] = value`` with no host read (capturable in a CUDA graph, no synchronisation).
+
+        ``index`` (``[n]`` long, on the tree's device) must hold leaves in range that were
+        written before (e.g. indices this tree's sampler drew); nothing checks it. A repeated
+        index keeps its last write, as ``tree[index] = value`` does: every occurrence writes the
+        last one's value (an ``[n, n]`` comparison instead of ``torch.unique``, whose output size
+        the host would have to read). Parents are recombined level by level, as there.
+        """
+        position = torch.arange(index.numel(), device=index.device)
+        last = torch.where(index.unsqueeze(0) == index.unsqueeze(1), position, -1).amax(1)
+        value = value.reshape(-1).to(self.dtype)[last]
+        node = index + self._size
+        self._tree[node] = value
+        for _ in range(self._levels):
+            node = node // 2
+            self._tree[node] = self._combine(self._tree[2 * node], self._tree[2 * node + 1])
+
+    def leaf_values_unchecked(self, index: torch.Tensor) -> torch.Tensor:
+        """``tree[index]`` with no range check (no host read)."""
+        return self._tree[index + self._size]
+
     def query(self, start=0, end=None) -> torch.Tensor:
         """Reduction over the leaves ``[start, end)`` (a 0-d tensor)."""
         start = int(start)

@@ -47,6 +47,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from morl_trl._torchrl_compat import new_tensordict_unsafe
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.sampler import ContextSampler, check_seed
 
@@ -381,7 +382,7 @@ class ContextualMOEnv(EnvBase):
                 for key in _ZERO_AFTER_RESET:
                     if key in entries and key not in reset:
                         entries[key] = torch.zeros_like(entries[key])
-                return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
+                return tensordict, new_tensordict_unsafe(entries, batch_size=self.batch_size, device=self.device)
             conds = {}
             for key, old in entries.items():
                 new = reset.get(key, None)
@@ -394,7 +395,7 @@ class ContextualMOEnv(EnvBase):
             for key, new in reset.items():
                 if key not in entries:
                     entries[key] = new.masked_fill(~mask.view(-1, *(1,) * (new.ndim - 1)), 0)
-        return tensordict, TensorDict._new_unsafe(entries, batch_size=self.batch_size, device=self.device)
+        return tensordict, new_tensordict_unsafe(entries, batch_size=self.batch_size, device=self.device)
 
     def _auto_reset(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         """Reset the sub-envs ``mask`` (``[N]`` bool) as ``_reset`` does for a reset TensorDict
@@ -430,7 +431,7 @@ class ContextualMOEnv(EnvBase):
         )
 
     def _reset_request(self, done: torch.Tensor) -> TensorDictBase:
-        return TensorDict._new_unsafe({"_reset": done}, batch_size=self.batch_size, device=self.device)
+        return new_tensordict_unsafe({"_reset": done}, batch_size=self.batch_size, device=self.device)
 
     def _make_step_mdp_plan(self):
         step_mdp = self._step_mdp  # TorchRL's own key lists (observations, states, done flags)
@@ -486,7 +487,7 @@ class ContextualMOEnv(EnvBase):
         out["truncated"] = truncated.view(n, 1)
         out["done"] = (terminated | truncated).view(n, 1)
         # every entry is built here with the right batch shape and device: skip the checks
-        return TensorDict._new_unsafe(out, batch_size=self.batch_size, device=self.device)
+        return new_tensordict_unsafe(out, batch_size=self.batch_size, device=self.device)
 
     def _check_action(self, action: torch.Tensor) -> torch.Tensor:
         spec = self._cached("action_spec", lambda: self.action_spec)  # the property walks the input spec

@@ -23,6 +23,7 @@ from torchrl.envs import Compose, EnvBase, TransformedEnv
 from torchrl.envs.transforms import Transform
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
+from morl_trl._torchrl_compat import transform_reset, transform_step
 from morl_trl.evaluation.results import ContextResult, EvaluationResult
 from morl_trl.metrics import (
     Bounds,
@@ -505,7 +506,7 @@ class MultiContextEvaluator:
             # td_in (it sets new tensors there, so these references keep the values read)
             carried = td_in.select(pref_key, _RETURN, _DISCOUNTED, _DISCOUNT, "_reset", strict=False)
             out = inner.reset(td_in)
-            return returns._reset(carried, prefs._reset(carried, out))
+            return transform_reset(returns, carried, transform_reset(prefs, carried, out))
 
         horizon = self.max_steps or _static(inner, "max_episode_steps") or 100_000
         dev = self.device
@@ -531,7 +532,7 @@ class MultiContextEvaluator:
                 discount = td.get(discount_key) if sorl_key is not None else None
                 td = inner.step(td)
                 nxt = td.get("next")
-                returns._step(td, prefs._step(td, nxt))
+                transform_step(returns, td, transform_step(prefs, td, nxt))
                 if sorl_key is not None:
                     scalar = nxt.get(sorl_key, None)
                     if scalar is None:  # an env without the original scalar reward: no f_SORL

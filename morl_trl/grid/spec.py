@@ -139,13 +139,13 @@ def _resources(value, source: str) -> dict[str, float]:
 def _table(value, key: str, source: str) -> dict:
     if not isinstance(value, dict):
         raise ValueError(f"{source}: {key} is {value!r}; valid: a table of config keys")
-    from morl_trl.recipes.config import coerce_values, flatten_tables
+    from morl_trl.recipes.config import config_values
 
-    flat = flatten_tables(value, f"{source}: {key}")
+    flat = config_values(value, f"{source}: {key}")
     bad = sorted(set(flat) & {"algo", "env_id", "seed", "run_dir"})
     if bad:
         raise ValueError(f"{source}: {key} may not set {bad}: the grid sets them per cell")
-    return coerce_values(flat)
+    return flat
 
 
 @dataclass
@@ -177,6 +177,10 @@ class GridSpec:
         if not raw_blocks:
             raise ValueError(f"{source}: no cells: give algorithms and domains (or [[block]] tables)")
         valid = _algorithms()
+        from morl_trl.envs import load_domain_modules
+
+        # a user's own domains (overrides.domain_modules, as --domain-module) before their ids are checked
+        load_domain_modules(_table(data.get("overrides", {}), "overrides", source).get("domain_modules", ()))
         for i, b in enumerate(raw_blocks):
             where = f"{source}: block {i}"
             if not isinstance(b, dict) or set(b) - {"algorithms", "domains"}:

@@ -19,6 +19,7 @@ Example:
     0.25
 """
 
+from morl_trl.metrics._arrays import as_points
 from morl_trl.metrics.aggregate import (
     interquartile_mean,
     iqm,
@@ -54,4 +55,5 @@ __all__ = [
     "median",
     "stratified_bootstrap_ci",
     "Bounds",
+    "as_points",
 ]

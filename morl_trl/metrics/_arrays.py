@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-__all__ = ["as_points", "as_vector"]
+__all__ = ["as_points", "as_vector", "to_numpy"]
 
 
-def _to_numpy(x) -> np.ndarray:
+def to_numpy(x) -> np.ndarray:
     if isinstance(x, torch.Tensor):
         return x.detach().to("cpu", torch.float64).numpy()
     try:
@@ -23,7 +23,7 @@ def as_points(x, name: str = "points", *, dim: int | None = None, allow_empty: b
     Raises ``ValueError`` for an empty set (unless ``allow_empty``), NaN/inf entries, a wrong
     number of dimensions, or ``k != dim`` when ``dim`` is given.
     """
-    arr = _to_numpy(x)
+    arr = to_numpy(x)
     if arr.ndim == 1 and arr.size and dim is not None and arr.shape[0] == dim:
         arr = arr[None]
     if arr.ndim != 2:
@@ -43,7 +43,7 @@ def as_points(x, name: str = "points", *, dim: int | None = None, allow_empty: b
 
 def as_vector(x, name: str, dim: int) -> np.ndarray:
     """A finite ``[dim]`` float64 vector (a scalar is broadcast to ``[dim]``)."""
-    arr = _to_numpy(x)
+    arr = to_numpy(x)
     if arr.ndim == 0:
         arr = np.full(dim, float(arr))
     if arr.shape != (dim,):

@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from morl_trl.metrics._arrays import _to_numpy
+from morl_trl.metrics._arrays import to_numpy
 
 __all__ = [
     "interquartile_mean",
@@ -24,7 +24,7 @@ __all__ = [
 
 
 def _scores(scores) -> np.ndarray:
-    arr = _to_numpy(scores)
+    arr = to_numpy(scores)
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:

@@ -100,6 +100,48 @@ class ProbabilisticEnsemble(nn.Module):
         return y, uncertainty
 
 
+#: the authors' termination functions of imagined transitions (their ``mo_utils/model_based/utils.py:59-162``)
+#: by training id; a domain not listed never terminates (HalfCheetah, LavaGrid: ``termination_fn_false``)
+MODEL_TERMINATION = {"MOLunarLanderDR-v0": "lunar_lander", "MOHopperDR-v5": "hopper", "MOHumanoidDR-v5": "humanoid"}
+
+
+def model_termination(kind: str | None, next_obs: torch.Tensor, reward: torch.Tensor, *,
+                      hopper_abs: bool = False) -> torch.Tensor:
+    """``[N]`` bool: whether the imagined transition ends its episode, as the authors' termination
+    functions on the last state of the (history-stacked) predicted observation (SPEC §6):
+
+    * ``"lunar_lander"`` (state 8): ``|x| >= 1`` or (``reward[0] != 0`` and both leg contacts ``>= 0.95``);
+    * ``"hopper"`` (state 11): not (finite, ``state[1:] < 100``, height ``> 0.7``, ``|angle| < 0.2``); the
+      authors' ``np.abs(state[1:] < 100)`` takes the abs of the comparison (a slip):
+      ``hopper_abs=True`` checks ``|state[1:]| < 100`` as intended;
+    * ``"humanoid"`` (state 348): not ``1 < z < 2``;
+    * ``None``: never.
+
+    Example:
+        >>> obs = torch.tensor([[1.2, 0.1] + [0.0] * 9, [1.2, 0.3] + [0.0] * 9, [1.2, 0.1, -500.0] + [0.0] * 8])
+        >>> model_termination("hopper", obs, torch.zeros(3, 3)).tolist()
+        [False, True, False]
+        >>> model_termination("hopper", obs, torch.zeros(3, 3), hopper_abs=True).tolist()
+        [False, True, True]
+    """
+    n = next_obs.shape[0]
+    if kind is None:
+        return torch.zeros(n, dtype=torch.bool, device=next_obs.device)
+    if kind == "lunar_lander":
+        s = next_obs[:, -8:]
+        legs = (s[:, 6] >= 0.95) & (s[:, 7] >= 0.95)
+        return (s[:, 0].abs() >= 1) | ((reward[:, 0] != 0) & legs)
+    if kind == "hopper":
+        s = next_obs[:, -11:]
+        rest = s[:, 1:].abs() if hopper_abs else s[:, 1:]
+        healthy = torch.isfinite(s).all(-1) & (rest < 100).all(-1) & (s[:, 0] > 0.7) & (s[:, 1].abs() < 0.2)
+        return ~healthy
+    if kind == "humanoid":
+        z = next_obs[:, -348]
+        return ~((z > 1.0) & (z < 2.0))
+    raise ValueError(f"unknown model termination {kind!r}; valid: {sorted(set(MODEL_TERMINATION.values()))} or None")
+
+
 def model_inputs(observation: torch.Tensor, action: torch.Tensor, num_actions: int | None) -> torch.Tensor:
     """``x = (s, onehot(a))`` for ``num_actions`` discrete actions (integer ``[N]``/``[N, 1]``), else ``(s, a)``."""
     if num_actions is not None:

@@ -24,8 +24,9 @@ from torch import Tensor
 from torchrl.data import Composite, TensorSpec
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives.sac import compute_rsample_log_prob
-from torchrl.objectives.utils import _cache_values, _vmap_func, distance_loss
+from torchrl.objectives.utils import distance_loss
 
+from morl_trl._torchrl_compat import cache_values, vmap_func
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference, module_output
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
@@ -124,7 +125,7 @@ class _MOSACBase(MultiObjectiveLossModule):
             self.register_buffer("log_alpha", log_alpha)
         else:
             self.register_parameter("log_alpha", torch.nn.Parameter(log_alpha))
-        self._vmap_qnetworkN0 = _vmap_func(self.qvalue_network, (None, 0), randomness=self.vmap_randomness)
+        self._vmap_qnetworkN0 = vmap_func(self.qvalue_network, (None, 0), randomness=self.vmap_randomness)
 
     # ------------------------------------------------------------ preference
     def set_preference(self, preference: Tensor) -> None:
@@ -172,7 +173,7 @@ class _MOSACBase(MultiObjectiveLossModule):
 
     # ---------------------------------------------------------------- critic
     @property
-    @_cache_values
+    @cache_values
     def _cached_detached_qvalue_params(self):
         return self.qvalue_network_params.detach()
 

@@ -264,7 +264,7 @@ class PreferenceConditionedMLP(nn.Module):
         return out.reshape(*out.shape[:-1], *self.out_shape)
 
 
-def _encoder_and_width(obs_shape: int | Sequence[int], features_dim: int) -> tuple[nn.Module | None, int]:
+def encoder_and_width(obs_shape: int | Sequence[int], features_dim: int) -> tuple[nn.Module | None, int]:
     if isinstance(obs_shape, int):
         return None, obs_shape
     obs_shape = tuple(obs_shape)
@@ -320,7 +320,7 @@ def make_vector_q_network(
         (torch.Size([3, 4, 2]), 8)
     """
     _check_init(init)
-    encoder, width = _encoder_and_width(obs_shape, features_dim)
+    encoder, width = encoder_and_width(obs_shape, features_dim)
     in_keys = [observation_key]
     rest = 0
     if preference_key is not None:
@@ -445,7 +445,7 @@ def make_gaussian_actor(
         in_keys.append(preference_key)
         width += num_objectives
     mlp = PreferenceConditionedMLP(width, 2 * action_dim, num_cells=num_cells, activation=activation)
-    return _tanh_normal_actor(_gaussian_head(mlp, scale, (lo, hi)), in_keys, action_spec, action_key)
+    return tanh_normal_actor(gaussian_head(mlp, scale, (lo, hi)), in_keys, action_spec, action_key)
 
 
 def _check_scale(scale: str, log_std_bounds: tuple[float, float]) -> tuple[float, float]:
@@ -458,13 +458,13 @@ def _check_scale(scale: str, log_std_bounds: tuple[float, float]) -> tuple[float
     return lo, hi
 
 
-def _gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float]) -> nn.Module:
+def gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float]) -> nn.Module:
     """``net``'s output ``[..., 2 d]`` as ``(loc, scale)``: the biased softplus or the clamped log-std."""
     lo, hi = _check_scale(scale, log_std_bounds)
     return _LocScale(net) if scale == "softplus" else _LocClampedLogStd(net, lo, hi)
 
 
-def _tanh_normal_actor(net: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
+def tanh_normal_actor(net: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
     """``ProbabilisticActor``: ``net`` writes ``(loc, scale)``, a ``TanhNormal`` within ``action_spec``'s bounds."""
     return ProbabilisticActor(
         TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"]),
@@ -499,7 +499,7 @@ def make_categorical_actor(
         >>> actor(td)["action"].shape
         torch.Size([3])
     """
-    encoder, width = _encoder_and_width(obs_shape, features_dim)
+    encoder, width = encoder_and_width(obs_shape, features_dim)
     in_keys = [observation_key]
     if preference_key is not None:
         in_keys.append(preference_key)
@@ -507,10 +507,10 @@ def make_categorical_actor(
     net = PreferenceConditionedMLP(width, num_actions, num_cells=num_cells, activation=activation, encoder=encoder)
     if action_spec is None:
         action_spec = Categorical(num_actions)
-    return _categorical_actor(net, in_keys, action_spec, action_key)
+    return categorical_actor(net, in_keys, action_spec, action_key)
 
 
-def _categorical_actor(net: nn.Module, in_keys, action_spec: TensorSpec, action_key: NestedKey) -> ProbabilisticActor:
+def categorical_actor(net: nn.Module, in_keys, action_spec: TensorSpec, action_key: NestedKey) -> ProbabilisticActor:
     """``ProbabilisticActor``: ``net`` writes ``logits``, the categorical matching ``action_spec`` (one-hot or index)."""
     return ProbabilisticActor(
         TensorDictModule(net, in_keys=in_keys, out_keys=["logits"]),

@@ -21,7 +21,7 @@ from torch import nn
 from torchrl.objectives import LossModule
 
 from morl_trl.objectives.common import module_output
-from morl_trl.objectives.networks import _encoder_and_width
+from morl_trl.objectives.networks import encoder_and_width
 
 __all__ = ["PCNNetwork", "PCNLoss", "make_pcn_network"]
 
@@ -57,7 +57,7 @@ class PCNNetwork(nn.Module):
         self.register_buffer("scaling_factor", scale)
         # an image (C, H, W) goes through the Nature CNN first (512 features; MORL-Baselines' PCN is
         # written for vector observations)
-        encoder, width = _encoder_and_width(obs_dim, 512)
+        encoder, width = encoder_and_width(obs_dim, 512)
         self.obs_ndim = 1 if encoder is None else 3
         self.s_emb = nn.Sequential(*([encoder] if encoder is not None else []), nn.Linear(width, widths[0]), nn.Sigmoid())
         self.c_emb = nn.Sequential(nn.Linear(num_objectives + 1, widths[0]), nn.Sigmoid())
@@ -66,6 +66,10 @@ class PCNNetwork(nn.Module):
         if discrete:
             layers.append(nn.LogSoftmax(dim=-1))
         self.fc = nn.Sequential(*layers)
+        for m in self.modules():  # the authors' layer_init: orthogonal weights (gain 1), zero biases (pcn.py:100,112)
+            if isinstance(m, (nn.Linear, nn.Conv2d)):
+                nn.init.orthogonal_(m.weight)
+                nn.init.zeros_(m.bias)
 
     def forward(self, observation: torch.Tensor, desired_return: torch.Tensor, desired_horizon: torch.Tensor):
         c = torch.cat([desired_return, desired_horizon], -1).float() * self.scaling_factor

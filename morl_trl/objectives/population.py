@@ -46,15 +46,15 @@ from torchrl.data import Bounded, Categorical, TensorSpec
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.sac import compute_rsample_log_prob
-from torchrl.objectives.utils import _cache_values
 
+from morl_trl._torchrl_compat import cache_values
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import (
     DEFAULT_NUM_CELLS,
-    _categorical_actor,
-    _gaussian_head,
-    _tanh_normal_actor,
+    categorical_actor,
+    gaussian_head,
+    tanh_normal_actor,
 )
 
 __all__ = [
@@ -220,7 +220,7 @@ def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: B
     with ``preference_key=None``.
     """
     mlp = PopulationMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
-    return _tanh_normal_actor(_gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
+    return tanh_normal_actor(gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
 
 
 def make_population_categorical_actor(population: int, obs_dim: int, num_actions: int, *,
@@ -231,7 +231,7 @@ def make_population_categorical_actor(population: int, obs_dim: int, num_actions
     """``P`` categorical actors ``pi_p(. | s)`` reading ``[P, *B, obs]``."""
     mlp = PopulationMLP(population, obs_dim, num_actions, num_cells=num_cells)
     spec = action_spec if action_spec is not None else Categorical(num_actions)
-    return _categorical_actor(mlp, [observation_key], spec, action_key)
+    return categorical_actor(mlp, [observation_key], spec, action_key)
 
 
 def make_population_critic(population: int, obs_dim: int, action_dim: int, num_objectives: int, *,
@@ -266,7 +266,7 @@ def population_policies(actor: ProbabilisticActor, weights: Tensor) -> tuple[Pro
     spec = actor.spec
     action_key = actor.module[-1].out_keys[0]
     action_spec = spec[action_key]
-    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
+    make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
     explore = make(MemberRouter(head, population), tdm.in_keys, action_spec, action_key)
     evaluate = make(NearestMemberRouter(head, weights), [*tdm.in_keys, "preference"], action_spec, action_key)
     return explore, evaluate
@@ -394,7 +394,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             return self.log_alpha.exp()
 
     @property
-    @_cache_values
+    @cache_values
     def _cached_detached_qvalue_params(self):
         return self.qvalue_network_params.detach()
 

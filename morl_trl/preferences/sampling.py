@@ -109,6 +109,14 @@ def _standard_gamma(alpha: torch.Tensor, generator: torch.Generator | None) -> t
     return out
 
 
+def _is_one(alpha) -> bool:
+    """Whether ``alpha`` (a number or a tensor) is 1 everywhere; a number is checked without a
+    tensor, so a captured (compiled / CUDA-graphed) update drawing preferences reads no device value."""
+    if isinstance(alpha, (int, float)) and not isinstance(alpha, bool):
+        return alpha == 1
+    return bool((torch.as_tensor(alpha) == 1).all())
+
+
 def _alpha(alpha, k: int) -> torch.Tensor:
     a = torch.as_tensor(alpha, dtype=torch.float64)
     if a.ndim > 1 or not torch.isfinite(a).all() or (a <= 0).any():
@@ -163,14 +171,16 @@ def sample_preferences(
         device = generator.device
     size = (*shape, k)
     if distribution == "cone":
-        if not bool((torch.as_tensor(alpha) == 1).all()):
+        if not _is_one(alpha):
             raise ValueError(f"alpha={alpha!r} applies to distribution='dirichlet' only")
         return sample_cone_preferences(shape, k, generator=generator, device=device, dtype=dtype)
     if distribution == "gaussian":
-        if not bool((torch.as_tensor(alpha) == 1).all()):
+        if not _is_one(alpha):
             raise ValueError(f"alpha={alpha!r} applies to distribution='dirichlet' only")
         x = torch.randn(size, generator=generator, device=device, dtype=torch.float64).abs()
         x = x.clamp_min(torch.finfo(x.dtype).tiny)  # an all-zero row (probability 0) stays defined
+    elif isinstance(alpha, (int, float)) and not isinstance(alpha, bool) and alpha == 1:  # no tensor check
+        x = torch.empty(size, dtype=torch.float64, device=device).exponential_(generator=generator)
     else:
         a = _alpha(alpha, k)
         if bool((a == 1).all()):

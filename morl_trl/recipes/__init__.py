@@ -27,16 +27,12 @@ Example:
 
 from __future__ import annotations
 
-from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_agent, make_mosac_agent
-from morl_trl.recipes.agent import Agent, NonFiniteLossError
+from morl_trl.recipes.agent import Agent
+from morl_trl.recipes.algorithms import AGENT_BUILDERS, TRAINING_ENV_BUILDERS, build_agent, build_training_env
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
-from morl_trl.recipes.envelope import make_envelope_agent
-from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
-from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
-from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
-from morl_trl.recipes.sac import make_sac_agent
-from morl_trl.recipes.gpi import make_gpi_agent
-from morl_trl.recipes.off_policy import evaluate_run, make_training_env, run_training, train
+from morl_trl.recipes.off_policy import evaluate_run, run_training, train
+from morl_trl.recipes.optim import NonFiniteLossError
+from morl_trl.recipes.parts import make_training_env
 from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
 
 __all__ = [
@@ -57,42 +53,3 @@ __all__ = [
     "train",
     "train_policy",
 ]
-
-#: algorithm name -> ``builder(cfg, env, *, gamma, device) -> Agent``
-AGENT_BUILDERS = {
-    "envelope": make_envelope_agent,
-    "capql": make_capql_agent,
-    "mosac": make_mosac_agent,
-    "mosac_discrete": make_discrete_mosac_agent,
-    "morld": make_morld_agent,
-    "morld_psa": make_morld_agent,
-    "sac": make_sac_agent,
-    "pcn": make_pcn_agent,
-    "pgmorl": make_pgmorl_agent,
-    "gpi_ls": make_gpi_agent,
-    "gpi_pd": make_gpi_agent,
-}
-assert tuple(AGENT_BUILDERS) == ALGORITHMS
-
-
-def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
-    """The :class:`Agent` of ``cfg.algo`` for ``env`` (a batched env with ``"preference"``)."""
-    try:
-        builder = AGENT_BUILDERS[cfg.algo]
-    except KeyError:
-        raise ValueError(f"unknown algorithm {cfg.algo!r}; valid: {list(ALGORITHMS)}") from None
-    return builder(cfg, env, gamma=gamma, device=device)
-
-
-#: algorithm name -> ``builder(cfg, device) -> env`` for an algorithm whose training env is not
-#: :func:`~morl_trl.recipes.off_policy.make_training_env`'s (DR env + history + preferences + returns)
-TRAINING_ENV_BUILDERS: dict = {
-    "pcn": make_pcn_training_env,
-    "pgmorl": make_pgmorl_training_env,
-}
-TRAINING_ENV_BUILDERS["morld"] = TRAINING_ENV_BUILDERS["morld_psa"] = make_morld_training_env
-
-
-def build_training_env(cfg: TrainConfig, device):
-    """The training env of ``cfg.algo`` (its own builder, else :func:`make_training_env`)."""
-    return TRAINING_ENV_BUILDERS.get(cfg.algo, make_training_env)(cfg, device)

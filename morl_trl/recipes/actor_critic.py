@@ -18,9 +18,13 @@ Example:
 
 from __future__ import annotations
 
+import copy
 import math
 
 import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.objectives import (
     CAPQLLoss,
@@ -31,6 +35,7 @@ from morl_trl.objectives import (
     make_vector_critic,
     make_vector_q_network,
 )
+from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
@@ -53,13 +58,43 @@ def _continuous(cfg, env, device):
     k = num_objectives(env)
     actor = make_gaussian_actor(obs_dim, spec.to(device), k, num_cells=cfg.hidden, scale=cfg.actor_scale).to(device)
     critic = make_vector_critic(obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
-    return spec, actor, critic
+    # the authors' init of every layer: orthogonal (gain 1), zero biases (capql.py:118,169)
+    return spec, orthogonal_init_(actor), orthogonal_init_(critic)
 
 
 def _agent(cfg, loss, actor, gamma, device, **kwargs) -> Agent:
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
                  device=device, eval_exploration=eval_exploration(cfg), **kwargs)
+
+
+@torch.no_grad()
+def orthogonal_critic_copies_(loss, critic, init_=None) -> None:
+    """Give each of the loss's ``num_qvalue_nets`` critic copies (TorchRL re-draws the copies with
+    PyTorch's init) its own orthogonal init (``init_``, default :func:`orthogonal_init_`: gain 1,
+    zero biases; the authors' ``layer_init``), and its target the same values."""
+    init_ = orthogonal_init_ if init_ is None else init_
+    params = loss.qvalue_network_params.data
+    for i in range(params.batch_size[0]):
+        params[i].update_(TensorDict.from_module(init_(copy.deepcopy(critic))).data)
+    target = getattr(loss, "target_qvalue_network_params", None)
+    if target is not None:
+        target.data.update_(params)
+
+
+class DeterministicActing(TensorDictModuleBase):
+    """Acts with ``policy`` under ``ExplorationType.DETERMINISTIC`` whatever the caller asks (the
+    collector's random exploration): the authors' CAPQL collects with ``tanh(mean)`` after
+    ``learning_starts`` (their ``capql.py:454-459``); before it, the collector's random actions."""
+
+    def __init__(self, policy) -> None:
+        super().__init__()
+        self.policy = policy
+        self.in_keys, self.out_keys = list(policy.in_keys), list(policy.out_keys)
+
+    def forward(self, tensordict):
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            return self.policy(tensordict)
 
 
 def _loss_kwargs(cfg) -> dict:
@@ -73,10 +108,17 @@ def make_capql_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     cone and stored with the transition (``preference_distribution="cone"``,
     ``preference_resample="step"``, set on the training env), the loss trains on the stored
     preference (``loss_fresh_preferences=true``: fresh uniform ones per sample) and the actor's
-    log-std is clamped to [-20, 2] (``actor_scale="softplus"``: TorchRL's biased softplus).
+    log-std is clamped to [-20, 2] (``actor_scale="softplus"``: TorchRL's biased softplus). Data is
+    collected with the deterministic action ``tanh(mean)`` (``capql_deterministic_collection``;
+    false: sampled actions).
     """
     _, actor, critic = _continuous(cfg, env, device)
-    return _agent(cfg, CAPQLLoss(actor, critic, alpha=cfg.alpha, **_loss_kwargs(cfg)), actor, gamma, device)
+    loss = CAPQLLoss(actor, critic, alpha=cfg.alpha, **_loss_kwargs(cfg))
+    orthogonal_critic_copies_(loss, critic)
+    agent = _agent(cfg, loss, actor, gamma, device)
+    if cfg.capql_deterministic_collection:
+        agent.explore_policy = DeterministicActing(actor)
+    return agent
 
 
 def make_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
@@ -85,6 +127,7 @@ def make_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     spec, actor, critic = _continuous(cfg, env, device)
     loss = MOSACLoss(actor, critic, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha, action_spec=spec,
                      **_loss_kwargs(cfg))
+    orthogonal_critic_copies_(loss, critic)
     return _agent(cfg, loss, actor, gamma, device)
 
 

@@ -12,20 +12,18 @@ from tensordict import TensorDictBase
 from torch import nn
 from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
+from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers", "eval_exploration"]
+           "target_updater", "actor_critic_optimizers", "eval_exploration", "epsilon", "epsilon_greedy"]
 
 
 def _captures(cfg) -> bool:
     return bool(getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False))
-
-
-class NonFiniteLossError(RuntimeError):
-    """A loss came out NaN or infinite; the update was not applied."""
 
 
 class Agent:
@@ -114,28 +112,30 @@ class Agent:
         of skipped updates is read every ``cfg.finite_check_interval`` updates, raising
         :class:`NonFiniteLossError` then.
         """
-        batch = self.sample(buffer)
         if self._device_guard():
-            return self._captured_update(batch, buffer)
+            return self._captured_update(None, buffer)  # samples itself (in the graph, where it can)
+        batch = self.sample(buffer)
         out = self.loss(batch)
-        total = sum(out[k] for k in self.loss_keys)
-        if not torch.isfinite(total):
-            bad = {k: out[k].item() for k in self.loss_keys}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        for opt in self.optimizers.values():
-            opt.zero_grad(set_to_none=True)
-        total.backward()
-        self._clip_gradients()
-        for opt in self.optimizers.values():
-            opt.step()
+        optimizer_step(sum(out[k] for k in self.loss_keys), self.optimizers.values(),
+                       max_grad_norm=self.max_grad_norm, losses={k: out[k] for k in self.loss_keys})
         self.target_updater.step()
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
 
+    @property
+    def max_grad_norm(self) -> float | None:
+        """Each optimizer's parameters' gradient norm is clipped to this (``cfg.max_grad_norm``; ``None``: no clipping)."""
+        return getattr(self.cfg, "max_grad_norm", None)
+
     def sample(self, buffer) -> TensorDictBase:
         """The batch of one update, on the agent's device (MORL/D: one per population member)."""
         return buffer.sample().to(self.device)
+
+    @property
+    def samples_one_batch(self) -> bool:
+        """Whether :meth:`sample` is this class's (one ``buffer.sample()``), which a captured update may replace."""
+        return type(self).sample is Agent.sample
 
     def _device_guard(self) -> bool:
         """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""
@@ -146,13 +146,6 @@ class Agent:
             self._guard = _captures(self.cfg) or (torch.device(self.device).type != "cpu" and fused)
         return self._guard
 
-    def _clip_gradients(self) -> None:
-        max_norm = getattr(self.cfg, "max_grad_norm", None)
-        if max_norm is not None:
-            for opt in self.optimizers.values():
-                params = [p for group in opt.param_groups for p in group["params"]]
-                torch.nn.utils.clip_grad_norm_(params, max_norm)
-
     def _captured_update(self, batch: TensorDictBase, buffer) -> TensorDictBase:
         from morl_trl.recipes.capture import CapturedUpdate
 
@@ -160,17 +153,17 @@ class Agent:
             self._captured = CapturedUpdate(self)
         return self._captured(batch, buffer)
 
+    @property
+    def epsilon(self) -> float | None:
+        """The current ε of the ε-greedy exploration (``None`` without one)."""
+        return None if self.exploration_module is None else float(self.exploration_module.eps)
+
     def on_frames(self, frames: int) -> None:
         """Advance the frame-based schedules (epsilon, homotopy)."""
         if self.exploration_module is not None:
-            self.exploration_module.eps.fill_(self._eps(frames))
+            self.exploration_module.eps.fill_(epsilon(self.cfg, frames))
         if hasattr(self.loss, "update_homotopy"):
             self.loss.update_homotopy(frames)
-
-    def _eps(self, frames: int) -> float:
-        cfg = self.cfg
-        frac = min(1.0, frames / max(1, cfg.eps_frames))
-        return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
@@ -184,26 +177,33 @@ class Agent:
         self.loss.load_state_dict(state["loss"])
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])
-            _keep_implementation(o)
+            keep_implementation(o)
         if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
             self.target_updater.counter = state["target_updater_counter"]
 
 
-def _keep_implementation(opt: torch.optim.Optimizer) -> None:
-    """After ``load_state_dict``: the optimizer keeps the implementation it was built with (a
-    checkpoint written by a per-tensor Adam would otherwise turn a fused one back), with its step
-    counters where that implementation keeps them."""
-    for group in opt.param_groups:
-        for key in ("fused", "foreach"):
-            if key in opt.defaults:
-                group[key] = opt.defaults[key]
-    if opt.defaults.get("fused"):
-        for param, st in opt.state.items():
-            if torch.is_tensor(st.get("step")):
-                st["step"] = st["step"].to(device=param.device, dtype=torch.float32)
-
-
 # ---------------------------------------------------------------------- shared by the builders
+def epsilon(cfg, frames: int) -> float:
+    """The ε of ε-greedy exploration after ``frames`` frames: linear from ``cfg.eps_start`` to
+    ``cfg.eps_end`` over ``cfg.eps_frames`` frames, then constant (the one ε schedule).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.5, eps_frames=100)
+        >>> epsilon(cfg, 0), epsilon(cfg, 50), epsilon(cfg, 1_000)
+        (1.0, 0.75, 0.5)
+    """
+    frac = min(1.0, frames / max(1, cfg.eps_frames))
+    return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
+
+
+def epsilon_greedy(cfg, env) -> EGreedyModule:
+    """TorchRL's ``EGreedyModule`` for ``env``'s actions at ``epsilon(cfg, 0)``; :meth:`Agent.on_frames`
+    sets its ε from :func:`epsilon` after every batch (TorchRL's own annealing, ``step()``, is not used)."""
+    return EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
+                         annealing_num_steps=max(1, cfg.eps_frames))
+
+
 def obs_shape(env) -> tuple[int, ...]:
     """The unbatched shape of the env's ``"observation"``."""
     return tuple(env.observation_spec["observation"].shape[len(env.batch_size):])
@@ -234,32 +234,6 @@ def target_updater(cfg, loss):
     if cfg.tau is not None:
         return PolyakUpdate(loss, tau=cfg.tau)
     return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
-
-
-def fused_choice(cfg) -> bool | None:
-    """:func:`adam`'s ``fused`` for a config: ``None`` (fused where torch can) unless ``cfg.fused_optimizer`` is false."""
-    return None if getattr(cfg, "fused_optimizer", True) else False
-
-
-def adam(params, lr: float, *, fused: bool | None = None, **kwargs) -> torch.optim.Adam:
-    """``torch.optim.Adam`` over ``params``, fused when torch has a fused kernel for them.
-
-    The fused implementation updates every parameter in one kernel (on a CPU core ~4x faster
-    than the per-tensor loop torch picks there by default) with Adam's arithmetic unchanged
-    (results agree to float rounding), and it can skip a step on the device without reading
-    the host (``found_inf``), which the captured update relies on. ``fused=None`` (the default):
-    fused when every parameter is a floating point tensor on the CPU or a CUDA device. Other
-    keyword arguments (e.g. ``eps``) go to ``torch.optim.Adam``.
-
-    Example:
-        >>> opt = adam([torch.nn.Parameter(torch.zeros(3))], lr=1e-3)
-        >>> opt.defaults["fused"]
-        True
-    """
-    params = list(params)
-    if fused is None:
-        fused = all(p.is_floating_point() and p.device.type in ("cpu", "cuda") for p in params)
-    return torch.optim.Adam(params, lr=lr, fused=bool(fused), **kwargs)
 
 
 def actor_critic_optimizers(cfg, loss) -> dict:

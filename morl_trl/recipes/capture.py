@@ -22,8 +22,18 @@ What changes so that nothing in it reads the host:
 * the loss's input checks (which read the host) are off (``loss.validate_inputs = False``):
   the batches come from the run's own replay buffer, and a non-finite reward makes the loss
   non-finite, which the guard catches;
-* every optimizer must be fused (:func:`~morl_trl.recipes.agent.adam` makes them so); with
+* every optimizer must be fused (:func:`~morl_trl.recipes.optim.adam` makes them so); with
   CUDA graphs they are made ``capturable``.
+
+With ``cfg.capture_sampling`` (off by default until measured on a GPU) and a prioritized
+buffer on :class:`~morl_trl.data.TorchPrioritizedSampler`, the whole update is one function
+with no host read: drawing the batch from the sum tree, gathering it from the storage, the
+step above, and writing the new priorities into the trees
+(:meth:`~morl_trl.data.TorchPrioritizedSampler.sample_unchecked`,
+:meth:`~morl_trl.data.TorchPrioritizedSampler.update_priority_unchecked`). With
+``cfg.cudagraphs`` that function is captured as one CUDA graph (``torch.cuda.graph``; no
+input copies, no synchronisation per replay): one launch per update. The same random draws
+and arithmetic as the eager update from the same state (``tests/gpu/test_gpu.py``).
 
 The arithmetic is the eager update's: on the CPU the compiled update matches the eager one
 from the same state to float rounding (``tests/recipes/test_capture.py``); CUDA graphs replay
@@ -49,6 +59,7 @@ from tensordict import TensorDictBase
 from torchrl.objectives import SoftUpdate
 
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
 
 __all__ = ["CapturedUpdate"]
 
@@ -69,7 +80,7 @@ class CapturedUpdate:
                      if not all(group.get("fused") for group in opt.param_groups)]
         if not_fused:
             raise ValueError(f"a captured update (compile/cudagraphs) needs fused optimizers, as "
-                             f"morl_trl.recipes.agent.adam makes them; {not_fused} are not fused")
+                             f"morl_trl.recipes.optim.adam makes them; {not_fused} are not fused")
         cudagraphs = bool(getattr(cfg, "cudagraphs", False))
         if cudagraphs and torch.device(agent.device).type != "cuda":
             raise ValueError(f"cudagraphs=true needs device='cuda' (got {str(agent.device)!r}); "
@@ -90,27 +101,27 @@ class CapturedUpdate:
         self.since_check = 0
         fn = self.step
         if getattr(cfg, "compile", False):
-            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None))
+            # dynamic=False: a training run's shapes never change, and symbolic sizes broke
+            # dynamo on the preference draws (randn of a symbolic size) on the GPU
+            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None), dynamic=False)
         if cudagraphs:
             from tensordict.nn import CudaGraphModule
 
             fn = CudaGraphModule(fn, in_keys=[], out_keys=[], warmup=5 if getattr(cfg, "compile", False) else 2)
         self.fn = fn
+        self.capture_sampling = bool(getattr(cfg, "capture_sampling", False))
+        self.compiled = bool(getattr(cfg, "compile", False))
+        self.cudagraphs = cudagraphs
+        self._whole = None  # the whole-update function (sampling included), built on first use
+        self._graph = None
+        self._calls = 0
 
     def step(self, batch: TensorDictBase) -> TensorDictBase:
         """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite."""
         agent = self.agent
         out = agent.loss(batch)
-        total = sum(out[k] for k in agent.loss_keys)
-        found_inf = (~torch.isfinite(total)).to(torch.float32)
-        for opt in agent.optimizers.values():
-            opt.zero_grad(set_to_none=True)
-        total.backward()
-        agent._clip_gradients()
-        for opt in agent.optimizers.values():
-            opt.found_inf = found_inf
-            opt.step()
-            opt.found_inf = None
+        found_inf = optimizer_step(sum(out[k] for k in agent.loss_keys), agent.optimizers.values(),
+                                   max_grad_norm=agent.max_grad_norm, on_device=True)
         if self.soft:
             with torch.no_grad():
                 delta = torch._foreach_sub(self.sources, self.targets)
@@ -124,8 +135,81 @@ class CapturedUpdate:
             result = result.set("_priority", torch.nan_to_num(priority.detach(), nan=0.0, posinf=0.0, neginf=0.0))
         return result
 
-    def __call__(self, batch: TensorDictBase, buffer) -> TensorDictBase:
+    # ------------------------------------------------ the whole update, sampling included
+    def _samples_in_graph(self, buffer) -> bool:
+        from torchrl.data import TensorDictReplayBuffer
+        from torchrl.data.replay_buffers.storages import LazyTensorStorage
+
+        from morl_trl.data import TorchPrioritizedSampler
+
+        if not self.capture_sampling or not self.agent.samples_one_batch:
+            return False
+        sampler, storage = getattr(buffer, "_sampler", None), getattr(buffer, "_storage", None)
+        return (type(buffer) is TensorDictReplayBuffer and isinstance(sampler, TorchPrioritizedSampler)
+                and type(storage) is LazyTensorStorage and not (buffer._transform is not None and len(buffer._transform))
+                and getattr(buffer, "_sample_unit", None) is None and not buffer._writer.tracks_generations
+                and bool(self.agent.cfg.prioritized) and sampler.reduction == "max"
+                and sampler.supports_unchecked(storage) and buffer.priority_key == self.agent.loss.tensor_keys.priority
+                and torch.device(storage.device).type == torch.device(self.agent.device).type)
+
+    def _build_whole(self, buffer):
+        sampler, storage, batch_size = buffer._sampler, buffer._storage, buffer._batch_size
+        step = self.fn if not self.cudagraphs else self.step  # our own graph replaces CudaGraphModule
+        descend, write = sampler.descend_unchecked, sampler.write_priorities_unchecked
+        if self.compiled:
+            mode = getattr(self.agent.cfg, "compile_mode", None)
+            if self.cudagraphs:
+                step = torch.compile(self.step, mode=mode, dynamic=False)
+            # the tree walks (one small op per level) fuse into a few kernels
+            descend, write = (torch.compile(f, mode=mode, dynamic=False) for f in (descend, write))
+        rng = sampler._rng
+
+        def whole() -> TensorDictBase:
+            # the uniform draws stay eager (compiled code draws from its own generator)
+            u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else sampler.device)
+            index, weight = descend(u)
+            batch = storage._storage[index]
+            batch.set("index", index)
+            batch.set("priority_weight", weight)
+            result = step(batch)
+            write(index, result.get("_priority").reshape(-1), sampler._pinned_max_priority())
+            return result.exclude("_priority")
+
+        return whole
+
+    def _run_whole(self, buffer) -> TensorDictBase:
+        if self._whole is None:
+            self._whole = self._build_whole(buffer)
+        if not self.cudagraphs:
+            return self._whole()
+        warmup = 5 if self.compiled else 2
+        if self._graph is None and self._calls < warmup:  # warm-up on a side stream, as torch.cuda.graphs asks
+            stream = torch.cuda.Stream()
+            stream.wait_stream(torch.cuda.current_stream())
+            with torch.cuda.stream(stream):
+                out = self._whole()
+            torch.cuda.current_stream().wait_stream(stream)
+            self._calls += 1
+            return out
+        if self._graph is None:
+            self._graph = torch.cuda.CUDAGraph()
+            with torch.cuda.graph(self._graph):
+                self._static_out = self._whole()
+        self._graph.replay()  # the capture recorded the update; this replay applies it
+        return self._static_out  # (overwritten by the next update)
+
+    def __call__(self, batch: TensorDictBase | None, buffer) -> TensorDictBase:
         agent = self.agent
+        if batch is None:
+            if self._whole is not None or self._samples_in_graph(buffer):
+                result = self._run_whole(buffer)
+                if not self.soft:
+                    agent.target_updater.step()
+                self.since_check += 1
+                if self.since_check >= self.interval:
+                    self.check()
+                return result
+            batch = agent.sample(buffer)
         result = self.fn(batch)
         if not self.soft:
             agent.target_updater.step()  # a Python-side period counter: hard copies stay eager
@@ -142,8 +226,6 @@ class CapturedUpdate:
 
     def check(self) -> None:
         """Reads the device's count of skipped updates; raises :class:`NonFiniteLossError` if any."""
-        from morl_trl.recipes.agent import NonFiniteLossError
-
         since, self.since_check = self.since_check, 0
         skipped = int(self.skipped.item())
         if skipped:

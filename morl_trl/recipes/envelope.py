@@ -29,13 +29,13 @@ from __future__ import annotations
 
 import torch
 from tensordict.nn import TensorDictSequential
-from torchrl.modules import EGreedyModule
 
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
     adam,
+    epsilon_greedy,
     eval_exploration,
     fused_choice,
     is_discrete,
@@ -58,8 +58,7 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
                                  preference_layer=1 if authors and len(obs_shape(env)) == 1 else 0,
                                  init="orthogonal" if authors else "default").to(device)
     greedy = TensorDictSequential(qnet, MOQValueModule())
-    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
-                            annealing_num_steps=max(1, cfg.eps_frames))
+    egreedy = epsilon_greedy(cfg, env)
     anneal = cfg.homotopy_final is not None
     loss = EnvelopeQLoss(
         qnet, num_preference_samples=cfg.num_sampled_prefs, homotopy_lambda=cfg.homotopy_lambda0,

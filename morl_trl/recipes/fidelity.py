@@ -117,7 +117,6 @@ _ONE_CALL = NotApplicable("the authors call train() once per run; so does every 
 _SEED = NotApplicable("the run's seed: `seed` (per run, --seed); the paper's seeds are 5, 26, 47, 76, 92")
 _ENV_STACK = Code("envs/ (DR context drawn at every reset) + transforms.StateActionHistory(history_len)")
 _EVALUATOR = Code("evaluation.evaluator (energy weights, one episode per weight and context, discounted fronts)")
-_INIT_OPEN = "PyTorch's default init (the authors: orthogonal, gain 1, zero biases on every layer)"
 
 COMMON: dict[str, Any] = {
     "script": NotApplicable("the authors' launch script (provenance)"),
@@ -236,7 +235,9 @@ ENVELOPE = {
     "init.envelope": Code("objectives.envelope.EnvelopeQLoss (the envelope target over sampled weights)"),
     "init.dist": Same("preference_distribution"),
     "init.num_sample_w": Same("num_sampled_prefs"),
-    "init.per": Same("prioritized"),
+    "init.per": Code("recipes.off_policy: TorchRL's prioritized sampler (prioritized = true)",
+                     open="new priorities are (|w . delta| + eps)^alpha, new items at the maximum (the authors add the "
+                          "running maximum priority to every new priority)"),
     "init.per_alpha": Same("per_alpha"),
     "init.initial_homotopy_lambda": Same("homotopy_lambda0"),
     "init.final_homotopy_lambda": NotApplicable("never reached: homotopy_decay_steps is None, so lambda stays at its "
@@ -268,7 +269,7 @@ ENVELOPE = {
     "derived.evaluations": Same("frames // eval_interval", ours=lambda cfg: cfg.frames // cfg.eval_interval),
 }
 
-_ACTOR_CRITIC_INIT = Code("objectives.networks (actor and critics)", open=_INIT_OPEN)
+_ACTOR_CRITIC_INIT = Code("objectives.networks.orthogonal_init_ (actor and critics, every critic copy)")
 CAPQL = {
     "init.learning_rate": Same("lr"),
     "init.tau": Same("tau"),
@@ -296,8 +297,7 @@ CAPQL = {
                                                                         cfg.preference_resample)),
     "derived.weight_component_range": Code("preferences: cone of 22.5 degrees around the equal-weight direction "
                                            "(tests/recipes/test_mechanisms.py checks every weight's angle)"),
-    "derived.behaviour_action": Code("recipes.actor_critic", open="our CAPQL samples its training actions "
-                                     "(the authors act with the deterministic tanh(mean))"),
+    "derived.behaviour_action": Same("capql_deterministic_collection", expect=lambda v, cfg: True),
     "derived.eval_action": Same("eval_exploration", expect=lambda v, cfg: "deterministic"),
 }
 
@@ -441,7 +441,7 @@ PCN = {
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
-    "network.init": Code("objectives.pcn", open=_INIT_OPEN),
+    "network.init": Code("objectives.pcn (orthogonal_init_)"),
     "network.optimizer": Same("lr", expect=lambda v, cfg: 3e-4),
     "derived.returns_stored": Code("data.episode_replay: discounted returns-to-go"),
     "derived.command_choice": Code("recipes.pcn (crowding-penalised top episodes, non-dominated, random pick)"),
@@ -494,20 +494,17 @@ PGMORL = {
     "moppo.device": NotApplicable("`device` (the hardware; no effect on results)"),
     "moppo.seed": _SEED,
     "moppo.rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
-    "network.actor_mean": Code("objectives.pgmorl: Tanh MLP", open=_INIT_OPEN.replace("gain 1", "gain sqrt 2 "
-                                                                                        "hidden, 0.01 output")),
+    "network.actor_mean": Code("objectives.pgmorl: Tanh MLP (orthogonal, gain sqrt 2 hidden, 0.01 output)"),
     "network.actor_logstd": Code("objectives.pgmorl: a state-independent log-std initialised to 0"),
-    "network.critic": Code("objectives.pgmorl: Tanh MLP -> k values", open=_INIT_OPEN.replace("gain 1",
-                                                                                            "gain sqrt 2 hidden, 1 "
-                                                                                            "output")),
+    "network.critic": Code("objectives.pgmorl: Tanh MLP -> k values (orthogonal, gain sqrt 2 hidden, 1 output)"),
     "network.advantage": Code("objectives.pgmorl.vector_gae, scalarised with the member's weight"),
     "network.optimizers": Code("recipes.pgmorl: Adam(lr, eps=1e-5) per member"),
     "network.optimizer": Code("recipes.pgmorl: Adam(lr, eps=1e-5)"),
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
-    "network.init": Code("objectives.pgmorl", open="PyTorch's default init (the authors: orthogonal, gain sqrt 2 "
-                         "hidden, 1 critic output, 0.01 actor output, zero biases)"),
+    "network.init": Code("objectives.pgmorl.PopulationMLP (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
+                         "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
     "derived.vector_env_reset_each_iteration": Code("recipes.pgmorl", open="sub-envs are not reset at the start of "
                                                     "each member's iteration"),
@@ -623,10 +620,8 @@ GPI_PD = {
     "init.real_ratio": Same("gpi_real_ratio"),
     "init.dynamics_real_ratio": Same("gpi_real_ratio"),
     "network.dynamics_model": Code("objectives.dynamics (ensemble of Gaussian MLPs, elites by holdout MSE)"),
-    "network.termination_fn": Code("recipes.gpi", open=lambda env_id: None if env_id in (LAVA_GRID,) else
-                                   "model rollouts have no termination function"),
-    "derived.rollout_start_states": Code("recipes.gpi", open="rollout start states are drawn uniformly (the authors: "
-                                         "by PER priority)"),
+    "network.termination_fn": Code("objectives.dynamics.model_termination (gpi_model_termination='authors')"),
+    "derived.rollout_start_states": Code("recipes.gpi: start states drawn from the real buffer by PER priority"),
     "derived.first_model_fit_step": Code("recipes.gpi (the first fit at gpi_dynamics_train_freq)"),
     "derived.first_rollout_step": Code("recipes.gpi (the first rollout at gpi_dynamics_rollout_starts)"),
     "derived.real_samples_per_batch": Same("batch_size * gpi_real_ratio",

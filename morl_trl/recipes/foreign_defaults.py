@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["FOREIGN_DEFAULTS", "FOREIGN_NOTES", "MB_VERSION"]
+__all__ = ["FOREIGN_DEFAULTS", "FOREIGN_DEFAULTS_CONTINUOUS", "FOREIGN_NOTES", "MB_VERSION"]
 
 MB_VERSION = "1.3.0"
 
@@ -71,6 +71,18 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                            target_update_period=2000, batch_size=128, init_random_frames=20_000, hidden=(256, 256),
                            alpha=0.2, learn_alpha=True, target_entropy_scale=0.89, buffer_size=1_000_000,
                            prioritized=False, eval_exploration="random"),
+}
+
+# morl_baselines/multi_policy/gpi_pd/gpi_pd_continuous_action.py: GPIPDContinuousAction.__init__ (GPILSContinuousAction:
+# dyna off), for an env with continuous actions (applied over the discrete values above)
+FOREIGN_DEFAULTS_CONTINUOUS: dict[str, dict[str, Any]] = {
+    algo: dict(tau=0.005, buffer_size=400_000, hidden=(256, 256), batch_size=128, gpi_num_nets=2, gpi_policy_delay=2,
+               init_random_frames=100, gpi_gradient_updates=20, gpi_policy_noise=0.2, gpi_noise_clip=0.5,
+               prioritized=True, gpi_min_priority=0.1, per_alpha=0.6, gpi_dynamics_hidden=(200, 200, 200, 200),
+               gpi_dynamics_train_freq=250, gpi_dynamics_rollout_len=5, gpi_dynamics_rollout_starts=1000,
+               gpi_dynamics_rollout_freq=250, gpi_dynamics_rollout_batch=50_000, gpi_dynamics_buffer=200_000,
+               gpi_uncertainty_threshold=2.0, gpi_real_ratio=0.1)
+    for algo in ("gpi_ls", "gpi_pd")
 }
 
 FOREIGN_NOTES: dict[str, str] = {

@@ -45,23 +45,24 @@ Example:
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import torch
 from tensordict import TensorDict
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
-from morl_trl.envs import make_env
+from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
-from morl_trl.objectives.dynamics import model_inputs
+from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
-                                    obs_shape)
+from morl_trl.recipes.agent import Agent, action_spec, epsilon_greedy, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.runs.env_state import transforms_of
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -223,15 +224,8 @@ class GPIAgent(Agent):
             return self._update_continuous(buffer)
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        total = out["loss_qvalue"]
-        if not torch.isfinite(total):
-            raise NonFiniteLossError(f"non-finite loss {{'loss_qvalue': {total.item()}}}; the networks were left as "
-                                     f"they were before this update")
-        opt = self.optimizers["qvalue"]
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        self._clip_gradients()
-        opt.step()
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]], max_grad_norm=self.max_grad_norm,
+                       losses={"loss_qvalue": out["loss_qvalue"]})
         if self.cfg.prioritized:
             if real is not batch:
                 real.set("td_error", batch["td_error"][: real.shape[0]])
@@ -243,19 +237,13 @@ class GPIAgent(Agent):
         updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
         batch, real = self._sample(buffer)
         out = self.loss(batch)
-        if not (torch.isfinite(out["loss_qvalue"]) and torch.isfinite(out["loss_actor"])):
-            bad = {k: out[k].item() for k in ("loss_qvalue", "loss_actor")}
-            raise NonFiniteLossError(f"non-finite loss {bad}; the networks were left as they were before this update")
-        q_opt, pi_opt = self.optimizers["qvalue"], self.optimizers["actor"]
-        q_opt.zero_grad(set_to_none=True)
-        out["loss_qvalue"].backward()
-        q_opt.step()
+        check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
+        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]])
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
         polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
         if self._updates % self.cfg.gpi_policy_delay == 0:
-            pi_opt.zero_grad(set_to_none=True)
-            self.loss.actor_loss().backward()  # against the critics just updated, as the authors
-            pi_opt.step()
+            # against the critics just updated, as the authors
+            optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
             polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
         self._updates += 1
         if self.cfg.prioritized:
@@ -277,32 +265,42 @@ class GPIAgent(Agent):
 
     @torch.no_grad()
     def rollout_model(self, buffer) -> int:
-        """One model step from ``gpi_dynamics_rollout_batch`` stored observations (GPI actions for ``w``);
-        stores the confident ones in the model buffer and returns how many."""
+        """``gpi_dynamics_rollout_len`` model steps from ``ceil(gpi_dynamics_rollout_batch / 10k)`` chunks of
+        (at most) 10k start states sampled from the real buffer (by priority with PER), as the authors: GPI
+        actions for ``w`` (discrete) or the noisy actor (continuous); the confident transitions go to the
+        model buffer, terminated by the authors' termination function of the domain
+        (:func:`~morl_trl.objectives.dynamics.model_termination`), and the rollout continues from the
+        non-terminal ones. Returns how many were stored."""
         cfg, k = self.cfg, self.k
         added = 0
         total = cfg.gpi_dynamics_rollout_batch
-        chunks = -(-total // 10_000)  # the authors: chunks of at most 10k
-        size = -(-total // chunks)
+        chunks = -(-total // 10_000)  # the authors: ceil(batch / 10k) chunks of 10k start states (25k -> 30k)
+        size = min(total, 10_000)
         support = torch.as_tensor(self.support, dtype=torch.float32, device=self.device)
         w = torch.as_tensor(self.weight, dtype=torch.float32, device=self.device)
+        kind = MODEL_TERMINATION.get(domain_of(cfg.env_id).train_id)
         for _ in range(chunks):
-            index = torch.randint(len(buffer), (size,))
-            obs = buffer.storage[index]["observation"].to(self.device).float()
-            for _ in range(cfg.gpi_dynamics_rollout_len):  # (no termination model: every imagined step continues)
+            # start states drawn from the real buffer by priority (the authors' PER sample), uniformly without PER
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+                obs = buffer.sample(size)["observation"].to(self.device).float()
+            for _ in range(cfg.gpi_dynamics_rollout_len):
                 action = self._model_action(obs, w, support)
                 y, unc = self.dynamics.model.step(model_inputs(obs, action, self.num_actions))
                 next_obs = obs + y[:, k:]
+                term = model_termination(kind, next_obs, y[:, :k], hopper_abs=cfg.gpi_model_termination == "corrected")
                 keep = unc < cfg.gpi_uncertainty_threshold
                 n = int(keep.sum())
                 if n:
-                    false = torch.zeros(n, 1, dtype=torch.bool, device=self.device)
+                    done = term[keep].unsqueeze(-1)
                     self.model_buffer.extend(TensorDict({
                         "observation": obs[keep], "action": action[keep],
                         ("next", "observation"): next_obs[keep], ("next", "reward"): y[keep, :k],
-                        ("next", "terminated"): false, ("next", "done"): false}, batch_size=[n]))
+                        ("next", "terminated"): done, ("next", "done"): done.clone()}, batch_size=[n]))
                 added += n
-                obs = next_obs
+                obs = next_obs[~term]  # rollouts continue from the non-terminal predicted states
+                if not obs.shape[0]:
+                    break
         return added
 
     def _model_action(self, obs: torch.Tensor, w: torch.Tensor, support: torch.Tensor) -> torch.Tensor:
@@ -352,8 +350,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     loss = GPILoss(qnet, gpi_pd=pd, min_priority=cfg.gpi_min_priority)
     loss.make_value_estimator(gamma=gamma)
     greedy = GPIPolicy(qnet, include_preference=True)  # dropout on while acting, as the authors
-    egreedy = EGreedyModule(env.full_action_spec, eps_init=cfg.eps_start, eps_end=cfg.eps_end,
-                            annealing_num_steps=max(1, cfg.eps_frames))
+    egreedy = epsilon_greedy(cfg, env)
     explore = TensorDictSequential(greedy, egreedy)
     eval_policy = GPIPolicy(qnet, dropout=False)  # the authors' q_net.eval() at evaluation
     dynamics = None

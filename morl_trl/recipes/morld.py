@@ -44,7 +44,8 @@ from torch import nn
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
-from morl_trl.objectives.networks import _categorical_actor, _tanh_normal_actor
+from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
+from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
     nearest_member,
@@ -66,10 +67,11 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_morld_agent",
-           "make_morld_training_env", "psa_weights"]
+           "make_morld_training_env", "orthogonal_population_init_", "psa_weights"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -197,7 +199,7 @@ def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
     """The evaluation actor of :class:`ArchiveSnapshotRouter` (reads ``"preference"`` too)."""
     tdm = actor.module[0]
     action_key = actor.module[-1].out_keys[0]
-    make = _tanh_normal_actor if "loc" in tdm.out_keys else _categorical_actor
+    make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
     router = ArchiveSnapshotRouter(tdm.module, actor, weights, snapshots_fn)
     return make(router, [*tdm.in_keys, "preference"], actor.spec[action_key], action_key)
 
@@ -314,8 +316,6 @@ def make_morld_training_env(cfg, device: torch.device):
     """``P * num_envs`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``num_envs``) + the
     policy's history + discounted vector returns (each member's evaluation). No preference: a
     member's weight lives in the loss, not in the data."""
-    from morl_trl.recipes.off_policy import _gamma
-
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
@@ -325,8 +325,29 @@ def make_morld_training_env(cfg, device: torch.device):
         raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
     env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
     env = compose_policy_env(env, history_len=cfg.history_len)
-    env.append_transform(DiscountedVectorReturn(_gamma(cfg, domain_of(cfg.env_id))))
+    env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
     return env
+
+
+@torch.no_grad()
+def orthogonal_population_init_(module: nn.Module) -> nn.Module:
+    """Every member's layers as the authors' ``layer_init``: orthogonal weights (gain 1), zero biases.
+
+    Example:
+        >>> from morl_trl.objectives.population import PopulationLinear
+        >>> lin = orthogonal_population_init_(PopulationLinear(2, 4, 3))
+        >>> w = lin.weight[1]
+        >>> torch.allclose(w @ w.T, torch.eye(3), atol=1e-5), bool((lin.bias == 0).all())
+        (True, True)
+    """
+    for m in module.modules():
+        w = getattr(m, "weight", None)
+        if isinstance(w, torch.Tensor) and w.ndim == 3 and getattr(m, "population", None) == w.shape[0]:
+            for p in range(w.shape[0]):
+                nn.init.orthogonal_(w[p])
+            if getattr(m, "bias", None) is not None:
+                m.bias.zero_()
+    return module
 
 
 def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAgent:
@@ -344,14 +365,17 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
         n = spec.space.n
         actor = make_population_categorical_actor(p, obs_dim, n, num_cells=cfg.hidden, action_spec=spec).to(device)
         critic = make_population_q_network(p, obs_dim, n, k, num_cells=cfg.hidden).to(device)
+        orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, num_actions=n, alpha_init=cfg.alpha,
                                    fixed_alpha=not cfg.learn_alpha, target_entropy_weight=cfg.target_entropy_scale)
     else:
         actor = make_population_gaussian_actor(p, obs_dim, spec.to(device), num_cells=cfg.hidden,
                                                scale=cfg.actor_scale).to(device)
         critic = make_population_critic(p, obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
+        orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, alpha_init=cfg.alpha,
                                    fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+    orthogonal_critic_copies_(loss, critic, orthogonal_population_init_)  # (the loss re-draws its critic copies)
     loss.make_value_estimator(gamma=gamma)
     explore, _ = population_policies(actor, loss.weights)
     holder: dict = {}

@@ -50,8 +50,8 @@ from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
-from morl_trl.recipes.agent import (Agent, NonFiniteLossError, action_spec, adam, fused_choice, is_discrete, num_objectives,
-                                    obs_shape)
+from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 from morl_trl.transforms.command import DesiredReturnConditioning
 
@@ -239,13 +239,7 @@ class PCNAgent(Agent):
         td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
                         [obs.shape[0]], device=self.device)
         out = self.loss(td)
-        total = out["loss_pcn"]
-        if not torch.isfinite(total):
-            raise NonFiniteLossError(f"non-finite loss {{'loss_pcn': {total.item()}}}; the network was left as it was")
-        opt = self.optimizers["policy"]
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        opt.step()
+        optimizer_step(out["loss_pcn"], [self.optimizers["policy"]], losses={"loss_pcn": out["loss_pcn"]})
         return out.detach()
 
     def eval_commands(self, n: int):

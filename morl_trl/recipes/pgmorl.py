@@ -62,6 +62,7 @@ from torchrl.envs import ClipTransform, VecNorm
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
+from morl_trl._torchrl_compat import transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
@@ -70,17 +71,8 @@ from morl_trl.objectives.pgmorl import (
     scalarize_advantage,
     vector_gae,
 )
-from morl_trl.recipes.agent import (
-    Agent,
-    NonFiniteLossError,
-    action_spec,
-    adam,
-    eval_exploration,
-    fused_choice,
-    is_discrete,
-    num_objectives,
-    obs_shape,
-)
+from morl_trl.recipes.agent import Agent, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
 from morl_trl.recipes.pgmorl_evolution import (
     PerformanceBuffer,
     PerformancePredictor,
@@ -248,7 +240,7 @@ class PGMORLAgent(Agent):
         b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
                      ("next", "done"), ("next", "terminated")).detach()
         nxt = b.get("next")
-        self.reward_clip(self.reward_norm._step(b, nxt))  # the statistics take the batch, then normalise it
+        self.reward_clip(transform_step(self.reward_norm, b, nxt))  # the statistics take the batch, then normalise it
         if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
             self._evaluate_all(add_to_prediction=False)
         with torch.no_grad():
@@ -288,17 +280,8 @@ class PGMORLAgent(Agent):
     def _step(self, td: TensorDictBase) -> TensorDictBase:
         out = self.loss(td)
         total = (out["loss_objective"] + out["loss_critic"]) * self.P
-        if not torch.isfinite(total):
-            raise NonFiniteLossError(f"non-finite PPO loss {total.item()}; the population was left as it was")
-        opt = self.optimizers["ppo"]
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        params = [p for g in opt.param_groups for p in g["params"] if p.grad is not None]
-        sq = sum(p.grad.pow(2).reshape(self.P, -1).sum(-1) for p in params)
-        scale = (self.cfg.max_grad_norm / (sq.sqrt() + 1e-6)).clamp(max=1.0)
-        for p in params:
-            p.grad.mul_(scale.reshape(self.P, *([1] * (p.ndim - 1))))
-        opt.step()
+        optimizer_step(total, [self.optimizers["ppo"]], max_grad_norm=self.cfg.max_grad_norm, population=self.P,
+                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})  # each member's norm clipped
         return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
 
     def _record_performance(self, b: TensorDictBase) -> None:

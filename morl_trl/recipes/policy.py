@@ -31,7 +31,9 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.off_policy import _gamma, run_training
+from morl_trl.recipes.algorithms import build_agent, build_training_env
+from morl_trl.recipes.off_policy import run_training
+from morl_trl.recipes.parts import run_discount, run_domain
 from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -170,11 +172,9 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = cfg.replace(device=str(device))
-    from morl_trl.recipes import build_agent, build_training_env
-
-    spec = domain_of(cfg.env_id)
+    spec = run_domain(cfg)
     env = build_training_env(cfg.replace(num_envs=1), device)  # (only its specs are used)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, spec), device=device)
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     env.close()
     state = load_checkpoint(ckpt, map_location=device)
     agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
@@ -205,14 +205,32 @@ class TrainResult:
 
 def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
                  config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
-                 **overrides: Any) -> TrainResult:
+                 env=None, env_name: str | None = None, **overrides: Any) -> TrainResult:
     """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
 
     ``train_policy("envelope", "MOLavaGridDR-v0", quick=True, frames=4_000, run_dir="runs/a")``
     resolves the config as :func:`~morl_trl.recipes.resolve_config` does (``algo`` may also be
     a ready :class:`TrainConfig`); ``resume=run_dir`` continues a run (the other arguments
     then are optional and may change only what a resume may change).
+
+    ``env=`` may replace ``env_id``: an id (ours, or any Gymnasium / MO-Gymnasium id with a
+    vector reward), a callable returning a TorchRL ``EnvBase`` with a vector reward, or an
+    ``EnvBase`` (registered under ``env_name``, default its function or class name; see
+    :func:`morl_trl.envs.register_env`). A callable or instance lives in this process only: to
+    resume such a run, register it again under the same name first.
     """
+    if env is not None:
+        if env_id is not None:
+            raise ValueError("give the env once: env_id or env=")
+        if isinstance(env, str):
+            env_id = env
+        else:
+            from morl_trl.envs import register_env
+
+            name = env_name or getattr(env, "__name__", None) or type(env).__name__
+            if name.startswith("<"):  # "<lambda>"
+                raise ValueError("name the env: train(..., env=<callable>, env_name='my-env')")
+            env_id = register_env(env, name=name, ref_point=overrides.get("ref_point"))
     if isinstance(algo, TrainConfig):
         if env_id is not None or quick or config_file is not None or overrides:
             raise ValueError("train_policy(cfg) takes a TrainConfig alone; put the overrides in it")

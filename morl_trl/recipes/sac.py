@@ -29,6 +29,8 @@ from torch import nn
 from torchrl.objectives import DiscreteSACLoss, SACLoss
 
 from morl_trl.objectives import make_categorical_actor, make_gaussian_actor, make_vector_critic, make_vector_q_network
+from morl_trl.objectives.networks import orthogonal_init_
+from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
@@ -68,7 +70,8 @@ def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     if is_discrete(spec):
         n = spec.space.n
         actor = make_categorical_actor(obs, n, 1, num_cells=cfg.hidden, preference_key=None, action_spec=spec)
-        q = make_vector_q_network(obs, n, 1, num_cells=cfg.hidden, preference_key=None)
+        orthogonal_init_(actor)  # the authors' init of every layer: orthogonal (gain 1), zero biases
+        q = orthogonal_init_(make_vector_q_network(obs, n, 1, num_cells=cfg.hidden, preference_key=None))
         critic = TensorDictModule(_DropObjectiveDim(q.module), in_keys=q.in_keys, out_keys=["action_value"])
         loss = DiscreteSACLoss(actor.to(device), critic.to(device), action_space=spec, num_actions=n,
                                loss_function="l2", alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha,
@@ -78,8 +81,10 @@ def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
         actor = make_gaussian_actor(obs_dim, spec.to(device), 1, num_cells=cfg.hidden, preference_key=None,
                                     scale=cfg.actor_scale).to(device)
         critic = make_vector_critic(obs_dim, spec.shape[-1], 1, num_cells=cfg.hidden, preference_key=None).to(device)
+        orthogonal_init_(actor), orthogonal_init_(critic)  # the authors' init: orthogonal (gain 1), zero biases
         loss = SACLoss(actor, critic, num_qvalue_nets=2, loss_function="l2", alpha_init=cfg.alpha,
                        fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+    orthogonal_critic_copies_(loss, critic)  # (the loss re-draws its critic copies with PyTorch's init)
     loss.set_keys(reward=ORIGINAL_REWARD_KEY)
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),

@@ -375,7 +375,7 @@ def floors_main(argv: list[str] | None = None) -> int:
 
 def floors_markdown(floors: dict | None = None) -> str:
     """The README's floors table: per domain, random, the best constant action and the paper's best algorithm."""
-    from morl_trl.reporting.table import PAPER_NHGR, PAPER_ORDER, domain_name
+    from morl_trl.reporting.paper import PAPER_NHGR, PAPER_ORDER, domain_name
 
     floors = load_floors() if floors is None else floors
     doms = floors.get("domains", {})

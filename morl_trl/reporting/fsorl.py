@@ -140,8 +140,8 @@ def _plot_run(curves: dict[str, dict[int, float]], contexts: list[str], title: s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cols = min(4, len(contexts))
-    rows = math.ceil(len(contexts) / cols)
+    rows = math.ceil(len(contexts) / 4)  # at most 4 panels a row, rows filled evenly (6 -> 2 x 3)
+    cols = math.ceil(len(contexts) / rows)
     labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.7 * rows + 0.4), squeeze=False)
     for k, (ax, c) in enumerate(zip(axes.flat, contexts)):
@@ -179,7 +179,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     lines = ["## f_SORL: the single-objective return (\"Scalar reward is not enough\")", ""]
     if not result.has_sorl:
         name = env_id or "this env"
-        return lines + [f"No f_SORL section: {name} emits no original scalar reward (`original_reward`), the reward "
+        return lines + [f"No f_SORL: {name} emits no original scalar reward (`original_reward`), the reward "
                         "a single-objective agent would be trained on, so there is nothing to compare with.", ""]
     contexts = list(result.context_names)
     labels = _labels(contexts)
@@ -347,8 +347,8 @@ def plot_domain(domain: str, runs: dict[str, dict[int, Path]], path: str | Path,
         return None
     if contexts is None:
         contexts = list(dict.fromkeys(c for d in data.values() for c in d))
-    cols = min(4, len(contexts))
-    rows = math.ceil(len(contexts) / cols)
+    rows = math.ceil(len(contexts) / 4)  # at most 4 panels a row, rows filled evenly (6 -> 2 x 3)
+    cols = math.ceil(len(contexts) / rows)
     labels = _labels(contexts)
     fig, axes = plt.subplots(rows, cols, figsize=(3.5 * cols, 2.8 * rows + 0.9), squeeze=False)
     order = sorted(data, key=lambda a: (ignores_weights(a), a))  # SAC drawn last, on top

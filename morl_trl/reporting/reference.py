@@ -36,8 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from morl_trl.metrics import Bounds, normalized_hypervolume, pareto_front
-from morl_trl.metrics._arrays import as_points
+from morl_trl.metrics import Bounds, as_points, normalized_hypervolume, pareto_front
 from morl_trl.metrics.generalization import eugr as _eugr
 from morl_trl.metrics.generalization import nhgr as _nhgr
 

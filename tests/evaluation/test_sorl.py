@@ -5,6 +5,8 @@ Toy env (morl_trl/envs/toy.py): context (speed s, bias b); action 1 moves right,
 [s * move + b, -1], original_reward = its sum; terminates at |position| >= 3 (3 steps straight).
 """
 
+import csv
+
 import torch
 
 from morl_trl.envs.toy import ToyContextEnv
@@ -110,7 +112,7 @@ def test_an_env_without_an_original_reward_has_no_f_sorl_and_says_so_once(tmp_pa
     assert not any("sorl" in k for k in r.summary())
     lines = run_section(r, tmp_path, "envelope", None, "MyEnv-v0")
     said = [line for line in lines if "original scalar reward" in line]
-    assert len(said) == 1 and said[0].startswith("No f_SORL section: MyEnv-v0 emits no original scalar reward")
+    assert len(said) == 1 and said[0].startswith("No f_SORL: MyEnv-v0 emits no original scalar reward")
     assert not (tmp_path / "report_fsorl.png").exists()
 
 
@@ -118,3 +120,31 @@ def test_sorl_key_none_records_nothing():
     ev = MultiContextEvaluator(right_if_progress, {"c": torch.tensor([2.0, 0.5])}, WEIGHTS, gamma=0.5,
                                env_factory=toy_factory, sorl_key=None)
     assert ev.evaluate().sorl_returns is None
+
+
+def test_run_log_stores_f_sorl_and_the_run_report_shows_the_best_weights(tmp_path):
+    from types import SimpleNamespace
+
+    from morl_trl.runs.run_log import RunLog
+
+    spec = SimpleNamespace(objective_names=("progress", "time"), sorl=None)
+    log = RunLog(tmp_path, SimpleNamespace(logger="none"), spec)
+    ev = MultiContextEvaluator(right_if_progress, {"c": torch.tensor([2.0, 0.5])}, WEIGHTS, gamma=0.5,
+                               env_factory=toy_factory)
+    r = ev.evaluate()
+    for frames in (0, 100, 200):
+        log.evaluation(frames, r)
+    with (tmp_path / "eval" / "sorl.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3 * 3 and rows[0].keys() >= {"frames", "context", "weight_index", "weight_progress",
+                                                     "sorl_return", "sorl_discounted_return", "best"}
+    assert [(x["frames"], x["weight_index"], float(x["sorl_return"]), x["best"]) for x in rows[:3]] == [
+        ("0", "0", -7.5, "0"), ("0", "1", 4.5, "1"), ("0", "2", 4.5, "0")]
+    assert log.truncate(100) >= 3  # a resume cuts f_SORL rows past the checkpoint like every other log
+    with (tmp_path / "eval" / "sorl.csv").open() as fh:
+        assert {x["frames"] for x in csv.DictReader(fh)} == {"0", "100"}
+
+    text = "\n".join(run_section(r, tmp_path, "envelope", None, "Toy-v0"))
+    assert (tmp_path / "report_fsorl.png").stat().st_size > 5_000 and "(report_fsorl.png)" in text
+    assert "| f_SORL max | 4.5 |" in text and "| discounted | 2.62 |" in text
+    assert "| progress | **0.90** |" in text and "| time | 0.10 |" in text and "| weight index | 1 |" in text

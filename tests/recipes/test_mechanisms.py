@@ -285,3 +285,108 @@ def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread)
     assert before.shape == (4,)
     # nearest snapshot weight: [0.8, 0.2] (action 2) for [1, 0] and [0.6, 0.4]; [0.3, 0.7] (action 0) for the others
     assert after.tolist() == [2, 0, 2, 0]
+
+
+# ---------------------------------------------------------------------- GPI-PD model rollouts
+def test_model_termination_functions_are_the_authors():
+    from morl_trl.objectives.dynamics import model_termination
+
+    ll = torch.zeros(4, 26)  # history-stacked: the last 8 dims are the state [x, y, vx, vy, angle, angvel, leg1, leg2]
+    ll[0, -8] = 1.0                   # |x| >= 1
+    ll[1, -2:] = 1.0                  # both legs down, reward[0] != 0
+    ll[2, -2:] = 1.0                  # both legs down, reward[0] == 0
+    reward = torch.tensor([[0.0] * 4, [5.0, 0, 0, 0], [0.0] * 4, [0.0] * 4])
+    assert model_termination("lunar_lander", ll, reward).tolist() == [True, True, False, False]
+    hum = torch.zeros(3, 1078)
+    hum[:, -348] = torch.tensor([1.4, 0.9, 2.1])  # z
+    assert model_termination("humanoid", hum, torch.zeros(3, 2)).tolist() == [False, True, True]
+    assert model_termination(None, hum, torch.zeros(3, 2)).tolist() == [False, False, False]
+
+
+def test_gpi_pd_rollouts_start_by_priority_and_stop_at_terminal_states(single_thread):
+    pytest.importorskip("mujoco")
+    cfg, env, agent = _gpi("gpi_pd", "MOHopperDR-v5", gamma=0.99, gpi_dynamics_rollout_len=2,
+                           gpi_dynamics_rollout_batch=8, gpi_uncertainty_threshold=1e9)
+    assert cfg.prioritized and cfg.gpi_model_termination == "authors"
+    buffer = make_replay_buffer(cfg, CPU)
+    with torch.no_grad():
+        td = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [4, 16]
+    buffer.extend(td.reshape(-1))
+    priority = torch.full((64,), 1e-8)
+    priority[5] = 1e8
+    buffer.update_priority(torch.arange(64), priority)
+    starts = []
+
+    def step(x, **kw):  # the first half of each call's rows lands at height 0.5 (terminal), the rest at 1.25
+        obs = x[:, :39]
+        starts.append(obs.clone())
+        n = x.shape[0]
+        target = obs.clone()
+        target[:, -11:] = 0.0
+        target[:, -11] = torch.where(torch.arange(n) < n // 2, 0.5, 1.25)
+        return torch.cat([torch.zeros(n, 3), target - obs], -1), torch.zeros(n)
+
+    agent.dynamics.model.step = step
+    assert agent.rollout_model(buffer) == 8 + 4  # 8 starts, then the 4 non-terminal continue
+    stored = agent.model_buffer.storage[torch.arange(12)]
+    assert stored["next", "terminated"].flatten().tolist() == [True] * 4 + [False] * 4 + [True] * 2 + [False] * 2
+    first = buffer.storage[torch.arange(64)]["observation"][5]
+    assert all(torch.equal(row, first) for row in starts[0])  # every start state is the top-priority transition
+
+
+def test_capql_collects_with_the_deterministic_tanh_mean_action(single_thread):
+    """The authors' CAPQL: after learning_starts the behaviour action is tanh(mean) (capql.py:454-459)."""
+    pytest.importorskip("mujoco")
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from morl_trl.recipes import build_agent
+
+    acts = {}
+    for det in (True, False):
+        torch.manual_seed(0)
+        cfg = resolve_config("capql", "MOHopperDR-v5", hidden=(16,), num_envs=2, progress=False,
+                             capql_deterministic_collection=det)
+        env = make_training_env(cfg, CPU)
+        agent = build_agent(cfg, env, gamma=0.99, device=CPU)
+        td = TensorDict(observation=torch.randn(8, 39), preference=torch.full((8, 3), 1 / 3), batch_size=[8])
+        with set_exploration_type(ExplorationType.RANDOM):  # as the collector
+            acts[det] = [agent.explore_policy(td.clone())["action"] for _ in range(2)]
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            mean = agent.eval_policy(td.clone())["action"]
+        assert torch.equal(acts[det][0], mean) is det
+    assert torch.equal(acts[True][0], acts[True][1]) and not torch.equal(acts[False][0], acts[False][1])
+
+
+# ---------------------------------------------------------------------- initialisation
+def _orthogonal(w: torch.Tensor) -> bool:
+    w = w.detach().double()
+    m = w @ w.T if w.shape[0] <= w.shape[1] else w.T @ w
+    return bool(torch.allclose(m, torch.eye(m.shape[0], dtype=torch.float64), atol=1e-4))
+
+
+@pytest.mark.parametrize("algo, env_id", [("capql", "MOHopperDR-v5"), ("sac", "MOHopperDR-v5"),
+                                          ("sac", "MOLavaGridDR-v0"), ("pcn", "MOLavaGridDR-v0"),
+                                          ("morld", "MOLavaGridDR-v0"), ("morld", "MOHopperDR-v5")])
+def test_every_layer_has_the_authors_orthogonal_init(algo, env_id, single_thread):
+    """The authors' layer_init on every layer: orthogonal weights (gain 1), zero biases (hyperparameters.toml
+    ``<method>.<domain>.network.init``)."""
+    if "Hopper" in env_id:
+        pytest.importorskip("mujoco")
+    from morl_trl.recipes import build_agent, build_training_env
+
+    cfg = resolve_config(algo, env_id, quick=True, hidden=(16, 8), progress=False)
+    env = build_training_env(cfg, CPU)
+    agent = build_agent(cfg, env, gamma=0.99, device=CPU)
+    checked = 0
+    for name, t in agent.loss.named_parameters():
+        if name.endswith("weight") and t.ndim >= 2:
+            ws = t.reshape(-1, *t.shape[-2:])  # (ensembles / populations: every member)
+            assert all(_orthogonal(w) for w in ws), name
+            checked += 1
+        elif name.endswith("bias"):
+            assert bool((t == 0).all()), name
+    assert checked >= 3
+    target = getattr(agent.loss, "target_qvalue_network_params", None)
+    if target is not None:  # the target critics start as the (re-initialised) critics
+        assert (target.data == agent.loss.qvalue_network_params.data).all()

@@ -1,8 +1,6 @@
 """PGMORL: the prediction model on synthetic data, weight grid, performance buffer, task selection,
 vector GAE, the population's independence, the agent's evaluation policy, and a short run."""
 
-import doctest
-import importlib
 
 import numpy as np
 import pytest
@@ -162,12 +160,6 @@ def test_learn_runs_ppo_on_every_member_and_state_round_trips():
     # the observation statistics travel with the agent (a re-evaluation with normalised observations needs them)
     assert torch.equal(other.obs_norm.loc["observation"], agent.obs_norm.loc["observation"])
     assert torch.equal(other.reward_norm.loc["reward"], agent.reward_norm.loc["reward"])
-
-
-@pytest.mark.parametrize("module", ["morl_trl.objectives.pgmorl", "morl_trl.recipes.pgmorl_evolution",
-                                    "morl_trl.recipes.pgmorl"])
-def test_docstring_examples(module):
-    assert doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS).failed == 0
 
 
 @pytest.mark.slow

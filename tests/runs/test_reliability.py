@@ -110,7 +110,7 @@ def test_resume_of_a_finished_run_is_a_no_op(run, cli):
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--resume", run)
     assert out.returncode == 0
     assert out.stdout.strip().endswith("already reached 512 frames (frames = 512): nothing to do; "
-                                       "pass a larger --frames to extend it")
+                                       "pass a larger frames (--frames) to extend it")
     assert _snapshot(run) == before
 
 
@@ -270,8 +270,8 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
     cfg = write_config(tmp_path / "c.toml", frames=128, init_random_frames=64)
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run)
     assert out.returncode == 2
-    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'logs']): " \
-           f"continue it with --resume {run}, replace it with --overwrite, or choose another --run-dir" in out.stderr
+    assert f"run directory '{run}' is not empty (it holds ['checkpoints', 'config.json', 'eval', 'fronts', 'log.txt']): " \
+           f"continue it with --resume '{run}', replace it with --overwrite, or choose another --run-dir" in out.stderr
     assert _snapshot(run) == before
     out = cli("train", "envelope", "MOLavaGridDR-v0", "--config", cfg, "--run-dir", run, "--overwrite")
     assert out.returncode == 0, out.stderr[-2000:]
@@ -291,12 +291,12 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
 
 
 def test_a_failed_start_leaves_no_run_dir_and_loses_nothing(run, tmp_path, monkeypatch, cli):
-    import morl_trl.recipes as recipes
+    import morl_trl.recipes.off_policy as off_policy
 
     def broken(*args, **kwargs):
         raise ValueError("the env failed to build")
 
-    monkeypatch.setattr(recipes, "build_training_env", broken)
+    monkeypatch.setattr(off_policy, "build_training_env", broken)  # (the loop's own name for it)
     fresh = tmp_path / "fresh"
     with pytest.raises(ValueError, match="the env failed to build"):
         train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(fresh), **TINY))

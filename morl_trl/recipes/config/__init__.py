@@ -22,6 +22,7 @@ from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.resolve import (
     RESUME_MAY_CHANGE,
     coerce_values,
+    config_values,
     flatten_tables,
     load_config_file,
     quick_preset,
@@ -31,5 +32,5 @@ from morl_trl.recipes.config.resolve import (
 from morl_trl.recipes.config.train_config import RENAMED, TrainConfig, upgrade_keys, valid_keys
 
 __all__ = ["ALGORITHMS", "ALGORITHM_SPECS", "KEYS", "RENAMED", "RESUME_MAY_CHANGE", "SHARED_SECTIONS", "TrainConfig",
-           "coerce_values", "flatten_tables", "load_config_file", "quick_preset", "resolve_config", "resume_config",
+           "coerce_values", "config_values", "flatten_tables", "load_config_file", "quick_preset", "resolve_config", "resume_config",
            "upgrade_keys", "valid_keys"]

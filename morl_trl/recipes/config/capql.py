@@ -43,6 +43,8 @@ class CAPQLConfig:
     preference_distribution: str = "cone"
     preference_resample: str = "step"
     loss_fresh_preferences: bool = False
+    # after learning_starts the authors collect with the deterministic tanh(mean)
+    capql_deterministic_collection: bool = True
 
 
 SHARED_DEFAULTS = frozen({})

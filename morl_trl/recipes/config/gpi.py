@@ -80,6 +80,7 @@ class GPIPDConfig(GPILSConfig):
     gpi_real_ratio: float = 0.5
     gpi_dynamics_rollout_len: int = 1
     gpi_dynamics_normalize: bool = False
+    gpi_model_termination: str = "authors"
 
 
 SHARED_DEFAULTS = frozen({})

@@ -22,7 +22,7 @@ from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.train_config import RENAMED, TrainConfig, upgrade_keys, valid_keys
 
 __all__ = ["resolve_config", "load_config_file", "quick_preset", "coerce_values", "flatten_tables",
-           "RESUME_MAY_CHANGE", "resume_config", "check_env_fits", "defaults"]
+           "RESUME_MAY_CHANGE", "resume_config", "check_env_fits", "defaults", "config_values"]
 
 #: table names a config file may group keys under: the sections, the algorithms, and the groups of
 #: earlier versions (``[replay_buffer]``, ``[optim]``, ...)
@@ -85,7 +85,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {str(path)!r} does not parse: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {str(path)!r} holds a {type(data).__name__}, not a table of keys")
-    return coerce_values(flatten_tables(data, f"config file {str(path)!r}"))
+    return config_values(data, f"config file {str(path)!r}")
 
 
 def quick_preset(algo: str | None = None) -> dict[str, Any]:
@@ -111,9 +111,11 @@ def defaults(algo: str, env_id: str) -> dict[str, Any]:
     values.update(algo_spec.shared)
     values.update(algo_spec.domains.get(spec.train_id, {}))
     if spec.foreign:
-        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
 
         values.update(_own_keys(FOREIGN_DEFAULTS.get(algo, {}), algo))
+        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
+            values.update(_own_keys(FOREIGN_DEFAULTS_CONTINUOUS[algo], algo))
     return values
 
 
@@ -170,6 +172,23 @@ def resolve_config(
     return cfg
 
 
+def _discrete_actions(spec) -> bool:
+    """Whether the domain's env has discrete actions (one sub-env built to read its spec)."""
+    from morl_trl.envs import make_env
+
+    env = make_env(spec.train_id, num_envs=1, seed=0)
+    try:
+        return env.action_spec.domain == "discrete"
+    finally:
+        env.close()
+
+
+def config_values(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """The typed config keys of a mapping that may hold ``{section: {key: value}}`` tables (what a
+    config file or a grid's table gives); unknown keys raise, naming ``source`` and the valid keys."""
+    return coerce_values(flatten_tables(values, source))
+
+
 def check_env_fits(cfg: TrainConfig, spec) -> None:
     """Refuse, with a clear error, a run whose env the algorithm or the evaluation cannot handle:
     a hypervolume without a reference point, SAC without an original scalar reward, PGMORL on
@@ -178,7 +197,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
     ref = cfg.ref_point if cfg.ref_point is not None else spec.hv_ref_point
     if ref is None:
         raise ValueError(f"{spec.train_id} has no documented hypervolume reference point: pass one with "
-                         f"--ref-point (config key ref_point), {k} numbers that every return of interest dominates "
+                         f"ref_point=[...] (a config key), {k} numbers that every return of interest dominates "
                          f"(objectives {list(spec.objective_names)})")
     if len(ref) != k:
         raise ValueError(f"ref_point {list(ref)} has {len(ref)} numbers; {spec.train_id} has {k} objectives "
@@ -187,12 +206,7 @@ def check_env_fits(cfg: TrainConfig, spec) -> None:
         raise ValueError(f"sac trains on the env's original scalar reward; {spec.train_id} has a vector reward only "
                          f"(use a multi-objective method: {[a for a in ALGORITHMS if a != 'sac']})")
     if spec.foreign and cfg.algo == "pgmorl":  # (the other builders refuse the wrong action space themselves)
-        from morl_trl.envs import make_env
-
-        env = make_env(spec.train_id, num_envs=1, seed=0)
-        discrete = env.action_spec.domain == "discrete"
-        env.close()
-        if discrete:
+        if _discrete_actions(spec):
             raise ValueError(f"pgmorl needs continuous actions (the authors' PGMORL is continuous-only); "
                              f"{spec.train_id} has discrete ones: use envelope, gpi_ls, gpi_pd, pcn or morld")
 

@@ -71,6 +71,7 @@ class ComputeSection:
     compile: bool = False
     compile_mode: str | None = None
     cudagraphs: bool = False
+    capture_sampling: bool = False
     finite_check_interval: int = 100
 
 

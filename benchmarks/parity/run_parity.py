@@ -1,0 +1,237 @@
+"""Parity with MORL-Baselines: ours and MB 1.3.0 on the same env, hyperparameters, networks,
+frame budget and evaluation; learning curves, final IQM with bootstrap CIs, frames/s.
+
+    python benchmarks/parity/run_parity.py                       # every runnable case, seeds 0-4
+    python benchmarks/parity/run_parity.py --cases gpi_ls-dst --seeds 0-4 --libs ours,mb
+    python benchmarks/parity/run_parity.py --report-only         # RESULTS.md + PNGs from what is done
+
+MB runs in its own virtual environment (``--mb-venv``, default ``~/.cache/morl_trl/mb-1.3.0``),
+created here with ``--system-site-packages`` (it reuses our torch) and ``morl-baselines==1.3.0``
+when absent; it is never a dependency of morl_trl. Each (case, library, seed) is one process
+and one JSON file under ``--out`` (written atomically): a rerun skips the finished ones, so the
+benchmark resumes where it stopped. Run it in the background with ``nice``; it takes minutes
+to hours per seed on a 2-core CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+
+from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
+
+MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
+METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"))
+
+
+# ---------------------------------------------------------------------- MB's venv
+def ensure_mb_venv(venv: Path) -> Path:
+    python = venv / "bin" / "python"
+    if python.exists() and subprocess.run([str(python), "-c", "import morl_baselines"], capture_output=True).returncode == 0:
+        return python
+    print(f"creating MORL-Baselines {MB_VERSION}'s venv in {venv}", flush=True)
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    # --no-deps for MB itself: its pins must not replace our torch / gymnasium in the shared site-packages
+    subprocess.run([str(python), "-m", "pip", "install", "--no-deps", f"morl-baselines=={MB_VERSION}"], check=True)
+    subprocess.run([str(python), "-m", "pip", "install", *MB_DEPS], check=True)
+    return python
+
+
+# ---------------------------------------------------------------------- one run of ours
+def run_ours(case_name: str, seed: int, out: Path) -> None:
+    import tempfile
+
+    import torch
+
+    import morl_trl
+    from morl_trl.evaluation import MultiContextEvaluator
+
+    case = CASES[case_name]
+    torch.set_num_threads(1)
+    eval_seconds = [0.0]
+    evaluate = MultiContextEvaluator.evaluate
+
+    def timed(self, *args, **kwargs):  # training time = wall time minus the evaluations
+        t = time.perf_counter()
+        try:
+            return evaluate(self, *args, **kwargs)
+        finally:
+            eval_seconds[0] += time.perf_counter() - t
+
+    MultiContextEvaluator.evaluate = timed
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"],
+                             eval_interval=case["eval_every"], eval_weights=EVAL_WEIGHTS, eval_episodes=EVAL_EPISODES,
+                             gamma=case["gamma"], eval_random_baseline=False, progress=False,
+                             run_dir=f"{tmp}/run", **case["ours"])
+        wall = time.perf_counter() - t
+        with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
+            curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
+                     for row in csv.DictReader(fh)]
+    train_s = wall - eval_seconds[0]
+    frames = int(curve[-1]["frames"])
+    write_result(out, dict(case=case_name, lib="ours", seed=seed, version=f"morl_trl {morl_trl.__version__}",
+                           curve=curve, frames=frames, train_seconds=train_s, train_fps=frames / train_s,
+                           eval_episodes=EVAL_EPISODES))
+
+
+# ---------------------------------------------------------------------- the report
+def _load(out: Path, case: str) -> dict[str, list[dict]]:
+    runs: dict[str, list[dict]] = {}
+    for path in sorted((out / case).glob("*.json")):
+        data = json.loads(path.read_text())
+        runs.setdefault(data["lib"], []).append(data)
+    return runs
+
+
+def _iqm_ci(values: list[float]) -> tuple[float, float, float]:
+    import numpy as np
+
+    from morl_trl.metrics import stratified_bootstrap_ci
+
+    scores = np.asarray(values, dtype=float)[:, None]  # [runs, tasks = 1]
+    return stratified_bootstrap_ci(scores, "iqm", reps=2000, seed=0)
+
+
+def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    metrics = [(m, label) for m, label in METRICS
+               if any(r["curve"][0].get(m) is not None for rs in runs.values() for r in rs)]
+    fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.2), squeeze=False)
+    for ax, (metric, label) in zip(axes.flat, metrics):
+        for i, (lib, rs) in enumerate(sorted(runs.items())):
+            frames = [p["frames"] for p in rs[0]["curve"]]
+            ys = np.array([[p[metric] for p in r["curve"][: len(frames)]] for r in rs if len(r["curve"]) >= len(frames)],
+                          dtype=float)
+            name = "morl_trl (ours)" if lib == "ours" else f"MORL-Baselines {MB_VERSION}"
+            ax.plot(frames, ys.mean(0), color=f"C{i}", label=f"{name} ({len(ys)} seeds)")
+            ax.fill_between(frames, ys.min(0), ys.max(0), color=f"C{i}", alpha=0.2)
+        ax.set_xlabel("frames")
+        ax.set_ylabel(label)
+    axes.flat[0].legend(fontsize=7)
+    fig.suptitle(f"{case}: mean over seeds, band min-max", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def write_results(out: Path, seeds: list[int], command: str) -> Path:
+    import platform
+
+    import torch
+
+    lines = ["# Parity with MORL-Baselines", "",
+             f"Ours (morl_trl) and MORL-Baselines {MB_VERSION} (in its own venv) on the same env, hyperparameters, "
+             f"networks, frame budget and evaluation: morl_trl's evaluator, {EVAL_WEIGHTS} weights x "
+             f"{EVAL_EPISODES} episode, the case's discount, the env's reference point "
+             "(`morl_trl.envs.foreign.MO_GYMNASIUM_REF_POINTS`), IGD and the HV ratio against MO-Gymnasium's "
+             "`pareto_front(gamma)`. Final values: IQM over seeds with 95 % stratified-bootstrap CIs "
+             "(rliable's method, `morl_trl.metrics.stratified_bootstrap_ci`, 2000 replicates). frames/s: "
+             "training only (wall time minus the evaluations), one torch thread, on the machine below.", "",
+             f"Command: `{command}`", "",
+             f"Versions: Python {platform.python_version()}, torch {torch.__version__}, morl-baselines {MB_VERSION}; "
+             f"machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (timings are noisy).", ""]
+    for case in CASES:
+        runs = _load(out, case)
+        spec = CASES[case]
+        lines += [f"## {case}", "",
+                  f"`{spec['algo']}` on `{spec['env']}`, {spec['frames']:,} frames, evaluated every "
+                  f"{spec['eval_every']:,}; ours: `{spec['ours']}`, MB: `{spec['mb']}`", ""]
+        done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
+        if not runs:
+            lines += ["Not run yet.", ""]
+            continue
+        lines += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
+                  + f" (target: {len(seeds)} per library)", ""]
+        lines += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
+                  "|---|" + "---|" * len(runs)]
+        for metric, label in METRICS:
+            cells = []
+            for lib in sorted(runs):
+                vals = [r["curve"][-1].get(metric) for r in runs[lib]]
+                if any(v is None for v in vals):
+                    cells.append("-")
+                    continue
+                m, lo, hi = _iqm_ci(vals)
+                cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
+            if any(c != "-" for c in cells):
+                lines.append(f"| final {label} | " + " | ".join(cells) + " |")
+        fps = [f"{lib} {sum(r['train_fps'] for r in rs) / len(rs):,.0f}" for lib, rs in sorted(runs.items())
+               if all(r.get("train_fps") for r in rs)]
+        lines += [f"| training frames/s (mean) | " + " | ".join(fps) + " |", ""]
+        png = out.parent / f"{case}.png"
+        _plot(case, runs, png)
+        lines += [f"![{case}]({png.name})", ""]
+    lines += ["## Not run yet", "", "These cases of issue 29 have no runner or no results yet: "
+              + ", ".join(PENDING) + ".", ""]
+    path = out.parent / "RESULTS.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+# ---------------------------------------------------------------------- main
+def _seeds(text: str) -> list[int]:
+    if "-" in text:
+        a, b = text.split("-")
+        return list(range(int(a), int(b) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cases", default=",".join(CASES))
+    p.add_argument("--seeds", default="0-4")
+    p.add_argument("--libs", default="mb,ours")
+    p.add_argument("--out", type=Path, default=HERE / "results")
+    p.add_argument("--mb-venv", type=Path, default=Path.home() / ".cache" / "morl_trl" / f"mb-{MB_VERSION}")
+    p.add_argument("--report-only", action="store_true")
+    p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.one:
+        lib, case, seed, out = args.one
+        run_ours(case, int(seed), Path(out))
+        return 0
+    seeds, cases = _seeds(args.seeds), args.cases.split(",")
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        raise SystemExit(f"unknown case(s) {unknown}; runnable: {list(CASES)}; not yet: {PENDING}")
+    command = "python benchmarks/parity/run_parity.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if not args.report_only:
+        env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+        mb_python = ensure_mb_venv(args.mb_venv) if "mb" in args.libs.split(",") else None
+        for case in cases:  # one at a time: the cheapest cases first (CASES' order)
+            for seed in seeds:
+                for lib in args.libs.split(","):
+                    path = result_path(args.out, case, lib, seed)
+                    if path.exists():
+                        continue
+                    cmd = ([str(mb_python), str(HERE / "mb_runner.py"), case, str(seed), str(path)] if lib == "mb"
+                           else [sys.executable, str(HERE / "run_parity.py"), "--one", lib, case, str(seed), str(path)])
+                    print(f"run {lib} {case} seed {seed}", flush=True)
+                    t = time.perf_counter()
+                    rc = subprocess.run(cmd, env=env).returncode
+                    print(f"  {'done' if rc == 0 else f'FAILED (exit {rc})'} in {time.perf_counter() - t:,.0f} s",
+                          flush=True)
+                write_results(args.out, seeds, command)
+    print(write_results(args.out, seeds, command))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,63 @@
+"""Every use of a TorchRL (and tensordict) private attribute in morl_trl, in one place.
+
+TorchRL gives no public way to save and restore a collector's carried TensorDict and
+trajectory pool (what an exact resume needs), to run one transform's ``_reset`` / ``_step`` on
+data outside an env (the evaluator's and PGMORL's batched bookkeeping), or to build a
+TensorDict without its checks (the envs' hot path); the losses reuse TorchRL's value cache and
+vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, which fails loudly
+(naming the attribute) when a TorchRL or tensordict release changes it.
+
+Example:
+    >>> new_tensordict_unsafe({"a": torch.zeros(2)}, batch_size=torch.Size([2])).batch_size
+    torch.Size([2])
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.objectives.utils import _cache_values, _vmap_func
+
+__all__ = ["collector_state", "load_collector_state", "transform_reset", "transform_step", "cache_values",
+           "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
+           "ENV_BASE_INTERNALS"]
+
+#: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
+cache_values = _cache_values
+#: ``torchrl.objectives.utils._vmap_func``: ``torch.vmap`` over a functional module, with TorchRL's randomness
+vmap_func = _vmap_func
+#: ``TensorDict._new_unsafe``: a TensorDict without the checks (the envs build one per step)
+new_tensordict_unsafe = TensorDict._new_unsafe
+
+#: the methods of TorchRL's ``PrioritizedSampler`` that :mod:`morl_trl.data.prioritized` overrides or
+#: calls, and the attributes its ``__init__`` sets in their place (TorchRL's methods read them)
+PRIORITIZED_SAMPLER_INTERNALS = ("_init", "_tree_device_from_storage", "_maybe_init_from_storage",
+                                 "_retransform_priority_trees")
+PRIORITIZED_SAMPLER_STATE = ("_max_capacity", "_alpha", "_beta", "_eps", "_max_priority_within_buffer", "_sum_tree",
+                             "_min_tree", "_max_priority")
+#: the methods of TorchRL's ``EnvBase`` that :class:`morl_trl.envs.ContextualMOEnv` overrides and calls
+ENV_BASE_INTERNALS = ("_step_and_maybe_reset",)
+
+
+def collector_state(collector) -> dict[str, Any]:
+    """What a ``torchrl.collectors.Collector`` carries between batches: the TensorDict of the
+    next step (``_carrier``) and the trajectory-id pool (``_traj_pool``)."""
+    return {"carrier": collector._carrier.clone(), "traj_pool": collector._traj_pool.state_dict()}
+
+
+def load_collector_state(collector, state: dict[str, Any], device: torch.device | str) -> None:
+    """Restore :func:`collector_state` into a fresh collector (before its first batch)."""
+    collector._carrier = state["carrier"].to(device)
+    collector._traj_pool.load_state_dict(state["traj_pool"])
+
+
+def transform_reset(transform, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:
+    """``transform._reset(tensordict, tensordict_reset)``: a transform's reset on data outside its env."""
+    return transform._reset(tensordict, tensordict_reset)
+
+
+def transform_step(transform, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
+    """``transform._step(tensordict, next_tensordict)``: a transform's step on data outside its env."""
+    return transform._step(tensordict, next_tensordict)

@@ -1,0 +1,126 @@
+"""The parts every recipe builds from its config: the training env, the replay buffer, TorchRL's
+collector, the multi-context evaluator, the run's discount and reference data.
+
+Example:
+    >>> from morl_trl.recipes import resolve_config
+    >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", num_envs=2)
+    >>> run_discount(cfg, domain_of(cfg.env_id))
+    0.995
+    >>> make_training_env(cfg, torch.device("cpu")).batch_size
+    torch.Size([2])
+"""
+
+from __future__ import annotations
+
+import torch
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.envs.utils import ExplorationType
+
+from morl_trl.data import prioritized_sampler
+from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
+from morl_trl.evaluation import MultiContextEvaluator
+from morl_trl.transforms import compose_policy_env, compose_training_env
+
+__all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
+           "load_reference", "no_reference_note"]
+
+
+def run_domain(cfg) -> DomainSpec:
+    """The run's domain, after importing the config's ``domain_modules`` (a user's own domains)."""
+    load_domain_modules(cfg.domain_modules)
+    return domain_of(cfg.env_id)
+
+
+def run_discount(cfg, spec: DomainSpec) -> float:
+    """The run's discount: ``cfg.gamma``, else the domain's evaluation discount."""
+    return cfg.gamma if cfg.gamma is not None else spec.gamma
+
+
+def make_training_env(cfg, device: torch.device):
+    """``make_env(cfg.env_id)`` (contexts drawn per sub-env and episode for a DR id) + the
+    policy's history + a preference per sub-env (``cfg.preference_distribution``, drawn per
+    episode or, with ``preference_resample="step"``, every step) + vector returns."""
+    spec = run_domain(cfg)
+    env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
+    return compose_training_env(env, gamma=run_discount(cfg, spec), history_len=cfg.history_len,
+                                preference_seed=cfg.seed + 1, preference_mode=cfg.preference_distribution,
+                                preference_resample=cfg.preference_resample)
+
+
+def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
+    """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``."""
+    storage = LazyTensorStorage(cfg.buffer_size, device=device)
+    if cfg.prioritized:
+        sampler = prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
+        return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.batch_size,
+                                      priority_key="td_error")
+    return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
+
+
+def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int = 0,
+                   frames_to_go: int | None = None) -> Collector:
+    """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
+    frames_done``; uniformly random before ``init_random_frames``)."""
+    if frames_to_go is None:
+        frames_to_go = cfg.frames - frames_done
+    per_batch = cfg.frames_per_batch
+
+    def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
+        return -(-max(frames, 0) // per_batch) * per_batch
+
+    return Collector(
+        env,
+        policy,
+        frames_per_batch=per_batch,
+        total_frames=max(whole_batches(frames_to_go), per_batch),
+        init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
+        device=device,
+        exploration_type=ExplorationType.RANDOM,
+        auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
+    )
+
+
+def make_evaluator(cfg, agent, spec: DomainSpec, reference=None) -> MultiContextEvaluator:
+    """The multi-context evaluator of ``agent.eval_policy`` on the policy stack of training (same env, same history)."""
+    device = agent.device
+
+    def env_factory(num_envs: int, seed: int):
+        # the training id: the evaluator's contexts, given at every reset, replace the env's draws
+        return compose_policy_env(make_env(cfg.env_id, num_envs=num_envs, seed=seed, device=device),
+                                  history_len=cfg.history_len)
+
+    return MultiContextEvaluator(
+        agent.eval_policy,
+        list(cfg.eval_contexts) if cfg.eval_contexts else spec.train_id,
+        weights=cfg.eval_weights,
+        episodes=cfg.eval_episodes,
+        gamma=run_discount(cfg, spec),
+        env_factory=env_factory,
+        reference=reference,
+        ref_point=cfg.ref_point,
+        exploration_type=agent.eval_exploration,
+        device=device,
+        seed=cfg.seed,
+    )
+
+
+def load_reference(cfg, spec: DomainSpec):
+    """The bounds and specialist fronts for NHGR/EUGR: ``cfg.reference_dir``'s, else the copies
+    shipped with the package; ``None`` for a domain without published data."""
+    from morl_trl.reporting.reference import PACKAGED_REFERENCE, list_reference_domains, load_domain_reference
+
+    root = cfg.reference_dir or PACKAGED_REFERENCE
+    if spec.train_id not in list_reference_domains(root):  # (e.g. the DMC domains: no published data)
+        return None
+    return load_domain_reference(root, spec.train_id)
+
+
+def no_reference_note(spec: DomainSpec) -> str:
+    """What a run of a domain without reference data says about NHGR."""
+    if spec.foreign:
+        from morl_trl.reporting.report import foreign_nhgr_note
+
+        return foreign_nhgr_note(spec)
+    return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
+            f"exists for this domain, so the evaluation reports hypervolume and EUM only")

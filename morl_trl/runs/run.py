@@ -1,0 +1,358 @@
+"""A training run's management, in one object every recipe uses the same way: :class:`Run`.
+
+The run directory (a new run refuses a non-empty one unless it may overwrite it; ``--resume``
+continues the newest intact checkpoint), ``config.json``, the logs (:class:`~morl_trl.runs.RunLog`),
+the evaluation and checkpoint schedules, checkpoints (:mod:`morl_trl.runs.checkpoint`), the
+progress bar, the report and a clean stop. What the recipe keeps is the learning: build the env,
+the agent and the collector, then the loop::
+
+    run = Run.open(cfg, resume=..., overwrite=..., load_config=TrainConfig.load, resume_config=resume_config)
+    ...build env, agent, evaluator, buffer (nothing is written before this point)...
+    state = run.restore(buffer)                   # a resumed run: the checkpoint's state
+    with run.start(spec, reference):              # the run directory, config.json, logs, progress bar
+        if state is None:
+            run.evaluate(evaluator); run.checkpoint(snapshot())
+        for batch in collector:
+            run.frames += batch.numel()
+            ...the algorithm's per-frame work...
+            run.batch_done(batch.numel(), losses, updates)
+            if run.eval_due(): run.evaluate(evaluator)
+            if run.checkpoint_due(): run.checkpoint(snapshot())
+        run.finish(evaluator, snapshot())
+
+Every write to the run directory goes through this object (and the :class:`RunLog` it holds),
+so run-wide policies (locks, atomic writes, Ctrl-C) have one place to live: :meth:`start`,
+:meth:`checkpoint`, :meth:`stop` and :meth:`__exit__`.
+
+The config is any object with ``to_dict()``, ``save(path)``, ``validate()``, ``run_dir``,
+``frames``, ``eval_interval``, ``checkpoint_interval``, ``keep_checkpoints``, ``progress``,
+``logger``, ``algo``, ``env_id`` and ``seed`` (the recipes' ``TrainConfig``).
+
+Example:
+    >>> from types import SimpleNamespace
+    >>> cfg = SimpleNamespace(frames=100, eval_interval=50, checkpoint_interval=40)
+    >>> run = Run(cfg, Path("unused"))
+    >>> run.frames = 40
+    >>> run.eval_due(), run.checkpoint_due()
+    (True, True)
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from morl_trl.runs.checkpoint import (
+    checkpoint_buffer,
+    checkpoint_frames,
+    find_checkpoint,
+    load_checkpoint,
+    rng_state,
+    save_checkpoint,
+)
+from morl_trl.runs.run_log import RunLog, check_logger
+
+__all__ = ["Run", "default_run_dir", "eval_line", "start_line"]
+
+
+def default_run_dir(cfg) -> Path:
+    """``runs/<algo>_<env id>_s<seed>_<date-time>``."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+
+
+def eval_line(summary: dict) -> str:
+    """The one line an evaluation prints."""
+    agg = summary["aggregate"]
+    parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
+    return f"[eval @ {summary['frames']:,} frames] mean over contexts: " + ", ".join(parts)
+
+
+def start_line(cfg, frames: int, resumed: bool) -> str:
+    """The first line of a run in log.txt: what it will do and how much (the duration follows once measured)."""
+    evals = max(0, (cfg.frames - frames) // max(cfg.eval_interval, 1)) + 1
+    what = "resume" if resumed else "start"
+    return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
+            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), about "
+            f"{evals} evaluations of {cfg.eval_weights} weights; the estimated duration follows once the "
+            f"learning speed is measured")
+
+
+class _DurationEstimate:
+    """Measures the learning speed over the first batches after the random warm-up and says once,
+    in ``log.txt``, how long the rest of the run should take (tqdm's bar keeps an ETA after it)."""
+
+    def __init__(self, cfg, frames: int) -> None:
+        self.cfg = cfg
+        self.start: tuple[int, float] | None = None
+        self.done = frames >= cfg.frames
+
+    def update(self, frames: int, eval_seconds: list[float], next_eval: int) -> str | None:
+        if self.done:
+            return None
+        now = time.perf_counter()
+        if self.start is None:
+            if frames > self.cfg.init_random_frames:
+                self.start = (frames, now)
+            return None
+        seen, dt = frames - self.start[0], now - self.start[1]
+        if frames >= self.cfg.frames:  # finished before a stable measurement: nothing to predict
+            self.done = True
+            return None
+        if dt < 15.0 or seen <= 0:  # some seconds of learning: a stable rate
+            return None
+        self.done = True
+        rate = seen / max(dt, 1e-9)
+        left = max(self.cfg.frames - frames, 0)
+        evals = (max(self.cfg.frames - next_eval, 0) // max(self.cfg.eval_interval, 1) + 1) if left else 0
+        per_eval = float(np.mean(eval_seconds)) if eval_seconds else 0.0
+        seconds = left / max(rate, 1e-9) + evals * per_eval
+        return (f"estimated duration: {_hms(seconds)} more ({left:,} frames at {rate:,.0f} frames/s learning, "
+                f"measured over {seen:,} frames, + {evals} evaluations of ~{per_eval:.0f} s)")
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
+
+
+def _check_new_run_dir(run_dir: Path, overwrite: bool) -> None:
+    if run_dir.exists() and not run_dir.is_dir():
+        raise ValueError(f"run directory {str(run_dir)!r} is a file")
+    if run_dir.is_dir() and any(run_dir.iterdir()):
+        held = sorted(p.name for p in run_dir.iterdir())
+        if not overwrite:
+            raise ValueError(f"run directory {str(run_dir)!r} is not empty (it holds {held[:5]}): continue it with "
+                             f"resume={str(run_dir)!r}, replace it with overwrite=True, or choose another run_dir=")
+        if not (run_dir / "config.json").is_file():  # --overwrite deletes runs only, never any other folder
+            raise ValueError(f"overwrite=True replaces run directories only; {str(run_dir)!r} has no config.json "
+                             f"(it holds {held[:5]}): choose another run_dir=")
+
+
+class Run:
+    """One training run: its directory, config, logs, schedules, checkpoints, progress and report.
+
+    Make one with :meth:`open` (it validates and reads, writes nothing), then :meth:`restore`
+    (a resumed run's checkpoint) and ``with run.start(...)`` (see the module docstring).
+
+    Attributes:
+        cfg: the config the run runs with (a resumed run's saved one, with what a resume may change).
+        dir: the run directory.
+        frames, updates: collected frames and gradient updates so far.
+        summary: the last evaluation summary (``{}`` before the first).
+        log: the :class:`RunLog` (from :meth:`start` on).
+        resume_from: the checkpoint a resumed run continues from (``None`` for a new run).
+    """
+
+    def __init__(self, cfg, run_dir: Path, *, resume_from: Path | None = None, overwrite: bool = False,
+                 notes: list[str] | None = None) -> None:
+        self.cfg = cfg
+        self.dir = Path(run_dir)
+        self.resume_from = resume_from
+        self.overwrite = overwrite
+        self.notes = list(notes or [])
+        self.frames, self.updates = 0, 0
+        self.next_eval, self.next_ckpt, self.last_eval = 0, cfg.checkpoint_interval, -1
+        self.summary: dict = {}
+        self.log: RunLog | None = None
+        self.reference = None
+        self._bar = None
+        self._clock = (time.perf_counter(), 0)
+        self._eval_seconds: list[float] = []
+        self._eta = None
+
+    # ------------------------------------------------------------------ before anything is written
+    @classmethod
+    def open(cls, cfg=None, *, resume: str | Path | None = None, overwrite: bool = False,
+             load_config: Callable[[Path], Any], resume_config: Callable[[Any, dict, str], Any]) -> "Run":
+        """A new run of ``cfg`` (its ``run_dir`` must be empty, or a run to replace with
+        ``overwrite``), or, with ``resume=run_dir``, the continuation of that run from its newest
+        intact checkpoint (``cfg``, optional, may change what ``resume_config`` allows). Reads only.
+
+        Raises:
+            ValueError: a non-empty run directory without ``overwrite``; nothing to resume from.
+        """
+        if resume is None:
+            if cfg is None:
+                raise ValueError("train() needs a config (or resume=<run dir>)")
+            cfg.validate()
+            run_dir = Path(cfg.run_dir) if cfg.run_dir else default_run_dir(cfg)
+            _check_new_run_dir(run_dir, overwrite)
+            check_logger(cfg.logger)
+            return cls(cfg, run_dir, overwrite=overwrite)
+        if overwrite:
+            raise ValueError("resume continues a run and overwrite replaces it: choose one")
+        run_dir = Path(resume)
+        saved = run_dir / "config.json"
+        if not saved.is_file():
+            raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
+        saved_cfg = load_config(saved)
+        cfg = saved_cfg if cfg is None else resume_config(saved_cfg, cfg.to_dict(), "the given config")
+        cfg.run_dir = saved_cfg.run_dir
+        changed = {k: (getattr(saved_cfg, k), getattr(cfg, k)) for k in saved_cfg.to_dict()
+                   if getattr(saved_cfg, k) != getattr(cfg, k)}
+        ckpt, skipped = find_checkpoint(run_dir)
+        notes = [f"warning: skipped damaged checkpoint {p.name}: {why}" for p, why in skipped]
+        if changed:
+            notes.append("resumed with " + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changed.items()))
+        if ckpt is None:
+            what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
+            raise ValueError(f"cannot resume {str(run_dir)!r}: no intact checkpoint ({what}); "
+                             f"start it again with overwrite=True")
+        run = cls(cfg, run_dir, resume_from=ckpt, notes=notes)
+        run.frames = checkpoint_frames(ckpt)
+        if not run.done:
+            check_logger(cfg.logger)
+        return run
+
+    @property
+    def done(self) -> bool:
+        """A resumed run that already reached ``cfg.frames`` (nothing to do)."""
+        return self.resume_from is not None and self.frames >= self.cfg.frames
+
+    def restore(self, buffer=None, map_location=None) -> dict | None:
+        """A resumed run: the checkpoint's state (``buffer`` refilled when it holds one), with
+        the run's counters and schedules continued from it. ``None`` for a new run."""
+        if self.resume_from is None:
+            return None
+        state = load_checkpoint(self.resume_from, buffer, map_location=map_location)
+        self.frames, self.updates, self.last_eval = state["frames"], state["updates"], state["last_eval"]
+        self.next_eval, self.next_ckpt = state["next_eval"], state["next_ckpt"]
+        return state
+
+    # ------------------------------------------------------------------ the run directory
+    def start(self, spec, reference=None, *, notes: list[str] = ()) -> "Run":
+        """Create (or, with ``overwrite``, replace) the run directory, save ``config.json``, open
+        the logs, write the notes, cut a resumed run's logs back to its checkpoint, show the
+        progress bar. A failed start leaves no new run directory behind. Use as ``with run.start(...)``.
+        ``notes`` go to log.txt after :meth:`open`'s own."""
+        cfg = self.cfg
+        created = not self.dir.exists()
+        try:
+            if self.resume_from is None:
+                if self.overwrite and self.dir.exists():
+                    shutil.rmtree(self.dir)
+                self.dir.mkdir(parents=True, exist_ok=True)
+                cfg.run_dir = str(self.dir)
+                cfg.save(self.dir / "config.json")
+            self.log = RunLog(self.dir, cfg, spec)
+        except BaseException:
+            if created:
+                shutil.rmtree(self.dir, ignore_errors=True)
+            raise
+        self.reference = self.log.reference = reference
+        self.log.note(start_line(cfg, self.frames, self.resume_from is not None))  # (log.txt exists on every run)
+        for note in [*self.notes, *notes]:
+            self.log.note(note)
+        if self.resume_from is not None:
+            if cfg.to_dict() != type(cfg).load(self.dir / "config.json").to_dict():
+                cfg.save(self.dir / "config.json")  # what the run continues with (e.g. a larger frames)
+            cut = self.log.truncate(self.frames)
+            self.log.note(f"resumed from {self.resume_from.name} at {self.frames} frames "
+                          f"(logs cut back to it: {cut} rows/files removed)")
+            if checkpoint_buffer(self.resume_from) == "pruned":
+                self.log.note(f"warning: {self.resume_from.name} holds no replay buffer (only the newest checkpoint "
+                              f"keeps it): the run continues with an empty replay buffer")
+        self._bar = tqdm(total=cfg.frames, initial=self.frames, unit="frame", disable=not cfg.progress,
+                         dynamic_ncols=True)
+        self._clock = (time.perf_counter(), self.frames)
+        self._eta = _DurationEstimate(cfg, self.frames)
+        return self
+
+    def note(self, message: str) -> None:
+        """A line in ``log.txt`` (and above the progress bar)."""
+        self.log.note(message)
+
+    def __enter__(self) -> "Run":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        # (the one place a run ends, however it ends: a Ctrl-C handler hooks in here)
+        self.close()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+        if self.log is not None:
+            self.log.close()
+
+    # ------------------------------------------------------------------ per batch
+    def fps(self) -> float:
+        """Frames per second since :meth:`start`."""
+        t0, f0 = self._clock
+        return (self.frames - f0) / max(time.perf_counter() - t0, 1e-9)
+
+    def batch_done(self, frames: int, losses=None, updates: int = 0, *, epsilon: float | None = None) -> None:
+        """After a batch of ``frames`` frames and ``updates`` updates: count them, log the losses
+        (every 50 updates, or every batch of several; with the frame rate and ``epsilon``),
+        advance the progress bar, say the estimated duration once it is measured."""
+        self.updates += updates
+        if losses is not None and (self.updates % 50 == 0 or updates > 1):
+            self.log.losses(self.frames, losses, frames_per_second=self.fps(), epsilon=epsilon)
+        self._bar.update(frames)
+        line = self._eta.update(self.frames, self._eval_seconds, self.next_eval)
+        if line is not None:
+            self.log.note(line)
+        nhgr = self.summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
+        self._bar.set_postfix(nhgr=f"{nhgr:.3f}" if nhgr == nhgr else "-")
+
+    def eval_due(self) -> bool:
+        return self.frames >= self.next_eval
+
+    def checkpoint_due(self) -> bool:
+        """Whether a periodic checkpoint is due (the end of the run has its own, :meth:`finish`)."""
+        return self.frames >= self.next_ckpt and self.frames < self.cfg.frames
+
+    # ------------------------------------------------------------------ evaluations, checkpoints, the end
+    def evaluate(self, evaluator, *args) -> dict:
+        """Evaluate now (``evaluator.evaluate(*args)``), log it and move the schedule on."""
+        t0 = time.perf_counter()
+        self.summary = self.log.evaluation(self.frames, evaluator.evaluate(*args))
+        self._eval_seconds.append(time.perf_counter() - t0)
+        self.last_eval = self.frames
+        while self.next_eval <= self.frames:
+            self.next_eval += self.cfg.eval_interval
+        tqdm.write(eval_line(self.summary))
+        return self.summary
+
+    def checkpoint(self, snapshot: dict, buffer=None, **flags) -> Path:
+        """Write a checkpoint of the recipe's ``snapshot`` (agent, env, collector, device...), the
+        run's counters, RNG states and config, and ``buffer`` (when not empty); move the schedule on."""
+        if not flags:  # a periodic one (the final and the stop checkpoints leave the schedule as it is)
+            while self.next_ckpt <= self.frames:
+                self.next_ckpt += self.cfg.checkpoint_interval
+        state = dict(snapshot, frames=self.frames, updates=self.updates, next_eval=self.next_eval,
+                     next_ckpt=self.next_ckpt, last_eval=self.last_eval, rng=rng_state(), config=self.cfg.to_dict(),
+                     **flags)
+        return save_checkpoint(self.dir, self.frames, state, buffer if buffer is not None and len(buffer) else None,
+                               keep=self.cfg.keep_checkpoints)
+
+    def finish(self, evaluator, snapshot: dict, buffer=None, *, random_baseline: bool = False) -> dict:
+        """The end of the run: a last evaluation (unless this frame was evaluated), the random
+        baseline (``random_baseline``), the report, the final checkpoint."""
+        if self.last_eval != self.frames:
+            self.evaluate(evaluator)
+        if random_baseline:
+            self.log.random_result = evaluator.evaluate("random")
+        if self.log.last_result is not None:
+            self.log.report(self.summary, fps=self.fps())
+        self.checkpoint(snapshot, buffer, finished=True)
+        return self.summary
+
+    def stop(self, error: str, snapshot: dict, buffer=None) -> Path:
+        """Stop the run cleanly on ``error`` (e.g. a non-finite loss): checkpoint the last good
+        state, say why in log.txt and report.md; returns the checkpoint's path."""
+        path = self.checkpoint(snapshot, buffer, stopped=error)
+        reason = f"{error} (at {self.frames:,} frames, after {self.updates} updates)"
+        self.log.note(f"stopped: {reason}; the last good state is checkpointed in {path}")
+        if self.log.last_result is not None:
+            self.log.report(self.summary, fps=self.fps())
+        self.log.report_stop(f"stopped: {reason}; the last good state is checkpointed in {path.name}")
+        return path

@@ -1,0 +1,80 @@
+"""The one optimizer step (:func:`morl_trl.recipes.optim.optimizer_step`) every recipe uses.
+
+Exactness: from the same seed, every algorithm's networks after a few collected batches of
+updates are what the six separate copies it replaced computed (fingerprints recorded with the
+code of 2026-11-26, before the change)."""
+
+import pytest
+import torch
+
+from morl_trl.envs import domain_of
+from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
+
+SMALL = dict(num_envs=2, frames_per_batch=32, init_random_frames=32, updates_per_batch=2, batch_size=16,
+             hidden=(16, 16), buffer_size=512, progress=False, logger="none", seed=5)
+
+# name -> (algorithm, env id, overrides, collected batches)
+CASES = {
+    "envelope": ("envelope", "MOLavaGridDR-v0", {}, 4),
+    "capql": ("capql", "MOHopperDR-v5", {}, 4),
+    "gpi_discrete": ("gpi_ls", "MOLavaGridDR-v0", dict(gpi_iteration_frames=10_000), 4),
+    "gpi_continuous": ("gpi_pd", "MOHopperDR-v5", dict(gpi_iteration_frames=10_000, gpi_dynamics_rollout_starts=10_000,
+                                                       gpi_dynamics_train_freq=10_000, gpi_policy_delay=2), 4),
+    "pcn": ("pcn", "MOLavaGridDR-v0", dict(pcn_er_episodes=2, pcn_step_episodes=1, pcn_model_updates=3,
+                                           init_random_frames=0, frames_per_batch=256), 2),  # (episodes: 256 steps)
+    "pgmorl": ("pgmorl", "MOHopperDR-v5", dict(pgmorl_pop=2, pgmorl_envs_per_member=1, frames_per_batch=64,
+                                               pgmorl_warmup=1, pgmorl_evo_iterations=1, pgmorl_minibatches=2,
+                                               pgmorl_epochs=1, hidden=(8,), init_random_frames=0), 4),
+}
+
+#: sum over the loss's floating point tensors of sum(p * (1 + index / n)) after the updates
+EXPECTED = {
+    "envelope": (-18.05168019141754, 8),
+    "capql": (-23.95573733665476, 8),  # (CAPQL cone fixed on 2026-11-26: recorded again, before the change)
+    "gpi_discrete": (58.111532349630785, 8),
+    "gpi_continuous": (215.33301370333132, 8),
+    "pcn": (-10.01220715023734, 3),  # (PCN widths = hidden since 2026-11-26: recorded again, before the change)
+    "pgmorl": (2.2739233187229897, 8),
+}
+
+
+def fingerprint(case: str) -> tuple[float, int]:
+    algo, env_id, extra, batches = CASES[case]
+    cfg = resolve_config(algo, env_id, **{**SMALL, **extra})
+    cfg.frames = batches * cfg.frames_per_batch
+    torch.manual_seed(cfg.seed)
+    dev = torch.device("cpu")
+    env = build_training_env(cfg, dev)
+    agent = build_agent(cfg, env, gamma=domain_of(env_id).gamma, device=dev)
+    buffer = make_replay_buffer(cfg, dev)
+    collector = make_collector(cfg, env, agent.explore_policy, dev)
+    frames, updates = 0, 0
+    for batch in collector:
+        frames += batch.numel()
+        updates += agent.learn(batch, buffer, frames)[1]
+        agent.on_frames(frames)
+        collector.update_policy_weights_()
+    collector.shutdown()
+    total = torch.zeros((), dtype=torch.float64)
+    for value in agent.loss.state_dict().values():
+        if torch.is_tensor(value) and value.is_floating_point():
+            flat = value.detach().double().flatten()
+            total += (flat * (1 + torch.arange(flat.numel(), dtype=torch.float64) / flat.numel())).sum()
+    return total.item(), updates
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_same_parameters_after_updates_as_before_the_change(case):
+    value, updates = fingerprint(case)
+    want_value, want_updates = EXPECTED[case]
+    assert updates == want_updates
+    assert value == pytest.approx(want_value, rel=1e-9, abs=1e-9)
+
+
+if __name__ == "__main__":  # prints EXPECTED (only ever from the code before a change)
+    import time
+
+    for algo in CASES:
+        t = time.perf_counter()
+        print(f"    {algo!r}: {fingerprint(algo)!r},  # {time.perf_counter() - t:.1f} s", flush=True)

@@ -1,0 +1,65 @@
+"""Each TorchRL / tensordict private name morl_trl uses (all in ``morl_trl._torchrl_compat``)
+still exists and does what we rely on; a TorchRL release that changes one fails here, by name."""
+
+import inspect
+
+import torch
+from tensordict import TensorDict
+from torchrl.collectors import Collector
+from torchrl.data.replay_buffers.samplers import PrioritizedSampler
+from torchrl.envs import EnvBase, TransformedEnv
+
+from morl_trl import _torchrl_compat as compat
+from morl_trl.envs import make_env
+from morl_trl.transforms import DiscountedVectorReturn
+
+
+def test_collector_state_round_trips_the_carried_step():
+    env = make_env("MOLavaGridDR-v0", num_envs=2, seed=0)
+    first = Collector(env, None, frames_per_batch=4, total_frames=8)
+    next(iter(first))
+    state = compat.collector_state(first)
+    assert isinstance(state["carrier"], TensorDict) and state["carrier"].batch_size == torch.Size([2])
+    second = Collector(make_env("MOLavaGridDR-v0", num_envs=2, seed=1), None, frames_per_batch=4, total_frames=8)
+    compat.load_collector_state(second, state, "cpu")
+    assert torch.equal(second._carrier["observation"], first._carrier["observation"])
+    assert second._traj_pool.state_dict() == first._traj_pool.state_dict()
+    first.shutdown()
+    second.shutdown()
+
+
+def test_transform_reset_and_step_run_a_transform_outside_its_env():
+    env = TransformedEnv(make_env("MOLavaGridDR-v0", num_envs=2, seed=0), DiscountedVectorReturn(0.5))
+    returns = env.transform
+    td = env.reset()
+    td.set("episode_return", torch.full((2, 2), 7.0))
+    reset = compat.transform_reset(returns, td.clone(), td.clone())  # a reset without "_reset": every sub-env
+    assert reset["episode_return"].tolist() == [[0.0, 0.0], [0.0, 0.0]]
+    nxt = TensorDict({"reward": torch.tensor([[1.0, 2.0], [3.0, 4.0]]), "done": torch.zeros(2, 1, dtype=torch.bool)},
+                     [2])
+    nxt = compat.transform_step(returns, reset, nxt)
+    assert nxt["episode_return"].tolist() == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_loss_helpers_exist_with_their_signatures():
+    assert list(inspect.signature(compat.cache_values).parameters) == ["func"]
+    assert list(inspect.signature(compat.vmap_func).parameters)[:2] == ["module", "args"]
+    assert "randomness" not in inspect.signature(compat.vmap_func).parameters  # (passed on through **kwargs)
+
+
+def test_new_tensordict_unsafe_builds_a_tensordict():
+    td = compat.new_tensordict_unsafe({"a": torch.zeros(3, 2)}, batch_size=torch.Size([3]), device=None)
+    assert isinstance(td, TensorDict) and td.batch_size == torch.Size([3]) and td["a"].shape == (3, 2)
+
+
+def test_prioritized_sampler_internals_exist():
+    missing = [n for n in compat.PRIORITIZED_SAMPLER_INTERNALS if not callable(getattr(PrioritizedSampler, n, None))]
+    assert not missing, f"TorchRL's PrioritizedSampler no longer has {missing} (morl_trl.data.prioritized overrides them)"
+    source = "".join(inspect.getsource(f) for f in vars(PrioritizedSampler).values() if inspect.isfunction(f))
+    gone = [n for n in compat.PRIORITIZED_SAMPLER_STATE if f"self.{n}" not in source]
+    assert not gone, f"TorchRL's PrioritizedSampler no longer reads {gone} (morl_trl.data.prioritized sets them)"
+
+
+def test_env_base_internals_exist():
+    missing = [n for n in compat.ENV_BASE_INTERNALS if not callable(getattr(EnvBase, n, None))]
+    assert not missing, f"TorchRL's EnvBase no longer has {missing} (morl_trl.envs.ContextualMOEnv overrides them)"
