@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.config.domains import HUMANOID, LAVA_GRID, LUNAR_LANDER, MARIO, MUJOCO, RECORD_DOMAINS
+from morl_trl.recipes.config.domains import HUMANOID, MARIO, MUJOCO, RECORD_DOMAINS
 
 __all__ = ["Same", "Deliberate", "NotApplicable", "Code", "Row", "RECORD_PATH", "METHODS", "record", "pairs",
            "compare", "open_differences", "rule_for", "format_rows", "markdown", "record_meta"]

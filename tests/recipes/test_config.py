@@ -31,8 +31,9 @@ def test_each_algorithm_has_only_its_keys():
                                                                          .keys()) == {
         "gpi_dynamics_hidden", "gpi_dynamics_ensemble", "gpi_dynamics_elites", "gpi_dynamics_lr",
         "gpi_dynamics_train_freq", "gpi_dynamics_rollout_freq", "gpi_dynamics_rollout_batch", "gpi_dynamics_buffer",
-        "gpi_uncertainty_threshold", "gpi_real_ratio", "gpi_dynamics_rollout_len", "gpi_dynamics_normalize"}
-    assert len(TrainConfig(algo="envelope").keys()) == 53 and len(TrainConfig(algo="pcn").keys()) == 39  # of 110
+        "gpi_uncertainty_threshold", "gpi_real_ratio", "gpi_dynamics_rollout_len", "gpi_dynamics_normalize",
+        "gpi_model_termination"}
+    assert len(TrainConfig(algo="envelope").keys()) == 54 and len(TrainConfig(algo="pcn").keys()) == 40  # of 113
 
 
 def test_a_key_the_algorithm_does_not_have_is_an_error_naming_the_valid_keys():
@@ -66,7 +67,8 @@ def test_a_run_config_written_before_configs_were_per_algorithm_loads(tmp_path):
     assert len(saved) > len(cfg.keys()) and cfg.algo == "envelope"
     ours = json.loads(json.dumps(cfg.to_dict()))
     assert {k: saved[k] for k in cfg.keys() if k in saved} == {k: ours[k] for k in saved if k in ours}  # same values
-    assert {k: ours[k] for k in set(ours) - set(saved)} == {"domain_modules": [], "ref_point": None}  # added since
+    assert {k: ours[k] for k in set(ours) - set(saved)} == {"domain_modules": [], "ref_point": None,
+                                                          "capture_sampling": False}  # added since
     # an old SAC run updated every frame with one lr: the keys added since reproduce that
     old = {**_V1_DEFAULTS, "algo": "sac", "env_id": "MOLavaGridDR-v0", "hidden": [16, 16]}
     (tmp_path / "config.json").write_text(json.dumps(old))

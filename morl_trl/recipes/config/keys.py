@@ -19,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["ALGORITHMS", "Key", "KEYS", "NOT_SET", "LOGGERS", "SHARED_SECTIONS"]
+__all__ = ["coerce_values", "ALGORITHMS", "Key", "KEYS", "NOT_SET", "LOGGERS", "SHARED_SECTIONS"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
               "gpi_ls", "gpi_pd")
@@ -262,3 +262,26 @@ KEYS: dict[str, Key] = {
     'domain_modules': Key('env', 'tuple[str, ...]', 'Python modules imported before env_id is looked up (each registers domains, e.g. a module with SPECS; --domain-module)', _modules),
 }
 # fmt: on
+
+_TUPLE_KEYS = frozenset(k for k, key in KEYS.items() if key.type.startswith("tuple"))
+_FLOAT_KEYS = frozenset(k for k, key in KEYS.items() if key.type.split(" |")[0] == "float")
+#: keys of earlier versions that are renamed (what they map to: ``train_config.RENAMED``)
+RENAMED_KEYS = frozenset({"pcn_hidden"})
+
+
+def coerce_values(values: dict[str, Any]) -> dict[str, Any]:
+    """TOML/JSON values as the config holds them: ``"null"`` -> None, lists -> tuples, ints -> floats
+    for float keys. Unknown keys are an error listing the known ones."""
+    unknown = sorted(set(values) - set(KEYS) - set(RENAMED_KEYS))
+    if unknown:
+        raise ValueError(f"unknown config key(s) {unknown}; valid keys: {sorted(KEYS)}")
+    out = {}
+    for k, v in values.items():
+        if v == "null":  # TOML has no null: a file or a key=value flag writes the string
+            v = None
+        if k in _TUPLE_KEYS and isinstance(v, list):
+            v = tuple(v)
+        elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        out[k] = v
+    return out

@@ -17,7 +17,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import ALGORITHMS, KEYS, NOT_SET, SHARED_SECTIONS
+from morl_trl.recipes.config.keys import ALGORITHMS, KEYS, NOT_SET, SHARED_SECTIONS, coerce_values
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.train_config import RENAMED, TrainConfig, upgrade_keys, valid_keys
 
@@ -35,8 +35,6 @@ _QUICK = dict(
     buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=30_000,
     eval_weights=8, checkpoint_interval=20_000,
 )
-_TUPLE_KEYS = frozenset(k for k, key in KEYS.items() if key.type.startswith("tuple"))
-_FLOAT_KEYS = frozenset(k for k, key in KEYS.items() if key.type.split(" |")[0] == "float")
 
 
 def flatten_tables(values: dict[str, Any], source: str) -> dict[str, Any]:
@@ -48,24 +46,6 @@ def flatten_tables(values: dict[str, Any], source: str) -> dict[str, Any]:
         else:
             flat[k] = v
     return flat
-
-
-def coerce_values(values: dict[str, Any]) -> dict[str, Any]:
-    """TOML/JSON values as the config holds them: ``"null"`` -> None, lists -> tuples, ints -> floats
-    for float keys. Unknown keys are an error listing the known ones."""
-    unknown = sorted(set(values) - set(KEYS) - set(RENAMED))
-    if unknown:
-        raise ValueError(f"unknown config key(s) {unknown}; valid keys: {sorted(KEYS)}")
-    out = {}
-    for k, v in values.items():
-        if v == "null":  # TOML has no null: a file or a key=value flag writes the string
-            v = None
-        if k in _TUPLE_KEYS and isinstance(v, list):
-            v = tuple(v)
-        elif k in _FLOAT_KEYS and isinstance(v, int) and not isinstance(v, bool):
-            v = float(v)
-        out[k] = v
-    return out
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:

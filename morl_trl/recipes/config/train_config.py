@@ -14,7 +14,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import KEYS, NOT_SET
+from morl_trl.recipes.config.keys import KEYS, NOT_SET, RENAMED_KEYS, coerce_values
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.sections import SHARED, RunSection
 
@@ -33,7 +33,7 @@ def _pcn_hidden(value: Any, algo: str) -> dict[str, Any]:
 
 
 #: renamed keys: old name -> (what it is now, its new key(s) for a value and the algorithm)
-RENAMED = {
+RENAMED = {  # (its names: keys.RENAMED_KEYS)
     "pcn_hidden": ("hidden (PCN: [embedding width, head widths...]; pcn_hidden = h is hidden = [h, h])", _pcn_hidden),
 }
 #: every key's value before configs were per algorithm, when every algorithm had every key (a file
@@ -210,8 +210,6 @@ class TrainConfig:
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":
         """A run's ``config.json`` (also one written by an earlier version: see :func:`upgrade_keys`)."""
-        from morl_trl.recipes.config.resolve import coerce_values
-
         path = Path(path)
         try:
             data = json.loads(path.read_text())
@@ -233,3 +231,6 @@ def _toml_value(v) -> str:
     if isinstance(v, str):
         return json.dumps(v)
     return repr(v)
+
+
+assert set(RENAMED) == RENAMED_KEYS
