@@ -19,7 +19,6 @@ Example:
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -172,9 +171,9 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     cfg = TrainConfig.load(run_dir / "config.json")
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
-    cfg = dataclasses.replace(cfg, device=str(device))
+    cfg = cfg.replace(device=str(device))
     spec = run_domain(cfg)
-    env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
+    env = build_training_env(cfg.replace(num_envs=1), device)  # (only its specs are used)
     agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     env.close()
     state = load_checkpoint(ckpt, map_location=device)
