@@ -569,9 +569,44 @@ def grid_status_main(argv: list[str]) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------- config
+def config_main(argv: list[str]) -> int:
+    from morl_trl.recipes.config import ALGORITHMS
+
+    p = _Parser(prog="morl-trl config",
+                description="Print the resolved config of ALGO on ENV_ID (TOML), or compare it with the authors' "
+                            "record (--compare-authors: one row per setting they ran).")
+    p.add_argument("algo", choices=ALGORITHMS, help="algorithm")
+    p.add_argument("env_id", help="training env id, e.g. MOLunarLanderDR-v0")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides, as for morl-trl train")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="set_")
+    p.add_argument("--config", help="a .toml/.json file of config overrides")
+    p.add_argument("--quick", action="store_true", help="the --quick preset")
+    p.add_argument("--compare-authors", action="store_true",
+                   help="one row per setting of the authors' record for this pair: their name and value, our key "
+                        "and value, and same / deliberate / not applicable / differs")
+    p.add_argument("--format", choices=("text", "json"), default="text",
+                   help="text (TOML config, or a table with --compare-authors) or json")
+    args = p.parse_intermixed_args(argv)
+    from morl_trl.recipes import resolve_config
+
+    overrides = parse_overrides([*args.overrides, *args.set_])
+    cfg = resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
+    if not args.compare_authors:
+        print(json.dumps(cfg.to_dict(), indent=1) if args.format == "json" else cfg.to_toml())
+        return 0
+    from morl_trl.recipes.fidelity import compare, format_rows
+
+    rows = compare(args.algo, args.env_id, cfg)
+    print(json.dumps([r.as_dict() for r in rows], indent=1, default=str) if args.format == "json"
+          else format_rows(rows))
+    return 0
+
+
 # name -> (function, help)
 COMMANDS = {
     "train": (train_main, "train a generalist across contexts, evaluate it, report"),
+    "config": (config_main, "print an algorithm's resolved config (TOML); --compare-authors: beside the authors' record"),
     "evaluate": (evaluate_main, "re-evaluate a run's checkpoint on its evaluation suite"),
     "demo": (demo_main, "build every domain, step it under random contexts, print vector returns"),
     "envs": (envs_main, "list domains, their contexts and evaluation suites"),

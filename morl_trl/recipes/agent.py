@@ -62,7 +62,7 @@ class Agent:
 
         Off-policy default: store the batch's transitions in ``buffer``, then, once ``frames``
         reaches ``cfg.init_random_frames``, ``cfg.updates_per_batch`` :meth:`update` calls (0: one
-        per collected frame). An algorithm whose learning differs (on-policy, episodic, a
+        per ``cfg.update_frequency`` collected frames). An algorithm whose learning differs (on-policy, episodic, a
         weight-support loop) overrides this and keeps the rest of the run (collection,
         evaluation, checkpoints, logs) as it is. Raises :class:`NonFiniteLossError` as
         :meth:`update` does, with ``updates_done``: the updates applied before it.
@@ -70,7 +70,8 @@ class Agent:
         buffer.extend(batch.reshape(-1))
         if frames < self.cfg.init_random_frames:
             return None, 0
-        n = self.cfg.updates_per_batch or batch.numel()
+        every = self.cfg.update_frequency  # one update per `every` frames (the authors' discrete SAC: 4)
+        n = self.cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
         return self.run_updates(buffer, n), n
 
     def frames_of(self, batch: TensorDictBase) -> int:
@@ -236,11 +237,15 @@ def target_updater(cfg, loss):
 
 
 def actor_critic_optimizers(cfg, loss) -> dict:
-    """Adam (:func:`adam`) for the actor, the critics and (when learned) the temperature."""
+    """Adam (:func:`adam`) for the actor (``lr``), the critics (``q_lr``) and, when learned, the
+    temperature (``alpha_lr``), with ``adam_eps``."""
+    eps = {} if cfg.adam_eps is None else {"eps": cfg.adam_eps}
+    q_lr = cfg.lr if cfg.q_lr is None else cfg.q_lr
     opts = {
-        "actor": adam(loss.actor_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),
-        "qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),
+        "actor": adam(loss.actor_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg), **eps),
+        "qvalue": adam(loss.qvalue_network_params.values(True, True), q_lr, fused=fused_choice(cfg), **eps),
     }
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
-        opts["alpha"] = adam([loss.log_alpha], cfg.lr, fused=fused_choice(cfg))
+        alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
+        opts["alpha"] = adam([loss.log_alpha], alpha_lr, fused=fused_choice(cfg), **eps)
     return opts

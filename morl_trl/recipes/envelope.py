@@ -54,7 +54,8 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
         raise ValueError(f"envelope needs discrete actions; {cfg.env_id} has {type(spec).__name__}: use capql or mosac")
     authors = cfg.envelope_network == "authors"
     qnet = make_vector_q_network(obs_shape(env), spec.space.n, num_objectives(env), num_cells=cfg.hidden,
-                                 preference_layer=1 if authors else 0,
+                                 # the authors concatenate w after the first hidden layer, or after the CNN
+                                 preference_layer=1 if authors and len(obs_shape(env)) == 1 else 0,
                                  init="orthogonal" if authors else "default").to(device)
     greedy = TensorDictSequential(qnet, MOQValueModule())
     egreedy = epsilon_greedy(cfg, env)

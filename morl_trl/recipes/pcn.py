@@ -27,7 +27,7 @@ Evaluation (SPEC §2, §6): the ``n`` evaluation weights get the returns and len
 set nearest to the preference the evaluator gives) acts greedily, starting each episode on
 command ``i`` and updating it after every step by the same rule as in training (the authors'
 evaluator: ``set_desired_return_and_horizon``, then ``eval`` with the vector reward, restored
-afterwards). The network is ``pcn_hidden`` wide, by default the run's ``hidden`` (the authors'
+afterwards). The network's widths are the run's ``hidden`` (the authors'
 ``net_arch``).
 
 Example:
@@ -290,7 +290,7 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     shape = obs_shape(env)
     obs_dim = shape[0] if len(shape) == 1 else shape
     action_dim = spec.space.n if discrete else int(spec.shape[-1])
-    widths = cfg.pcn_hidden if cfg.pcn_hidden is not None else tuple(cfg.hidden)  # the authors: net_arch
+    widths = tuple(cfg.hidden)  # the authors' net_arch
     net = make_pcn_network(obs_dim, action_dim, k, scale, widths, discrete=discrete).to(device)
     loss = PCNLoss(net)
     optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))

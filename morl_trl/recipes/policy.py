@@ -19,7 +19,6 @@ Example:
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,7 +194,11 @@ def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
     data = load_plain(path, map_location=device)
     if not isinstance(data, dict) or data.get(EXPORT_FORMAT) != 1:
         raise ValueError(f"{str(path)!r} is not a policy export (written by TrainedPolicy.save / morl-trl export)")
-    cfg = dataclasses.replace(TrainConfig.from_dict(json.loads(data["config"]), str(path)), device=str(device))
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:  # (TrainConfig.load: the one reader of saved configs)
+        (Path(tmp) / "config.json").write_text(data["config"])
+        cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
     agent = _build_agent(cfg, device)
     state = data["agent"]
     state["optimizers"] = {k: o.state_dict() for k, o in agent.optimizers.items()}
@@ -207,7 +210,7 @@ def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
 
 def _build_agent(cfg: TrainConfig, device: torch.device):
     spec = run_domain(cfg)
-    env = build_training_env(dataclasses.replace(cfg, num_envs=1), device)  # (only its specs are used)
+    env = build_training_env(cfg.replace(num_envs=1), device)  # (only its specs are used)
     agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     env.close()
     return agent
@@ -250,7 +253,7 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     cfg = TrainConfig.load(run_dir / "config.json")
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
-    cfg = dataclasses.replace(cfg, device=str(device))
+    cfg = cfg.replace(device=str(device))
     state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)  # (refused before any build)
     agent = _build_agent(cfg, device)
     agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)

@@ -18,7 +18,7 @@ and the paper's protocol (the domain's evaluation suite, its number of weights â
 The results ship as ``morl_trl/reporting/floors.json``, written by ``morl-trl floors
 --reference DIR --write`` (incrementally, one (domain, policy) at a time), and show up in
 ``morl-trl reference-table`` (a ``floor: <policy>`` row per domain), in a run's ``report.md``
-(a floor column and a floor line on the NHGR plot) and in the README.
+(a floor column and a floor line on the NHGR plot) and in the docs (concepts/nhgr-and-floors.md).
 
 Example:
     >>> from morl_trl.reporting.floors import best_floor, load_floors
@@ -332,7 +332,7 @@ def floors_main(argv: list[str] | None = None) -> int:
                    help=f"merge the results into PATH (default the shipped {FLOORS_FILE}), after each policy")
     p.add_argument("--skip-done", action="store_true", help="with --write: skip policies already in the file")
     p.add_argument("--markdown", action="store_true",
-                   help="only print the shipped floors as the README's Markdown table (computes nothing)")
+                   help="only print the shipped floors as the docs' Markdown table (computes nothing)")
     args, rest = p.parse_known_args(argv)
     if args.markdown:
         print(floors_markdown())
@@ -374,7 +374,7 @@ def floors_main(argv: list[str] | None = None) -> int:
 
 
 def floors_markdown(floors: dict | None = None) -> str:
-    """The README's floors table: per domain, random, the best constant action and the paper's best algorithm."""
+    """The docs' floors table: per domain, random, the best constant action and the paper's best algorithm."""
     from morl_trl.reporting.paper import PAPER_NHGR, PAPER_ORDER, domain_name
 
     floors = load_floors() if floors is None else floors

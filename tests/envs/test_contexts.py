@@ -49,10 +49,9 @@ def test_every_id_is_a_contextual_env_with_a_sampler_only_under_dr():
     assert built >= 9  # LavaGrid's 9 need no extra; LunarLander adds 20, MuJoCo 19, Mario 33
 
 
-def test_readme_transforms_snippet_on_a_fixed_and_a_dr_id():
-    readme = (ROOT / "README.md").read_text()
-    section = readme[readme.index("## Transforms, preferences and a policy"):]
-    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+def test_docs_transforms_snippet_on_a_fixed_and_a_dr_id():
+    page = (ROOT / "docs" / "tutorials" / "compose-transforms.md").read_text()  # (was the README's)
+    code = re.search(r"```python\n(.*?)```", page, re.S).group(1)
     assert 'make_env("MOHopperDR-v5", num_envs=16, seed=0).append_transform(Compose(' in code
     for env_id, k in (("MOLunarLanderHard-v0", 4), ("MOHopperDR-v5", 3)):
         _needs(env_id)

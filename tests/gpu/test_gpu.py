@@ -16,7 +16,7 @@ import torch
 from morl_trl.envs import domain_of
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
 from morl_trl.recipes.capture import CapturedUpdate
-from morl_trl.recipes.off_policy import _gamma, make_collector, make_replay_buffer
+from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount
 from tests.recipes.test_capture import params_of, setup
 
 pytestmark = [pytest.mark.gpu, pytest.mark.filterwarnings("ignore")]
@@ -70,7 +70,7 @@ def test_every_learner_trains_on_the_device(device, algo):
                          **{**TINY, **extra})
     torch.manual_seed(0)
     env = build_training_env(cfg, dev)
-    agent = build_agent(cfg, env, gamma=_gamma(cfg, domain_of(env_id)), device=dev)
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, domain_of(env_id)), device=dev)
     buffer = make_replay_buffer(cfg, dev)
     start = _leaves(agent)
     collector = make_collector(cfg, env, agent.explore_policy, dev)

@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from morl_trl.recipes import resolve_config, run_training
+from morl_trl.recipes.config import valid_keys
 from morl_trl.recipes.gpi import make_gpi_agent
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
@@ -14,10 +15,16 @@ TINY = dict(num_envs=4, frames_per_batch=32, init_random_frames=64, updates_per_
             gpi_dynamics_rollout_starts=64, gpi_dynamics_rollout_batch=50, progress=False)
 
 
+def _tiny(algo):
+    """TINY's keys that ``algo`` has (GPI-LS has no dynamics model)."""
+    return {k: v for k, v in TINY.items() if k in valid_keys(algo)}
+
+
 def test_config_has_the_authors_settings():
     ll = resolve_config("gpi_pd", "MOLunarLanderDR-v0")
     assert (ll.gpi_uncertainty_threshold, ll.gpi_dynamics_train_freq, ll.gpi_dynamics_rollout_freq) == (20.0, 5000, 5000)
-    assert (ll.gpi_front_episodes, ll.gpi_num_nets, ll.gpi_dropout, ll.gpi_layer_norm) == (3, 2, 0.01, True)
+    # hyperparameters.toml [gpi_pd.lunarlander.train]: num_eval_episodes_for_front = 1 (GPI-LS: 3)
+    assert (ll.gpi_front_episodes, ll.gpi_num_nets, ll.gpi_dropout, ll.gpi_layer_norm) == (1, 2, 0.01, True)
     assert (ll.target_update_period, ll.eps_frames, ll.prioritized, ll.per_importance_weights) == (1000, 1_000_000, True, False)
     lava = resolve_config("gpi_pd", "MOLavaGridDR-v0")
     assert (lava.gpi_uncertainty_threshold, lava.gpi_dynamics_lr, lava.gpi_dynamics_hidden) == (1e4, 3e-5, (512, 512))
@@ -28,7 +35,7 @@ def test_config_has_the_authors_settings():
 
 def _agent(algo, **kw):
     torch.manual_seed(0)
-    cfg = resolve_config(algo, "MOLavaGridDR-v0", **{**TINY, **kw})
+    cfg = resolve_config(algo, "MOLavaGridDR-v0", **{**_tiny(algo), **kw})
     env = make_training_env(cfg, torch.device("cpu"))
     return cfg, env, make_gpi_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
 
@@ -73,7 +80,7 @@ def test_gpi_pd_rolls_out_the_model_into_its_buffer():
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", ["gpi_ls", "gpi_pd"])
 def test_short_real_run_and_resume_state(tmp_path, algo):
-    cfg = resolve_config(algo, "MOLavaGridDR-v0", **TINY, frames=256, eval_interval=256, eval_weights=3,
+    cfg = resolve_config(algo, "MOLavaGridDR-v0", **_tiny(algo), frames=256, eval_interval=256, eval_weights=3,
                          checkpoint_interval=128, eval_contexts=("MOLavaGridRoom-v0",), eval_random_baseline=False,
                          run_dir=str(tmp_path / algo))
     summary, agent, run_dir, _ = run_training(cfg)

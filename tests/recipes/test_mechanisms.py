@@ -17,6 +17,8 @@ def _gpi(algo="gpi_ls", env_id="MOLavaGridDR-v0", gamma=0.995, **kw):
     base = dict(num_envs=4, frames_per_batch=32, init_random_frames=0, batch_size=16, hidden=(16, 16),
                 buffer_size=4096, gpi_iteration_frames=10_000, gpi_front_episodes=1, gpi_dynamics_hidden=(16,),
                 progress=False)
+    if algo != "gpi_pd":  # GPI-LS has no dynamics model (a key it does not have is an error)
+        del base["gpi_dynamics_hidden"]
     cfg = resolve_config(algo, env_id, **{**base, **kw})
     env = make_training_env(cfg, CPU)
     return cfg, env, make_gpi_agent(cfg, env, gamma=gamma, device=CPU)
@@ -212,11 +214,12 @@ def test_continuous_pcn_noise_is_drawn_per_action_dimension(single_thread):
 
 def test_pcn_network_is_the_authors_net_arch():
     cfg, _, agent = _pcn(hidden=(256, 256, 256, 256))
-    assert cfg.pcn_hidden is None
+    assert "pcn_hidden" not in cfg.keys()  # PCN's widths are hidden (pcn_hidden: a renamed key)
     net = agent.loss.policy_network.module
     assert (net.s_emb[0].out_features, net.c_emb[0].out_features) == (256, 256)
     assert [m.out_features for m in net.fc if isinstance(m, torch.nn.Linear)] == [256, 256, 256, 3]
-    _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)  # MORL-Baselines' hidden_dim: one hidden layer
+    with pytest.warns(DeprecationWarning, match="pcn_hidden"):  # MORL-Baselines' hidden_dim: one hidden layer
+        _, _, old = _pcn(hidden=(256, 256, 256, 256), pcn_hidden=64)
     assert [m.out_features for m in old.loss.policy_network.module.fc if isinstance(m, torch.nn.Linear)] == [64, 3]
 
 

@@ -28,10 +28,14 @@ def test_morld_config_is_spec_section_4(algo):
     assert all(x.tau == 0.005 and x.eval_exploration == "random" and not x.prioritized for x in
                (c["MOHopperDR-v5"], c["MOHalfCheetahDR-v5"], c["MOHumanoidDR-v5"]))
     lander, grid = c["MOLunarLanderDR-v0"], c["MOLavaGridDR-v0"]
-    # discrete: hard targets every 2000 / 200 frames = 500 / 50 updates at one update per 4 member frames
+    # discrete (hyperparameters.toml [morld_sb.*.policy_args]): the scripts' update_frequency 1, so hard
+    # targets every 2000 / 200 frames = updates; Adam eps 1e-4 and one lr 3e-4
     assert (lander.tau, lander.target_update_period, lander.update_frequency, lander.target_entropy_scale) == \
-        (None, 500, 4, 0.3)
-    assert (grid.target_update_period, grid.update_frequency) == (50, 4)
+        (None, 2000, 1, 0.3)
+    assert (grid.target_update_period, grid.update_frequency) == (200, 1)
+    assert (lander.q_lr, lander.alpha_lr, lander.adam_eps) == (3e-4, 3e-4, 1e-4)
+    # continuous members: critics and temperature 1e-3, temperature tuned from 1.0
+    assert (c["MOHopperDR-v5"].q_lr, c["MOHopperDR-v5"].alpha_lr, c["MOHopperDR-v5"].alpha) == (1e-3, 1e-3, 1.0)
     assert c["MOHopperDR-v5"].weight_adaptation == ("psa" if algo == "morld_psa" else "none")
     assert c["MOHopperDR-v5"].history_len == 2 and grid.history_len == 0
     assert AGENT_BUILDERS[algo] is make_morld_agent and algo in TRAINING_ENV_BUILDERS
@@ -39,9 +43,13 @@ def test_morld_config_is_spec_section_4(algo):
 
 def test_sac_config_is_spec_section_4():
     hop, lander, grid = (resolve_config("sac", d) for d in ("MOHopperDR-v5", "MOLunarLanderDR-v0", "MOLavaGridDR-v0"))
-    assert (hop.alpha, hop.batch_size, hop.tau) == (0.2, 256, 0.005)
-    assert (lander.batch_size, lander.target_update_period, lander.target_entropy_scale) == (128, 2000, 0.3)
-    assert grid.target_update_period == 200
+    # hyperparameters.toml [sac.*]: alpha tuned from 1.0 (autotune), learning_starts 1000 on MuJoCo;
+    # discrete: one update every 4 frames after 20k random frames, targets every 2000 / 200 frames
+    assert (hop.alpha, hop.learn_alpha, hop.batch_size, hop.tau, hop.init_random_frames) == (1.0, True, 256, 0.005, 1000)
+    assert (hop.q_lr, hop.alpha_lr, hop.lr) == (1e-3, 1e-3, 3e-4)
+    assert (lander.batch_size, lander.update_frequency, lander.init_random_frames) == (128, 4, 20_000)
+    assert (lander.target_update_period * lander.update_frequency, lander.target_entropy_scale) == (2000, 0.3)
+    assert grid.target_update_period * grid.update_frequency == 200
     assert "sac" in ALGORITHMS
 
 

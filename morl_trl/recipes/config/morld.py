@@ -1,0 +1,73 @@
+"""MORL/D SB and SB+PSA (Felten et al. 2024): their keys, and the authors' values per domain.
+
+Source: ``hyperparameters.toml`` ``[morld_sb.<domain>]`` and ``[morld_sb_psa.<domain>]`` (MOSAC on
+MuJoCo, MOSACDiscrete on LunarLander and LavaGrid; ``.policy_args`` holds the members' settings);
+``morl-trl config morld ENV --compare-authors`` lists each setting. Members' temperatures are
+tuned from 1.0 (``autotune``; the scripts' alpha 0.2 is ignored).
+
+Example:
+    >>> MORLDConfig().exchange_every, DEFAULTS[LAVA_GRID]["pop_size"]
+    (20000, 5)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from morl_trl.recipes.config.domains import HALF_CHEETAH, HOPPER, HUMANOID, LAVA_GRID, LUNAR_LANDER, domain_table, frozen
+
+__all__ = ["MORLDConfig", "MORLDPSAConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
+
+
+@dataclass
+class MORLDConfig:
+    """MORL/D SB's keys (Half-Cheetah's member values: ``[morld_sb.cheetah.policy_args]``, MOSAC)."""
+
+    # each member owns num_envs sub-envs; frames_per_batch covers all of them
+    frames_per_batch: int = 60
+    init_random_frames: int = 25_000  # learning_starts, on the shared frame counter
+    buffer_size: int = 1_000_000  # one buffer shared by the members
+    batch_size: int = 256
+    prioritized: bool = False
+    # optim: actor 3e-4, critics and temperature 1e-3 (continuous); Polyak 0.005
+    lr: float = 3e-4
+    q_lr: float | None = 1e-3
+    alpha_lr: float | None = 1e-3
+    adam_eps: float | None = None
+    updates_per_batch: int = 0
+    update_frequency: int = 1
+    tau: float | None = 0.005
+    target_update_period: int = 1000
+    max_grad_norm: float | None = None
+    hidden: tuple[int, ...] = (256, 256, 256, 256)
+    alpha: float = 1.0
+    learn_alpha: bool = True
+    target_entropy_scale: float = 0.3
+    actor_scale: str = "softplus"
+    # population
+    pop_size: int = 6
+    exchange_every: int = 20_000
+    weight_adaptation: str = "none"
+    psa_delta: float = 0.1
+
+
+@dataclass
+class MORLDPSAConfig(MORLDConfig):
+    """MORL/D SB+PSA: SB's keys, weights adapted by Pareto simulated annealing."""
+
+    weight_adaptation: str = "psa"
+
+
+SHARED_DEFAULTS = frozen({"eval_exploration": "random", "num_envs": 2})
+# MOSACDiscrete: one update per frame (the scripts' update_frequency 1), hard target copies every
+# target_net_freq frames (= updates), Adam eps 1e-4 with one lr 3e-4
+_DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, q_lr=3e-4, alpha_lr=3e-4, adam_eps=1e-4,
+                 update_frequency=1)
+DEFAULTS = domain_table({
+    HOPPER: dict(init_random_frames=10_000),
+    HALF_CHEETAH: dict(exchange_every=10_000),
+    HUMANOID: dict(init_random_frames=5_000),
+    LUNAR_LANDER: dict(_DISCRETE, target_update_period=2000, target_entropy_scale=0.3),
+    LAVA_GRID: dict(_DISCRETE, pop_size=5, exchange_every=10_000, target_update_period=200, target_entropy_scale=0.89),
+})
+QUICK = frozen(dict(num_envs=2, frames_per_batch=60, updates_per_batch=0, update_frequency=1))
