@@ -124,12 +124,12 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
     run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load, resume_config=resume_config)
     run.trust_pickle = trust_pickle
     cfg = run.cfg
+    if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
+        load_checkpoint(run.resume_from)  # refused (naming convert-run and --trust-pickle) before anything is built
     if run.done:
         print(f"{run.dir} already reached {run.frames:,} frames (frames = {cfg.frames:,}): nothing to do; "
               f"pass a larger frames (--frames) to extend it", flush=True)
         return {"frames": run.frames, "finished": True}, None, run.dir, cfg
-    if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
-        load_checkpoint(run.resume_from)  # refused (naming convert-run and --trust-pickle) before anything is built
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
