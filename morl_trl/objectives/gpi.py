@@ -254,9 +254,10 @@ class GPILoss(MultiObjectiveLossModule):
         self.gpi_samples = int(gpi_samples)
         module = TensorDictModule(value_network, in_keys=["observation", "preference"], out_keys=["action_value"])
         self.convert_to_functional(module, "value_network", create_target_params=True)
-        k = self.num_objectives
-        self.register_buffer("current_weight", torch.full((k,), 1.0 / k))
-        self.register_buffer("weight_support", torch.full((1, k), 1.0 / k))
+        k, device = self.num_objectives, next(value_network.parameters()).device
+        # on the network's device: the recipe does not move the loss (found by the first GPU run)
+        self.register_buffer("current_weight", torch.full((k,), 1.0 / k, device=device))
+        self.register_buffer("weight_support", torch.full((1, k), 1.0 / k, device=device))
 
     def set_weights(self, weight: torch.Tensor, support: torch.Tensor) -> None:
         """The iteration's weight ``w`` ``[k]`` and the weight support ``M`` ``[m, k]``."""
@@ -569,9 +570,9 @@ class GPIContinuousLoss(MultiObjectiveLossModule):
         self.convert_to_functional(TensorDictModule(critic, in_keys=["observation", "action", "preference"],
                                                     out_keys=["state_action_value"]),
                                    "qvalue_network", create_target_params=True)
-        k = self.num_objectives
-        self.register_buffer("current_weight", torch.full((k,), 1.0 / k))
-        self.register_buffer("weight_support", torch.full((1, k), 1.0 / k))
+        k, device = self.num_objectives, next(critic.parameters()).device
+        self.register_buffer("current_weight", torch.full((k,), 1.0 / k, device=device))
+        self.register_buffer("weight_support", torch.full((1, k), 1.0 / k, device=device))
 
     set_weights = GPILoss.set_weights
     _load_from_state_dict = GPILoss._load_from_state_dict
