@@ -126,9 +126,10 @@ def make_pgmorl_training_env(cfg, device: torch.device):
     spec = action_spec(env)
     if not is_discrete(spec):  # the authors' ClipAction: the env gets the clipped action, the rollout keeps the sample
         env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
-                                           low=float(spec.space.low.min()), high=float(spec.space.high.max())))
+                                           low=float(spec.space.low.min()), high=float(spec.space.high.max())).to(device))
     env.append_transform(VecNorm(in_keys=["observation"], decay=1.0, eps=1e-8, new_api=True, reduce_batch_dims=True))
-    env.append_transform(ClipTransform(in_keys=["observation"], low=-10.0, high=10.0))
+    # ClipTransform keeps its bounds where it was built: on the env's device (the GPU run found them on the CPU)
+    env.append_transform(ClipTransform(in_keys=["observation"], low=-10.0, high=10.0).to(device))
     env.append_transform(DiscountedVectorReturn(gamma))
     return env
 
@@ -218,7 +219,7 @@ class PGMORLAgent(Agent):
         # TorchRL's VecNorm + clip on the batch's vector rewards -> ("next", "reward_norm")
         self.reward_norm = VecNorm(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8, new_api=True,
                                    reduce_batch_dims=True)
-        self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0)
+        self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0).to(device)
 
     # ------------------------------------------------------------------ frame budget
     def frames_of(self, batch: TensorDictBase) -> int:

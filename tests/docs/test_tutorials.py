@@ -28,8 +28,15 @@ def own_domain_module(tmp_path, monkeypatch):
     (tmp_path / "my_domains.py").write_text(module)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.chdir(tmp_path)
+    from morl_trl.envs import registry
+
+    registry.list_envs()  # the built-in domains loaded before the snapshot
+    saved = dict(registry._DOMAINS), dict(registry._IDS)
     yield tmp_path
     sys.modules.pop("my_domains", None)
+    # the tutorial's domains leave with their module: later tests iterate every registered id
+    registry._DOMAINS.clear(), registry._DOMAINS.update(saved[0])
+    registry._IDS.clear(), registry._IDS.update(saved[1])
 
 
 @pytest.mark.slow  # (a training run: ~10 s on a free CPU)
