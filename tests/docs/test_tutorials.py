@@ -1,8 +1,10 @@
 """The tutorials run as written: their Python snippets, the module they define, the entry point."""
 
+import importlib
 import re
 import sys
 import textwrap
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -24,14 +26,14 @@ def _run(code: str, tmp_path: Path, capsys) -> str:
 @pytest.fixture
 def own_domain_module(tmp_path, monkeypatch):
     """Write the tutorial's ``my_domains.py`` where Python finds it."""
+    from morl_trl.envs import registry
+
+    registry.list_envs()  # the built-in domains loaded before the snapshot (and before tmp_path is on sys.path)
+    saved = dict(registry._DOMAINS), dict(registry._IDS)
     module = next(b for b in _blocks("tutorials/own-domain.md", "python") if b.startswith("# my_domains.py"))
     (tmp_path / "my_domains.py").write_text(module)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.chdir(tmp_path)
-    from morl_trl.envs import registry
-
-    registry.list_envs()  # the built-in domains loaded before the snapshot
-    saved = dict(registry._DOMAINS), dict(registry._IDS)
     yield tmp_path
     sys.modules.pop("my_domains", None)
     # the tutorial's domains leave with their module: later tests iterate every registered id
@@ -77,12 +79,14 @@ def test_entry_point_group_registers_an_installed_domain(own_domain_module, monk
     dist = own_domain_module / "my_domains-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: my-domains\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(textwrap.dedent(_blocks("tutorials/own-domain.md", "toml")[1]
-                                                           .split("\n", 1)[1]))
+    # the tutorial's pyproject.toml table, as pip writes it into the installed entry_points.txt
+    table = tomllib.loads(_blocks("tutorials/own-domain.md", "toml")[1])["project"]["entry-points"]["morl_trl.domains"]
+    (dist / "entry_points.txt").write_text("[morl_trl.domains]\n" + "".join(f"{k} = {v}\n" for k, v in table.items()))
     from morl_trl.envs import registry
 
     monkeypatch.setattr(registry, "_IDS", dict(registry._IDS))
     monkeypatch.setattr(registry, "_DOMAINS", dict(registry._DOMAINS))
+    importlib.invalidate_caches()  # importlib.metadata caches each sys.path entry's listing
     registry._load_entry_points()
     assert registry.domain_of("CorridorFast-v0").train_id == "CorridorDR-v0"
 
