@@ -2,7 +2,7 @@
 
 from types import SimpleNamespace
 
-from morl_trl.recipes import off_policy
+from morl_trl.runs import run as run_module  # the messages live with the Run object (runs/run.py)
 
 
 def _cfg(**kw):
@@ -12,16 +12,16 @@ def _cfg(**kw):
 
 
 def test_start_line_gives_the_frame_budget():
-    line = off_policy._start_line(_cfg(), 0, False)
+    line = run_module.start_line(_cfg(), 0, False)
     assert line.startswith("start: envelope on MOLavaGridDR-v0, seed 0, cpu: frame budget 60,000 (60,000 to go, "
                            "10,000 of them random before learning), about 4 evaluations of 8 weights")
-    assert off_policy._start_line(_cfg(), 40_000, True).startswith("resume: ")
+    assert run_module.start_line(_cfg(), 40_000, True).startswith("resume: ")
 
 
 def test_duration_estimate_is_measured_after_the_warm_up(monkeypatch):
     clock = [100.0]
-    monkeypatch.setattr(off_policy.time, "perf_counter", lambda: clock[0])
-    eta = off_policy._DurationEstimate(_cfg(), 0)
+    monkeypatch.setattr(run_module.time, "perf_counter", lambda: clock[0])
+    eta = run_module._DurationEstimate(_cfg(), 0)
     assert eta.update(5_000, [], 20_000) is None          # random warm-up: no learning speed yet
     assert eta.update(10_240, [], 20_000) is None         # learning starts: the measurement begins
     clock[0] += 10.0
@@ -33,4 +33,4 @@ def test_duration_estimate_is_measured_after_the_warm_up(monkeypatch):
                     "1,000 frames, + 3 evaluations of ~30 s)")
     clock[0] += 100.0
     assert eta.update(20_000, [30.0], 40_000) is None     # said once
-    assert off_policy._hms(2 * 3600 + 61) == "2 h 01 min"
+    assert run_module._hms(2 * 3600 + 61) == "2 h 01 min"
