@@ -201,8 +201,7 @@ COMMON: dict[str, Any] = {
 _NONE = lambda v, cfg: None if v == "None" else v  # noqa: E731  (the record writes Python's None as "None")
 _NO_LN = Same("(no LayerNorm)", ours=lambda cfg: False)
 _NO_DROPOUT = Same("(no dropout)", ours=lambda cfg: 0.0)
-_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ (envelope_network='authors')",
-                       open=_only(MARIO, what="the CNN's Conv2d layers keep PyTorch's init (the authors: orthogonal)"))
+_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ on every Linear and Conv2d (envelope_network='authors')")
 
 
 def _net_arch(v, cfg):
@@ -235,9 +234,9 @@ ENVELOPE = {
     "init.envelope": Code("objectives.envelope.EnvelopeQLoss (the envelope target over sampled weights)"),
     "init.dist": Same("preference_distribution"),
     "init.num_sample_w": Same("num_sampled_prefs"),
-    "init.per": Code("recipes.off_policy: TorchRL's prioritized sampler (prioritized = true)",
-                     open="new priorities are (|w . delta| + eps)^alpha, new items at the maximum (the authors add the "
-                          "running maximum priority to every new priority)"),
+    # data.RunningMaxPrioritizedSampler: (|w . delta| + running max)^alpha, new items at the running max
+    "init.per": Same("(prioritized, per_running_max)", expect=lambda v, cfg: (v, v),
+                     ours=lambda cfg: (cfg.prioritized, cfg.per_running_max)),
     "init.per_alpha": Same("per_alpha"),
     "init.initial_homotopy_lambda": Same("homotopy_lambda0"),
     "init.final_homotopy_lambda": NotApplicable("never reached: homotopy_decay_steps is None, so lambda stays at its "
