@@ -11,8 +11,22 @@ Each figure is a full update as a training loop runs it, replay sampling include
   objectives, 4 x 256 MLPs, batch 256, alpha 0.2, two vector critics, Polyak 0.005.
   Ours: ``CAPQLLoss`` + ``TensorDictReplayBuffer``.
 
-The peer is MORL-Baselines' ``Envelope.update()`` / ``CAPQL.update()`` on the same
-settings, driven directly on a filled buffer. Install it in a scratch environment that
+* **GPI-LS / GPI-PD** at the MO-LunarLander settings (see :func:`ours_gpi`).
+* **PCN** at MO-LunarLander ([pcn.lunarlander] in ../shared/reference/hyperparameters.toml):
+  the authors' network (``net_arch = [256] * 4``), batch 256, lr 3e-4, on a replay of 1000
+  episodes. Ours: ``PCNAgent.update``; peer: ``PCN.update()`` with the authors' network.
+* **MORL/D** (SB) at MO-Hopper ([morld_sb.hopper]): one *population update* = each of the 6
+  members updated once (batch 256 each from the shared buffer, 4 x 256 MLPs, two critics,
+  learned temperature). Ours: ``MORLDAgent.update`` (one batched step); peer: ``MOSAC.update()``
+  of each member, as MORL-Baselines' MORL/D steps them.
+* **PGMORL** at MO-Hopper ([pgmorl.hopper]): one *update* = one clipped-PPO minibatch step of the
+  whole population (6 members, 4 envs x 2048 steps each, 10 epochs x 32 minibatches, 4 x 256 tanh
+  MLPs); timed as whole iterations (GAE included) divided by their 320 updates. Ours:
+  ``PGMORLAgent.learn``; peer: each member's ``MOPPO`` advantages and ``update()``.
+
+PCN, MORL/D and PGMORL are built as ``morl-trl train`` builds them (``resolve_config`` at the
+paper's domain) and time on the CPU only. The peer is MORL-Baselines' ``Envelope.update()`` /
+``CAPQL.update()`` / ... on the same settings, driven directly on a filled buffer. Install it in a scratch environment that
 reuses our torch (``morl-baselines`` itself pulls an unpinned torch):
 
     python -m venv --system-site-packages /tmp/mb_venv
@@ -623,8 +637,8 @@ def rec_capql(tr, buffer_size):
 
 
 # ------------------------------------------------------------------------- know the limit
-def matmuls_of(step):
-    """The matrix products one call of ``step`` runs (forward and backward of every network it
+def matmuls_of(step, n=1):
+    """The matrix products ``n`` calls of ``step`` run (forward and backward of every network it
     touches): ``[(op, shapes)]``, recorded at the dispatcher (``torch.utils._python_dispatch``)."""
     from torch.utils._python_dispatch import TorchDispatchMode
 
@@ -644,7 +658,8 @@ def matmuls_of(step):
     rec = Recorder()
     rec.calls = []
     with rec:
-        step()
+        for _ in range(n):
+            step()
     return rec.calls
 
 
@@ -711,11 +726,12 @@ def _table(*fields) -> None:
             f.write("\t".join(str(x) for x in fields) + "\n")
 
 
-def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_call=1):
+def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_call=1, flop_calls=1):
     """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios.
 
     ``per_call``: updates one call of a step runs (PGMORL: a step is one iteration's 10 x 32
-    minibatch updates); ``updates`` counts calls. A variant that fails (e.g. a capture mode on a
+    minibatch updates); ``updates`` counts calls; ``flop_calls``: calls the FLOP count averages
+    over (MORL/D: 2, MORL-Baselines' MOSAC updates its actor twice every other call). A variant that fails (e.g. a capture mode on a
     new device) is reported and skipped."""
     failed = {}
     for label, step in list(variants.items()):
@@ -746,10 +762,11 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_
         _table("losses", name, device, label, "updates/s", f"{a:.1f}", f"{b:.1f}" if peer is not None else "",
                f"{a / b:.2f}x" if peer is not None else "", f"{a / eager:.2f}x vs eager")
     if FLOPS and "eager" in variants:
-        calls = matmuls_of(variants["eager"])
-        peer_gf = matmul_flops(matmuls_of(peer)) / 1e9 / per_call if peer is not None else float("nan")
-        LIMITS.append((name, matmul_flops(calls) / 1e9 / per_call, eager, matmul_rate(calls, device),
-                       len(calls) // per_call, peer_gf, b))
+        calls = matmuls_of(variants["eager"], flop_calls)
+        peer_gf = (matmul_flops(matmuls_of(peer, flop_calls)) / 1e9 / per_call / flop_calls if peer is not None
+                   else float("nan"))
+        LIMITS.append((name, matmul_flops(calls) / 1e9 / per_call / flop_calls, eager, matmul_rate(calls, device),
+                       len(calls) // (per_call * flop_calls), peer_gf, b))
 
 
 def time_recipe_agents(methods, peer, args, warmup, updates, rounds, buffer_size, filled) -> None:
@@ -768,7 +785,7 @@ def time_recipe_agents(methods, peer, args, warmup, updates, rounds, buffer_size
 
         w = energy_weights(CAPQL["k"], 6, seed=0, dtype=torch.float32).numpy()
         compare("MORL/D", {"eager": step}, mb_morld(td, buffer_size, w) if mb else None, warmup=max(1, warmup // 2),
-                updates=max(1, updates // 4), rounds=rounds)
+                updates=max(1, updates // 4), rounds=rounds, flop_calls=2)
     if "pgmorl" in methods:
         steps = args.pgmorl_steps or (64 if args.tiny else 256 if args.quick else 2048)
         step, per_call, obs, act, k = ours_pgmorl(steps)

@@ -76,23 +76,27 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     frames_of = getattr(agent, "frames_of", lambda batch: batch.numel())  # PGMORL counts one member's frames
     collector = make_collector(cfg, env, agent.explore_policy, dev)
     warm = max(warm, cfg.init_random_frames + cfg.frames_per_batch)
-    run_frames, collected, updates, timed, t0 = 0, 0, 0, 0, None
+    run_frames, collected, updates, timed, t0, learning = 0, 0, 0, 0, None, 0.0
     for batch in collector:
         collected += batch.numel()
         run_frames += frames_of(batch)
+        t_learn = timer()
         _, n = agent.learn(batch, buffer, run_frames)
+        t_learn = timer() - t_learn
         agent.on_frames(run_frames)
         collector.update_policy_weights_()
         if t0 is not None:
             timed += batch.numel()
             updates += n
+            learning += t_learn
             if timed >= frames:
                 break
         elif collected >= warm:
             t0 = timer()
     seconds = timer() - t0
     collector.shutdown()
-    return {"fps": timed / seconds, "ups": updates / seconds, "frames": timed, "seconds": seconds}
+    return {"fps": timed / seconds, "ups": updates / seconds, "frames": timed, "seconds": seconds,
+            "learn_share": learning / seconds}
 
 
 def run_worker(checkout: Path, pair: str, frames: int, clock: str, overrides: dict, warm: int, timeout: float) -> dict:
@@ -140,12 +144,13 @@ def main(argv=None) -> int:
     print(f"before: {describe(checkouts['before'])}; after: {describe(checkouts['after'])}")
     print(f"{args.frames} frames timed per pair and round after learning starts, {args.rounds} rounds alternating, "
           f"1 torch thread, {args.clock} clock; median frames/s")
-    print(f"{'algo':<9} {'domain':<20} {'before f/s':>11} {'after f/s':>10} {'after/before':>13}  note")
+    print(f"{'algo':<9} {'domain':<20} {'before f/s':>11} {'after f/s':>10} {'after/before':>13} "
+          f"{'learn% b':>8} {'a':>6}  note   (learn%: the share of the time in agent.learn; the rest is collection)")
     for pair in args.pairs:
         algo = pair.split(":")[0]
         setting = PAIR_SETTINGS.get(algo, {})
         overrides, warm, frames = setting.get("overrides", {}), setting.get("warm", 0), setting.get("frames", args.frames)
-        rates = {"before": [], "after": []}
+        rates, shares = {"before": [], "after": []}, {"before": [], "after": []}
         errors = {}
         for r in range(args.rounds):
             order = ("before", "after") if r % 2 == 0 else ("after", "before")
@@ -157,13 +162,16 @@ def main(argv=None) -> int:
                     errors[name] = res["error"]
                 else:
                     rates[name].append(res["fps"])
+                    shares[name].append(res["learn_share"])
         med = {k: statistics.median(v) if v else float("nan") for k, v in rates.items()}
+        share = {k: statistics.median(v) if v else float("nan") for k, v in shares.items()}
         note = "; ".join(f"{k} failed: {v}" for k, v in errors.items())
         if setting:
             note = (note + "; " if note else "") + f"{frames} frames, {setting}"
         algo_, env_id = pair.split(":")
         print(f"{algo_:<9} {env_id:<20} {med['before']:>11.1f} {med['after']:>10.1f} "
-              f"{med['after'] / med['before']:>12.2f}x  {note}", flush=True)
+              f"{med['after'] / med['before']:>12.2f}x {share['before']:>7.0%} {share['after']:>6.0%}  {note}",
+              flush=True)
     return 0
 
 
