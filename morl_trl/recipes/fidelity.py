@@ -302,11 +302,9 @@ CAPQL = {
 }
 
 _SAC_ALPHA = Same("alpha", expect=lambda v, cfg: 1.0)  # autotune: the scripts' 0.2 is ignored, log alpha starts at 0
-_TANH_LOG_STD = "our Gaussian actor's scale is actor_scale='softplus' (the authors: log_std = -5 + 3.5 (tanh(x) + 1))"
-
-
-def _actor_open(env_id: str) -> str | None:
-    return _TANH_LOG_STD if _continuous(env_id) else None
+#: the authors' SAC/MOSAC actor: log_std = -5 + 3.5 (tanh(x) + 1) (actor_scale="tanh_log_std"); a
+#: categorical actor on discrete actions (actor_scale unused there)
+_SAC_ACTOR = Same("actor_scale", expect=lambda v, cfg: "tanh_log_std" if _continuous(cfg.env_id) else cfg.actor_scale)
 
 
 SAC = {
@@ -323,9 +321,8 @@ SAC = {
     "init.alpha": _SAC_ALPHA,
     "init.autotune": Same("learn_alpha"),
     "init.target_entropy_scale": Same("target_entropy_scale"),
-    "init.policy_freq": Code("objectives (SAC actor step)", open="the actor takes one step per critic step (the "
-                             "authors: 2 actor steps every 2nd critic step)"),
-    "network.actor": Code("recipes.sac (Gaussian actor / categorical actor)", open=_actor_open),
+    "init.policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
+    "network.actor": _SAC_ACTOR,
     "network.critic": Code("recipes.sac: two critics on the scalar reward"),
     "network.optimizers": Same("(lr, q_lr, alpha_lr, adam_eps)",
                                expect=lambda v, cfg: (3e-4, 1e-3, 1e-3, None) if _continuous(cfg.env_id)
@@ -377,8 +374,7 @@ MORLD = {
     "policy_args.alpha": _SAC_ALPHA,
     "policy_args.autotune": Same("learn_alpha"),
     "policy_args.target_entropy_scale": Same("target_entropy_scale"),
-    "policy_args.policy_freq": Code("objectives.population (MOSAC actor step)", open="the actor takes one step per "
-                                    "critic step (the authors: 2 actor steps every 2nd critic step)"),
+    "policy_args.policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
     "policy_args.id": NotApplicable("a member's index (no setting)"),
     "policy_args.log": NotApplicable("logging switch"),
     "policy_args.seed": _SEED,
@@ -387,7 +383,7 @@ MORLD = {
     "train.num_eval_episodes_for_front": Code("recipes.morld", open="a member's archived evaluation is the mean return "
                                               "of its training episodes since the last exchange (the authors: 5 "
                                               "separate stochastic episodes per member)"),
-    "network.actor": Code("objectives.population (Gaussian / categorical actor)", open=_actor_open),
+    "network.actor": _SAC_ACTOR,
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
     "network.optimizers": Same("(lr, q_lr, alpha_lr, adam_eps)",

@@ -43,7 +43,10 @@ class MORLDConfig:
     alpha: float = 1.0
     learn_alpha: bool = True
     target_entropy_scale: float = 0.3
-    actor_scale: str = "softplus"
+    # MOSAC's actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every 2nd
+    # critic step (mosac_continuous_action.py:95-103,141,460-482)
+    actor_scale: str = "tanh_log_std"
+    policy_freq: int = 2
     # population
     pop_size: int = 6
     exchange_every: int = 20_000
@@ -62,7 +65,7 @@ SHARED_DEFAULTS = frozen({"eval_exploration": "random", "num_envs": 2})
 # MOSACDiscrete: one update per frame (the scripts' update_frequency 1), hard target copies every
 # target_net_freq frames (= updates), Adam eps 1e-4 with one lr 3e-4
 _DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, q_lr=3e-4, alpha_lr=3e-4, adam_eps=1e-4,
-                 update_frequency=1)
+                 update_frequency=1, policy_freq=1)  # MOSACDiscrete steps its actor at every update
 DEFAULTS = domain_table({
     HOPPER: dict(init_random_frames=10_000),
     HALF_CHEETAH: dict(exchange_every=10_000),

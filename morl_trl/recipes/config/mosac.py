@@ -39,7 +39,9 @@ class MOSACConfig:
     hidden: tuple[int, ...] = (256, 256, 256, 256)
     alpha: float = 0.2
     learn_alpha: bool = True
-    actor_scale: str = "softplus"
+    # the class defaults of the authors' MOSAC (mosac_continuous_action.py:95-103,141,460-482)
+    actor_scale: str = "tanh_log_std"
+    policy_freq: int = 2
     loss_fresh_preferences: bool = False
     preference_distribution: str = "dirichlet"
     preference_resample: str = "episode"
@@ -54,6 +56,7 @@ class MOSACDiscreteConfig(MOSACConfig):
     tau: float | None = None
     target_update_period: int = 2000
     target_entropy_scale: float = 0.3
+    policy_freq: int = 1  # MOSACDiscrete steps its actor at every update
 
 
 SHARED_DEFAULTS = frozen({"eval_exploration": "random"})

@@ -44,7 +44,10 @@ class SACConfig:
     alpha: float = 1.0
     learn_alpha: bool = True
     target_entropy_scale: float = 0.3
-    actor_scale: str = "softplus"
+    # the authors' actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every
+    # 2nd critic step (sac_continuous.py:134,435-456)
+    actor_scale: str = "tanh_log_std"
+    policy_freq: int = 2
     preference_distribution: str = "dirichlet"
     preference_resample: str = "episode"
 
@@ -53,7 +56,7 @@ SHARED_DEFAULTS = frozen({"eval_exploration": "random"})
 # SACDiscrete: one update every 4 frames after 20k random frames, hard target copies every
 # target_net_freq FRAMES (= target_net_freq / 4 updates), Adam eps 1e-4, one lr 3e-4
 _DISCRETE = dict(init_random_frames=20_000, batch_size=128, tau=None, q_lr=3e-4, alpha_lr=3e-4, adam_eps=1e-4,
-                 update_frequency=4)
+                 update_frequency=4, policy_freq=1)  # SACDiscrete steps its actor at every update
 DEFAULTS = domain_table({
     LUNAR_LANDER: dict(_DISCRETE, target_update_period=2000 // 4, target_entropy_scale=0.3),
     LAVA_GRID: dict(_DISCRETE, target_update_period=200 // 4, target_entropy_scale=0.89),
