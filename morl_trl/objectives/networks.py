@@ -100,9 +100,11 @@ def _mlp(in_features: int, out_features: int, num_cells: Sequence[int], activati
 
 
 def orthogonal_init_(module: nn.Module, gain: float = 1.0) -> nn.Module:
-    """Orthogonal weights (``gain``) and zero biases on every ``nn.Linear`` of ``module``, in place.
+    """Orthogonal weights (``gain``) and zero biases on every ``nn.Linear`` and ``nn.Conv2d`` of
+    ``module`` (a :class:`NatureCNN` too), in place.
 
-    MORL-Baselines' ``layer_init(method="orthogonal", weight_gain=1, bias_const=0)``.
+    MORL-Baselines' ``layer_init(method="orthogonal", weight_gain=1, bias_const=0)``, which
+    initialises every ``Linear`` and ``Conv2d`` (``mo_utils/networks.py:143-157``).
 
     Example:
         >>> lin = orthogonal_init_(nn.Linear(8, 4))
@@ -110,7 +112,7 @@ def orthogonal_init_(module: nn.Module, gain: float = 1.0) -> nn.Module:
         (True, True)
     """
     for m in module.modules():
-        if isinstance(m, nn.Linear):
+        if isinstance(m, (nn.Linear, nn.Conv2d)):
             nn.init.orthogonal_(m.weight, gain=gain)
             if m.bias is not None:
                 nn.init.zeros_(m.bias)

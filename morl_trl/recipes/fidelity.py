@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.config.domains import HUMANOID, MARIO, MUJOCO, RECORD_DOMAINS
+from morl_trl.recipes.config.domains import MARIO, MUJOCO, RECORD_DOMAINS
 
 __all__ = ["Same", "Deliberate", "NotApplicable", "Code", "Row", "RECORD_PATH", "METHODS", "record", "pairs",
            "compare", "open_differences", "rule_for", "format_rows", "markdown", "record_meta"]
@@ -100,10 +100,6 @@ def _ref(cfg: TrainConfig) -> tuple:
 
 def _gamma(cfg: TrainConfig) -> float:
     return cfg.gamma if cfg.gamma is not None else _domain(cfg).gamma
-
-
-def _only(*env_ids: str, what: str) -> Callable[[str], str | None]:
-    return lambda env_id: what if env_id in env_ids else None
 
 
 def _continuous(env_id: str) -> bool:
@@ -201,8 +197,7 @@ COMMON: dict[str, Any] = {
 _NONE = lambda v, cfg: None if v == "None" else v  # noqa: E731  (the record writes Python's None as "None")
 _NO_LN = Same("(no LayerNorm)", ours=lambda cfg: False)
 _NO_DROPOUT = Same("(no dropout)", ours=lambda cfg: 0.0)
-_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ (envelope_network='authors')",
-                       open=_only(MARIO, what="the CNN's Conv2d layers keep PyTorch's init (the authors: orthogonal)"))
+_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ on every Linear and Conv2d (envelope_network='authors')")
 
 
 def _net_arch(v, cfg):
@@ -235,9 +230,9 @@ ENVELOPE = {
     "init.envelope": Code("objectives.envelope.EnvelopeQLoss (the envelope target over sampled weights)"),
     "init.dist": Same("preference_distribution"),
     "init.num_sample_w": Same("num_sampled_prefs"),
-    "init.per": Code("recipes.off_policy: TorchRL's prioritized sampler (prioritized = true)",
-                     open="new priorities are (|w . delta| + eps)^alpha, new items at the maximum (the authors add the "
-                          "running maximum priority to every new priority)"),
+    # data.RunningMaxPrioritizedSampler: (|w . delta| + running max)^alpha, new items at the running max
+    "init.per": Same("(prioritized, per_running_max)", expect=lambda v, cfg: (v, v),
+                     ours=lambda cfg: (cfg.prioritized, cfg.per_running_max)),
     "init.per_alpha": Same("per_alpha"),
     "init.initial_homotopy_lambda": Same("homotopy_lambda0"),
     "init.final_homotopy_lambda": NotApplicable("never reached: homotopy_decay_steps is None, so lambda stays at its "
@@ -605,13 +600,10 @@ GPI_PD = {
     "init.dynamics_buffer_size": Same("gpi_dynamics_buffer"),
     "init.dynamics_net_arch": Same("gpi_dynamics_hidden", expect=_net_arch),
     "init.dynamics_lr": Same("gpi_dynamics_lr"),
-    "init.dynamics_max_grad_norm": Code("objectives.dynamics", open=lambda env_id: "no gradient clipping in the model "
-                                        "fit (the authors: 10 on Humanoid)" if env_id == HUMANOID else None),
+    "init.dynamics_max_grad_norm": Same("gpi_dynamics_max_grad_norm", expect=_NONE),
     "init.dynamics_ensemble_size": Same("gpi_dynamics_ensemble"),
     "init.dynamics_num_elites": Same("gpi_dynamics_elites"),
-    "init.dynamics_max_logvar_scale": Code("objectives.dynamics (log-variance bounds)", open=lambda env_id:
-                                           "the log-variance bounds are not the authors' max_logvar_scale 0.1"
-                                           if env_id == HUMANOID else None),
+    "init.dynamics_max_logvar_scale": Same("gpi_dynamics_max_logvar"),
     "init.dynamics_min_logvar_scale": Code("objectives.dynamics (log-variance bounds)"),
     "init.real_ratio": Same("gpi_real_ratio"),
     "init.dynamics_real_ratio": Same("gpi_real_ratio"),

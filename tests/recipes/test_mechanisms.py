@@ -448,3 +448,96 @@ def test_sac_and_mosac_actors_rescale_the_log_std_with_tanh_into_minus_5_to_2(si
 
     actor = make_gaussian_actor(3, Bounded(-1.0, 1.0, (2,)), 2, num_cells=(8,), scale="tanh_log_std")
     assert type(actor.module[0].module).__name__ == "_LocTanhLogStd"
+
+
+# ---------------------------------------------------------------------- Envelope: PER priorities
+def test_envelope_per_adds_the_running_max_priority_as_the_authors(single_thread):
+    """MORL-Baselines' buffer (envelope.py:344-349; prioritized_buffer.py:93,141,188-196): an update writes
+    (|w . delta| + M)^0.6 with M the running maximum written priority (1e-5 at first); new items get M."""
+    from tensordict import TensorDict
+
+    from morl_trl.data import RunningMaxPrioritizedSampler
+
+    cfg = resolve_config("envelope", "MOLavaGridDR-v0", hidden=(16,), num_envs=2, batch_size=4, buffer_size=64,
+                         progress=False)
+    assert (cfg.prioritized, cfg.per_running_max, cfg.per_alpha) == (True, True, 0.6)
+    buffer = make_replay_buffer(cfg, CPU)
+    sampler = buffer._sampler
+    assert type(sampler) is RunningMaxPrioritizedSampler
+    buffer.extend(TensorDict({"x": torch.arange(6.0)}, [6]))
+    torch.testing.assert_close(sampler._sum_tree.leaves()[:6], torch.full((6,), 1e-5))
+    buffer.update_priority(torch.tensor([1, 4]), torch.tensor([0.5, 2.0]))
+    first = torch.tensor([(0.5 + 1e-5) ** 0.6, (2.0 + 1e-5) ** 0.6])  # 0.65976, 1.51572
+    torch.testing.assert_close(sampler._sum_tree.leaves()[[1, 4]], first)
+    buffer.update_priority(torch.tensor([2]), torch.tensor([0.5]))  # + the running max 1.51572 now
+    assert sampler._sum_tree.leaves()[2].item() == pytest.approx((0.5 + float(first[1])) ** 0.6, rel=1e-6)  # 1.52285
+    buffer.extend(TensorDict({"x": torch.arange(2.0)}, [2]))  # new items at the running max
+    leaves = sampler._sum_tree.leaves()[:8]
+    assert leaves[6].item() == leaves[7].item() == pytest.approx(1.52285, rel=1e-4)
+    assert leaves[0].item() == pytest.approx(1e-5)  # never updated: still the first running max
+    # TorchRL's rule stays an option: (p + eps)^alpha, new items at the largest raw priority
+    other = make_replay_buffer(resolve_config("envelope", "MOLavaGridDR-v0", per_running_max=False), CPU)
+    assert type(other._sampler) is not RunningMaxPrioritizedSampler
+
+
+def test_the_pixel_networks_cnn_gets_the_authors_orthogonal_init_too():
+    """The authors' layer_init covers every Linear and Conv2d (mo_utils/networks.py:143-157): Envelope's,
+    discrete SAC's and GPI's NatureCNN on Mario (hyperparameters.toml ``<method>.mario.network.init``)."""
+    from morl_trl.objectives import make_vector_q_network
+    from morl_trl.objectives.gpi import GPIQNetwork
+
+    torch.manual_seed(0)
+    envelope = make_vector_q_network((4, 84, 84), 7, 3, num_cells=(16,), preference_layer=1, init="orthogonal")
+    gpi = GPIQNetwork((4, 84, 84), 7, 3, hidden=(16, 16), num_nets=2)
+    for net in (envelope, gpi):
+        convs = [m for m in net.modules() if isinstance(m, torch.nn.Conv2d)]
+        assert len(convs) == 3 * (2 if net is gpi else 1)
+        for conv in convs:
+            w = conv.weight.reshape(conv.weight.shape[0], -1)  # [32, 256], [64, 512], [64, 576]: rows orthonormal
+            torch.testing.assert_close(w @ w.T, torch.eye(w.shape[0]), atol=1e-4, rtol=0)
+            assert bool((conv.bias == 0).all())
+
+
+# ---------------------------------------------------------------------- GPI-PD: the dynamics model's fit
+def test_gpi_pd_humanoid_model_clips_gradients_at_10_and_starts_max_logvar_at_0_1(monkeypatch):
+    """The authors' Humanoid GPI-PD script: dynamics_max_grad_norm 10, dynamics_max_logvar_scale 0.1 (the other
+    domains: no clipping, 0.5); probabilistic_ensemble.py:29-43."""
+    from morl_trl.objectives.dynamics import DynamicsLoss, ProbabilisticEnsemble, fit_dynamics
+
+    got = {env: (c.gpi_dynamics_max_grad_norm, c.gpi_dynamics_max_logvar) for env in
+           ("MOHumanoidDR-v5", "MOHopperDR-v5", "MOLunarLanderDR-v0")
+           for c in [resolve_config("gpi_pd", env)]}
+    assert got == {"MOHumanoidDR-v5": (10.0, 0.1), "MOHopperDR-v5": (None, 0.5), "MOLunarLanderDR-v0": (None, 0.5)}
+    torch.manual_seed(0)
+    model = ProbabilisticEnsemble(3, 2, hidden=(8,), max_logvar=0.1)
+    assert model.max_logvar.tolist() == [[pytest.approx(0.1)] * 2] and model.min_logvar.tolist() == [[-10.0] * 2]
+    _, logvar = model(torch.randn(5, 3) * 100)
+    assert logvar.max().item() == pytest.approx(0.1, abs=1e-3)  # the soft upper bound starts at 0.1
+    calls = []
+    real = torch.nn.utils.clip_grad_norm_
+
+    def spy(params, max_norm, *a, **k):
+        params = list(params)
+        calls.append(max_norm)
+        out = real(params, max_norm, *a, **k)
+        assert torch.linalg.vector_norm(torch.stack([p.grad.norm() for p in params])) <= max_norm * (1 + 1e-5)
+        return out
+
+    monkeypatch.setattr(torch.nn.utils, "clip_grad_norm_", spy)
+    x, y = torch.randn(40, 3) * 50, torch.randn(40, 2) * 50  # 4 held out, 36 trained: 3 batches of 16 per epoch
+    for norm, expected in ((10.0, [10.0] * 6), (None, [])):
+        calls.clear()
+        fit_dynamics(DynamicsLoss(model, num_actions=None), x, y, batch_size=16, max_epochs=2, patience=10,
+                     max_grad_norm=norm)
+        assert calls == expected
+    # the recipe passes both to the model and to every fit
+    pytest.importorskip("mujoco")
+    fits = []
+    monkeypatch.setattr("morl_trl.recipes.gpi.fit_dynamics", lambda *a, **k: fits.append(k["max_grad_norm"]))
+    cfg, env, agent = _gpi("gpi_pd", "MOHopperDR-v5", gamma=0.99, gpi_dynamics_max_grad_norm=10.0,
+                           gpi_dynamics_max_logvar=0.1, gpi_dynamics_train_freq=16, gpi_dynamics_rollout_starts=10**6)
+    assert agent.dynamics.model.max_logvar.flatten()[0].item() == pytest.approx(0.1)
+    buffer = make_replay_buffer(cfg, CPU)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1))
+    agent._dyna(buffer, 0, 16)
+    assert fits == [10.0]

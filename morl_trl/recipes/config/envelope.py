@@ -31,6 +31,7 @@ class EnvelopeConfig:
     per_beta: float = 0.4
     per_importance_weights: bool = False
     envelope_priority: str = "first"
+    per_running_max: bool = True  # MORL-Baselines' buffer: (p + running max)^alpha, new items at the max
     # optim: one update per frame, hard target copy every 1000 updates, gradient norm 1
     lr: float = 3e-4
     updates_per_batch: int = 0
