@@ -494,7 +494,7 @@ PGMORL = {
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
-    "network.init": Code("objectives.pgmorl.PopulationMLP (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
+    "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
     "derived.vector_env_reset_each_iteration": Same("pgmorl_reset_each_iteration", expect=lambda v, cfg: True),

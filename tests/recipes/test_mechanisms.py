@@ -243,7 +243,7 @@ def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread
         state = agent.head.member_state(0)
         for name, t in state.items():
             t.zero_()
-        state[max(n for n in state if n.startswith("mean.biases"))].fill_(mean)
+        state[max(n for n in state if n.startswith("mean.mlp.") and n.endswith(".bias"))].fill_(mean)  # the output bias
         return state
 
     agent._archive_snapshot(np.array([10.0, 0.0]), torch.tensor([0.9, 0.1]), snapshot(0.5))
@@ -273,7 +273,7 @@ def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread)
 
     def snapshot(action):  # a policy that always prefers `action` (logits: 10 on it, 0 elsewhere)
         one = params.apply(lambda x: torch.zeros_like(x[0]))
-        one["module", "0", "module", "mlp", "2", "bias"][action] = 10.0
+        one["module", "0", "module", "mlp", "2", "bias"][..., action] = 10.0
         return {"weight": torch.tensor([0.8, 0.2]), "actor": one} if action == 2 else \
             {"weight": torch.tensor([0.3, 0.7]), "actor": one}
 
