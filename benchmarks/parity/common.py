@@ -16,49 +16,111 @@ import numpy as np
 MB_VERSION = "1.3.0"
 
 # One case = one env, one algorithm, one set of hyperparameters given to both libraries (their
-# names in each), one frame budget and one evaluation protocol. `ours` are TrainConfig keys,
-# `mb` keyword arguments of the MORL-Baselines class. Budgets are where MB learns on a 2-core CPU.
+# names in each), one frame budget and one evaluation protocol. `ours` are TrainConfig keys over
+# our foreign-env defaults (morl_trl.recipes.foreign_defaults: MB 1.3.0's constructor defaults),
+# `mb` keyword arguments of the MORL-Baselines class over its defaults, `mb_train` of its train().
+# Where a case departs from MB's defaults (smaller networks, fewer gradient updates), both sides
+# get the same values: budgets were chosen so that 12 cases x 5 seeds x 2 libraries fit in about
+# 90 minutes of a 2-core CPU shared with five other jobs (each run got 15-30 % of a core) (benchmarks/parity/RESULTS.md says which cases learned).
+_SMALL_GPI = (dict(hidden=[64, 64], batch_size=32, gpi_gradient_updates=1),
+              dict(net_arch=[64, 64], batch_size=32, gradient_updates=1))
 CASES: dict[str, dict] = {
-    # GPI-LS on Deep Sea Treasure: MB's GPILS with [64, 64], batch 32, one update per step reaches
-    # 84-96 % of the true front's hypervolume in 30k steps (~2 min a seed on a free core)
+    # GPI-LS on Deep Sea Treasure: MB's GPILS with [64, 64], batch 32, one update per step
     "gpi_ls-dst": dict(
-        env="deep-sea-treasure-v0", algo="gpi_ls", frames=30_000, eval_every=10_000, gamma=0.99,
-        ours=dict(hidden=[64, 64], batch_size=32, gpi_gradient_updates=1, gpi_iteration_frames=10_000),
-        mb=dict(net_arch=[64, 64], batch_size=32, gradient_updates=1),
-        mb_train=dict(timesteps_per_iter=10_000),
+        env="deep-sea-treasure-v0", algo="gpi_ls", frames=2_000, eval_every=1_000, gamma=0.99,
+        ours=dict(_SMALL_GPI[0], gpi_iteration_frames=500), mb=dict(_SMALL_GPI[1]),
+        mb_train=dict(timesteps_per_iter=500),
     ),
-    # Envelope on Deep Sea Treasure at MB's default size ([256]*4, batch 256, 4 sampled weights)
+    # Envelope on Deep Sea Treasure, networks and batch cut as for GPI-LS (MB: [256]*4, batch 256)
     "envelope-dst": dict(
-        env="deep-sea-treasure-v0", algo="envelope", frames=30_000, eval_every=10_000, gamma=0.99,
-        ours=dict(), mb=dict(), mb_train=dict(),
+        env="deep-sea-treasure-v0", algo="envelope", frames=2_000, eval_every=1_000, gamma=0.99,
+        ours=dict(hidden=[64, 64], batch_size=32), mb=dict(net_arch=[64, 64], batch_size=32), mb_train=dict(),
+    ),
+    # Minecart: MB's examples use gamma 0.98 (examples/envelope_minecart.py); short budget
+    "envelope-minecart": dict(
+        env="minecart-v0", algo="envelope", frames=1_000, eval_every=500, gamma=0.98,
+        ours=dict(hidden=[64, 64], batch_size=32), mb=dict(net_arch=[64, 64], batch_size=32), mb_train=dict(),
+    ),
+    "gpi_ls-minecart": dict(
+        env="minecart-v0", algo="gpi_ls", frames=1_000, eval_every=500, gamma=0.98,
+        ours=dict(_SMALL_GPI[0], gpi_iteration_frames=500, gpi_front_episodes=1), mb=dict(_SMALL_GPI[1]),
+        mb_train=dict(timesteps_per_iter=500, num_eval_episodes_for_front=1),
+    ),
+    # PCN at MB's defaults (gamma 1, [64], batch 256, 20 warm-up episodes, 10 episodes / 50 updates
+    # a round, 100 episodes kept); MB has no default scaling factor: 0.1 for every entry on both
+    "pcn-dst": dict(
+        env="deep-sea-treasure-v0", algo="pcn", frames=2_000, eval_every=1_000, gamma=1.0,
+        ours=dict(pcn_scaling_factor=[0.1, 0.1, 0.1]), mb=dict(scaling_factor=[0.1, 0.1, 0.1]), mb_train=dict(),
+    ),
+    "pcn-fruit-tree": dict(
+        env="fruit-tree-v0", algo="pcn", frames=2_000, eval_every=1_000, gamma=1.0,
+        ours=dict(pcn_scaling_factor=[0.1] * 7), mb=dict(scaling_factor=[0.1] * 7), mb_train=dict(),
+    ),
+    # continuous actions: CAPQL at MB's defaults but learning from frame 250 (MB: 1,000); short budget
+    "capql-mountaincar": dict(
+        env="mo-mountaincarcontinuous-v0", algo="capql", frames=1_000, eval_every=500, gamma=0.99,
+        ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
+    ),
+    # GPILSContinuousAction with one gradient update a step (MB: 20) and [64, 64] (MB: [256, 256])
+    "gpi_ls-mountaincar": dict(
+        env="mo-mountaincarcontinuous-v0", algo="gpi_ls", frames=1_000, eval_every=500, gamma=0.99,
+        ours=dict(hidden=[64, 64], gpi_gradient_updates=1, gpi_iteration_frames=500, gpi_front_episodes=1),
+        mb=dict(net_arch=[64, 64], gradient_updates=1),
+        mb_train=dict(timesteps_per_iter=500, num_eval_episodes_for_front=1),
+    ),
+    # MORL/D (MOSAC members, pop 6) with members exchanged every 200 steps (MB: 40,000), learning from
+    # frame 250 (MB's MOSAC: 1,000)
+    "morld-mountaincar": dict(
+        env="mo-mountaincarcontinuous-v0", algo="morld", frames=1_200, eval_every=600, gamma=0.995,
+        ours=dict(exchange_every=200, init_random_frames=250),
+        mb=dict(exchange_every=200, policy_args=dict(learning_starts=250)), mb_train=dict(num_eval_episodes_for_front=1),
+    ),
+    # GPI-PD (dynamics ensemble at MB's defaults, rollouts from frame 500: MB 5,000) with the GPI-LS
+    # case's small Q networks
+    "gpi_pd-dst": dict(
+        env="deep-sea-treasure-v0", algo="gpi_pd", frames=2_000, eval_every=1_000, gamma=0.99,
+        ours=dict(_SMALL_GPI[0], gpi_iteration_frames=500, gpi_dynamics_rollout_starts=500),
+        mb=dict(_SMALL_GPI[1], dynamics_rollout_starts=500), mb_train=dict(timesteps_per_iter=500),
+    ),
+    "capql-hopper": dict(
+        env="mo-hopper-v5", algo="capql", frames=1_000, eval_every=500, gamma=0.99,
+        ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
+    ),
+    # PGMORL: 1 warm-up and 1 evolutionary iteration of 32 steps x 4 envs x 6 members (MB: 80, 20, 2048)
+    "pgmorl-hopper": dict(
+        env="mo-hopper-v5", algo="pgmorl", frames=1_536, eval_every=768, gamma=0.995,
+        ours=dict(pgmorl_warmup=1, pgmorl_evo_iterations=1, frames_per_batch=24 * 32),
+        mb=dict(warmup_iterations=1, evolutionary_iterations=1, steps_per_iteration=32), mb_train=dict(),
     ),
 }
 if os.environ.get("PARITY_SMOKE"):  # a check of the machinery: every case cut to a few hundred frames
     for _c in CASES.values():
+        if _c["algo"] == "pgmorl":  # one iteration is 4 envs x 6 members x steps_per_iteration
+            _c.update(frames=4 * 24 * 8, eval_every=2 * 24 * 8)
+            _c["ours"] = {**_c["ours"], "pgmorl_warmup": 1, "pgmorl_evo_iterations": 1, "frames_per_batch": 24 * 8}
+            _c["mb"] = {**_c["mb"], "warmup_iterations": 1, "evolutionary_iterations": 1, "steps_per_iteration": 8}
+            continue
         _c.update(frames=200, eval_every=100)
         _c["mb_train"] = {k: (100 if k == "timesteps_per_iter" else v) for k, v in _c["mb_train"].items()}
-        _c["ours"] = {**_c["ours"], **({"gpi_iteration_frames": 100} if "gpi_iteration_frames" in _c["ours"] else {})}
+        _c["ours"] = {**_c["ours"], **({"gpi_iteration_frames": 100} if "gpi_iteration_frames" in _c["ours"] else {}),
+                      **({"exchange_every": 100} if "exchange_every" in _c["ours"] else {})}
+        if "exchange_every" in _c["mb"]:
+            _c["mb"] = {**_c["mb"], "exchange_every": 100}
 
-# the remaining cases of issue 29, not run yet (no runner written for their MB class)
-PENDING = ["envelope-minecart", "gpi_ls-minecart", "pcn-dst", "pcn-fruit-tree", "capql-mountaincar",
-           "gpi_ls-mountaincar (continuous)", "morld-mountaincar", "gpi_pd-dst", "capql-hopper", "pgmorl-hopper"]
+PENDING: list[str] = []  # every case of issue 29 has a runner
 
-# the shared evaluation protocol: MB's num_eval_weights_for_front; episodes 1 (these envs and the
-# greedy policies are deterministic); the evaluation discount is the case's gamma
-EVAL_WEIGHTS = 100
+# the shared evaluation protocol: 16 weights (MB's num_eval_weights_for_front is 100: cut for the
+# CPU time, the same for both libraries); episodes 1 (these envs and the greedy policies are
+# deterministic but for MuJoCo's reset noise); the evaluation discount is the case's gamma
+EVAL_WEIGHTS = 16
 EVAL_EPISODES = 1
 
 
-def evaluate_act(act, env_id: str, gamma: float, seed: int) -> dict[str, float]:
-    """Evaluate ``act(obs [B, ...] np, w [B, k] np) -> actions [B]`` with morl_trl's evaluator:
-    hypervolume (the env's reference point), EUM, IGD and the HV ratio to the true front."""
-    import torch
-
+def evaluate_policy(policy, env_id: str, gamma: float, seed: int) -> dict[str, float]:
+    """Evaluate ``policy(td) -> td`` (``"observation"``, ``"preference"`` in, ``"action"`` out) with
+    morl_trl's evaluator: hypervolume (the env's reference point), EUM, IGD and the HV ratio to the
+    true front."""
     from morl_trl.evaluation import MultiContextEvaluator
-
-    def policy(td):
-        actions = act(td.get("observation").cpu().numpy(), td.get("preference").cpu().numpy())
-        return td.set("action", torch.as_tensor(np.asarray(actions)))
 
     ev = MultiContextEvaluator(policy, env_id, weights=EVAL_WEIGHTS, episodes=EVAL_EPISODES, gamma=gamma, seed=seed)
     metrics = ev.evaluate().per_context[env_id].metrics

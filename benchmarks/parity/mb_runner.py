@@ -1,14 +1,21 @@
 """One MORL-Baselines 1.3.0 run of a parity case (run by run_parity.py inside MB's own venv).
 
-    python mb_runner.py CASE SEED OUT_JSON
+    python mb_runner.py CASE SEEDS OUT_DIR      # SEEDS: 0,1,2 ; the finished ones are skipped
 
-Trains MB's class with the case's hyperparameters and evaluates it every ``eval_every`` steps
-with the shared evaluation (``common.evaluate_act``: morl_trl's evaluator on the same env,
-weights, discount and seed as our runs). Training time is measured without the evaluations.
+Trains MB's class with the case's hyperparameters through MB's own ``train()`` (its training
+loop, ``log=False``: no wandb, no evaluation of its own) and evaluates it every ``eval_every``
+frames with the shared evaluation (``common.evaluate_policy``: morl_trl's evaluator on the same
+env, weights, discount and seed as our runs). The evaluation is hooked on the training env's
+``step`` (on PGMORL's iterations, whose vector envs MB builds itself), so it happens at the same
+frame counts as ours; training time is the wall time of ``train()`` minus these evaluations.
+How an MB agent acts for an evaluation weight is what ours does for the same method (see
+``_policy``): multi-policy methods act with the archived member of nearest weight, PCN with the
+command of the nearest evaluation weight.
 """
 
 from __future__ import annotations
 
+import inspect
 import sys
 import time
 from pathlib import Path
@@ -17,83 +24,172 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 
-from common import CASES, EVAL_EPISODES, MB_VERSION, evaluate_act, write_result  # noqa: E402
+from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, evaluate_policy, write_result  # noqa: E402
 
 
-def _act(agent):
-    def act(obs, w):
-        return [int(agent.eval(o, wi)) for o, wi in zip(obs, w)]
+def _row_act(act_one):
+    """A policy for the evaluator from ``act_one(obs [..], w [k]) -> action`` applied row by row."""
+    import torch
 
-    return act
+    def policy(td):
+        obs, w = td.get("observation").cpu().numpy(), td.get("preference").cpu().numpy()
+        actions = np.stack([np.asarray(act_one(o, wi)) for o, wi in zip(obs, w)])
+        return td.set("action", torch.as_tensor(actions).to(td.get("action").dtype if "action" in td.keys() else None))
+
+    return policy
+
+
+def _nearest(members, weights_of):
+    """``act_one`` acting with the member whose weight is nearest (the first on ties), as ours."""
+    ws = np.stack([np.asarray(weights_of(m), dtype=np.float64) for m in members])
+
+    def act_one(o, w):
+        m = members[int(np.argmin(((ws - np.asarray(w, dtype=np.float64)) ** 2).sum(-1)))]
+        return m.eval(o, w) if hasattr(m, "eval") else m.wrapped.eval(o, w)
+
+    return act_one
+
+
+def _pcn_policy(agent, k: int):
+    """MB's PCN acting through our PCN evaluation policy (same command choice and update rule):
+    weight i of the energy set starts on the i-th of MB's ``_nlargest`` episodes' return and length."""
+    import torch
+    from torchrl.data import Bounded, Categorical
+
+    from morl_trl.preferences import energy_weights
+    from morl_trl.recipes.pcn import PCNPolicy
+
+    class _Net:
+        def module(self, obs, desired, horizon):
+            return agent.model(obs.float(), desired.float(), horizon.float())
+
+    def commands():
+        n = min(EVAL_WEIGHTS, len(agent.experience_replay))
+        episodes = agent._nlargest(n)
+        returns = torch.as_tensor(np.float32([e[2][0].reward for e in episodes]))
+        horizons = torch.as_tensor(np.float32([len(e[2]) for e in episodes]))
+        reps = torch.arange(EVAL_WEIGHTS) % n
+        return returns[reps], horizons[reps]
+
+    space = agent.env.action_space
+    spec = (Categorical(int(space.n)) if hasattr(space, "n")
+            else Bounded(torch.as_tensor(space.low), torch.as_tensor(space.high), shape=space.shape))
+    return PCNPolicy(_Net(), spec, mode="eval", weights=energy_weights(k, EVAL_WEIGHTS).float(), commands=commands,
+                     max_return=[100.0] * k)  # MB's PCN.train default max_return
+
+
+def _policy(case: dict, agent):
+    algo = case["algo"]
+    if algo == "pcn":
+        return _pcn_policy(agent, agent.reward_dim)
+    if algo == "morld":  # MB's Pareto archive (filled after each exchange), else the population
+        members = agent.archive.individuals or agent.population
+        return _row_act(_nearest(members, lambda m: m.weights))
+    if algo == "pgmorl":
+        members = agent.archive.individuals or agent.agents
+        return _row_act(_nearest(members, lambda m: m.np_weights))
+    return _row_act(lambda o, w: agent.eval(o, w))
+
+
+def _call(fn, **kwargs):
+    """``fn(**kwargs)`` keeping only the keyword arguments it takes (MB's train() signatures differ)."""
+    names = inspect.signature(fn).parameters
+    return fn(**{k: v for k, v in kwargs.items() if k in names})
 
 
 def run(case_name: str, seed: int, out: Path) -> None:
     import mo_gymnasium as mo_gym
     import torch
 
-    import morl_baselines
-    from morl_baselines.common.evaluation import policy_evaluation_mo, seed_everything
+    import morl_baselines  # noqa: F401
+    from morl_baselines.common.evaluation import seed_everything
+
+    from morl_trl.envs.foreign import MO_GYMNASIUM_REF_POINTS
 
     case = CASES[case_name]
     seed_everything(seed)
     torch.set_num_threads(1)
     env, eval_env = mo_gym.make(case["env"]), mo_gym.make(case["env"])
-    curve, train_s = [], 0.0
+    ref_point = np.asarray(MO_GYMNASIUM_REF_POINTS[case["env"]][0], dtype=np.float32)
+    curve: list[dict] = []
+    eval_s = [0.0]
+    agent = None
 
     def evaluate(frames: int) -> None:
         t = time.perf_counter()
-        m = evaluate_act(_act(agent), case["env"], case["gamma"], seed)
-        curve.append(dict(frames=frames, eval_seconds=time.perf_counter() - t, **m))
+        m = evaluate_policy(_policy(case, agent), case["env"], case["gamma"], seed)
+        curve.append(dict(frames=frames, **m))
+        eval_s[0] += time.perf_counter() - t
         print(f"[mb {case_name} s{seed}] {frames} frames: {m}", flush=True)
 
-    if case["algo"] == "gpi_ls":
-        from morl_baselines.common.weights import equally_spaced_weights  # noqa: F401  (MB's own loop below)
-        from morl_baselines.multi_policy.gpi_pd.gpi_pd import GPILS
-        from morl_baselines.multi_policy.linear_support.linear_support import LinearSupport
+    steps = [0]
+    step = env.step
 
-        agent = GPILS(env, gamma=case["gamma"], log=False, seed=seed, **case["mb"])  # (no weight support before
-        # the first iteration, so no evaluation at frame 0)
-        per_iter = case["mb_train"]["timesteps_per_iter"]
-        # GPIPD.train's loop (weight_selection_algo "gpi-ls"), with the shared evaluation after each iteration
-        ls = LinearSupport(num_objectives=agent.reward_dim, epsilon=None)
-        for _ in range(case["frames"] // per_iter):
-            t = time.perf_counter()
-            agent.set_weight_support(ls.get_weight_support())
-            use_gpi, agent.use_gpi = agent.use_gpi, True
-            w = ls.next_weight(algo="gpi-ls", gpi_agent=agent, env=eval_env, rep_eval=5)
-            agent.use_gpi = use_gpi
-            if w is None:
-                break
-            M = ls.get_weight_support() + ls.get_corner_weights(top_k=4) + [w]
-            agent.train_iteration(total_timesteps=per_iter, weight=w, weight_support=M, change_w_every_episode=True,
-                                  eval_env=eval_env, eval_freq=10 ** 9, reset_num_timesteps=False,
-                                  reset_learning_starts=False)
-            for wcw in M:
-                ls.add_solution(policy_evaluation_mo(agent, eval_env, wcw, rep=5)[3], wcw)
-            train_s += time.perf_counter() - t
-            agent.set_weight_support(ls.get_weight_support())
-            evaluate(agent.global_step)
-    elif case["algo"] == "envelope":
-        from morl_baselines.multi_policy.envelope.envelope import Envelope
+    def counted_step(action):  # the shared evaluation every eval_every frames of MB's own loop
+        result = step(action)
+        steps[0] += 1
+        if steps[0] % case["eval_every"] == 0 and steps[0] <= case["frames"]:
+            evaluate(steps[0])
+        return result
 
-        agent = Envelope(env, gamma=case["gamma"], log=False, seed=seed, **case["mb"])
-        evaluate(0)
-        done = 0
-        while done < case["frames"]:
-            t = time.perf_counter()
-            agent.train(total_timesteps=case["eval_every"], eval_env=eval_env, ref_point=np.zeros(agent.reward_dim),
-                        reset_num_timesteps=False, eval_freq=10 ** 9, **case["mb_train"])
-            train_s += time.perf_counter() - t
-            done += case["eval_every"]
-            evaluate(agent.global_step)
+    env.step = counted_step
+    algo, kw = case["algo"], dict(gamma=case["gamma"], log=False, seed=seed, **case["mb"])
+    if algo == "envelope":
+        from morl_baselines.multi_policy.envelope.envelope import Envelope as cls
+    elif algo in ("gpi_ls", "gpi_pd"):
+        continuous = not hasattr(env.action_space, "n")
+        if continuous:
+            from morl_baselines.multi_policy.gpi_pd.gpi_pd_continuous_action import (
+                GPILSContinuousAction, GPIPDContinuousAction)
+            cls = GPILSContinuousAction if algo == "gpi_ls" else GPIPDContinuousAction
+        else:
+            from morl_baselines.multi_policy.gpi_pd.gpi_pd import GPILS, GPIPD
+            cls = GPILS if algo == "gpi_ls" else GPIPD
+    elif algo == "pcn":
+        from morl_baselines.multi_policy.pcn.pcn import PCN as cls
+        kw["scaling_factor"] = np.asarray(kw["scaling_factor"], dtype=np.float32)
+    elif algo == "capql":
+        from morl_baselines.multi_policy.capql.capql import CAPQL as cls
+    elif algo == "morld":
+        from morl_baselines.multi_policy.morld.morld import MORLD as cls
+    elif algo == "pgmorl":
+        from morl_baselines.multi_policy.pgmorl.pgmorl import PGMORL as cls
     else:
-        raise SystemExit(f"no MB runner for {case['algo']} yet")
-    frames = curve[-1]["frames"]
-    write_result(out, dict(case=case_name, lib="mb", seed=seed, version=f"morl-baselines {morl_baselines.__version__}"
-                           if hasattr(morl_baselines, "__version__") else f"morl-baselines {MB_VERSION}",
-                           curve=curve, frames=frames, train_seconds=train_s,
-                           train_fps=frames / train_s if train_s else None, eval_episodes=EVAL_EPISODES))
+        raise SystemExit(f"no MB runner for {algo}")
+    if algo == "pgmorl":  # MB builds its vector envs from the id; evaluated after each iteration instead
+        agent = cls(env_id=case["env"], origin=ref_point, **kw)
+        train_all = agent._PGMORL__train_all_agents
+        next_eval = [case["eval_every"]]
+
+        def train_all_and_evaluate(*args, **kwargs):
+            train_all(*args, **kwargs)
+            if agent.global_step >= next_eval[0]:
+                evaluate(agent.global_step)
+                next_eval[0] += case["eval_every"]
+
+        agent._PGMORL__train_all_agents = train_all_and_evaluate
+    else:
+        agent = cls(env=env, **kw)
+    if algo in ("envelope", "capql"):  # untrained policies act: the curve starts at frame 0 as ours
+        evaluate(0)
+    t, e0 = time.perf_counter(), eval_s[0]
+    _call(agent.train, total_timesteps=case["frames"], eval_env=eval_env, ref_point=ref_point,
+          num_eval_weights_for_front=EVAL_WEIGHTS, eval_freq=10 ** 9, eval_mo_freq=10 ** 9, checkpoints=False,
+          reset_num_timesteps=False, **case["mb_train"])
+    train_s = time.perf_counter() - t - (eval_s[0] - e0)
+    frames = int(getattr(agent, "global_step", steps[0]) or steps[0])
+    if not curve or curve[-1]["frames"] < min(frames, case["frames"]):
+        evaluate(min(frames, case["frames"]))
+    eval_s_total = eval_s[0]
+    write_result(out, dict(case=case_name, lib="mb", seed=seed, version=f"morl-baselines {MB_VERSION}",
+                           curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_s_total,
+                           train_fps=frames / train_s if train_s > 0 else None, eval_episodes=EVAL_EPISODES))
 
 
-if __name__ == "__main__":
-    run(sys.argv[1], int(sys.argv[2]), Path(sys.argv[3]))
+if __name__ == "__main__":  # several seeds in one process: the imports are paid once
+    from common import result_path
+
+    for _seed in [int(x) for x in sys.argv[2].split(",")]:
+        _path = result_path(Path(sys.argv[3]), sys.argv[1], "mb", _seed)
+        if not _path.exists():
+            run(sys.argv[1], _seed, _path)

@@ -27,10 +27,13 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
 from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
+# per-case findings written under the case's table (what learned, why the libraries differ)
+NOTES: dict[str, str] = {}
 METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"))
 
 
@@ -147,20 +150,30 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
              f"Command: `{command}`", "",
              f"Versions: Python {platform.python_version()}, torch {torch.__version__}, morl-baselines {MB_VERSION}; "
              f"machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (timings are noisy).", ""]
+    summary = ["## Summary", "",
+               "Final hypervolume (IQM over seeds, 95 % CI), whether the CIs overlap, and training frames/s "
+               "(mean over seeds; ours / MB is issue 31's end-to-end comparison: both libraries' own training "
+               "loops on the same env and budget).", "",
+               "| case | seeds ours / MB | final HV ours | final HV MB | CIs | frames/s ours | frames/s MB | ours / MB |",
+               "|---|---|---|---|---|---|---|---|"]
+    body = []
     for case in CASES:
         runs = _load(out, case)
         spec = CASES[case]
-        lines += [f"## {case}", "",
-                  f"`{spec['algo']}` on `{spec['env']}`, {spec['frames']:,} frames, evaluated every "
-                  f"{spec['eval_every']:,}; ours: `{spec['ours']}`, MB: `{spec['mb']}`", ""]
+        body += [f"## {case}", "",
+                 f"`{spec['algo']}` on `{spec['env']}`, {spec['frames']:,} frames, evaluated every "
+                 f"{spec['eval_every']:,}, gamma {spec['gamma']}; ours: `{spec['ours']}`, MB: `{spec['mb']}`"
+                 + (f", MB train(): `{spec['mb_train']}`" if spec["mb_train"] else ""), ""]
         done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
         if not runs:
-            lines += ["Not run yet.", ""]
+            body += ["Not run yet.", ""]
+            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - |")
             continue
-        lines += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
-                  + f" (target: {len(seeds)} per library)", ""]
-        lines += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
-                  "|---|" + "---|" * len(runs)]
+        body += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
+                 + f" (target: {len(seeds)} per library)", ""]
+        body += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
+                 "|---|" + "---|" * len(runs)]
+        ci: dict[str, tuple[float, float, float]] = {}
         for metric, label in METRICS:
             cells = []
             for lib in sorted(runs):
@@ -169,17 +182,38 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                     cells.append("-")
                     continue
                 m, lo, hi = _iqm_ci(vals)
+                if metric == "hypervolume":
+                    ci[lib] = (m, lo, hi)
                 cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
             if any(c != "-" for c in cells):
-                lines.append(f"| final {label} | " + " | ".join(cells) + " |")
-        fps = [f"{lib} {sum(r['train_fps'] for r in rs) / len(rs):,.0f}" for lib, rs in sorted(runs.items())
-               if all(r.get("train_fps") for r in rs)]
-        lines += [f"| training frames/s (mean) | " + " | ".join(fps) + " |", ""]
+                body.append(f"| final {label} | " + " | ".join(cells) + " |")
+        fps = {lib: sum(r["train_fps"] for r in rs) / len(rs) for lib, rs in sorted(runs.items())
+               if all(r.get("train_fps") for r in rs)}
+        body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
         png = out.parent / f"{case}.png"
         _plot(case, runs, png)
-        lines += [f"![{case}]({png.name})", ""]
-    lines += ["## Not run yet", "", "These cases of issue 29 have no runner or no results yet: "
-              + ", ".join(PENDING) + ".", ""]
+        body += [f"![{case}]({png.name})", ""]
+        if case in NOTES:
+            body += [NOTES[case], ""]
+        hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
+        if "ours" in ci and "mb" in ci and min(len(done["ours"]), len(done["mb"])) < len(seeds):
+            verdict = f"(< {len(seeds)} seeds)"
+        elif "ours" in ci and "mb" in ci:
+            (_, olo, ohi), (_, mlo, mhi) = ci["ours"], ci["mb"]
+            verdict = "overlap" if olo <= mhi and mlo <= ohi else ("ours higher" if olo > mhi else "**MB higher**")
+        else:
+            verdict = "-"
+        ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
+        summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
+                       f"| {hv.get('mb', '-')} | {verdict} | {fps.get('ours', 0):,.0f} | {fps.get('mb', 0):,.0f} "
+                       f"| {ratio} |")
+    lines += summary + [""] + body
+    notes = out.parent / "NOTES.md"  # hand-written findings (kept across regenerations)
+    if notes.exists():
+        lines += [notes.read_text()]
+    if PENDING:
+        lines += ["## Not run yet", "", "These cases of issue 29 have no runner or no results yet: "
+                  + ", ".join(PENDING) + ".", ""]
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
@@ -201,11 +235,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=HERE / "results")
     p.add_argument("--mb-venv", type=Path, default=Path.home() / ".cache" / "morl_trl" / f"mb-{MB_VERSION}")
     p.add_argument("--report-only", action="store_true")
+    p.add_argument("--round-seeds", type=int, default=2, help="seeds per round (see main)")
+    p.add_argument("--nice", type=int, default=15, help="niceness of each run (0: none)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    if args.one:
-        lib, case, seed, out = args.one
-        run_ours(case, int(seed), Path(out))
+    if args.one:  # LIB CASE SEEDS OUT_DIR: several seeds in one process (the imports are paid once)
+        lib, case, seed_list, out = args.one
+        for seed in (int(x) for x in seed_list.split(",")):
+            path = result_path(Path(out), case, lib, seed)
+            if not path.exists():
+                run_ours(case, seed, path)
         return 0
     seeds, cases = _seeds(args.seeds), args.cases.split(",")
     unknown = [c for c in cases if c not in CASES]
@@ -215,19 +254,31 @@ def main(argv: list[str] | None = None) -> int:
     if not args.report_only:
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
         mb_python = ensure_mb_venv(args.mb_venv) if "mb" in args.libs.split(",") else None
-        for case in cases:  # one at a time: the cheapest cases first (CASES' order)
-            for seed in seeds:
-                for lib in args.libs.split(","):
-                    path = result_path(args.out, case, lib, seed)
-                    if path.exists():
+        # seeds in rounds of --round-seeds, every case in each round before the next round: all cases get
+        # their first seeds first. Within a case both libraries run at once, each in one process over the
+        # round's seeds, so that their frames/s are measured under the same load.
+        libs = args.libs.split(",")
+        rounds = [seeds[i:i + args.round_seeds] for i in range(0, len(seeds), args.round_seeds)]
+        nice = ["nice", "-n", str(args.nice)] if args.nice else []
+        for round_seeds in rounds:
+            for case in cases:
+                procs = []
+                for lib in libs:
+                    todo = [s for s in round_seeds if not result_path(args.out, case, lib, s).exists()]
+                    if not todo:
                         continue
-                    cmd = ([str(mb_python), str(HERE / "mb_runner.py"), case, str(seed), str(path)] if lib == "mb"
-                           else [sys.executable, str(HERE / "run_parity.py"), "--one", lib, case, str(seed), str(path)])
-                    print(f"run {lib} {case} seed {seed}", flush=True)
-                    t = time.perf_counter()
-                    rc = subprocess.run(cmd, env=env).returncode
-                    print(f"  {'done' if rc == 0 else f'FAILED (exit {rc})'} in {time.perf_counter() - t:,.0f} s",
-                          flush=True)
+                    arg = ",".join(map(str, todo))
+                    cmd = nice + ([str(mb_python), str(HERE / "mb_runner.py"), case, arg, str(args.out)] if lib == "mb"
+                                  else [sys.executable, str(HERE / "run_parity.py"), "--one", lib, case, arg, str(args.out)])
+                    log = args.out / case / f"{lib}.log"
+                    log.parent.mkdir(parents=True, exist_ok=True)
+                    print(f"run {lib} {case} seeds {arg} (log {log})", flush=True)
+                    procs.append((lib, todo, time.perf_counter(), subprocess.Popen(cmd, env=env, stdout=open(log, "a"),
+                                                                                   stderr=subprocess.STDOUT, cwd=log.parent)))
+                for lib, todo, t, proc in procs:
+                    rc = proc.wait()
+                    print(f"  {lib} {case} seeds {todo}: {'done' if rc == 0 else f'FAILED (exit {rc})'} "
+                          f"in {time.perf_counter() - t:,.0f} s", flush=True)
                 write_results(args.out, seeds, command)
     print(write_results(args.out, seeds, command))
     return 0

@@ -25,7 +25,7 @@ from torchrl.data.replay_buffers.utils import unravel_index
 from morl_trl._torchrl_compat import sampler_generator
 from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
 
-__all__ = ["TorchPrioritizedSampler", "native_prioritized_sampler_available", "normalize_device", "prioritized_sampler"]
+__all__ = ["TorchPrioritizedSampler", "RunningMaxPrioritizedSampler", "native_prioritized_sampler_available", "normalize_device", "prioritized_sampler"]
 
 _EMPTY_STORAGE_ERROR = "Cannot sample from an empty storage."
 _NON_POSITIVE = (
@@ -308,6 +308,79 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         trees = torch.load(path / "trees.pt", map_location=self.device, weights_only=True)
         self._sum_tree.load_state_dict(trees["sum"])
         self._min_tree.load_state_dict(trees["min"])
+
+
+class RunningMaxPrioritizedSampler(TorchPrioritizedSampler):
+    r"""MORL-Baselines' prioritized buffer rule, as the authors' Envelope ran it.
+
+    An update with priorities :math:`p` (Envelope: :math:`|w \cdot \delta|` under the first sampled
+    weight) writes :math:`(p + M)^\alpha`, where :math:`M` is the running maximum of the written
+    values (``min_priority`` = 1e-5 at first), and then raises :math:`M` to the largest value
+    written; new items are written at :math:`M` (no :math:`\alpha`). (MORL-Baselines' buffer calls
+    it ``min_priority``; ``envelope.py:344-349``, ``prioritized_buffer.py:93,141,188-196``.) So
+    every priority carries the largest one seen, which flattens them as the run goes, and items
+    stored before the first update keep 1e-5. :class:`TorchPrioritizedSampler` is TorchRL's rule:
+    :math:`(p + \epsilon)^\alpha`, new items at the largest raw priority.
+
+    Example:
+        >>> from tensordict import TensorDict
+        >>> from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+        >>> sampler = RunningMaxPrioritizedSampler(10, alpha=0.5, beta=0.4)
+        >>> rb = TensorDictReplayBuffer(storage=LazyTensorStorage(10), sampler=sampler, batch_size=2)
+        >>> _ = rb.extend(TensorDict({"obs": torch.arange(3.0)}, [3]))
+        >>> rb.update_priority(torch.tensor([0, 1]), torch.tensor([0.04, 0.25]))
+        >>> _ = rb.extend(TensorDict({"obs": torch.arange(1.0)}, [1]))
+        >>> [round(v, 4) for v in sampler._sum_tree.leaves()[:4].tolist()]
+        [0.2, 0.5, 0.0, 0.5]
+    """
+
+    def __init__(self, max_capacity: int, alpha: float, beta: float, *, min_priority: float = 1e-5,
+                 **kwargs) -> None:
+        if not min_priority > 0:
+            raise ValueError(f"min_priority must be > 0, got {min_priority}")
+        self.min_priority = float(min_priority)
+        super().__init__(max_capacity, alpha, beta, **kwargs)
+        if self._max_priority_within_buffer:
+            raise ValueError("RunningMaxPrioritizedSampler keeps the maximum since construction "
+                             "(max_priority_within_buffer=False)")
+
+    def _init(self) -> None:
+        super()._init()
+        self._max_priority = (torch.tensor(self.min_priority, device=self.device), None)
+
+    def _index(self, index, storage) -> torch.Tensor:
+        index = torch.as_tensor(index, dtype=torch.long, device=self.device)
+        if index.ndim > 1:
+            raise ValueError(f"{type(self).__name__} takes a 1-d storage, got index of shape {tuple(index.shape)}")
+        index = index.reshape(-1)
+        return index[index >= 0]  # (TorchRL's MaxValueWriter marks items it keeps with -1)
+
+    @torch.no_grad()
+    def mark_update(self, index, *, storage=None) -> None:
+        """New items: written at the running maximum :math:`M`."""
+        self._maybe_init_from_storage(storage)
+        index = self._index(index, storage)
+        top = self._pinned_max_priority()
+        self._sum_tree[index] = top
+        self._min_tree[index] = top
+
+    @torch.no_grad()
+    def update_priority(self, index, priority, *, storage=None) -> None:
+        """``(priority + M) ** alpha`` at ``index``, then ``M = max(M, written)``."""
+        self._maybe_init_from_storage(storage)
+        index = self._index(index, storage)
+        if index.numel():
+            priority = torch.as_tensor(priority, device=self.device).detach().reshape(-1)
+            self.write_priorities_unchecked(index, priority.expand(index.shape), self._pinned_max_priority())
+
+    def write_priorities_unchecked(self, index: torch.Tensor, priority: torch.Tensor, top: torch.Tensor) -> None:
+        value = torch.pow(priority.detach().reshape(-1).to(top.dtype) + top, self._alpha)
+        self._sum_tree.assign_unchecked(index, value)
+        self._min_tree.assign_unchecked(index, value)
+        top.copy_(torch.maximum(value.max(), top))
+
+    def _retransform_priority_trees(self, old_alpha: float, new_alpha: float) -> None:
+        raise NotImplementedError(f"{type(self).__name__} cannot change alpha after priorities are written")
 
 
 def _to_py(x):

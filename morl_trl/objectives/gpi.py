@@ -26,7 +26,7 @@ from torch.nn import functional as F
 from morl_trl.objectives.common import MultiObjectiveLossModule
 from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear, dropout
 from morl_trl.objectives.envelope import action_index
-from morl_trl.objectives.networks import NatureCNN
+from morl_trl.objectives.networks import NatureCNN, orthogonal_init_
 from morl_trl.objectives.value import vector_td0_return_estimate
 
 __all__ = ["GPIQNetwork", "GPIPolicy", "GPILoss", "gpi_action", "thresholded_huber", "GPIActor", "GPIVectorCritic",
@@ -73,7 +73,8 @@ class GPIQNetwork(nn.Module):
         if len(obs_shape) == 1:
             self.state_features = EnsembleLinear(num_nets, obs_shape[0], h0)
         else:  # images: one NatureCNN per member (the authors'), features of width hidden[0]
-            self.state_features = nn.ModuleList(NatureCNN(obs_shape, h0) for _ in range(num_nets))
+            # with the authors' layer_init on its Conv2d and Linear layers (gpi_pd.py:69)
+            self.state_features = nn.ModuleList(orthogonal_init_(NatureCNN(obs_shape, h0)) for _ in range(num_nets))
         self.weight_features = EnsembleLinear(num_nets, num_objectives, h0)
         self.hidden = nn.ModuleList(EnsembleLinear(num_nets, a, b) for a, b in zip(hidden[:-1], hidden[1:]))
         self.norms = nn.ModuleList(EnsembleLayerNorm(num_nets, b) for b in hidden[1:]) if layer_norm else None

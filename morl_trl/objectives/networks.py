@@ -36,7 +36,10 @@ __all__ = [
 ]
 
 INITS = ("default", "orthogonal")
-SCALE_PARAMETERIZATIONS = ("softplus", "clamped_log_std")
+SCALE_PARAMETERIZATIONS = ("softplus", "clamped_log_std", "tanh_log_std")
+#: each scale's default ``log_std_bounds``: CAPQL's clamp [-20, 2] (capql.py:125); SAC/MOSAC's
+#: tanh rescaling into [-5, 2] (sac_continuous.py / mosac_continuous_action.py:95-103)
+LOG_STD_BOUNDS = {"softplus": (-20.0, 2.0), "clamped_log_std": (-20.0, 2.0), "tanh_log_std": (-5.0, 2.0)}
 
 DEFAULT_NUM_CELLS: tuple[int, ...] = (256, 256, 256, 256)
 
@@ -97,9 +100,11 @@ def _mlp(in_features: int, out_features: int, num_cells: Sequence[int], activati
 
 
 def orthogonal_init_(module: nn.Module, gain: float = 1.0) -> nn.Module:
-    """Orthogonal weights (``gain``) and zero biases on every ``nn.Linear`` of ``module``, in place.
+    """Orthogonal weights (``gain``) and zero biases on every ``nn.Linear`` and ``nn.Conv2d`` of
+    ``module`` (a :class:`NatureCNN` too), in place.
 
-    MORL-Baselines' ``layer_init(method="orthogonal", weight_gain=1, bias_const=0)``.
+    MORL-Baselines' ``layer_init(method="orthogonal", weight_gain=1, bias_const=0)``, which
+    initialises every ``Linear`` and ``Conv2d`` (``mo_utils/networks.py:143-157``).
 
     Example:
         >>> lin = orthogonal_init_(nn.Linear(8, 4))
@@ -107,7 +112,7 @@ def orthogonal_init_(module: nn.Module, gain: float = 1.0) -> nn.Module:
         (True, True)
     """
     for m in module.modules():
-        if isinstance(m, nn.Linear):
+        if isinstance(m, (nn.Linear, nn.Conv2d)):
             nn.init.orthogonal_(m.weight, gain=gain)
             if m.bias is not None:
                 nn.init.zeros_(m.bias)
@@ -404,6 +409,20 @@ class _LocClampedLogStd(nn.Module):
         return loc, log_std.clamp(self.log_std_min, self.log_std_max).exp()
 
 
+class _LocTanhLogStd(_LocClampedLogStd):
+    """Splits an MLP's ``2 * d`` outputs into a location and ``exp(lo + (hi - lo) (tanh(x) + 1) / 2)``.
+
+    The authors' SAC and MOSAC actors (CleanRL's): ``log_std = -5 + 3.5 (tanh(x) + 1)`` in ``[-5, 2]``
+    (``sac_continuous.py``; ``mosac_continuous_action.py:95-103``).
+    """
+
+    def head(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(loc, scale)`` from the MLP's output."""
+        loc, x = out.chunk(2, -1)
+        lo, hi = self.log_std_min, self.log_std_max
+        return loc, (lo + 0.5 * (hi - lo) * (torch.tanh(x) + 1)).exp()
+
+
 def make_gaussian_actor(
     obs_dim: int,
     action_spec: Bounded,
@@ -412,7 +431,7 @@ def make_gaussian_actor(
     num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
     activation: type[nn.Module] = nn.ReLU,
     scale: str = "softplus",
-    log_std_bounds: tuple[float, float] = (-20.0, 2.0),
+    log_std_bounds: tuple[float, float] | None = None,
     observation_key: NestedKey = "observation",
     preference_key: NestedKey | None = "preference",
     action_key: NestedKey = "action",
@@ -421,10 +440,12 @@ def make_gaussian_actor(
 
     Args:
         scale: how the second half of the MLP's output becomes the Gaussian's scale:
-            ``"softplus"`` (TorchRL's biased softplus, the default) or ``"clamped_log_std"``
+            ``"softplus"`` (TorchRL's biased softplus, the default), ``"clamped_log_std"``
             (``exp(clamp(log_std, *log_std_bounds))``, MORL-Baselines' CAPQL policy; the CAPQL
-            recipe's default).
-        log_std_bounds: ``(min, max)`` of the clamped log-std. Defaults to ``(-20, 2)``.
+            recipe's default) or ``"tanh_log_std"`` (``log_std = min + (max - min) (tanh(x) + 1) / 2``,
+            the authors' SAC and MOSAC: ``-5 + 3.5 (tanh(x) + 1)``; the SAC and MORL/D recipes' default).
+        log_std_bounds: ``(min, max)`` of the log-std. Defaults to the scale's
+            (:data:`LOG_STD_BOUNDS`: ``(-20, 2)`` clamped, ``(-5, 2)`` tanh).
 
     Examples:
         >>> from tensordict import TensorDict
@@ -448,20 +469,26 @@ def make_gaussian_actor(
     return tanh_normal_actor(gaussian_head(mlp, scale, (lo, hi)), in_keys, action_spec, action_key)
 
 
-def _check_scale(scale: str, log_std_bounds: tuple[float, float]) -> tuple[float, float]:
-    """Validates a Gaussian head's ``scale`` and ``log_std_bounds``; returns the bounds as floats."""
+def _check_scale(scale: str, log_std_bounds: tuple[float, float] | None) -> tuple[float, float]:
+    """Validates a Gaussian head's ``scale`` and ``log_std_bounds`` (``None``: the scale's
+    :data:`LOG_STD_BOUNDS`); returns the bounds as floats."""
     if scale not in SCALE_PARAMETERIZATIONS:
         raise ValueError(f"scale={scale!r}; valid values are {SCALE_PARAMETERIZATIONS}")
+    if log_std_bounds is None:
+        log_std_bounds = LOG_STD_BOUNDS[scale]
     lo, hi = (float(b) for b in log_std_bounds)
     if not lo < hi:
         raise ValueError(f"log_std_bounds must be (min, max) with min < max, got {log_std_bounds!r}")
     return lo, hi
 
 
-def gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float]) -> nn.Module:
-    """``net``'s output ``[..., 2 d]`` as ``(loc, scale)``: the biased softplus or the clamped log-std."""
+def gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float] | None = None) -> nn.Module:
+    """``net``'s output ``[..., 2 d]`` as ``(loc, scale)``: the biased softplus, the clamped
+    log-std or the tanh-rescaled log-std (``scale``, see :func:`make_gaussian_actor`)."""
     lo, hi = _check_scale(scale, log_std_bounds)
-    return _LocScale(net) if scale == "softplus" else _LocClampedLogStd(net, lo, hi)
+    if scale == "softplus":
+        return _LocScale(net)
+    return (_LocClampedLogStd if scale == "clamped_log_std" else _LocTanhLogStd)(net, lo, hi)
 
 
 def tanh_normal_actor(net: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:

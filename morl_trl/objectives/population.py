@@ -210,7 +210,7 @@ class NearestMemberRouter(nn.Module):
 # ---------------------------------------------------------------------- builders
 def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: Bounded, *,
                                    num_cells: Sequence[int] = DEFAULT_NUM_CELLS, scale: str = "softplus",
-                                   log_std_bounds: tuple[float, float] = (-20.0, 2.0),
+                                   log_std_bounds: tuple[float, float] | None = None,
                                    observation_key: NestedKey = "observation",
                                    action_key: NestedKey = "action") -> ProbabilisticActor:
     """``P`` tanh-Gaussian actors ``pi_p(a | s)`` reading ``[P, *B, obs]`` (the loss's view).

@@ -52,6 +52,10 @@ class Agent:
         self.loss_keys = [k for k in loss.out_keys if k.startswith("loss_")]
         self._captured = None  # the compiled / CUDA-graphed / device-guarded update, built on first use
         self._guard = None
+        self.critic_steps = 0  # updates done (the delayed actor's clock, policy_freq)
+        if self.policy_freq > 1 and not {"qvalue", "actor"} <= set(optimizers):
+            raise ValueError(f"policy_freq={self.policy_freq} delays the actor of an actor-critic loss; "
+                             f"{cfg.algo}'s optimizers are {sorted(optimizers)}: set policy_freq=1")
         if _captures(cfg) and type(self).update is not Agent.update:
             raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent "
                              f"({type(self).__name__}) writes its own update: set compile=false and cudagraphs=false")
@@ -115,13 +119,53 @@ class Agent:
         if self._device_guard():
             return self._captured_update(None, buffer)  # samples itself (in the graph, where it can)
         batch = self.sample(buffer)
-        out = self.loss(batch)
-        optimizer_step(sum(out[k] for k in self.loss_keys), self.optimizers.values(),
-                       max_grad_norm=self.max_grad_norm, losses={k: out[k] for k in self.loss_keys})
+        actor_turn = self.next_is_actor_turn()
+        if self.policy_freq > 1:
+            out, _ = self.delayed_actor_step(batch, actor_turn)
+        else:
+            out = self.loss(batch)
+            optimizer_step(sum(out[k] for k in self.loss_keys), self.optimizers.values(),
+                           max_grad_norm=self.max_grad_norm, losses={k: out[k] for k in self.loss_keys})
         self.target_updater.step()
         if self.cfg.prioritized:
             buffer.update_tensordict_priority(batch)
         return out.detach()
+
+    @property
+    def policy_freq(self) -> int:
+        """``cfg.policy_freq``: 1 = one joint step of every loss per update; ``n > 1`` = the delayed actor
+        (:meth:`delayed_actor_step`), as the authors' continuous SAC and MOSAC (``n = 2``)."""
+        return int(getattr(self.cfg, "policy_freq", 1))
+
+    def next_is_actor_turn(self) -> bool:
+        """Counts one more update; whether it is an actor turn (every ``policy_freq``-th: the 2nd, 4th, ...
+        for 2, as the authors' ``global_step % policy_freq == 0`` with an even ``learning_starts``)."""
+        self.critic_steps += 1
+        return self.critic_steps % self.policy_freq == 0
+
+    def delayed_actor_step(self, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
+        """The authors' delayed actor (CleanRL's SAC; their ``sac_continuous.py:435-456``,
+        ``mosac_continuous_action.py:460-482``): one critic step (``loss_qvalue``, the ``qvalue``
+        optimizer); on an actor turn then ``policy_freq`` steps of the other losses (actor and
+        temperature) and their optimizers, each on a fresh forward of the same batch (the updated
+        critic, freshly sampled actions). Returns ``(losses, found_inf)`` (``found_inf``: ``None``
+        unless ``on_device``); the actor's losses are the last actor step's.
+        """
+        kw = dict(max_grad_norm=self.max_grad_norm, on_device=on_device)
+        out = self.loss(batch)
+        found = optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]],
+                               losses={"loss_qvalue": out["loss_qvalue"]}, **kw)
+        if actor_turn:
+            keys = [k for k in self.loss_keys if k != "loss_qvalue"]
+            others = [opt for name, opt in self.optimizers.items() if name != "qvalue"]
+            for _ in range(self.policy_freq):
+                actor_out = self.loss(batch)
+                f = optimizer_step(sum(actor_out[k] for k in keys), others, losses={k: actor_out[k] for k in keys},
+                                   **kw)
+                found = torch.maximum(found, f) if on_device else None
+            for k in keys:
+                out.set(k, actor_out.get(k))
+        return out, found
 
     @property
     def max_grad_norm(self) -> float | None:
@@ -171,6 +215,7 @@ class Agent:
             "loss": self.loss.state_dict(),
             "optimizers": {k: o.state_dict() for k, o in self.optimizers.items()},
             "target_updater_counter": getattr(self.target_updater, "counter", None),  # HardUpdate's period
+            "critic_steps": self.critic_steps,
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -178,6 +223,7 @@ class Agent:
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])
             keep_implementation(o)
+        self.critic_steps = int(state.get("critic_steps", 0))
         if state.get("target_updater_counter") is not None and hasattr(self.target_updater, "counter"):
             self.target_updater.counter = state["target_updater_counter"]
 

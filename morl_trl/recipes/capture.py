@@ -100,16 +100,20 @@ class CapturedUpdate:
                                           else PolyakUpdate.leaves(updater))
         self.skipped = torch.zeros((), device=agent.device)
         self.since_check = 0
-        fn = self.step
-        if getattr(cfg, "compile", False):
-            # dynamic=False: a training run's shapes never change, and symbolic sizes broke
-            # dynamo on the preference draws (randn of a symbolic size) on the GPU
-            fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None), dynamic=False)
-        if cudagraphs:
-            from tensordict.nn import CudaGraphModule
+        def capture(fn):
+            if getattr(cfg, "compile", False):
+                # dynamic=False: a training run's shapes never change, and symbolic sizes broke
+                # dynamo on the preference draws (randn of a symbolic size) on the GPU
+                fn = torch.compile(fn, mode=getattr(cfg, "compile_mode", None), dynamic=False)
+            if cudagraphs:
+                from tensordict.nn import CudaGraphModule
 
-            fn = CudaGraphModule(fn, in_keys=[], out_keys=[], warmup=5 if getattr(cfg, "compile", False) else 2)
-        self.fn = fn
+                fn = CudaGraphModule(fn, in_keys=[], out_keys=[], warmup=5 if getattr(cfg, "compile", False) else 2)
+            return fn
+
+        self.fn = capture(self.step)
+        # the delayed actor (policy_freq > 1): a critic-only and a critic-then-actor update, one graph each
+        self.fn_actor = capture(self.actor_step) if agent.policy_freq > 1 else None
         self.capture_sampling = bool(getattr(cfg, "capture_sampling", False))
         self.compiled = bool(getattr(cfg, "compile", False))
         self.cudagraphs = cudagraphs
@@ -118,11 +122,22 @@ class CapturedUpdate:
         self._calls = 0
 
     def step(self, batch: TensorDictBase) -> TensorDictBase:
-        """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite."""
+        """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite
+        (with ``policy_freq > 1``: the critic-only update, :meth:`actor_step` the other)."""
+        return self._step(batch, False)
+
+    def actor_step(self, batch: TensorDictBase) -> TensorDictBase:
+        """The delayed actor's actor turn: the critic step, then ``policy_freq`` actor steps."""
+        return self._step(batch, True)
+
+    def _step(self, batch: TensorDictBase, actor_turn: bool) -> TensorDictBase:
         agent = self.agent
-        out = agent.loss(batch)
-        found_inf = optimizer_step(sum(out[k] for k in agent.loss_keys), agent.optimizers.values(),
-                                   max_grad_norm=agent.max_grad_norm, on_device=True)
+        if agent.policy_freq > 1:
+            out, found_inf = agent.delayed_actor_step(batch, actor_turn, on_device=True)
+        else:
+            out = agent.loss(batch)
+            found_inf = optimizer_step(sum(out[k] for k in agent.loss_keys), agent.optimizers.values(),
+                                       max_grad_norm=agent.max_grad_norm, on_device=True)
         if self.soft:
             with torch.no_grad():
                 delta = torch._foreach_sub(self.sources, self.targets)
@@ -143,7 +158,7 @@ class CapturedUpdate:
 
         from morl_trl.data import TorchPrioritizedSampler
 
-        if not self.capture_sampling or not self.agent.samples_one_batch:
+        if not self.capture_sampling or not self.agent.samples_one_batch or self.agent.policy_freq > 1:
             return False
         if type(buffer) is not TensorDictReplayBuffer:
             return False
@@ -205,6 +220,7 @@ class CapturedUpdate:
         agent = self.agent
         if batch is None:
             if self._whole is not None or self._samples_in_graph(buffer):
+                agent.next_is_actor_turn()  # (counted; the whole-update capture has policy_freq 1)
                 result = self._run_whole(buffer)
                 if not self.soft:
                     agent.target_updater.step()
@@ -213,7 +229,9 @@ class CapturedUpdate:
                     self.check()
                 return result
             batch = agent.sample(buffer)
-        result = self.fn(batch)
+        actor_turn = agent.next_is_actor_turn()
+        fn = self.fn_actor if self.fn_actor is not None and actor_turn else self.fn
+        result = fn(batch)
         if not self.soft:
             agent.target_updater.step()  # a Python-side period counter: hard copies stay eager
         priority = result.get("_priority", None)

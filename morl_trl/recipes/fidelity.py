@@ -201,8 +201,7 @@ COMMON: dict[str, Any] = {
 _NONE = lambda v, cfg: None if v == "None" else v  # noqa: E731  (the record writes Python's None as "None")
 _NO_LN = Same("(no LayerNorm)", ours=lambda cfg: False)
 _NO_DROPOUT = Same("(no dropout)", ours=lambda cfg: 0.0)
-_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ (envelope_network='authors')",
-                       open=_only(MARIO, what="the CNN's Conv2d layers keep PyTorch's init (the authors: orthogonal)"))
+_ORTHO_ENVELOPE = Code("objectives.networks.orthogonal_init_ on every Linear and Conv2d (envelope_network='authors')")
 
 
 def _net_arch(v, cfg):
@@ -235,9 +234,9 @@ ENVELOPE = {
     "init.envelope": Code("objectives.envelope.EnvelopeQLoss (the envelope target over sampled weights)"),
     "init.dist": Same("preference_distribution"),
     "init.num_sample_w": Same("num_sampled_prefs"),
-    "init.per": Code("recipes.off_policy: TorchRL's prioritized sampler (prioritized = true)",
-                     open="new priorities are (|w . delta| + eps)^alpha, new items at the maximum (the authors add the "
-                          "running maximum priority to every new priority)"),
+    # data.RunningMaxPrioritizedSampler: (|w . delta| + running max)^alpha, new items at the running max
+    "init.per": Same("(prioritized, per_running_max)", expect=lambda v, cfg: (v, v),
+                     ours=lambda cfg: (cfg.prioritized, cfg.per_running_max)),
     "init.per_alpha": Same("per_alpha"),
     "init.initial_homotopy_lambda": Same("homotopy_lambda0"),
     "init.final_homotopy_lambda": NotApplicable("never reached: homotopy_decay_steps is None, so lambda stays at its "
@@ -302,15 +301,13 @@ CAPQL = {
 }
 
 _SAC_ALPHA = Same("alpha", expect=lambda v, cfg: 1.0)  # autotune: the scripts' 0.2 is ignored, log alpha starts at 0
-_TANH_LOG_STD = "our Gaussian actor's scale is actor_scale='softplus' (the authors: log_std = -5 + 3.5 (tanh(x) + 1))"
-
-
-def _actor_open(env_id: str) -> str | None:
-    return _TANH_LOG_STD if _continuous(env_id) else None
+#: the authors' SAC/MOSAC actor: log_std = -5 + 3.5 (tanh(x) + 1) (actor_scale="tanh_log_std"); a
+#: categorical actor on discrete actions (actor_scale unused there)
+_SAC_ACTOR = Same("actor_scale", expect=lambda v, cfg: "tanh_log_std" if _continuous(cfg.env_id) else cfg.actor_scale)
 
 
 # the SAC agent's arguments, the same rows for the SAC baseline (``init.*``) and for every MORL/D member
-# (``policy_args.*``: MOSAC); each table adds its own net_arch and policy_freq rows (see _sac_agent)
+# (``policy_args.*``: MOSAC); each table adds its own net_arch row (see _sac_agent)
 _SAC_ARGS = {
     "buffer_size": Same("buffer_size"),
     "tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
@@ -324,9 +321,11 @@ _SAC_ARGS = {
     "alpha": _SAC_ALPHA,
     "autotune": Same("learn_alpha"),
     "target_entropy_scale": Same("target_entropy_scale"),
+    "policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
 }
 # the SAC agent's networks, the same rows for the SAC baseline and MORL/D
 _SAC_NETWORK = {
+    "network.actor": _SAC_ACTOR,
     "network.optimizers": Same("(lr, q_lr, alpha_lr, adam_eps)",
                                expect=lambda v, cfg: (3e-4, 1e-3, 1e-3, None) if _continuous(cfg.env_id)
                                else (3e-4, 3e-4, 3e-4, 1e-4),
@@ -337,19 +336,15 @@ _SAC_NETWORK = {
 }
 
 
-def _sac_agent(prefix: str, *, net_arch, actor_step: str) -> dict[str, Any]:
-    """:data:`_SAC_ARGS` under ``prefix`` (``init`` / ``policy_args``), with the table's ``net_arch`` rule and
-    where its actor step lives (``actor_step``)."""
+def _sac_agent(prefix: str, *, net_arch) -> dict[str, Any]:
+    """:data:`_SAC_ARGS` under ``prefix`` (``init`` / ``policy_args``) and the table's ``net_arch`` rule."""
     return {**{f"{prefix}.{k}": rule for k, rule in _SAC_ARGS.items()},
-            f"{prefix}.net_arch": Same("hidden", expect=net_arch),
-            f"{prefix}.policy_freq": Code(actor_step, open="the actor takes one step per critic step (the authors: 2 "
-                                          "actor steps every 2nd critic step)")}
+            f"{prefix}.net_arch": Same("hidden", expect=net_arch)}
 
 
 SAC = {
-    **_sac_agent("init", net_arch=_mario_after_cnn, actor_step="objectives (SAC actor step)"),
+    **_sac_agent("init", net_arch=_mario_after_cnn),
     **_SAC_NETWORK,
-    "network.actor": Code("recipes.sac (Gaussian actor / categorical actor)", open=_actor_open),
     "network.critic": Code("recipes.sac: two critics on the scalar reward"),
     "network.num_q_nets": Code("two critics"),
     "network.training_reward": Code("transforms: the domain's original scalar reward (SPEC §4)"),
@@ -380,7 +375,7 @@ MORLD = {
     "policy_args.weights": Code("preferences.equally_spaced_weights(k, pop_size, seed)"),
     "policy_args.asymmetric": NotApplicable("False in every script"),
     "policy_args.scalarization": Code("recipes.morld: w . Q"),
-    **_sac_agent("policy_args", net_arch=_net_arch, actor_step="objectives.population (MOSAC actor step)"),
+    **_sac_agent("policy_args", net_arch=_net_arch),
     "policy_args.gamma": Same("gamma", ours=_gamma),
     "policy_args.id": NotApplicable("a member's index (no setting)"),
     "policy_args.log": NotApplicable("logging switch"),
@@ -390,10 +385,9 @@ MORLD = {
     "train.num_eval_episodes_for_front": Code("recipes.morld", open="a member's archived evaluation is the mean return "
                                               "of its training episodes since the last exchange (the authors: 5 "
                                               "separate stochastic episodes per member)"),
-    "network.actor": Code("objectives.population (Gaussian / categorical actor)", open=_actor_open),
+    **_SAC_NETWORK,
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
-    **_SAC_NETWORK,
     "network.critic_loss": Code("objectives.population: MSE of scalarised values against the min of the targets"),
     "derived.eval_action": Code("recipes.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled actions"),
     "derived.exchanges_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "

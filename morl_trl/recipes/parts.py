@@ -17,7 +17,7 @@ from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
-from morl_trl.data import prioritized_sampler
+from morl_trl.data import RunningMaxPrioritizedSampler, prioritized_sampler
 from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.transforms import compose_policy_env, compose_training_env
@@ -51,8 +51,11 @@ def make_training_env(cfg, device: torch.device):
 def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
     """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``."""
     storage = LazyTensorStorage(cfg.buffer_size, device=device)
-    if cfg.prioritized:
+    if cfg.prioritized and cfg.per_running_max:  # MORL-Baselines' rule (the authors' Envelope)
+        sampler = RunningMaxPrioritizedSampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
+    elif cfg.prioritized:
         sampler = prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
+    if cfg.prioritized:
         return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.batch_size,
                                       priority_key="td_error")
     return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)

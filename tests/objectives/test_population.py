@@ -161,10 +161,11 @@ def test_bad_batch_and_weights_raise():
 
 def test_population_gaussian_head_is_the_single_actors():
     spec = Bounded(-1.0, 1.0, (2,))
-    for scale, name in (("softplus", "_LocScale"), ("clamped_log_std", "_LocClampedLogStd")):
+    for scale, name in (("softplus", "_LocScale"), ("clamped_log_std", "_LocClampedLogStd"),
+                        ("tanh_log_std", "_LocTanhLogStd")):
         actor = make_population_gaussian_actor(P, OBS, spec, num_cells=(8,), scale=scale)
         assert type(actor.module[0].module).__name__ == name
-    with pytest.raises(ValueError, match=r"scale='exp'; valid values are \('softplus', 'clamped_log_std'\)"):
+    with pytest.raises(ValueError, match=r"scale='exp'; valid values are \('softplus', 'clamped_log_std', 'tanh_log_std'\)"):
         make_population_gaussian_actor(P, OBS, spec, scale="exp")
     with pytest.raises(ValueError, match="log_std_bounds must be"):
         make_population_gaussian_actor(P, OBS, spec, scale="clamped_log_std", log_std_bounds=(2.0, -20.0))

@@ -33,7 +33,7 @@ def test_each_algorithm_has_only_its_keys():
         "gpi_dynamics_train_freq", "gpi_dynamics_rollout_freq", "gpi_dynamics_rollout_batch", "gpi_dynamics_buffer",
         "gpi_uncertainty_threshold", "gpi_real_ratio", "gpi_dynamics_rollout_len", "gpi_dynamics_normalize",
         "gpi_model_termination"}
-    assert len(TrainConfig(algo="envelope").keys()) == 54 and len(TrainConfig(algo="pcn").keys()) == 40  # of 113
+    assert len(TrainConfig(algo="envelope").keys()) == 55 and len(TrainConfig(algo="pcn").keys()) == 40  # of 115
 
 
 def test_a_key_the_algorithm_does_not_have_is_an_error_naming_the_valid_keys():
@@ -68,12 +68,14 @@ def test_a_run_config_written_before_configs_were_per_algorithm_loads(tmp_path):
     ours = json.loads(json.dumps(cfg.to_dict()))
     assert {k: saved[k] for k in cfg.keys() if k in saved} == {k: ours[k] for k in saved if k in ours}  # same values
     assert {k: ours[k] for k in set(ours) - set(saved)} == {"domain_modules": [], "ref_point": None,
-                                                          "capture_sampling": False}  # added since
+                                                          "capture_sampling": False,
+                                                          "per_running_max": False}  # added since: the old code
     # an old SAC run updated every frame with one lr: the keys added since reproduce that
     old = {**_V1_DEFAULTS, "algo": "sac", "env_id": "MOLavaGridDR-v0", "hidden": [16, 16]}
     (tmp_path / "config.json").write_text(json.dumps(old))
     sac = TrainConfig.load(tmp_path / "config.json")
     assert (sac.update_frequency, sac.q_lr, sac.alpha_lr, sac.adam_eps, sac.alpha) == (1, None, None, None, 0.2)
+    assert (sac.policy_freq, sac.actor_scale) == (1, "softplus")  # the joint step and the softplus scale then
     # an old PCN run: pcn_hidden was its width
     (tmp_path / "config.json").write_text(json.dumps({**old, "algo": "pcn", "pcn_hidden": 32}))
     assert TrainConfig.load(tmp_path / "config.json").hidden == (32, 32)

@@ -1,6 +1,8 @@
 """The authors' mechanisms (issue 27; docs/algorithms-fidelity-mechanisms.md): each with concrete
 expected values read from SPEC §6 and hyperparameters.toml."""
 
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -390,3 +392,108 @@ def test_every_layer_has_the_authors_orthogonal_init(algo, env_id, single_thread
     target = getattr(agent.loss, "target_qvalue_network_params", None)
     if target is not None:  # the target critics start as the (re-initialised) critics
         assert (target.data == agent.loss.qvalue_network_params.data).all()
+
+
+# ---------------------------------------------------------------------- SAC / MOSAC: delayed actor, tanh log-std
+def _steps(agent) -> dict:
+    return {name: _adam_steps(opt) for name, opt in agent.optimizers.items()}
+
+
+@pytest.mark.parametrize("algo, policy_freq, expected", [
+    ("sac", 2, {"actor": 4, "qvalue": 5, "alpha": 4}),  # turns at updates 2 and 4: 2 actor steps each
+    ("sac", 1, {"actor": 5, "qvalue": 5, "alpha": 5}),  # our joint step (policy_freq=1)
+    ("morld", 2, {"actor": 4, "qvalue": 5, "alpha": 4}),  # MORL/D's MOSAC members, one batched step
+])
+def test_sac_and_mosac_delay_the_actor_as_the_authors(algo, policy_freq, expected, single_thread):
+    """The authors' continuous SAC/MOSAC: a critic step every update; ``if global_step % 2 == 0`` two actor
+    (+ temperature) steps (sac_continuous.py:435-456; mosac_continuous_action.py:460-482): 5 updates ->
+    5 critic, 4 actor and 4 temperature Adam steps."""
+    pytest.importorskip("mujoco")
+    from morl_trl.recipes import build_agent, build_training_env
+
+    torch.manual_seed(0)
+    cfg = resolve_config(algo, "MOHopperDR-v5", quick=True, hidden=(16,), batch_size=8, buffer_size=1024,
+                         progress=False, policy_freq=policy_freq)
+    assert resolve_config(algo, "MOHopperDR-v5").policy_freq == 2  # the default: the authors'
+    env = build_training_env(cfg, CPU)
+    agent = build_agent(cfg, env, gamma=0.99, device=CPU)
+    buffer = make_replay_buffer(cfg, CPU)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1))
+    critic = agent.loss.qvalue_network_params.clone()
+    actor = agent.loss.actor_network_params.clone()
+    agent.run_updates(buffer, 1)  # update 1: critic only when delayed
+    moved = (agent.loss.actor_network_params != actor).any()
+    assert bool(moved) is (policy_freq == 1)
+    assert bool((agent.loss.qvalue_network_params != critic).any())
+    agent.run_updates(buffer, 4)
+    assert _steps(agent) == expected
+    assert agent.critic_steps == 5
+
+
+def test_sac_and_mosac_actors_rescale_the_log_std_with_tanh_into_minus_5_to_2(single_thread):
+    """The authors' SAC/MOSAC actor: ``log_std = -5 + 3.5 (tanh(x) + 1)`` (mosac_continuous_action.py:95-103)."""
+    from torchrl.data import Bounded
+
+    from morl_trl.objectives.networks import gaussian_head
+
+    head = gaussian_head(torch.nn.Identity(), "tanh_log_std")
+    x = torch.tensor([0.3, -0.2, 0.0, 50.0, -50.0, 0.5])  # loc [0.3, -0.2, 0.0], log-std input [50, -50, 0.5]
+    loc, scale = head(x)
+    torch.testing.assert_close(loc, torch.tensor([0.3, -0.2, 0.0]))
+    expected = [2.0, -5.0, -5 + 3.5 * (math.tanh(0.5) + 1)]  # the bounds, and tanh(0.5) = 0.4621 -> 0.1175
+    torch.testing.assert_close(scale.log(), torch.tensor(expected), atol=1e-5, rtol=0)
+    for algo in ("sac", "morld", "morld_psa", "mosac"):
+        assert resolve_config(algo, "MOHopperDR-v5").actor_scale == "tanh_log_std", algo
+    from morl_trl.objectives import make_gaussian_actor
+
+    actor = make_gaussian_actor(3, Bounded(-1.0, 1.0, (2,)), 2, num_cells=(8,), scale="tanh_log_std")
+    assert type(actor.module[0].module).__name__ == "_LocTanhLogStd"
+
+
+# ---------------------------------------------------------------------- Envelope: PER priorities
+def test_envelope_per_adds_the_running_max_priority_as_the_authors(single_thread):
+    """MORL-Baselines' buffer (envelope.py:344-349; prioritized_buffer.py:93,141,188-196): an update writes
+    (|w . delta| + M)^0.6 with M the running maximum written priority (1e-5 at first); new items get M."""
+    from tensordict import TensorDict
+
+    from morl_trl.data import RunningMaxPrioritizedSampler
+    from morl_trl.recipes import build_agent
+
+    cfg = resolve_config("envelope", "MOLavaGridDR-v0", hidden=(16,), num_envs=2, batch_size=4, buffer_size=64,
+                         progress=False)
+    assert (cfg.prioritized, cfg.per_running_max, cfg.per_alpha) == (True, True, 0.6)
+    buffer = make_replay_buffer(cfg, CPU)
+    sampler = buffer._sampler
+    assert type(sampler) is RunningMaxPrioritizedSampler
+    buffer.extend(TensorDict({"x": torch.arange(6.0)}, [6]))
+    torch.testing.assert_close(sampler._sum_tree.leaves()[:6], torch.full((6,), 1e-5))
+    buffer.update_priority(torch.tensor([1, 4]), torch.tensor([0.5, 2.0]))
+    first = torch.tensor([(0.5 + 1e-5) ** 0.6, (2.0 + 1e-5) ** 0.6])  # 0.65976, 1.51572
+    torch.testing.assert_close(sampler._sum_tree.leaves()[[1, 4]], first)
+    buffer.update_priority(torch.tensor([2]), torch.tensor([0.5]))  # + the running max 1.51572 now
+    assert sampler._sum_tree.leaves()[2].item() == pytest.approx((0.5 + float(first[1])) ** 0.6, rel=1e-6)  # 1.52285
+    buffer.extend(TensorDict({"x": torch.arange(2.0)}, [2]))  # new items at the running max
+    leaves = sampler._sum_tree.leaves()[:8]
+    assert leaves[6].item() == leaves[7].item() == pytest.approx(1.52285, rel=1e-4)
+    assert leaves[0].item() == pytest.approx(1e-5)  # never updated: still the first running max
+    # TorchRL's rule stays an option: (p + eps)^alpha, new items at the largest raw priority
+    other = make_replay_buffer(resolve_config("envelope", "MOLavaGridDR-v0", per_running_max=False), CPU)
+    assert type(other._sampler) is not RunningMaxPrioritizedSampler
+
+
+def test_the_pixel_networks_cnn_gets_the_authors_orthogonal_init_too():
+    """The authors' layer_init covers every Linear and Conv2d (mo_utils/networks.py:143-157): Envelope's,
+    discrete SAC's and GPI's NatureCNN on Mario (hyperparameters.toml ``<method>.mario.network.init``)."""
+    from morl_trl.objectives import make_vector_q_network
+    from morl_trl.objectives.gpi import GPIQNetwork
+
+    torch.manual_seed(0)
+    envelope = make_vector_q_network((4, 84, 84), 7, 3, num_cells=(16,), preference_layer=1, init="orthogonal")
+    gpi = GPIQNetwork((4, 84, 84), 7, 3, hidden=(16, 16), num_nets=2)
+    for net in (envelope, gpi):
+        convs = [m for m in net.modules() if isinstance(m, torch.nn.Conv2d)]
+        assert len(convs) == 3 * (2 if net is gpi else 1)
+        for conv in convs:
+            w = conv.weight.reshape(conv.weight.shape[0], -1)  # [32, 256], [64, 512], [64, 576]: rows orthonormal
+            torch.testing.assert_close(w @ w.T, torch.eye(w.shape[0]), atol=1e-4, rtol=0)
+            assert bool((conv.bias == 0).all())

@@ -18,8 +18,9 @@ __all__ = ["EnvelopeConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
 
 EnvelopeConfig = algorithm_config(
     "EnvelopeConfig", "Envelope's keys (LunarLander's values: ``[envelope.lunarlander]``).",
-    # collector and replay (PER without importance weights, priority from the first sampled weight)
-    DQN_REPLAY, dict(envelope_priority="first"),
+    # collector and replay (PER without importance weights, priority from the first sampled weight;
+    # MORL-Baselines' buffer: (p + running max)^alpha, new items at the max)
+    DQN_REPLAY, dict(envelope_priority="first", per_running_max=True),
     # optim: one update per frame, hard target copy every 1000 updates, gradient norm 1
     pick(DQN_OPTIM, max_grad_norm=1.0),
     # network: w concatenated after the first hidden layer, orthogonal init

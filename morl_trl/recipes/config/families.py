@@ -34,13 +34,15 @@ DQN_OPTIM = frozen(dict(lr=3e-4, updates_per_batch=0, target_update_period=1000,
 DQN_EXPLORATION = frozen(dict(eps_start=1.0, eps_end=0.05, eps_frames=1_000_000))
 
 #: the actor-critic family's keys in the order every member prints them (each takes the ones it has):
-#: MORL-Baselines' SAC values, Polyak 0.005, no PER, four hidden layers of 256
+#: MORL-Baselines' SAC values, Polyak 0.005, no PER, four hidden layers of 256 (CAPQL: see its module)
 ACTOR_CRITIC = frozen(dict(
     frames_per_batch=64, init_random_frames=1_000, buffer_size=1_000_000, batch_size=256, prioritized=False,
     per_alpha=0.6, per_beta=0.4, per_importance_weights=True,
     lr=3e-4, q_lr=None, alpha_lr=None, adam_eps=None, updates_per_batch=0, update_frequency=1, tau=0.005,
     target_update_period=1000, max_grad_norm=None,
-    hidden=(256, 256, 256, 256), alpha=0.2, learn_alpha=True, target_entropy_scale=0.3, actor_scale="softplus",
+    hidden=(256, 256, 256, 256), alpha=0.2, learn_alpha=True, target_entropy_scale=0.3,
+    # the authors' SAC/MOSAC actor: log_std = -5 + 3.5 (tanh(x) + 1), 2 actor steps after every 2nd critic step
+    actor_scale="tanh_log_std", policy_freq=2,
 ))
 
 

@@ -23,7 +23,9 @@ __all__ = ["MORLDConfig", "MORLDPSAConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUIC
 MORLDConfig = algorithm_config(
     "MORLDConfig", "MORL/D SB's keys (Half-Cheetah's member values: ``[morld_sb.cheetah.policy_args]``, MOSAC).",
     # each member owns num_envs sub-envs; frames_per_batch covers all of them; learning_starts on the shared
-    # frame counter; one buffer shared by the members; actor 3e-4, critics and temperature 1e-3 (continuous)
+    # frame counter; one buffer shared by the members; actor 3e-4, critics and temperature 1e-3 (continuous);
+    # MOSAC's actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every 2nd
+    # critic step (mosac_continuous_action.py:95-103,141,460-482)
     pick(ACTOR_CRITIC, [k for k in ACTOR_CRITIC if k not in ("per_alpha", "per_beta", "per_importance_weights")],
          frames_per_batch=60, init_random_frames=25_000, q_lr=1e-3, alpha_lr=1e-3, alpha=1.0),
     # population
@@ -42,7 +44,7 @@ SHARED_DEFAULTS = frozen({"eval_exploration": "random", "num_envs": 2})
 # MOSACDiscrete: one update per frame (the scripts' update_frequency 1), hard target copies every
 # target_net_freq frames (= updates), Adam eps 1e-4 with one lr 3e-4
 _DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, q_lr=3e-4, alpha_lr=3e-4, adam_eps=1e-4,
-                 update_frequency=1)
+                 update_frequency=1, policy_freq=1)  # MOSACDiscrete steps its actor at every update
 DEFAULTS = domain_table({
     HOPPER: dict(init_random_frames=10_000),
     HALF_CHEETAH: dict(exchange_every=10_000),

@@ -20,10 +20,11 @@ __all__ = ["MOSACConfig", "MOSACDiscreteConfig", "SHARED_DEFAULTS", "DEFAULTS", 
 
 MOSACConfig = algorithm_config(
     "MOSACConfig", "Continuous MOSAC's keys.",
+    # the class defaults of the authors' MOSAC (mosac_continuous_action.py:95-103,141,460-482)
     pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
                         "per_alpha", "per_beta", "per_importance_weights", "lr", "q_lr", "alpha_lr", "updates_per_batch",
                         "tau", "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha",
-                        "actor_scale"),
+                        "actor_scale", "policy_freq"),
          init_random_frames=10_000),
     dict(loss_fresh_preferences=False, preference_distribution="dirichlet", preference_resample="episode"),
 )
@@ -38,6 +39,7 @@ class MOSACDiscreteConfig(MOSACConfig):
     tau: float | None = None
     target_update_period: int = 2000
     target_entropy_scale: float = 0.3
+    policy_freq: int = 1  # MOSACDiscrete steps its actor at every update
 
 
 SHARED_DEFAULTS = frozen({"eval_exploration": "random"})
