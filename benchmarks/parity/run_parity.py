@@ -71,21 +71,34 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         finally:
             eval_seconds[0] += time.perf_counter() - t
 
-    MultiContextEvaluator.evaluate = timed
-    with tempfile.TemporaryDirectory() as tmp:
-        t = time.perf_counter()
-        run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"],
-                             eval_interval=case["eval_every"], eval_weights=EVAL_WEIGHTS, eval_episodes=EVAL_EPISODES,
-                             gamma=case["gamma"], eval_random_baseline=False, progress=False,
-                             run_dir=f"{tmp}/run", **case["ours"])
-        wall = time.perf_counter() - t
-        with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
-            curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
-                     for row in csv.DictReader(fh)]
-    train_s = wall - eval_seconds[0]
+    from morl_trl.runs.run import Run
+
+    started = [None]
+    start = Run.start
+
+    def start_clock(self, *args, **kwargs):  # training time starts once env, agent and collector are built
+        out = start(self, *args, **kwargs)
+        started[0] = time.perf_counter()
+        return out
+
+    MultiContextEvaluator.evaluate, Run.start = timed, start_clock
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"],
+                                 eval_interval=case["eval_every"], eval_weights=EVAL_WEIGHTS,
+                                 eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
+                                 progress=False, run_dir=f"{tmp}/run", **case["ours"])
+            wall = time.perf_counter() - started[0]
+            with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
+                curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
+                         for row in csv.DictReader(fh)]
+    finally:
+        MultiContextEvaluator.evaluate, Run.start = evaluate, start
+    train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     frames = int(curve[-1]["frames"])
     write_result(out, dict(case=case_name, lib="ours", seed=seed, version=f"morl_trl {morl_trl.__version__}",
-                           curve=curve, frames=frames, train_seconds=train_s, train_fps=frames / train_s,
+                           curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_seconds[0],
+                           train_fps=frames / train_s,
                            eval_episodes=EVAL_EPISODES))
 
 
@@ -187,8 +200,13 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                 cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
             if any(c != "-" for c in cells):
                 body.append(f"| final {label} | " + " | ".join(cells) + " |")
-        fps = {lib: sum(r["train_fps"] for r in rs) / len(rs) for lib, rs in sorted(runs.items())
-               if all(r.get("train_fps") for r in rs)}
+        fps = {}
+        for lib, rs in sorted(runs.items()):
+            # runs that record eval_seconds timed training from the end of the build (the first runs of
+            # ours, before that fix, also timed building env, agent and collector: left out when others exist)
+            timed = [r for r in rs if r.get("train_fps") and "eval_seconds" in r] or [r for r in rs if r.get("train_fps")]
+            if timed:
+                fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
         png = out.parent / f"{case}.png"
         _plot(case, runs, png)

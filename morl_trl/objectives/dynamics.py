@@ -33,7 +33,7 @@ from torch import nn
 from torch.nn import functional as F
 from torchrl.objectives.common import LossModule
 
-from morl_trl.objectives.ensemble import EnsembleLinear
+from morl_trl.objectives.batched import BatchedLinear
 
 __all__ = ["ProbabilisticEnsemble", "DynamicsLoss", "fit_dynamics", "model_inputs"]
 
@@ -49,11 +49,17 @@ class ProbabilisticEnsemble(nn.Module):
         hidden: hidden widths (the authors' GPI-PD: ``[256, 256, 256]``; LavaGrid, Humanoid: ``[512, 512]``).
         num_elites: members sampled from (the authors: 2).
         normalize_inputs: standardise ``x`` with the statistics of the last fit (the authors' GPI-PD: off).
+        max_logvar, min_logvar: initial values of the learned soft bounds of the log-variance (the
+            authors' ``dynamics_max_logvar_scale`` 0.5, Humanoid 0.1, and ``-dynamics_min_logvar_scale``
+            -10; ``probabilistic_ensemble.py:29-43``).
     """
 
     def __init__(self, input_dim: int, output_dim: int, *, ensemble_size: int = 5, hidden=(256, 256, 256),
-                 num_elites: int = 2, normalize_inputs: bool = False) -> None:
+                 num_elites: int = 2, normalize_inputs: bool = False, max_logvar: float = 0.5,
+                 min_logvar: float = -10.0) -> None:
         super().__init__()
+        if not min_logvar < max_logvar:
+            raise ValueError(f"min_logvar must be below max_logvar, got min_logvar={min_logvar}, max_logvar={max_logvar}")
         if not 1 <= num_elites <= ensemble_size:
             raise ValueError(f"num_elites must lie in [1, ensemble_size={ensemble_size}], got {num_elites}")
         self.input_dim, self.output_dim = input_dim, output_dim
@@ -61,12 +67,12 @@ class ProbabilisticEnsemble(nn.Module):
         self.normalize_inputs = normalize_inputs
         widths = (input_dim, *hidden, 2 * output_dim)
         gain = nn.init.calculate_gain("relu")
-        self.layers = nn.ModuleList(EnsembleLinear(ensemble_size, a, b, gain=gain) for a, b in zip(widths[:-1], widths[1:]))
+        self.layers = nn.ModuleList(BatchedLinear(ensemble_size, a, b, gain=gain) for a, b in zip(widths[:-1], widths[1:]))
         self.register_buffer("inputs_mu", torch.zeros(1, input_dim))
         self.register_buffer("inputs_sigma", torch.ones(1, input_dim))
         self.register_buffer("elites", torch.arange(num_elites))
-        self.max_logvar = nn.Parameter(torch.full((1, output_dim), 0.5))
-        self.min_logvar = nn.Parameter(torch.full((1, output_dim), -10.0))
+        self.max_logvar = nn.Parameter(torch.full((1, output_dim), float(max_logvar)))
+        self.min_logvar = nn.Parameter(torch.full((1, output_dim), float(min_logvar)))
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``x`` ``[N, in]`` (the same rows for every member) or ``[E, N, in]`` (one set per member)."""

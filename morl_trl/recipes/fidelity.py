@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.config.domains import HUMANOID, MARIO, MUJOCO, RECORD_DOMAINS
+from morl_trl.recipes.config.domains import MARIO, MUJOCO, RECORD_DOMAINS
 
 __all__ = ["Same", "Deliberate", "NotApplicable", "Code", "Row", "RECORD_PATH", "METHODS", "record", "pairs",
            "compare", "open_differences", "rule_for", "format_rows", "markdown", "record_meta"]
@@ -100,10 +100,6 @@ def _ref(cfg: TrainConfig) -> tuple:
 
 def _gamma(cfg: TrainConfig) -> float:
     return cfg.gamma if cfg.gamma is not None else _domain(cfg).gamma
-
-
-def _only(*env_ids: str, what: str) -> Callable[[str], str | None]:
-    return lambda env_id: what if env_id in env_ids else None
 
 
 def _continuous(env_id: str) -> bool:
@@ -494,7 +490,7 @@ PGMORL = {
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
-    "network.init": Code("objectives.pgmorl.PopulationMLP (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
+    "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
     "derived.vector_env_reset_each_iteration": Code("recipes.pgmorl", open="sub-envs are not reset at the start of "
@@ -600,13 +596,10 @@ GPI_PD = {
     "init.dynamics_buffer_size": Same("gpi_dynamics_buffer"),
     "init.dynamics_net_arch": Same("gpi_dynamics_hidden", expect=_net_arch),
     "init.dynamics_lr": Same("gpi_dynamics_lr"),
-    "init.dynamics_max_grad_norm": Code("objectives.dynamics", open=lambda env_id: "no gradient clipping in the model "
-                                        "fit (the authors: 10 on Humanoid)" if env_id == HUMANOID else None),
+    "init.dynamics_max_grad_norm": Same("gpi_dynamics_max_grad_norm", expect=_NONE),
     "init.dynamics_ensemble_size": Same("gpi_dynamics_ensemble"),
     "init.dynamics_num_elites": Same("gpi_dynamics_elites"),
-    "init.dynamics_max_logvar_scale": Code("objectives.dynamics (log-variance bounds)", open=lambda env_id:
-                                           "the log-variance bounds are not the authors' max_logvar_scale 0.1"
-                                           if env_id == HUMANOID else None),
+    "init.dynamics_max_logvar_scale": Same("gpi_dynamics_max_logvar"),
     "init.dynamics_min_logvar_scale": Code("objectives.dynamics (log-variance bounds)"),
     "init.real_ratio": Same("gpi_real_ratio"),
     "init.dynamics_real_ratio": Same("gpi_real_ratio"),

@@ -42,8 +42,9 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
     # morl_baselines/multi_policy/capql/capql.py: CAPQL.__init__
     "capql": dict(**_ONE_ENV, **_EVAL, lr=3e-4, gamma=0.99, tau=0.005, buffer_size=1_000_000, hidden=(256, 256),
                   batch_size=128, alpha=0.2, learn_alpha=False, init_random_frames=1000, prioritized=False),
-    # morl_baselines/multi_policy/pcn/pcn.py: PCN.__init__ and PCN.train
-    "pcn": dict(lr=1e-3, gamma=1.0, batch_size=256, pcn_hidden=64, pcn_noise=0.1, pcn_er_episodes=20,
+    # morl_baselines/multi_policy/pcn/pcn.py: PCN.__init__ and PCN.train (one env, its command updated
+    # after every episode: the parity benchmark found 16 sub-envs sharing stale commands learning slower)
+    "pcn": dict(**_ONE_ENV, lr=1e-3, gamma=1.0, batch_size=256, pcn_hidden=64, pcn_noise=0.1, pcn_er_episodes=20,
                 pcn_step_episodes=10, pcn_model_updates=50, pcn_buffer_episodes=100, init_random_frames=0,
                 prioritized=False, eval_weights=100, eval_episodes=1),
     # morl_baselines/multi_policy/morld/morld.py: MORLD.__init__ (pop 6, exchange every 40_000 steps,

@@ -250,7 +250,8 @@ class GPIAgent(Agent):
         if frames // cfg.gpi_dynamics_train_freq > prev // cfg.gpi_dynamics_train_freq:
             data = buffer.storage[torch.arange(len(buffer))].to(self.device)
             x, y = self.dynamics.inputs_targets(data)
-            fit_dynamics(self.dynamics, x.float(), y.float(), lr=cfg.gpi_dynamics_lr)
+            fit_dynamics(self.dynamics, x.float(), y.float(), lr=cfg.gpi_dynamics_lr,
+                         max_grad_norm=cfg.gpi_dynamics_max_grad_norm)
         if frames >= cfg.gpi_dynamics_rollout_starts and \
                 frames // cfg.gpi_dynamics_rollout_freq > prev // cfg.gpi_dynamics_rollout_freq:
             self.rollout_model(buffer)
@@ -349,7 +350,8 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     if pd:
         model = ProbabilisticEnsemble(shape[0] + num_actions, shape[0] + k, ensemble_size=cfg.gpi_dynamics_ensemble,
                                       hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
-                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
+                                      normalize_inputs=cfg.gpi_dynamics_normalize,
+                                      max_logvar=cfg.gpi_dynamics_max_logvar).to(device)
         dynamics = DynamicsLoss(model, num_actions=num_actions)
     prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
     optimizers = {"qvalue": adam(loss.value_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg))}
@@ -387,7 +389,8 @@ def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.de
     if cfg.algo == "gpi_pd":
         model = ProbabilisticEnsemble(obs_dim + act_dim, obs_dim + k, ensemble_size=cfg.gpi_dynamics_ensemble,
                                       hidden=cfg.gpi_dynamics_hidden, num_elites=cfg.gpi_dynamics_elites,
-                                      normalize_inputs=cfg.gpi_dynamics_normalize).to(device)
+                                      normalize_inputs=cfg.gpi_dynamics_normalize,
+                                      max_logvar=cfg.gpi_dynamics_max_logvar).to(device)
         dynamics = DynamicsLoss(model, num_actions=None)
     prefs = [t for t in transforms_of(env) if isinstance(t, PreferenceConditioning)]
     optimizers = {"qvalue": adam(loss.qvalue_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg)),

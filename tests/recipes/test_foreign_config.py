@@ -22,6 +22,10 @@ def test_foreign_env_gets_morl_baselines_constructor_defaults():
     gpi = resolve_config("gpi_ls", "deep-sea-treasure-v0")
     assert (gpi.batch_size, gpi.gpi_gradient_updates, gpi.gpi_iteration_frames, gpi.target_update_period) == \
         (128, 20, 10_000, 1000)
+    # MB's PCN steps one env and picks a command per episode (16 sub-envs sharing a stale command
+    # learned less on fruit-tree-v0 in benchmarks/parity)
+    pcn = resolve_config("pcn", "fruit-tree-v0")
+    assert (pcn.num_envs, pcn.frames_per_batch, pcn.pcn_step_episodes, pcn.pcn_model_updates) == (1, 1, 10, 50)
     # a paper domain keeps the paper's values
     assert resolve_config("envelope", "MOLavaGridDR-v0").num_sampled_prefs == 4
     assert resolve_config("envelope", "MOLunarLanderDR-v0").num_sampled_prefs == 8

@@ -243,7 +243,7 @@ def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread
         state = agent.head.member_state(0)
         for name, t in state.items():
             t.zero_()
-        state[max(n for n in state if n.startswith("mean.biases"))].fill_(mean)
+        state[max(n for n in state if n.startswith("mean.mlp.") and n.endswith(".bias"))].fill_(mean)  # the output bias
         return state
 
     agent._archive_snapshot(np.array([10.0, 0.0]), torch.tensor([0.9, 0.1]), snapshot(0.5))
@@ -273,7 +273,7 @@ def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread)
 
     def snapshot(action):  # a policy that always prefers `action` (logits: 10 on it, 0 elsewhere)
         one = params.apply(lambda x: torch.zeros_like(x[0]))
-        one["module", "0", "module", "mlp", "2", "bias"][action] = 10.0
+        one["module", "0", "module", "mlp", "2", "bias"][..., action] = 10.0
         return {"weight": torch.tensor([0.8, 0.2]), "actor": one} if action == 2 else \
             {"weight": torch.tensor([0.3, 0.7]), "actor": one}
 
@@ -457,7 +457,6 @@ def test_envelope_per_adds_the_running_max_priority_as_the_authors(single_thread
     from tensordict import TensorDict
 
     from morl_trl.data import RunningMaxPrioritizedSampler
-    from morl_trl.recipes import build_agent
 
     cfg = resolve_config("envelope", "MOLavaGridDR-v0", hidden=(16,), num_envs=2, batch_size=4, buffer_size=64,
                          progress=False)
@@ -497,3 +496,48 @@ def test_the_pixel_networks_cnn_gets_the_authors_orthogonal_init_too():
             w = conv.weight.reshape(conv.weight.shape[0], -1)  # [32, 256], [64, 512], [64, 576]: rows orthonormal
             torch.testing.assert_close(w @ w.T, torch.eye(w.shape[0]), atol=1e-4, rtol=0)
             assert bool((conv.bias == 0).all())
+
+
+# ---------------------------------------------------------------------- GPI-PD: the dynamics model's fit
+def test_gpi_pd_humanoid_model_clips_gradients_at_10_and_starts_max_logvar_at_0_1(monkeypatch):
+    """The authors' Humanoid GPI-PD script: dynamics_max_grad_norm 10, dynamics_max_logvar_scale 0.1 (the other
+    domains: no clipping, 0.5); probabilistic_ensemble.py:29-43."""
+    from morl_trl.objectives.dynamics import DynamicsLoss, ProbabilisticEnsemble, fit_dynamics
+
+    got = {env: (c.gpi_dynamics_max_grad_norm, c.gpi_dynamics_max_logvar) for env in
+           ("MOHumanoidDR-v5", "MOHopperDR-v5", "MOLunarLanderDR-v0")
+           for c in [resolve_config("gpi_pd", env)]}
+    assert got == {"MOHumanoidDR-v5": (10.0, 0.1), "MOHopperDR-v5": (None, 0.5), "MOLunarLanderDR-v0": (None, 0.5)}
+    torch.manual_seed(0)
+    model = ProbabilisticEnsemble(3, 2, hidden=(8,), max_logvar=0.1)
+    assert model.max_logvar.tolist() == [[pytest.approx(0.1)] * 2] and model.min_logvar.tolist() == [[-10.0] * 2]
+    _, logvar = model(torch.randn(5, 3) * 100)
+    assert logvar.max().item() == pytest.approx(0.1, abs=1e-3)  # the soft upper bound starts at 0.1
+    calls = []
+    real = torch.nn.utils.clip_grad_norm_
+
+    def spy(params, max_norm, *a, **k):
+        params = list(params)
+        calls.append(max_norm)
+        out = real(params, max_norm, *a, **k)
+        assert torch.linalg.vector_norm(torch.stack([p.grad.norm() for p in params])) <= max_norm * (1 + 1e-5)
+        return out
+
+    monkeypatch.setattr(torch.nn.utils, "clip_grad_norm_", spy)
+    x, y = torch.randn(40, 3) * 50, torch.randn(40, 2) * 50  # 4 held out, 36 trained: 3 batches of 16 per epoch
+    for norm, expected in ((10.0, [10.0] * 6), (None, [])):
+        calls.clear()
+        fit_dynamics(DynamicsLoss(model, num_actions=None), x, y, batch_size=16, max_epochs=2, patience=10,
+                     max_grad_norm=norm)
+        assert calls == expected
+    # the recipe passes both to the model and to every fit
+    pytest.importorskip("mujoco")
+    fits = []
+    monkeypatch.setattr("morl_trl.recipes.gpi.fit_dynamics", lambda *a, **k: fits.append(k["max_grad_norm"]))
+    cfg, env, agent = _gpi("gpi_pd", "MOHopperDR-v5", gamma=0.99, gpi_dynamics_max_grad_norm=10.0,
+                           gpi_dynamics_max_logvar=0.1, gpi_dynamics_train_freq=16, gpi_dynamics_rollout_starts=10**6)
+    assert agent.dynamics.model.max_logvar.flatten()[0].item() == pytest.approx(0.1)
+    buffer = make_replay_buffer(cfg, CPU)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1))
+    agent._dyna(buffer, 0, 16)
+    assert fits == [10.0]

@@ -59,6 +59,8 @@ class GPIPDConfig(GPILSConfig):
     gpi_real_ratio: float = 0.5
     gpi_dynamics_rollout_len: int = 1
     gpi_dynamics_normalize: bool = False
+    gpi_dynamics_max_logvar: float = 0.5  # dynamics_max_logvar_scale (gpi_pd_continuous_action.py:108)
+    gpi_dynamics_max_grad_norm: float | None = None  # dynamics_max_grad_norm (gpi_pd_continuous_action.py:110)
     gpi_model_termination: str = "authors"
 
 
@@ -90,7 +92,7 @@ DEFAULTS_PD = domain_table({
                        gpi_dynamics_rollout_freq=4_000, gpi_uncertainty_threshold=10.0),
     HUMANOID: dict(_CONTINUOUS, **_CONTINUOUS_MODEL) | dict(gpi_iteration_frames=25_000, gpi_dynamics_train_freq=5_000,
                    gpi_dynamics_rollout_freq=5_000, gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
-                   gpi_dynamics_hidden=(512, 512)),
+                   gpi_dynamics_hidden=(512, 512), gpi_dynamics_max_logvar=0.1, gpi_dynamics_max_grad_norm=10.0),
 })
 # --quick: several weight-support iterations, cheaper model fits and rollouts
 QUICK = frozen(dict(gpi_iteration_frames=10_000))

@@ -250,6 +250,8 @@ KEYS: dict[str, Key] = {
     'gpi_uncertainty_threshold': Key('gpi', 'float', 'GPI-PD: model transitions kept only below this uncertainty', _float(0.0, 1e12, open_low=True)),
     'gpi_real_ratio': Key('gpi', 'float', 'GPI-PD: fraction of real transitions per batch', _float(0.0, 1.0)),
     'gpi_dynamics_rollout_len': Key('gpi', 'int', 'GPI-PD: model steps per rollout (continuous: 5)', _int(1, 1000)),
+    'gpi_dynamics_max_logvar': Key('gpi', 'float', "GPI-PD: initial value of the model's learned upper bound of the log-variance (the authors' dynamics_max_logvar_scale: 0.5, Humanoid 0.1)", _float(-20.0, 20.0)),
+    'gpi_dynamics_max_grad_norm': Key('gpi', 'float | None', "GPI-PD: clip the dynamics model's gradient norm to this in every fit step (null: no clipping; the authors' Humanoid: 10)", _float(0.0, 1e12, optional=True, open_low=True)),
     'gpi_dynamics_normalize': Key('gpi', 'bool', "GPI-PD: standardise the model's inputs (continuous: true)", _bool),
     'gpi_policy_noise': Key('gpi', 'float', "continuous: std of the actor's exploration and target-smoothing noise", _float(0.0, 1e3)),
     'gpi_noise_clip': Key('gpi', 'float', 'continuous: that noise clipped to +-this', _float(0.0, 1e3)),
