@@ -16,7 +16,7 @@ import morl_trl
 DOCUMENTED_BY_EXAMPLE = [
     "morl_trl.objectives.capql", "morl_trl.objectives.envelope", "morl_trl.objectives.mosac",
     "morl_trl.objectives.networks", "morl_trl.objectives.value", "morl_trl.objectives.gpi",
-    "morl_trl.objectives.ensemble", "morl_trl.objectives.dynamics", "morl_trl.objectives.pgmorl",
+    "morl_trl.objectives.batched", "morl_trl.objectives.dynamics", "morl_trl.objectives.pgmorl",
     "morl_trl.objectives.pcn", "morl_trl.data.prioritized", "morl_trl.data.segment_tree",
     "morl_trl.data.episode_replay", "morl_trl.transforms.command", "morl_trl.recipes.pcn",
     "morl_trl.recipes.pgmorl", "morl_trl.recipes.pgmorl_evolution", "morl_trl.recipes.optim",

@@ -33,7 +33,7 @@ from torch import nn
 from torch.nn import functional as F
 from torchrl.objectives.common import LossModule
 
-from morl_trl.objectives.ensemble import EnsembleLinear
+from morl_trl.objectives.batched import BatchedLinear
 
 __all__ = ["ProbabilisticEnsemble", "DynamicsLoss", "fit_dynamics", "model_inputs"]
 
@@ -67,7 +67,7 @@ class ProbabilisticEnsemble(nn.Module):
         self.normalize_inputs = normalize_inputs
         widths = (input_dim, *hidden, 2 * output_dim)
         gain = nn.init.calculate_gain("relu")
-        self.layers = nn.ModuleList(EnsembleLinear(ensemble_size, a, b, gain=gain) for a, b in zip(widths[:-1], widths[1:]))
+        self.layers = nn.ModuleList(BatchedLinear(ensemble_size, a, b, gain=gain) for a, b in zip(widths[:-1], widths[1:]))
         self.register_buffer("inputs_mu", torch.zeros(1, input_dim))
         self.register_buffer("inputs_sigma", torch.ones(1, input_dim))
         self.register_buffer("elites", torch.arange(num_elites))

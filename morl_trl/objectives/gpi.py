@@ -23,8 +23,8 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torch.nn import functional as F
 
+from morl_trl.objectives.batched import BatchedLayerNorm, BatchedLinear, linear_dropout_norm_relu
 from morl_trl.objectives.common import MultiObjectiveLossModule
-from morl_trl.objectives.ensemble import EnsembleLayerNorm, EnsembleLinear, dropout
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN, orthogonal_init_
 from morl_trl.objectives.value import vector_td0_return_estimate
@@ -71,14 +71,14 @@ class GPIQNetwork(nn.Module):
         self.dropout = dropout
         h0 = hidden[0]
         if len(obs_shape) == 1:
-            self.state_features = EnsembleLinear(num_nets, obs_shape[0], h0)
+            self.state_features = BatchedLinear(num_nets, obs_shape[0], h0)
         else:  # images: one NatureCNN per member (the authors'), features of width hidden[0]
             # with the authors' layer_init on its Conv2d and Linear layers (gpi_pd.py:69)
             self.state_features = nn.ModuleList(orthogonal_init_(NatureCNN(obs_shape, h0)) for _ in range(num_nets))
-        self.weight_features = EnsembleLinear(num_nets, num_objectives, h0)
-        self.hidden = nn.ModuleList(EnsembleLinear(num_nets, a, b) for a, b in zip(hidden[:-1], hidden[1:]))
-        self.norms = nn.ModuleList(EnsembleLayerNorm(num_nets, b) for b in hidden[1:]) if layer_norm else None
-        self.out = EnsembleLinear(num_nets, hidden[-1], num_actions * num_objectives)
+        self.weight_features = BatchedLinear(num_nets, num_objectives, h0)
+        self.hidden = nn.ModuleList(BatchedLinear(num_nets, a, b) for a, b in zip(hidden[:-1], hidden[1:]))
+        self.norms = nn.ModuleList(BatchedLayerNorm(num_nets, b) for b in hidden[1:]) if layer_norm else None
+        self.out = BatchedLinear(num_nets, hidden[-1], num_actions * num_objectives)
 
     def forward(self, observation: torch.Tensor, preference: torch.Tensor, members: slice | None = None) -> torch.Tensor:
         lead = preference.shape[:-1]
@@ -94,12 +94,8 @@ class GPIQNetwork(nn.Module):
         w = preference.to(dtype).reshape(1, -1, preference.shape[-1]).expand(e, -1, -1)
         x = F.relu(sf) * F.relu(self.weight_features(w, members))
         for i, layer in enumerate(self.hidden):
-            x = layer(x, members)
-            if self.dropout > 0:
-                x = dropout(x, self.dropout, self.training)
-            if self.norms is not None:
-                x = self.norms[i](x, members)
-            x = F.relu(x)
+            x = linear_dropout_norm_relu(x, layer, None if self.norms is None else self.norms[i], self.dropout,
+                                         self.training, members)
         return self.out(x, members).reshape(e, *lead, self.num_actions, self.num_objectives)
 
 
@@ -441,9 +437,9 @@ class GPIVectorCritic(nn.Module):
                  dropout: float = 0.01, layer_norm: bool = True) -> None:
         super().__init__()
         widths = (obs_dim + action_dim + num_objectives, *hidden)
-        self.layers = nn.ModuleList(EnsembleLinear(num_nets, a, b) for a, b in zip(widths[:-1], widths[1:]))
-        self.norms = nn.ModuleList(EnsembleLayerNorm(num_nets, b) for b in hidden) if layer_norm else None
-        self.out = EnsembleLinear(num_nets, widths[-1], num_objectives)
+        self.layers = nn.ModuleList(BatchedLinear(num_nets, a, b) for a, b in zip(widths[:-1], widths[1:]))
+        self.norms = nn.ModuleList(BatchedLayerNorm(num_nets, b) for b in hidden) if layer_norm else None
+        self.out = BatchedLinear(num_nets, widths[-1], num_objectives)
         self.dropout, self.num_nets, self.num_objectives = dropout, num_nets, num_objectives
 
     def forward(self, observation, action, preference):
@@ -451,12 +447,8 @@ class GPIVectorCritic(nn.Module):
         x = torch.cat([observation, action, preference], -1).to(self.out.weight.dtype)
         x = x.reshape(1, -1, x.shape[-1]).expand(self.num_nets, -1, -1)
         for i, layer in enumerate(self.layers):
-            x = layer(x)
-            if self.dropout > 0:
-                x = dropout(x, self.dropout, self.training)
-            if self.norms is not None:
-                x = self.norms[i](x)
-            x = F.relu(x)
+            x = linear_dropout_norm_relu(x, layer, None if self.norms is None else self.norms[i], self.dropout,
+                                         self.training)
         return self.out(x).reshape(self.num_nets, *lead, self.num_objectives)
 
 

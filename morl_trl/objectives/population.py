@@ -1,8 +1,8 @@
 """A population of MOSAC policies as ONE batched module (MORL/D's population, trained in one pass).
 
 MORL-Baselines' MORL/D keeps a Python list of ``MOSAC`` agents and steps them one at a time.
-Here the ``P`` members' networks are stacked: every linear layer holds ``[P, out, in]``
-weights and runs as one ``baddbmm`` (:class:`PopulationLinear`, :class:`PopulationMLP`), so one
+Here the ``P`` members' networks are stacked: every linear layer holds ``[P, in, out]``
+weights and runs as one ``baddbmm`` (:class:`~morl_trl.objectives.batched.BatchedMLP`), so one
 forward, one backward and one optimizer step update all ``P`` members.
 :class:`PopulationMOSACLoss` is, member by member, exactly :class:`~morl_trl.objectives.MOSACLoss`
 (continuous) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (discrete) with a fixed preference
@@ -48,6 +48,7 @@ from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.sac import compute_rsample_log_prob
 
 from morl_trl._torchrl_compat import cache_values
+from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import (
@@ -58,8 +59,6 @@ from morl_trl.objectives.networks import (
 )
 
 __all__ = [
-    "PopulationLinear",
-    "PopulationMLP",
     "PopulationMOSACLoss",
     "MemberRouter",
     "NearestMemberRouter",
@@ -69,78 +68,6 @@ __all__ = [
     "make_population_q_network",
     "nearest_member",
 ]
-
-
-class PopulationLinear(nn.Module):
-    """``P`` independent linear layers as one: ``[P, *B, in] -> [P, *B, out]`` (one ``baddbmm``).
-
-    ``weight`` is ``[P, out, in]`` and ``bias`` ``[P, out]``: member ``p`` is ``nn.Linear`` with
-    ``weight[p]``, ``bias[p]`` (each initialised as ``nn.Linear`` is).
-
-    Example:
-        >>> lin = PopulationLinear(3, 4, 2)
-        >>> x = torch.randn(3, 5, 4)
-        >>> torch.allclose(lin(x)[1], x[1] @ lin.weight[1].T + lin.bias[1])
-        True
-    """
-
-    def __init__(self, population: int, in_features: int, out_features: int) -> None:
-        super().__init__()
-        self.population, self.in_features, self.out_features = int(population), int(in_features), int(out_features)
-        self.weight = nn.Parameter(torch.empty(self.population, self.out_features, self.in_features))
-        self.bias = nn.Parameter(torch.empty(self.population, self.out_features))
-        self.reset_parameters()
-
-    def reset_parameters(self) -> None:
-        bound = 1 / math.sqrt(self.in_features) if self.in_features > 0 else 0
-        for p in range(self.population):  # as nn.Linear: kaiming_uniform(a=sqrt(5)) and U(-bound, bound)
-            nn.init.kaiming_uniform_(self.weight.data[p], a=math.sqrt(5))
-        nn.init.uniform_(self.bias, -bound, bound)
-
-    def forward(self, x: Tensor) -> Tensor:
-        if x.shape[0] != self.population:
-            raise ValueError(f"PopulationLinear: the leading dim of the input is the population ({self.population}), "
-                             f"got an input of shape {tuple(x.shape)}")
-        flat = x.reshape(self.population, -1, self.in_features)
-        out = torch.baddbmm(self.bias.unsqueeze(1), flat, self.weight.transpose(1, 2))
-        return out.reshape(*x.shape[:-1], self.out_features)
-
-    def extra_repr(self) -> str:
-        return f"population={self.population}, in_features={self.in_features}, out_features={self.out_features}"
-
-
-class PopulationMLP(nn.Module):
-    """``P`` MLPs as one: ``cat(inputs, -1)`` ``[P, *B, in]`` -> ``[P, *B, *out_shape]``.
-
-    The layers sit in ``self.mlp`` at the same indices as in
-    :class:`~morl_trl.objectives.networks.PreferenceConditionedMLP`'s ``mlp``, so a member's
-    parameters have the names of a single network's (see :meth:`PopulationMOSACLoss.load_members`).
-
-    Example:
-        >>> net = PopulationMLP(4, 6, (3, 2), num_cells=(8, 8))
-        >>> net(torch.randn(4, 5, 6)).shape
-        torch.Size([4, 5, 3, 2])
-    """
-
-    def __init__(self, population: int, in_features: int, out_shape: int | Sequence[int], *,
-                 num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU) -> None:
-        super().__init__()
-        if isinstance(population, bool) or not isinstance(population, int) or population < 1:
-            raise ValueError(f"population must be a positive int, got {population!r}")
-        self.population = population
-        self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
-        layers: list[nn.Module] = []
-        width = int(in_features)
-        for cells in num_cells:
-            layers += [PopulationLinear(population, width, cells), activation()]
-            width = cells
-        layers.append(PopulationLinear(population, width, math.prod(self.out_shape)))
-        self.mlp = nn.Sequential(*layers)
-
-    def forward(self, first: Tensor, *rest: Tensor) -> Tensor:
-        x = torch.cat([first, *rest], dim=-1) if rest else first
-        out = self.mlp(x)
-        return out.reshape(*out.shape[:-1], *self.out_shape)
 
 
 # ---------------------------------------------------------------------- routing of sub-envs to members
@@ -219,7 +146,7 @@ def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: B
     for the acting views). Parameter names match :func:`~morl_trl.objectives.make_gaussian_actor`'s
     with ``preference_key=None``.
     """
-    mlp = PopulationMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
+    mlp = BatchedMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
     return tanh_normal_actor(gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
 
 
@@ -229,7 +156,7 @@ def make_population_categorical_actor(population: int, obs_dim: int, num_actions
                                       observation_key: NestedKey = "observation",
                                       action_key: NestedKey = "action") -> ProbabilisticActor:
     """``P`` categorical actors ``pi_p(. | s)`` reading ``[P, *B, obs]``."""
-    mlp = PopulationMLP(population, obs_dim, num_actions, num_cells=num_cells)
+    mlp = BatchedMLP(population, obs_dim, num_actions, num_cells=num_cells)
     spec = action_spec if action_spec is not None else Categorical(num_actions)
     return categorical_actor(mlp, [observation_key], spec, action_key)
 
@@ -239,7 +166,7 @@ def make_population_critic(population: int, obs_dim: int, action_dim: int, num_o
                            action_key: NestedKey = "action",
                            out_key: NestedKey = "state_action_value") -> TensorDictModule:
     """``P`` vector critics ``Q_p(s, a) -> [P, *B, k]`` (MORL/D's MOSAC critics do not read ``w``)."""
-    net = PopulationMLP(population, obs_dim + action_dim, num_objectives, num_cells=num_cells)
+    net = BatchedMLP(population, obs_dim + action_dim, num_objectives, num_cells=num_cells)
     net.num_objectives = num_objectives
     return TensorDictModule(net, in_keys=[observation_key, action_key], out_keys=[out_key])
 
@@ -248,7 +175,7 @@ def make_population_q_network(population: int, obs_dim: int, num_actions: int, n
                               num_cells: Sequence[int] = DEFAULT_NUM_CELLS, observation_key: NestedKey = "observation",
                               out_key: NestedKey = "action_value") -> TensorDictModule:
     """``P`` vector Q-networks ``Q_p(s, .) -> [P, *B, |A|, k]`` (discrete MORL/D)."""
-    net = PopulationMLP(population, obs_dim, (num_actions, num_objectives), num_cells=num_cells)
+    net = BatchedMLP(population, obs_dim, (num_actions, num_objectives), num_cells=num_cells)
     net.num_objectives, net.num_actions = num_objectives, num_actions
     return TensorDictModule(net, in_keys=[observation_key], out_keys=[out_key])
 
@@ -384,7 +311,10 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
                           ("target_qvalue_network_params", 1)):
             mine = getattr(self, name)
             for key, value in mine.items(True, True):
-                value.data.copy_(torch.stack([getattr(l, name).get(key).data for l in losses], dim))
+                stacked = torch.stack([getattr(l, name).get(key).data for l in losses], dim)
+                # nn.Linear's [out, in] weight and [out] bias -> BatchedLinear's [in, out] and [1, out]
+                stacked = stacked.transpose(-1, -2) if key[-1] == "weight" else stacked.unsqueeze(-2)
+                value.data.copy_(stacked)
         self.log_alpha.data.copy_(torch.stack([l.log_alpha.data.reshape(()) for l in losses]))
 
     # ------------------------------------------------------------------ pieces

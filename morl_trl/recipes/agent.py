@@ -17,6 +17,7 @@ from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
+from morl_trl.recipes.state_upgrade import upgrade_agent_state
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "eval_exploration", "epsilon", "epsilon_greedy"]
@@ -219,6 +220,7 @@ class Agent:
         }
 
     def load_state_dict(self, state: dict) -> None:
+        upgrade_agent_state(self, state)  # (in place: the subclasses read the converted entries too)
         self.loss.load_state_dict(state["loss"])
         for k, o in self.optimizers.items():
             o.load_state_dict(state["optimizers"][k])

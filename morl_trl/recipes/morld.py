@@ -44,6 +44,7 @@ from torch import nn
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
+from morl_trl.objectives.batched import BatchedLinear
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
 from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.objectives.population import (
@@ -334,19 +335,15 @@ def orthogonal_population_init_(module: nn.Module) -> nn.Module:
     """Every member's layers as the authors' ``layer_init``: orthogonal weights (gain 1), zero biases.
 
     Example:
-        >>> from morl_trl.objectives.population import PopulationLinear
-        >>> lin = orthogonal_population_init_(PopulationLinear(2, 4, 3))
-        >>> w = lin.weight[1]
-        >>> torch.allclose(w @ w.T, torch.eye(3), atol=1e-5), bool((lin.bias == 0).all())
+        >>> from morl_trl.objectives.batched import BatchedLinear
+        >>> lin = orthogonal_population_init_(BatchedLinear(2, 4, 3, init="torch"))
+        >>> w = lin.weight[1]  # [in, out]
+        >>> torch.allclose(w.T @ w, torch.eye(3), atol=1e-5), bool((lin.bias == 0).all())
         (True, True)
     """
     for m in module.modules():
-        w = getattr(m, "weight", None)
-        if isinstance(w, torch.Tensor) and w.ndim == 3 and getattr(m, "population", None) == w.shape[0]:
-            for p in range(w.shape[0]):
-                nn.init.orthogonal_(w[p])
-            if getattr(m, "bias", None) is not None:
-                m.bias.zero_()
+        if isinstance(m, BatchedLinear):
+            m.reset_parameters("orthogonal")
     return module
 
 

@@ -38,8 +38,10 @@ Known differences from the authors (named, documented): a member's evaluation is
 discounted (raw-reward) return of its episodes that ended in the iteration's rollout (its
 policy before that iteration's update) instead of a separate evaluation episode; TorchRL's
 ``VecNorm`` standardises the rewards (mean and std of the reward) where gym's
-``NormalizeReward`` scales them by the std of the discounted return; episodes continue across
-iterations (the authors reset the envs at each iteration) and truncation bootstraps; the sparsity
+``NormalizeReward`` scales them by the std of the discounted return; every iteration starts from a
+reset of all sub-envs as the authors' (``pgmorl_reset_each_iteration``; false: episodes continue
+across iterations), but the authors also reseed the shared env with the member's seed at that
+reset (the run's seed, 42 for copied members), which we do not; truncation bootstraps; the sparsity
 of the task selection is computed on the non-dominated subset (:func:`morl_trl.metrics.sparsity`).
 
 Example:
@@ -66,8 +68,8 @@ from morl_trl._torchrl_compat import transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
-    make_population_actor,
-    make_population_critic,
+    make_population_ppo_actor,
+    make_population_value_network,
     scalarize_advantage,
     vector_gae,
 )
@@ -394,8 +396,8 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     obs_dim = int(np.prod(obs_shape(env)))
     act_dim = int(spec.shape[-1])
     P = cfg.pgmorl_pop
-    actor = make_population_actor(P, obs_dim, act_dim, cfg.hidden).to(device)
-    critic = make_population_critic(P, obs_dim, k, cfg.hidden).to(device)
+    actor = make_population_ppo_actor(P, obs_dim, act_dim, cfg.hidden).to(device)
+    critic = make_population_value_network(P, obs_dim, k, cfg.hidden).to(device)
     loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.pgmorl_clip, entropy_bonus=False, critic_coeff=0.25,
                        loss_critic_type="l2", normalize_advantage=False, clip_value=cfg.pgmorl_clip)
     optimizer = adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg), eps=1e-5)  # the authors' eps

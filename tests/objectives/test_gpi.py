@@ -194,7 +194,7 @@ def test_image_observations_use_one_cnn_per_member():
 
 
 def test_dropout_keeps_the_expectation_and_rate():
-    from morl_trl.objectives.ensemble import dropout
+    from morl_trl.objectives.batched import batched_dropout as dropout
 
     torch.manual_seed(0)
     x = torch.ones(200_000)

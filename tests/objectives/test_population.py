@@ -16,7 +16,6 @@ from morl_trl.objectives import (
     make_vector_q_network,
 )
 from morl_trl.objectives.population import (
-    PopulationLinear,
     PopulationMOSACLoss,
     make_population_categorical_actor,
     make_population_critic,
@@ -82,6 +81,8 @@ def _check_equal_after_update(singles, pop, data, make_updater):
     for name, dim in (("actor_network_params", 0), ("qvalue_network_params", 1), ("target_qvalue_network_params", 1)):
         for key, value in getattr(pop, name).items(True, True):
             expected = torch.stack([getattr(s, name).get(key) for s in singles], dim)
+            # nn.Linear's [out, in] weight and [out] bias are BatchedLinear's [in, out] and [1, out]
+            expected = expected.transpose(-1, -2) if key[-1] == "weight" else expected.unsqueeze(-2)
             torch.testing.assert_close(value.data, expected.data, rtol=1e-5, atol=1e-6)
     torch.testing.assert_close(pop.log_alpha.data, torch.stack([s.log_alpha.data for s in singles]))
 
@@ -114,17 +115,6 @@ def test_discrete_population_update_equals_separate_discrete_mosac_updates():
                               lambda l: HardUpdate(l, value_network_update_interval=1))
 
 
-def test_population_linear_is_p_linears():
-    torch.manual_seed(0)
-    lin = PopulationLinear(2, 3, 4)
-    x = torch.randn(2, 5, 6, 3)
-    y = lin(x)
-    assert y.shape == (2, 5, 6, 4)
-    torch.testing.assert_close(y[1], torch.nn.functional.linear(x[1], lin.weight[1], lin.bias[1]))
-    with pytest.raises(ValueError, match="population"):
-        lin(torch.randn(3, 3))
-
-
 def test_policies_route_sub_envs_and_preferences_to_members():
     torch.manual_seed(0)
     actor = make_population_categorical_actor(P, OBS, 3, num_cells=(8,))
@@ -133,7 +123,7 @@ def test_policies_route_sub_envs_and_preferences_to_members():
         for lin in (net.mlp[0], net.mlp[2]):
             lin.weight.zero_()
             lin.bias.zero_()
-        net.mlp[2].bias.copy_(torch.eye(3) * 50)
+        net.mlp[2].bias.copy_((torch.eye(3) * 50).unsqueeze(1))  # bias [P, 1, out]
     weights = W.clone()
     explore, evaluate = population_policies(actor, weights)
     td = TensorDict({"observation": torch.randn(P * 2, OBS)}, [P * 2])

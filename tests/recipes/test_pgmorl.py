@@ -7,7 +7,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from morl_trl.objectives.pgmorl import PopulationMLP, scalarize_advantage, vector_gae
+from morl_trl.objectives.pgmorl import ppo_population_mlp, scalarize_advantage, vector_gae
 from morl_trl.recipes import resolve_config, run_training
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
 from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
@@ -103,10 +103,10 @@ def test_vector_gae_matches_a_hand_computation_and_scalarizes_per_member():
 
 
 def test_population_members_are_independent():
-    net = PopulationMLP(3, 4, 2, (8,))
+    net = ppo_population_mlp(3, 4, 2, (8,))
     x = torch.randn(3, 5, 4)
     net(x)[1].sum().backward()  # member 1's output only
-    for w in net.weights:
+    for w in net.parameters():
         assert w.grad[0].abs().sum() == 0 and w.grad[2].abs().sum() == 0 and w.grad[1].abs().sum() > 0
     state = net.member_state(0)
     net.load_member_state(2, state)

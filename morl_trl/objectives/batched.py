@@ -1,0 +1,259 @@
+"""Batched networks: ``E`` members (a population, an ensemble, a set of critics) as ONE module.
+
+The one home of the batched layers every population and ensemble uses (MORL/D's and PGMORL's
+populations, the GPI Q ensembles and critics, GPI-PD's dynamics ensemble): no Python loop over
+members, one batched matmul per layer.
+
+* :class:`BatchedLinear`: ``E`` independent ``Linear(in, out)``; ``weight [E, in, out]``,
+  ``bias [E, 1, out]`` (member ``e`` is ``nn.Linear`` with ``weight[e].T`` and ``bias[e, 0]``).
+* :class:`BatchedLayerNorm`: LayerNorm over the last dim with one affine per member.
+* :func:`batched_dropout`: inverted dropout (``F.dropout``'s distribution) from a uniform mask.
+* :func:`linear_dropout_norm_relu`: the ``Linear -> Dropout -> LayerNorm -> ReLU`` block of the
+  GPI networks, with as few temporaries as exactness allows (in place where autograd permits).
+* :class:`BatchedMLP`: ``E`` MLPs of :class:`BatchedLinear` layers (``mlp`` holds them at the
+  indices of :class:`~morl_trl.objectives.networks.PreferenceConditionedMLP`'s ``mlp``).
+
+Inputs are member-major: ``[E, *B, in]``, or ``[E * N, in]`` (rows ``e * N .. (e + 1) * N - 1``
+belong to member ``e``, as a ``[P * N]`` training env's sub-envs); the output keeps the input's
+leading shape.
+
+Initialisations (``init``): ``"orthogonal"`` (each member's ``[out, in]`` weight orthogonal with
+``gain``, zero bias: the authors' ``layer_init``) or ``"torch"`` (each member as ``nn.Linear``:
+``kaiming_uniform(a=sqrt 5)`` weights, then every member's bias ``U(-1/sqrt(in), 1/sqrt(in))``).
+Both draw each member's weight as an ``[out, in]`` matrix, as a per-member ``nn.Linear`` would.
+
+Example:
+    >>> layer = BatchedLinear(3, 4, 5)
+    >>> x = torch.randn(3, 7, 4)
+    >>> layer(x).shape
+    torch.Size([3, 7, 5])
+    >>> torch.allclose(layer(x)[1], layer.member_linear(1)(x[1]), atol=1e-6)
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor, nn
+from torch.nn import functional as F
+
+__all__ = ["BatchedLinear", "BatchedLayerNorm", "BatchedMLP", "batched_dropout", "linear_dropout_norm_relu",
+           "INITS"]
+
+#: the initialisations of :class:`BatchedLinear`
+INITS = ("orthogonal", "torch")
+
+
+def _members(t: Tensor, members: slice | None) -> Tensor:
+    return t if members is None else t[members]
+
+
+class BatchedLinear(nn.Module):
+    """``E`` independent ``Linear(in, out)`` layers: ``[E, *B, in] -> [E, *B, out]`` (one ``baddbmm``).
+
+    Args:
+        members: ``E``.
+        in_features, out_features: as ``nn.Linear``'s.
+        init: ``"orthogonal"`` (default; ``gain``, zero bias) or ``"torch"`` (``nn.Linear``'s); see the module.
+        gain: the orthogonal init's gain.
+
+    ``forward(x, members=None)``: ``members`` (a slice) runs only those members (``x`` then has
+    their count first).
+
+    Example:
+        >>> lin = BatchedLinear(2, 3, 4, init="torch")
+        >>> x = torch.randn(2, 5, 3)
+        >>> ref = [lin.member_linear(e)(x[e]) for e in range(2)]
+        >>> torch.allclose(lin(x), torch.stack(ref), atol=1e-6), lin(x.reshape(10, 3)).shape
+        (True, torch.Size([10, 4]))
+    """
+
+    def __init__(self, members: int, in_features: int, out_features: int, *, init: str = "orthogonal",
+                 gain: float = 1.0) -> None:
+        super().__init__()
+        if isinstance(members, bool) or not isinstance(members, int) or members < 1 or in_features < 1 \
+                or out_features < 1:
+            raise ValueError(f"members, in_features, out_features must be ints >= 1, got "
+                             f"{(members, in_features, out_features)}")
+        self.members, self.in_features, self.out_features = members, int(in_features), int(out_features)
+        self.weight = nn.Parameter(torch.empty(members, self.in_features, self.out_features))
+        self.bias = nn.Parameter(torch.empty(members, 1, self.out_features))
+        self.reset_parameters(init, gain)
+
+    @torch.no_grad()
+    def reset_parameters(self, init: str = "orthogonal", gain: float = 1.0) -> None:
+        """Re-draw every member's parameters (``init``, ``gain``: see the class)."""
+        if init not in INITS:
+            raise ValueError(f"init={init!r}; valid: {INITS}")
+        if init == "orthogonal":
+            for e in range(self.members):
+                self.weight[e].copy_(nn.init.orthogonal_(torch.empty(self.out_features, self.in_features), gain).T)
+            self.bias.zero_()
+        else:  # as nn.Linear: kaiming_uniform(a=sqrt(5)) weights, then U(-bound, bound) biases
+            for e in range(self.members):
+                w = torch.empty(self.out_features, self.in_features)
+                nn.init.kaiming_uniform_(w, a=math.sqrt(5))
+                self.weight[e].copy_(w.T)
+            bound = 1 / math.sqrt(self.in_features)
+            nn.init.uniform_(self.bias, -bound, bound)
+
+    def forward(self, x: Tensor, members: slice | None = None) -> Tensor:
+        w, b = _members(self.weight, members), _members(self.bias, members)
+        flat = x.reshape(w.shape[0], -1, x.shape[-1])
+        return torch.baddbmm(b, flat, w).reshape(*x.shape[:-1], w.shape[-1])
+
+    def member_linear(self, e: int) -> nn.Linear:
+        """Member ``e`` as a (detached copy) ``nn.Linear``."""
+        lin = nn.Linear(self.in_features, self.out_features, device=self.weight.device, dtype=self.weight.dtype)
+        with torch.no_grad():
+            lin.weight.copy_(self.weight[e].T)
+            lin.bias.copy_(self.bias[e, 0])
+        return lin
+
+    def extra_repr(self) -> str:
+        return f"members={self.members}, in_features={self.in_features}, out_features={self.out_features}"
+
+
+class BatchedLayerNorm(nn.Module):
+    """LayerNorm over the last dim with one affine per member: ``[E, *B, d] -> [E, *B, d]``
+    (member ``e`` is ``nn.LayerNorm(d)`` with ``weight[e, 0]``, ``bias[e, 0]``).
+
+    Example:
+        >>> norm = BatchedLayerNorm(2, 4)
+        >>> x = torch.randn(2, 3, 4)
+        >>> torch.allclose(norm(x)[1], nn.LayerNorm(4)(x[1]), atol=1e-6)
+        True
+    """
+
+    def __init__(self, members: int, dim: int, eps: float = 1e-5) -> None:
+        super().__init__()
+        self.weight = nn.Parameter(torch.ones(members, 1, dim))
+        self.bias = nn.Parameter(torch.zeros(members, 1, dim))
+        self.eps = eps
+
+    def forward(self, x: Tensor, members: slice | None = None) -> Tensor:
+        w, b = _members(self.weight, members), _members(self.bias, members)
+        flat = x.reshape(w.shape[0], -1, x.shape[-1])
+        return _affine(F.layer_norm(flat, flat.shape[-1:], eps=self.eps), w, b).reshape(x.shape)
+
+
+def _grad_free(*tensors: Tensor) -> bool:
+    return not torch.is_grad_enabled() or not any(t.requires_grad for t in tensors)
+
+
+def _affine(normed: Tensor, w: Tensor, b: Tensor) -> Tensor:
+    """``normed * w + b`` with one temporary (the sum is added in place: ``AddBackward`` keeps nothing)."""
+    if _grad_free(normed, w, b):
+        return normed.mul_(w).add_(b)
+    return (normed * w).add_(b)
+
+
+def _dropout_mask(like: Tensor, p: float) -> Tensor:
+    """``(U[0, 1) >= p) / (1 - p)``: the same draws (one ``uniform_`` of ``like``'s size) and values as
+    ``(torch.rand_like(like) >= p).to(dtype) * (1 / (1 - p))``, without its temporaries."""
+    return torch.rand_like(like).ge_(p).mul_(1.0 / (1.0 - p))
+
+
+def batched_dropout(x: Tensor, p: float, training: bool) -> Tensor:
+    """Inverted dropout (``F.dropout``'s distribution) from a uniform mask: ~30% faster than
+    ``F.dropout``'s Bernoulli sampling on CPU for the small rates of the GPI networks.
+
+    Example:
+        >>> _ = torch.manual_seed(0)
+        >>> y = batched_dropout(torch.ones(1000), 0.5, training=True)
+        >>> sorted(set(y.tolist())), batched_dropout(torch.ones(3), 0.5, training=False).tolist()
+        ([0.0, 2.0], [1.0, 1.0, 1.0])
+    """
+    if not training or p == 0.0:
+        return x
+    mask = _dropout_mask(x, p)
+    return mask.mul_(x) if _grad_free(x) else x * mask
+
+
+def linear_dropout_norm_relu(x: Tensor, linear: BatchedLinear, norm: BatchedLayerNorm | None, p: float,
+                             training: bool, members: slice | None = None) -> Tensor:
+    """``relu(norm(dropout(linear(x))))``: the GPI networks' hidden block, as these four modules compute it
+    (the same draws and values), with in-place steps where autograd allows: the dropout mask is applied
+    to the fresh matmul output in place, the affine's sum and the ReLU too; without gradients, all of it.
+
+    Example:
+        >>> lin, norm = BatchedLinear(2, 3, 4), BatchedLayerNorm(2, 4)
+        >>> x = torch.randn(2, 5, 3)
+        >>> _ = torch.manual_seed(1)
+        >>> fast = linear_dropout_norm_relu(x, lin, norm, 0.1, True)
+        >>> _ = torch.manual_seed(1)
+        >>> torch.equal(fast, torch.relu(norm(batched_dropout(lin(x), 0.1, True))))
+        True
+    """
+    h = linear(x, members)
+    if training and p > 0.0:
+        h.mul_(_dropout_mask(h, p))  # h is the matmul's fresh output: BaddbmmBackward does not keep it
+    if norm is not None:
+        h = norm(h, members)
+    return h.relu_()
+
+
+class BatchedMLP(nn.Module):
+    """``E`` MLPs as one: ``cat(inputs, -1)`` ``[E, *B, in]`` -> ``[E, *B, *out_shape]``.
+
+    Args:
+        members: ``E``.
+        in_features: the width of the concatenated inputs.
+        out_shape: trailing output shape, e.g. ``(num_actions, k)``.
+        num_cells: hidden widths.
+        activation: the hidden activation class (e.g. ``nn.ReLU``, ``nn.Tanh``).
+        init: ``"torch"`` (default, ``nn.Linear``'s) or ``"orthogonal"``; see the module.
+        gain: the orthogonal gain of the hidden layers; ``out_gain``: the output layer's
+            (default: ``gain``).
+
+    ``member_state(e)`` / ``load_member_state(e, state)`` copy one member's parameters out and in.
+
+    Example:
+        >>> net = BatchedMLP(4, 6, (3, 2), num_cells=(8, 8))
+        >>> net(torch.randn(4, 5, 6)).shape, net(torch.randn(4 * 5, 6)).shape
+        (torch.Size([4, 5, 3, 2]), torch.Size([20, 3, 2]))
+        >>> ppo = BatchedMLP(2, 4, 1, num_cells=(8,), activation=nn.Tanh, init="orthogonal", gain=2 ** 0.5,
+        ...                  out_gain=0.01)
+        >>> ppo.member_state(1)["mlp.0.weight"].shape
+        torch.Size([4, 8])
+    """
+
+    def __init__(self, members: int, in_features: int, out_shape: int | Sequence[int], *,
+                 num_cells: Sequence[int] = (256, 256), activation: type[nn.Module] = nn.ReLU, init: str = "torch",
+                 gain: float = 1.0, out_gain: float | None = None) -> None:
+        super().__init__()
+        if isinstance(members, bool) or not isinstance(members, int) or members < 1:
+            raise ValueError(f"members must be a positive int, got {members!r}")
+        self.members = members
+        self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
+        layers: list[nn.Module] = []
+        width = int(in_features)
+        for cells in num_cells:
+            layers += [BatchedLinear(members, width, cells, init=init, gain=gain), activation()]
+            width = cells
+        layers.append(BatchedLinear(members, width, math.prod(self.out_shape), init=init,
+                                    gain=gain if out_gain is None else out_gain))
+        self.mlp = nn.Sequential(*layers)
+
+    @property
+    def population(self) -> int:
+        """``E`` (the name the population losses use)."""
+        return self.members
+
+    def forward(self, first: Tensor, *rest: Tensor) -> Tensor:
+        x = torch.cat([first, *rest], dim=-1) if rest else first
+        x = self.mlp(x.to(self.mlp[0].weight.dtype))
+        return x.reshape(*x.shape[:-1], *self.out_shape)
+
+    def member_state(self, e: int) -> dict[str, Tensor]:
+        """A copy of member ``e``'s parameters (name -> tensor without the member dim)."""
+        return {name: t[e].detach().clone() for name, t in self.named_parameters()}
+
+    def load_member_state(self, e: int, state: dict[str, Tensor]) -> None:
+        """Overwrite member ``e``'s parameters with ``state`` (from :meth:`member_state`)."""
+        with torch.no_grad():
+            for name, t in self.named_parameters():
+                t[e].copy_(state[name])

@@ -1,0 +1,203 @@
+"""The one batched linear / layer norm / MLP (``morl_trl.objectives.batched``): member by member what
+``nn.Linear`` / ``nn.LayerNorm`` compute, the initialisations the populations and ensembles used
+before (same random draws), and the fast GPI block equal to the plain composition it replaces."""
+
+import copy
+import math
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torch import nn
+from torch.nn import functional as F
+
+from morl_trl.objectives import GPILoss, GPIQNetwork
+from morl_trl.objectives.batched import (
+    BatchedLayerNorm,
+    BatchedLinear,
+    BatchedMLP,
+    batched_dropout,
+    linear_dropout_norm_relu,
+)
+
+
+def test_linear_is_per_member_linear_with_concrete_values():
+    lin = BatchedLinear(2, 2, 3)
+    with torch.no_grad():
+        lin.weight.copy_(torch.tensor([[[1.0, 0.0, 2.0], [0.0, 1.0, -1.0]],     # member 0: [in=2, out=3]
+                                       [[0.5, 0.5, 0.5], [1.0, -1.0, 0.0]]]))   # member 1
+        lin.bias.copy_(torch.tensor([[[0.0, 0.0, 1.0]], [[1.0, 2.0, 3.0]]]))
+    x = torch.tensor([[[1.0, 2.0]], [[2.0, 4.0]]])  # [E=2, B=1, in=2]
+    assert lin(x).tolist() == [[[1.0, 2.0, 1.0]], [[6.0, -1.0, 4.0]]]
+    assert lin(x.reshape(2, 2)).tolist() == [[1.0, 2.0, 1.0], [6.0, -1.0, 4.0]]  # member-major rows
+    for e in range(2):  # the reference: member e as nn.Linear
+        torch.testing.assert_close(lin(x)[e], lin.member_linear(e)(x[e]), rtol=0, atol=0)
+    assert lin(x[1:], members=slice(1, 2)).tolist() == [[[6.0, -1.0, 4.0]]]
+
+
+def test_linear_matches_nn_linear_on_random_inputs_and_gradients():
+    torch.manual_seed(0)
+    lin = BatchedLinear(3, 5, 4, init="torch")
+    refs = [lin.member_linear(e) for e in range(3)]
+    x = torch.randn(3, 6, 2, 5)
+    out = lin(x)
+    torch.testing.assert_close(out, torch.stack([refs[e](x[e]) for e in range(3)]), rtol=1e-6, atol=1e-6)
+    out.pow(2).sum().backward()
+    for e in range(3):
+        refs[e](x[e]).pow(2).sum().backward()
+        torch.testing.assert_close(lin.weight.grad[e], refs[e].weight.grad.T, rtol=1e-5, atol=1e-5)
+        torch.testing.assert_close(lin.bias.grad[e, 0], refs[e].bias.grad, rtol=1e-5, atol=1e-5)
+
+
+def test_orthogonal_init_draws_as_the_ensembles_and_populations_did():
+    """Each member's [out, in] matrix drawn in member order (EnsembleLinear's, PGMORL's PopulationMLP's)."""
+    torch.manual_seed(3)
+    lin = BatchedLinear(2, 4, 3, gain=math.sqrt(2))
+    torch.manual_seed(3)
+    ref = [nn.init.orthogonal_(torch.empty(3, 4), math.sqrt(2)) for _ in range(2)]
+    assert torch.equal(lin.weight, torch.stack(ref).transpose(1, 2))
+    assert not lin.bias.any()
+    w = lin.weight[1]
+    torch.testing.assert_close(w.T @ w, 2 * torch.eye(3), rtol=0, atol=1e-5)
+
+
+def test_torch_init_draws_as_morld_population_linear_did():
+    """Every member's kaiming-uniform [out, in] weight, then all the biases (MORL/D's PopulationLinear)."""
+    torch.manual_seed(4)
+    lin = BatchedLinear(3, 5, 2, init="torch")
+    torch.manual_seed(4)
+    ref = []
+    for _ in range(3):
+        w = torch.empty(2, 5)
+        nn.init.kaiming_uniform_(w, a=math.sqrt(5))
+        ref.append(w)
+    bias = torch.empty(3, 2).uniform_(-1 / math.sqrt(5), 1 / math.sqrt(5))
+    assert torch.equal(lin.weight, torch.stack(ref).transpose(1, 2))
+    assert torch.equal(lin.bias, bias.unsqueeze(1))
+    with pytest.raises(ValueError, match="init='xavier'; valid"):
+        BatchedLinear(1, 2, 2, init="xavier")
+
+
+def test_layer_norm_is_per_member_layer_norm():
+    torch.manual_seed(1)
+    norm = BatchedLayerNorm(2, 4)
+    with torch.no_grad():
+        norm.weight.uniform_(0.5, 1.5)
+        norm.bias.normal_()
+    x = torch.randn(2, 3, 4)
+    for e in range(2):
+        ref = nn.LayerNorm(4)
+        with torch.no_grad():
+            ref.weight.copy_(norm.weight[e, 0])
+            ref.bias.copy_(norm.bias[e, 0])
+        torch.testing.assert_close(norm(x)[e], ref(x[e]), rtol=1e-6, atol=1e-6)
+    x = torch.tensor([[[1.0, 3.0]], [[0.0, 0.0]]])
+    assert torch.allclose(BatchedLayerNorm(2, 2)(x), torch.tensor([[[-1.0, 1.0]], [[0.0, 0.0]]]), atol=1e-4)
+
+
+def _reference_block(x, lin, norm, p, training):
+    """The GPI block as the networks computed it before (the plain composition, out of place)."""
+    h = lin(x)
+    if training and p > 0:
+        h = h * ((torch.rand_like(h) >= p).to(h.dtype) * (1.0 / (1.0 - p)))
+    h = F.layer_norm(h, h.shape[-1:], eps=norm.eps) * norm.weight + norm.bias
+    return F.relu(h)
+
+
+@pytest.mark.parametrize("grad", [True, False])
+def test_fast_block_equals_the_plain_composition(grad):
+    torch.manual_seed(2)
+    lin, norm = BatchedLinear(2, 6, 8), BatchedLayerNorm(2, 8)
+    with torch.no_grad():
+        norm.weight.uniform_(0.5, 1.5)
+        norm.bias.normal_()
+    x = torch.randn(2, 50, 6)
+    with torch.set_grad_enabled(grad):
+        torch.manual_seed(9)
+        fast = linear_dropout_norm_relu(x, lin, norm, 0.2, True)
+        torch.manual_seed(9)
+        ref = _reference_block(x, lin, norm, 0.2, True)
+    assert torch.equal(fast, ref)
+    assert (fast == 0).float().mean() > 0.2  # (dropout and ReLU zeroed some)
+    if grad:
+        grads = torch.autograd.grad(fast.pow(2).sum(), [lin.weight, lin.bias, norm.weight, norm.bias])
+        refs = torch.autograd.grad(ref.pow(2).sum(), [lin.weight, lin.bias, norm.weight, norm.bias])
+        for g, r in zip(grads, refs):
+            assert torch.equal(g, r)
+
+
+def test_dropout_masks_and_values():
+    torch.manual_seed(5)
+    x = torch.arange(1.0, 9.0)
+    y = batched_dropout(x, 0.5, True)
+    torch.manual_seed(5)
+    keep = torch.rand(8) >= 0.5
+    assert y.tolist() == torch.where(keep, x * 2, 0.0).tolist()
+    with torch.no_grad():  # in place on a fresh mask: the same values
+        torch.manual_seed(5)
+        assert batched_dropout(x, 0.5, True).tolist() == y.tolist()
+    assert batched_dropout(x, 0.5, False) is x
+
+
+def test_mlp_member_is_a_plain_mlp():
+    torch.manual_seed(6)
+    net = BatchedMLP(3, 4, (2, 2), num_cells=(5,), activation=nn.Tanh, init="orthogonal", gain=math.sqrt(2),
+                     out_gain=0.01)
+    x = torch.randn(3, 7, 4)
+    for e in range(3):
+        ref = nn.Sequential(net.mlp[0].member_linear(e), nn.Tanh(), net.mlp[2].member_linear(e))
+        torch.testing.assert_close(net(x)[e], ref(x[e]).reshape(7, 2, 2), rtol=1e-6, atol=1e-6)
+    assert net(x.reshape(21, 4)).shape == (21, 2, 2)
+    a, b = torch.randn(3, 7, 1), torch.randn(3, 7, 3)
+    assert torch.equal(net(a, b), net(torch.cat([a, b], -1)))
+    net.load_member_state(2, net.member_state(0))
+    assert torch.equal(net(x[:1].expand(3, 7, 4))[2], net(x[:1].expand(3, 7, 4))[0])
+
+
+class _ReferenceGPIQNetwork(GPIQNetwork):
+    """GPIQNetwork's forward as written before the fast block (the plain composition)."""
+
+    def forward(self, observation, preference, members=None):
+        lead = preference.shape[:-1]
+        e = self.num_nets if members is None else len(range(self.num_nets)[members])
+        s = observation.reshape(1, -1, observation.shape[-1]).expand(e, -1, -1)
+        w = preference.reshape(1, -1, preference.shape[-1]).expand(e, -1, -1)
+        x = F.relu(self.state_features(s, members)) * F.relu(self.weight_features(w, members))
+        for i, layer in enumerate(self.hidden):
+            h = layer(x, members)
+            if self.training:
+                h = h * ((torch.rand_like(h) >= self.dropout).to(h.dtype) * (1.0 / (1.0 - self.dropout)))
+            norm = self.norms[i]
+            nw, nb = (norm.weight, norm.bias) if members is None else (norm.weight[members], norm.bias[members])
+            x = F.relu(F.layer_norm(h, h.shape[-1:]) * nw + nb)
+        return self.out(x, members).reshape(e, *lead, self.num_actions, self.num_objectives)
+
+
+def test_gpi_pd_update_equals_the_reference_update():
+    """One GPI-PD update (targets, GPI target, loss, backward, Adam) with the fast network and with the
+    plain one from the same state and seed: the same parameters."""
+    torch.manual_seed(0)
+    fast = GPIQNetwork(6, 3, 2, hidden=(16, 16, 16), dropout=0.1)
+    slow = _ReferenceGPIQNetwork(6, 3, 2, hidden=(16, 16, 16), dropout=0.1)
+    slow.load_state_dict(fast.state_dict())
+    B = 32
+    data = TensorDict({"observation": torch.randn(B, 6), "action": torch.randint(3, (B,)),
+                       ("next", "observation"): torch.randn(B, 6), ("next", "reward"): torch.randn(B, 2),
+                       ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
+                       ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
+    support = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.8], [0.7, 0.3], [0.9, 0.1]])
+    params = []
+    for net in (fast, slow):
+        loss = GPILoss(net, gpi_pd=True)
+        loss.make_value_estimator(gamma=0.99)
+        loss.set_weights(torch.tensor([0.3, 0.7]), support)
+        opt = torch.optim.Adam(loss.parameters(), lr=1e-2)
+        torch.manual_seed(11)
+        for _ in range(2):
+            out = loss(data.clone())
+            opt.zero_grad()
+            out["loss_qvalue"].backward()
+            opt.step()
+        params.append(copy.deepcopy(loss.value_network_params.data))
+    for key, value in params[0].items(True, True):
+        assert torch.equal(value, params[1][key]), key
