@@ -497,8 +497,7 @@ PGMORL = {
     "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
-    "derived.vector_env_reset_each_iteration": Code("recipes.pgmorl", open="sub-envs are not reset at the start of "
-                                                    "each member's iteration"),
+    "derived.vector_env_reset_each_iteration": Same("pgmorl_reset_each_iteration", expect=lambda v, cfg: True),
     "derived.global_step_per_iteration": Same("frames_per_batch / pgmorl_pop",
                                               ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),
     "derived.ppo_batch": Same("frames_per_batch / pgmorl_pop", ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),

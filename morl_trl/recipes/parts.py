@@ -80,6 +80,8 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
         init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
         device=device,
         exploration_type=ExplorationType.RANDOM,
+        # PGMORL: every iteration starts from a reset, as the authors' member train() (mo_ppo.py:628)
+        reset_at_each_iter=bool(cfg.pgmorl_reset_each_iteration),
         auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
     )
 

@@ -38,8 +38,10 @@ Known differences from the authors (named, documented): a member's evaluation is
 discounted (raw-reward) return of its episodes that ended in the iteration's rollout (its
 policy before that iteration's update) instead of a separate evaluation episode; TorchRL's
 ``VecNorm`` standardises the rewards (mean and std of the reward) where gym's
-``NormalizeReward`` scales them by the std of the discounted return; episodes continue across
-iterations (the authors reset the envs at each iteration) and truncation bootstraps; the sparsity
+``NormalizeReward`` scales them by the std of the discounted return; every iteration starts from a
+reset of all sub-envs as the authors' (``pgmorl_reset_each_iteration``; false: episodes continue
+across iterations), but the authors also reseed the shared env with the member's seed at that
+reset (the run's seed, 42 for copied members), which we do not; truncation bootstraps; the sparsity
 of the task selection is computed on the non-dominated subset (:func:`morl_trl.metrics.sparsity`).
 
 Example:

@@ -22,7 +22,6 @@ KNOWN_OPEN = {
         "derived.own_env_steps_per_member",
         "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange",
         "derived.archive_eval_episodes_per_exchange")),
-    ("pgmorl", "derived.vector_env_reset_each_iteration"),
 }
 
 

@@ -541,3 +541,28 @@ def test_gpi_pd_humanoid_model_clips_gradients_at_10_and_starts_max_logvar_at_0_
     buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1))
     agent._dyna(buffer, 0, 16)
     assert fits == [10.0]
+
+
+# ---------------------------------------------------------------------- PGMORL: a reset at every iteration
+@pytest.mark.parametrize("reset, continuing", [(True, 0), (False, 4)])
+def test_pgmorl_resets_every_sub_env_at_the_start_of_each_iteration(reset, continuing, single_thread):
+    """The authors' member train() starts with envs.reset (mo_ppo.py:628): no episode runs across iterations
+    (``pgmorl_reset_each_iteration``; false: all 4 sub-envs' episodes go on, none ends within 16 steps)."""
+    pytest.importorskip("mujoco")
+    from morl_trl.recipes.off_policy import make_collector
+    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+
+    cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=4, pgmorl_envs_per_member=2,
+                         frames_per_batch=64, frames=192, hidden=(8,), progress=False, pgmorl_reset_each_iteration=reset)
+    assert resolve_config("pgmorl", "MOHopperDR-v5").pgmorl_reset_each_iteration is True
+    torch.manual_seed(0)
+    env = make_pgmorl_training_env(cfg, CPU)
+    agent = make_pgmorl_agent(cfg, env, gamma=0.99, device=CPU)
+    collector = make_collector(cfg, env, agent.explore_policy, CPU, frames_to_go=192)
+    batches = [b.clone() for _, b in zip(range(3), collector)]  # [4 sub-envs, 16 steps] each
+    collector.shutdown()
+    assert [tuple(b.shape) for b in batches] == [(4, 16)] * 3
+    for before, after in zip(batches[:-1], batches[1:]):
+        last, first = before["collector", "traj_ids"][:, -1], after["collector", "traj_ids"][:, 0]
+        assert not bool(before["next", "done"][:, -1].any())
+        assert int((last == first).sum()) == continuing  # sub-envs whose episode continues into the next batch

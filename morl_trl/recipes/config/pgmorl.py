@@ -39,6 +39,7 @@ class PGMORLConfig:
     pgmorl_clip: float = 0.2
     pgmorl_gae_lambda: float = 0.95
     pgmorl_eval_obs: str = "raw"
+    pgmorl_reset_each_iteration: bool = True  # envs.reset at each member's train() (mo_ppo.py:628)
 
 
 # MOPPO.eval samples its actions
