@@ -106,6 +106,14 @@ def run(case_name: str, seed: int, out: Path) -> None:
 
     from morl_trl.envs.foreign import MO_GYMNASIUM_REF_POINTS
 
+    # MB 1.3.0's DST termination function (GPI-PD's model rollouts) imports mo_gymnasium.deep_sea_treasure,
+    # which mo-gymnasium >= 1.1 moved to mo_gymnasium.envs.deep_sea_treasure: alias the old path
+    import mo_gymnasium.envs.deep_sea_treasure as dst_pkg
+    import mo_gymnasium.envs.deep_sea_treasure.deep_sea_treasure as dst_mod
+
+    sys.modules.setdefault("mo_gymnasium.deep_sea_treasure", dst_pkg)
+    sys.modules.setdefault("mo_gymnasium.deep_sea_treasure.deep_sea_treasure", dst_mod)
+
     case = CASES[case_name]
     seed_everything(seed)
     torch.set_num_threads(1)
