@@ -52,6 +52,9 @@ class MORLDConfig:
     exchange_every: int = 20_000
     weight_adaptation: str = "none"
     psa_delta: float = 0.1
+    # the archive evaluation after every exchange: 5 stochastic episodes per member on a DR env
+    # (num_eval_episodes_for_front, morld.py:516)
+    morld_eval_episodes: int = 5
 
 
 @dataclass
