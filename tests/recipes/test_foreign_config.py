@@ -26,6 +26,12 @@ def test_foreign_env_gets_morl_baselines_constructor_defaults():
     # learned less on fruit-tree-v0 in benchmarks/parity)
     pcn = resolve_config("pcn", "fruit-tree-v0")
     assert (pcn.num_envs, pcn.frames_per_batch, pcn.pcn_step_episodes, pcn.pcn_model_updates) == (1, 1, 10, 50)
+    # continuous actions: GPILSContinuousAction's values; the dynamics model's only for GPI-PD (GPI-LS
+    # refused them: `morl-trl train gpi_ls mo-mountaincarcontinuous-v0` failed before this)
+    gpi_c = resolve_config("gpi_ls", "mo-mountaincarcontinuous-v0")
+    assert (gpi_c.hidden, gpi_c.buffer_size, gpi_c.gpi_policy_delay, gpi_c.gpi_min_priority) == ((256, 256), 400_000, 2, 0.1)
+    pd_c = resolve_config("gpi_pd", "mo-mountaincarcontinuous-v0")
+    assert (pd_c.gpi_dynamics_hidden, pd_c.gpi_real_ratio, pd_c.gpi_dynamics_rollout_len) == ((200, 200, 200, 200), 0.1, 5)
     # a paper domain keeps the paper's values
     assert resolve_config("envelope", "MOLavaGridDR-v0").num_sampled_prefs == 4
     assert resolve_config("envelope", "MOLunarLanderDR-v0").num_sampled_prefs == 8
