@@ -11,8 +11,22 @@ Each figure is a full update as a training loop runs it, replay sampling include
   objectives, 4 x 256 MLPs, batch 256, alpha 0.2, two vector critics, Polyak 0.005.
   Ours: ``CAPQLLoss`` + ``TensorDictReplayBuffer``.
 
-The peer is MORL-Baselines' ``Envelope.update()`` / ``CAPQL.update()`` on the same
-settings, driven directly on a filled buffer. Install it in a scratch environment that
+* **GPI-LS / GPI-PD** at the MO-LunarLander settings (see :func:`ours_gpi`).
+* **PCN** at MO-LunarLander ([pcn.lunarlander] in ../shared/reference/hyperparameters.toml):
+  the authors' network (``net_arch = [256] * 4``), batch 256, lr 3e-4, on a replay of 1000
+  episodes. Ours: ``PCNAgent.update``; peer: ``PCN.update()`` with the authors' network.
+* **MORL/D** (SB) at MO-Hopper ([morld_sb.hopper]): one *population update* = each of the 6
+  members updated once (batch 256 each from the shared buffer, 4 x 256 MLPs, two critics,
+  learned temperature). Ours: ``MORLDAgent.update`` (one batched step); peer: ``MOSAC.update()``
+  of each member, as MORL-Baselines' MORL/D steps them.
+* **PGMORL** at MO-Hopper ([pgmorl.hopper]): one *update* = one clipped-PPO minibatch step of the
+  whole population (6 members, 4 envs x 2048 steps each, 10 epochs x 32 minibatches, 4 x 256 tanh
+  MLPs); timed as whole iterations (GAE included) divided by their 320 updates. Ours:
+  ``PGMORLAgent.learn``; peer: each member's ``MOPPO`` advantages and ``update()``.
+
+PCN, MORL/D and PGMORL are built as ``morl-trl train`` builds them (``resolve_config`` at the
+paper's domain) and time on the CPU only. The peer is MORL-Baselines' ``Envelope.update()`` /
+``CAPQL.update()`` / ... on the same settings, driven directly on a filled buffer. Install it in a scratch environment that
 reuses our torch (``morl-baselines`` itself pulls an unpinned torch):
 
     python -m venv --system-site-packages /tmp/mb_venv
@@ -208,6 +222,94 @@ def gpi_support(seed=0):
     return np.concatenate([np.eye(k), rng.dirichlet(np.ones(k), 2)]).astype(np.float32)
 
 
+# ---------------------------------------------- ours: PCN, MORL/D, PGMORL (the recipes' agents)
+# These three are built as ``morl-trl train`` builds them (``resolve_config`` at the paper's
+# domain: ../shared/reference/hyperparameters.toml [pcn.lunarlander], [morld_sb.hopper],
+# [pgmorl.hopper]), so their networks, batch sizes and optimizers are the recipe's.
+PCN_ENV, MORLD_ENV, PGMORL_ENV = "MOLunarLanderDR-v0", "MOHopperDR-v5", "MOHopperDR-v5"
+
+
+def pcn_episodes(n, obs, actions, k, seed=2):
+    """``n`` episodes of 100-300 random steps ``(obs [T, obs], action [T], reward [T, k])``: the
+    replay PCN learns from once its ``num_er_episodes = 1000`` random episodes are in
+    ([pcn.lunarlander.train]; MO-LunarLander episodes run up to 1000 steps, most end far sooner)."""
+    g = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        t = int(g.integers(100, 300))
+        out.append((g.standard_normal((t, obs)).astype(np.float32), g.integers(actions, size=t),
+                    g.standard_normal((t, k)).astype(np.float32)))
+    return out
+
+
+def _recipe_agent(algo, env_id, **overrides):
+    from morl_trl.envs import domain_of
+    from morl_trl.recipes import build_agent, build_training_env, resolve_config
+    from morl_trl.recipes.parts import run_discount
+
+    cfg = resolve_config(algo, env_id, device="cpu", logger="none", progress=False, **overrides)
+    env = build_training_env(cfg, torch.device("cpu"))
+    agent = build_agent(cfg, env, gamma=run_discount(cfg, domain_of(env_id)), device=torch.device("cpu"))
+    return cfg, env, agent
+
+
+def ours_pcn(eps):
+    """``PCNAgent.update``: 256 steps of the episode replay (``EpisodeReplay.sample``), ``PCNLoss``
+    on the authors' network (26 -> 256 embeddings, 3 x 256 head), fused Adam (lr 3e-4)."""
+    _, _, agent = _recipe_agent("pcn", PCN_ENV)
+    for o, a, r in eps:
+        agent.replay.add(torch.from_numpy(o), torch.from_numpy(a), torch.from_numpy(r))
+    return lambda: agent.update(None)
+
+
+def morld_transitions(n, obs, act, k, seed=3):
+    g = np.random.default_rng(seed)
+    done = torch.as_tensor(g.random(n) < 0.01).unsqueeze(-1)
+    return TensorDict({
+        "observation": torch.as_tensor(g.standard_normal((n, obs)), dtype=torch.float32),
+        "action": torch.as_tensor(g.uniform(-1, 1, (n, act)), dtype=torch.float32),
+        ("next", "observation"): torch.as_tensor(g.standard_normal((n, obs)), dtype=torch.float32),
+        ("next", "reward"): torch.as_tensor(g.standard_normal((n, k)), dtype=torch.float32),
+        ("next", "done"): done, ("next", "terminated"): done.clone()}, [n])
+
+
+def ours_morld(td, buffer_size):
+    """``MORLDAgent.update`` (MORL/D SB at MO-Hopper): all 6 members at once, 256 transitions each
+    from the shared buffer, critics + actor + temperature, one optimizer step per network kind,
+    Polyak targets."""
+    from morl_trl.recipes.parts import make_replay_buffer
+
+    cfg, _, agent = _recipe_agent("morld", MORLD_ENV, buffer_size=buffer_size)
+    rb = make_replay_buffer(cfg, torch.device("cpu"))
+    rb.extend(td)
+    return lambda: agent.update(rb), cfg
+
+
+def ours_pgmorl(steps):
+    """``PGMORLAgent.learn`` of one iteration (its evaluation and evolution left out): vector GAE
+    of the 6 x 4 x ``steps`` batch, then 10 epochs x 32 minibatches, each one clipped-PPO step of
+    the whole batched population (4 x 256 tanh actor and critic per member)."""
+    cfg, env, agent = _recipe_agent("pgmorl", PGMORL_ENV, frames_per_batch=24 * steps)
+    P, E = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member
+    n, obs = P * E, env.observation_spec["observation"].shape[-1]
+    act, k = env.action_spec.shape[-1], env.full_reward_spec["reward"].shape[-1]
+    g = torch.Generator().manual_seed(4)
+    batch = TensorDict({
+        "observation": torch.randn(n, steps, obs, generator=g), "action": torch.randn(n, steps, act, generator=g).clamp(-1, 1),
+        "next": {"observation": torch.randn(n, steps, obs, generator=g), "reward": torch.randn(n, steps, k, generator=g),
+                 "done": torch.zeros(n, steps, 1, dtype=torch.bool), "terminated": torch.zeros(n, steps, 1, dtype=torch.bool),
+                 "episode_discounted_return": torch.zeros(n, steps, k)},
+    }, [n, steps])
+    with torch.no_grad():
+        batch.set("action_log_prob", agent.actor.get_dist(batch.select("observation")).log_prob(batch["action"]))
+
+    def step():
+        agent.iteration = 1  # past the first iteration's evaluation of the untrained members; no evolution
+        agent.learn(batch, None, 0)
+
+    return step, cfg.pgmorl_epochs * cfg.pgmorl_minibatches, obs, act, k
+
+
 # ------------------------------------------------------------------- MORL-Baselines itself
 def mb_gpi(tr, support, buffer_size, gpi_pd, device="cpu"):
     """MORL-Baselines' ``GPIPD.update(w)`` (``gpi_pd=False``: GPI-LS; ``dyna=False``) on a filled
@@ -237,6 +339,98 @@ def mb_gpi(tr, support, buffer_size, gpi_pd, device="cpu"):
 
     return step
 
+
+
+def mb_pcn(eps, obs, actions, k):
+    """MORL-Baselines' ``PCN.update()`` on the same episodes, with the authors' network (their
+    fork's ``net_arch = [256] * 4``: embeddings 256 wide, then 3 x (Linear 256, ReLU) and the
+    output; MORL-Baselines 1.3.0's default model has one hidden head layer of ``hidden_dim``,
+    so the authors' is passed as ``model_class``), batch 256, lr 3e-4 ([pcn.lunarlander.init])."""
+    import gymnasium as gym
+    from morl_baselines.multi_policy.pcn.pcn import PCN as MBPCN, BasePCNModel, Transition
+
+    class AuthorsModel(BasePCNModel):
+        def __init__(self, state_dim, action_dim, reward_dim, scaling_factor, hidden_dim):
+            super().__init__(state_dim, action_dim, reward_dim, scaling_factor, hidden_dim)
+            nn = torch.nn
+            self.s_emb = nn.Sequential(nn.Linear(state_dim, NET[0]), nn.Sigmoid())
+            self.c_emb = nn.Sequential(nn.Linear(reward_dim + 1, NET[0]), nn.Sigmoid())
+            layers = [m for a, b in zip(NET[:-1], NET[1:]) for m in (nn.Linear(a, b), nn.ReLU())]
+            self.fc = nn.Sequential(*layers, nn.Linear(NET[-1], action_dim), nn.LogSoftmax(dim=1))
+
+    pcn = MBPCN(_spaces_env(obs, gym.spaces.Discrete(actions), k), scaling_factor=np.full(k + 1, 0.1),
+                learning_rate=LR, gamma=GAMMA, batch_size=256, hidden_dim=NET[0], log=False, seed=0, device="cpu",
+                model_class=AuthorsModel)
+    step = 0
+    for o, a, r in eps:
+        trans = [Transition(o[t], int(a[t]), r[t].copy(), o[t], False) for t in range(len(o))]
+        step += len(trans)
+        pcn._add_episode(trans, max_size=100_000, step=step)
+    return lambda: pcn.update()
+
+
+def mb_morld(td, buffer_size, weights):
+    """MORL-Baselines' MORL/D SB steps one member at a time: one population update there is
+    ``MOSAC.update()`` of each of its 6 members on their shared buffer, with the paper's policy
+    arguments ([morld_sb.hopper.policy_args]: batch 256, 4 x 256, policy_lr 3e-4, q_lr 1e-3,
+    policy_freq 2 -- two actor and temperature updates every other call --, tau 0.005, autotune)."""
+    import gymnasium as gym
+    from morl_baselines.single_policy.ser.mosac_continuous_action import MOSAC
+
+    obs, act, k = td["observation"].shape[-1], td["action"].shape[-1], td["next", "reward"].shape[-1]
+    env = _spaces_env(obs, gym.spaces.Box(-1.0, 1.0, (act,), np.float32), k)
+    pop = [MOSAC(env, weights[p], scalarization=torch.matmul, buffer_size=buffer_size, gamma=GAMMA, tau=0.005,
+                 batch_size=256, learning_starts=0, net_arch=list(NET), policy_lr=3e-4, q_lr=1e-3, policy_freq=2,
+                 target_net_freq=1, autotune=True, id=p, device="cpu", log=False, seed=p) for p in range(len(weights))]
+    shared = pop[0].get_buffer()
+    for m in pop:
+        m.set_buffer(shared)
+    o, a, r = td["observation"].numpy(), td["action"].numpy(), td["next", "reward"].numpy()
+    no, d = td["next", "observation"].numpy(), td["next", "done"].numpy()
+    for i in range(td.shape[0]):
+        shared.add(obs=o[i], next_obs=no[i], action=a[i], reward=r[i], done=d[i, 0])
+    for m in pop:
+        m.global_step = 1
+
+    def step():
+        for m in pop:
+            m.global_step += 1
+            m.update()
+
+    return step
+
+
+def mb_pgmorl(steps, obs, act, k, epochs=10, minibatches=32):
+    """MORL-Baselines' PGMORL learns member by member: for each of the 6 members, ``MOPPO``'s
+    advantage computation and ``update()`` (10 epochs x 32 minibatches, lr 3e-4, clip 0.2,
+    max_grad_norm 0.5, GAE lambda 0.95, 4 x 256 tanh ``MOPPONet``: [pgmorl.hopper.moppo]) on
+    its own filled 4 x ``steps`` batch."""
+    import types
+
+    from morl_baselines.single_policy.ser.mo_ppo import MOPPO, MOPPONet
+
+    agents = []
+    g = torch.Generator().manual_seed(5)
+    for i in range(6):
+        net = MOPPONet((obs,), (act,), k, list(NET))
+        ag = MOPPO(i, net, np.full(k, 1 / k, dtype=np.float32), types.SimpleNamespace(num_envs=4), log=False,
+                   steps_per_iteration=steps, num_minibatches=minibatches, update_epochs=epochs, learning_rate=LR,
+                   gamma=GAMMA, anneal_lr=False, clip_coef=0.2, ent_coef=0.0, vf_coef=0.5, clip_vloss=True,
+                   max_grad_norm=0.5, norm_adv=True, gae=True, gae_lambda=0.95, device="cpu", seed=i)
+        for _ in range(steps):
+            o = torch.randn(4, obs, generator=g)
+            with torch.no_grad():
+                a, lp, _, v = net.get_action_and_value(o)
+            ag.batch.add(o, a, lp, torch.randn(4, k, generator=g), torch.zeros(4), v)
+        agents.append(ag)
+    nxt = torch.randn(4, obs, generator=g)
+
+    def step():
+        for ag in agents:
+            ag.returns, ag.advantages = ag._MOPPO__compute_advantages(nxt, torch.zeros(4))
+            ag.update()
+
+    return step
 
 
 def _spaces_env(obs, action_space, k):
@@ -443,8 +637,8 @@ def rec_capql(tr, buffer_size):
 
 
 # ------------------------------------------------------------------------- know the limit
-def matmuls_of(step):
-    """The matrix products one call of ``step`` runs (forward and backward of every network it
+def matmuls_of(step, n=1):
+    """The matrix products ``n`` calls of ``step`` run (forward and backward of every network it
     touches): ``[(op, shapes)]``, recorded at the dispatcher (``torch.utils._python_dispatch``)."""
     from torch.utils._python_dispatch import TorchDispatchMode
 
@@ -464,7 +658,8 @@ def matmuls_of(step):
     rec = Recorder()
     rec.calls = []
     with rec:
-        step()
+        for _ in range(n):
+            step()
     return rec.calls
 
 
@@ -519,6 +714,7 @@ def rate(step, n):
     return n / (CLOCK() - t)
 
 
+METHODS = ("envelope", "capql", "gpi_ls", "gpi_pd", "pcn", "morld", "pgmorl")
 CAPTURE_MODES = ("compile", "cudagraphs", "both", "whole", "whole+compile")
 FLOPS = True  # --no-flops: skip the "know the limit" table
 TABLE = None  # --table FILE: each row appended, tab-separated (benchmarks/gpu/check.sh collects them)
@@ -530,10 +726,13 @@ def _table(*fields) -> None:
             f.write("\t".join(str(x) for x in fields) + "\n")
 
 
-def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu"):
+def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_call=1, flop_calls=1):
     """Rows ``name / variant``: median updates/s of each of ours, the peer's, and their ratios.
 
-    A variant that fails (e.g. a capture mode on a new device) is reported and skipped."""
+    ``per_call``: updates one call of a step runs (PGMORL: a step is one iteration's 10 x 32
+    minibatch updates); ``updates`` counts calls; ``flop_calls``: calls the FLOP count averages
+    over (MORL/D: 2, MORL-Baselines' MOSAC updates its actor twice every other call). A variant that fails (e.g. a capture mode on a
+    new device) is reported and skipped."""
     failed = {}
     for label, step in list(variants.items()):
         try:
@@ -551,9 +750,9 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu"):
     r_peer = []
     for _ in range(rounds):
         for label, step in variants.items():
-            rates[label].append(rate(step, updates))
+            rates[label].append(rate(step, updates) * per_call)
         if peer is not None:
-            r_peer.append(rate(peer, updates))
+            r_peer.append(rate(peer, updates) * per_call)
     b = statistics.median(r_peer) if peer is not None else float("nan")
     eager = statistics.median(rates["eager"]) if "eager" in rates else float("nan")
     for label in variants:
@@ -563,9 +762,35 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu"):
         _table("losses", name, device, label, "updates/s", f"{a:.1f}", f"{b:.1f}" if peer is not None else "",
                f"{a / b:.2f}x" if peer is not None else "", f"{a / eager:.2f}x vs eager")
     if FLOPS and "eager" in variants:
-        calls = matmuls_of(variants["eager"])
-        peer_gf = matmul_flops(matmuls_of(peer)) / 1e9 if peer is not None else float("nan")
-        LIMITS.append((name, matmul_flops(calls) / 1e9, eager, matmul_rate(calls, device), len(calls), peer_gf, b))
+        calls = matmuls_of(variants["eager"], flop_calls)
+        peer_gf = (matmul_flops(matmuls_of(peer, flop_calls)) / 1e9 / per_call / flop_calls if peer is not None
+                   else float("nan"))
+        LIMITS.append((name, matmul_flops(calls) / 1e9 / per_call / flop_calls, eager, matmul_rate(calls, device),
+                       len(calls) // (per_call * flop_calls), peer_gf, b))
+
+
+def time_recipe_agents(methods, peer, args, warmup, updates, rounds, buffer_size, filled) -> None:
+    """The PCN, MORL/D and PGMORL rows (ours: the recipes' agents; peer: MORL-Baselines, when importable)."""
+    mb = peer == "morl-baselines"
+    if "pcn" in methods:
+        # the replay PCN learns from: 1000 episodes (obs 26 = 8 x 3 + 2, 4 actions, 4 objectives)
+        eps = pcn_episodes(64 if args.tiny else 1000, ENVELOPE["obs"], ENVELOPE["actions"], ENVELOPE["k"])
+        compare("PCN", {"eager": ours_pcn(eps)}, mb_pcn(eps, ENVELOPE["obs"], ENVELOPE["actions"], ENVELOPE["k"])
+                if mb else None, warmup=warmup, updates=updates, rounds=rounds)
+    if "morld" in methods:
+        td = morld_transitions(filled, CAPQL["obs"], CAPQL["act"], CAPQL["k"])
+        step, _ = ours_morld(td, buffer_size)
+        # (one population update: every member updated once; the same weights on both sides)
+        from morl_trl.preferences import energy_weights
+
+        w = energy_weights(CAPQL["k"], 6, seed=0, dtype=torch.float32).numpy()
+        compare("MORL/D", {"eager": step}, mb_morld(td, buffer_size, w) if mb else None, warmup=max(1, warmup // 2),
+                updates=max(1, updates // 4), rounds=rounds, flop_calls=2)
+    if "pgmorl" in methods:
+        steps = args.pgmorl_steps or (64 if args.tiny else 256 if args.quick else 2048)
+        step, per_call, obs, act, k = ours_pgmorl(steps)
+        compare("PGMORL", {"eager": step}, mb_pgmorl(steps, obs, act, k) if mb else None, warmup=1, updates=1,
+                rounds=rounds, per_call=per_call)
 
 
 def main(argv=None) -> int:
@@ -575,8 +800,9 @@ def main(argv=None) -> int:
                    help="a seconds-long dry run (small buffer, 2 updates): every row runs, nothing is measured")
     p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--no-flops", action="store_true", help="skip the FLOP count / dense-matmul limit table")
-    p.add_argument("--methods", nargs="+", default=["envelope", "capql", "gpi_ls", "gpi_pd"],
-                   choices=["envelope", "capql", "gpi_ls", "gpi_pd"], help="which updates to time")
+    p.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="which updates to time")
+    p.add_argument("--pgmorl-steps", type=int, default=None,
+                   help="PGMORL steps per env and iteration (default: the paper's 2048; --quick: 256)")
     p.add_argument("--peer", choices=["auto", "morl-baselines", "recreation", "none"], default="auto")
     p.add_argument("--device", default="cpu", help="cpu or cuda: where ours (and MORL-Baselines) run")
     p.add_argument("--capture", nargs="*", default=None, choices=list(CAPTURE_MODES),
@@ -659,6 +885,11 @@ def main(argv=None) -> int:
         peer_gpi = mb_gpi(env_tr, support, buffer_size, pd) if peer == "morl-baselines" else None
         compare(name, {"eager": ours_gpi(env_tr, support, buffer_size, pd)}, peer_gpi, warmup=warmup, updates=updates,
                 rounds=rounds, device=device)
+    cpu_only = [m for m in ("pcn", "morld", "pgmorl") if m in methods]
+    if cpu_only and device.type != "cpu":
+        print(f"({', '.join(cpu_only)}: timed on the CPU only)")
+    elif cpu_only:
+        time_recipe_agents(cpu_only, peer, args, warmup, updates, rounds, buffer_size, filled)
     if LIMITS:
         print("\nknow the limit (ours, eager): matmul FLOPs of one update (forward + backward of every network it "
               "touches, counted at the dispatcher) x updates/s, beside torch running the same products back to back")

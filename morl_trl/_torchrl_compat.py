@@ -2,9 +2,10 @@
 
 TorchRL gives no public way to save and restore a collector's carried TensorDict and
 trajectory pool (what an exact resume needs), to run one transform's ``_reset`` / ``_step`` on
-data outside an env (the evaluator's and PGMORL's batched bookkeeping), or to build a
-TensorDict without its checks (the envs' hot path); the losses reuse TorchRL's value cache and
-vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, which fails loudly
+data outside an env (the evaluator's and PGMORL's batched bookkeeping), to build a
+TensorDict without its checks (the envs' hot path), or to reach a replay buffer's sample unit,
+a storage's rows and a sampler's generator (the captured update's sampling,
+:mod:`morl_trl.recipes.capture`); the losses reuse TorchRL's value cache and vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, which fails loudly
 (naming the attribute) when a TorchRL or tensordict release changes it.
 
 Example:
@@ -22,7 +23,8 @@ from torchrl.objectives.utils import _cache_values, _vmap_func
 
 __all__ = ["collector_state", "load_collector_state", "transform_reset", "transform_step", "cache_values",
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
-           "ENV_BASE_INTERNALS"]
+           "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
+           "module_kwargs"]
 
 #: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
 cache_values = _cache_values
@@ -61,3 +63,24 @@ def transform_reset(transform, tensordict: TensorDictBase, tensordict_reset: Ten
 def transform_step(transform, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
     """``transform._step(tensordict, next_tensordict)``: a transform's step on data outside its env."""
     return transform._step(tensordict, next_tensordict)
+
+
+def replay_sample_unit(buffer):
+    """``buffer._sample_unit``: how a replay buffer expands sampled indices (``None``: one row per index)."""
+    return buffer._sample_unit
+
+
+def storage_data(storage) -> TensorDictBase:
+    """``storage._storage``: the TensorDict of a ``LazyTensorStorage``'s rows (full capacity), indexed without its checks."""
+    return storage._storage
+
+
+def sampler_generator(sampler) -> torch.Generator | None:
+    """``sampler._rng``: the generator a TorchRL sampler draws from (``None``: torch's global one)."""
+    return sampler._rng
+
+
+def module_kwargs(module) -> list | None:
+    """``module._kwargs``: the in_keys a tensordict ``TensorDictModule`` passes by keyword (``None``
+    or empty: all positional, so its wrapped module can be called on the input tensors directly)."""
+    return getattr(module, "_kwargs", None)

@@ -5,6 +5,7 @@ function, is checked against the packages that package may use.
 """
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -210,3 +211,74 @@ def test_no_import_cycles():
     directly or through others; a package's ``__init__`` counts as a module."""
     cycles = _cycles(_graph())
     assert not cycles, "import cycles: " + "; ".join(" <-> ".join(c) for c in cycles)
+
+
+# ---------------------------------------------------------------------- TorchRL's private attributes
+def _torchrl_private_names() -> set[str]:
+    """Every private name TorchRL defines: the attributes its classes set (``self._x =``), its
+    methods and module-level names (``def _x``, ``_x =``), read from its installed source."""
+    import torchrl
+
+    names = set()
+    pattern = re.compile(r"self\.(_[A-Za-z]\w*)\s*(?::[^=\n]*)?=(?!=)|def (_[A-Za-z]\w*)\(|^(_[A-Za-z]\w*)\s*=", re.M)
+    for path in Path(torchrl.__file__).parent.rglob("*.py"):
+        for groups in pattern.findall(path.read_text(errors="ignore")):
+            names.update(n for n in groups if n and not n.startswith("__"))
+    return names
+
+
+#: reviewed uses of a name TorchRL also defines, on an object that is not TorchRL's
+NOT_TORCHRL = {
+    ("transforms/domain_randomization.py", "_seed"): "morl_trl.envs.ContextSampler's seed (our class)",
+    ("runs/plain.py", "_metadata"): "torch's state_dict metadata (an OrderedDict attribute)",
+}
+
+
+def _private_attribute_uses(path: Path, own_classes: set[str]):
+    """``(line, name)`` of every ``obj._name`` (and ``getattr/setattr/hasattr(obj, "_name")``) in
+    ``path`` on an object other than ``self``, ``cls``, ``super()``, ``type(self)`` or a class of
+    morl_trl's own (a subclass reaching its TorchRL base through ``self`` is checked by
+    tests/test_torchrl_compat.py, which lists those names)."""
+
+    def own(node) -> bool:
+        if isinstance(node, ast.Name):
+            return node.id in {"self", "cls"} | own_classes
+        return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {"super", "type"}
+
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Attribute) and _is_private(node.attr) and not own(node.value):
+            yield node.lineno, node.attr
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+              and node.func.id in {"getattr", "setattr", "hasattr"} and len(node.args) >= 2
+              and isinstance(node.args[1], ast.Constant) and isinstance(node.args[1].value, str)
+              and _is_private(node.args[1].value) and not own(node.args[0])):
+            yield node.lineno, node.args[1].value
+
+
+def _own_classes() -> set[str]:
+    return {n.name for p in MODULES.values() for n in ast.walk(ast.parse(p.read_text())) if isinstance(n, ast.ClassDef)}
+
+
+def test_torchrl_private_attributes_are_used_only_in_the_adapter_module():
+    """``obj._x`` where TorchRL defines ``_x`` is allowed only in morl_trl/_torchrl_compat.py (each
+    name there has a test in tests/test_torchrl_compat.py that fails when TorchRL changes it)."""
+    torchrl_names, own_classes = _torchrl_private_names(), _own_classes()
+    bad = []
+    for path in MODULES.values():
+        rel = str(path.relative_to(PACKAGE))
+        if rel == "_torchrl_compat.py":
+            continue
+        for line, name in _private_attribute_uses(path, own_classes):
+            if name in torchrl_names and (rel, name) not in NOT_TORCHRL:
+                bad.append(f"morl_trl/{rel}:{line}: .{name} (a TorchRL private name: go through morl_trl._torchrl_compat)")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_torchrl_private_attribute_check_catches_one(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("def f(buffer, self):\n    a = buffer._sampler\n    b = getattr(buffer, '_sample_unit', None)\n"
+                     "    return self._sampler, a, b\n")
+    names = _torchrl_private_names()
+    assert {"_sampler", "_storage", "_sample_unit", "_rng", "_carrier"} <= names
+    assert [(line, n) for line, n in _private_attribute_uses(probe, set()) if n in names] == [(2, "_sampler"),
+                                                                                              (3, "_sample_unit")]

@@ -63,3 +63,48 @@ def test_prioritized_sampler_internals_exist():
 def test_env_base_internals_exist():
     missing = [n for n in compat.ENV_BASE_INTERNALS if not callable(getattr(EnvBase, n, None))]
     assert not missing, f"TorchRL's EnvBase no longer has {missing} (morl_trl.envs.ContextualMOEnv overrides them)"
+
+
+# ---------------------------------------------------------------------- replay buffers (the captured update's sampling)
+def _buffer(sampler=None):
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    kw = {} if sampler is None else {"sampler": sampler}
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(8), batch_size=2, **kw)
+
+
+def test_replay_sample_unit_is_the_buffers_sample_unit():
+    buffer = _buffer()
+    assert "_sample_unit" in vars(buffer), "TorchRL's ReplayBuffer no longer sets _sample_unit (recipes.capture reads it)"
+    assert compat.replay_sample_unit(buffer) is None  # a buffer built without one: one row per sampled index
+    buffer._sample_unit = marker = object()
+    assert compat.replay_sample_unit(buffer) is marker
+
+
+def test_storage_data_holds_the_rows_written_at_full_capacity():
+    buffer = _buffer()
+    buffer.extend(TensorDict({"x": torch.tensor([[1.0], [2.0], [3.0]])}, [3]))
+    data = compat.storage_data(buffer.storage)
+    assert isinstance(data, TensorDict), "TorchRL's LazyTensorStorage no longer keeps its rows in _storage"
+    assert data.batch_size == torch.Size([8]) and data["x"][:3].flatten().tolist() == [1.0, 2.0, 3.0]
+    assert data["x"][torch.tensor([2, 0])].flatten().tolist() == [3.0, 1.0]  # (indexed as the captured update does)
+
+
+def test_sampler_generator_is_the_generator_the_buffer_gives_its_sampler():
+    from morl_trl.data import prioritized_sampler
+
+    buffer = _buffer(prioritized_sampler(8, alpha=0.6, beta=0.4))  # (a subclass of TorchRL's PrioritizedSampler)
+    assert compat.sampler_generator(buffer.sampler) is None  # torch's global generator
+    generator = torch.Generator().manual_seed(0)
+    buffer.set_rng(generator)
+    assert compat.sampler_generator(buffer.sampler) is generator, "TorchRL's samplers no longer keep set_rng's in _rng"
+
+
+def test_module_kwargs_says_which_in_keys_go_by_keyword():
+    from tensordict.nn import TensorDictModule
+
+    positional = TensorDictModule(torch.nn.Identity(), in_keys=["x"], out_keys=["y"])
+    keyword = TensorDictModule(lambda a: a, in_keys={"x": "a"}, out_keys=["y"])
+    assert hasattr(positional, "_kwargs"), "tensordict's TensorDictModule no longer sets _kwargs (objectives.fast_path)"
+    assert not compat.module_kwargs(positional)  # the fast paths call its module on the tensors directly
+    assert list(compat.module_kwargs(keyword)) == ["x"]  # (tensordict keeps the in_key names)

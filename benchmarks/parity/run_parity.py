@@ -202,9 +202,10 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                 body.append(f"| final {label} | " + " | ".join(cells) + " |")
         fps = {}
         for lib, rs in sorted(runs.items()):
-            # runs that record eval_seconds timed training from the end of the build (the first runs of
-            # ours, before that fix, also timed building env, agent and collector: left out when others exist)
-            timed = [r for r in rs if r.get("train_fps") and "eval_seconds" in r] or [r for r in rs if r.get("train_fps")]
+            # the first runs of ours (marked build_in_train_seconds) also timed building env, agent and
+            # collector: left out of the mean when others exist
+            timed = ([r for r in rs if r.get("train_fps") and not r.get("build_in_train_seconds")]
+                     or [r for r in rs if r.get("train_fps")])
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]

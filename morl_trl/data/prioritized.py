@@ -22,6 +22,7 @@ from torchrl.data.replay_buffers.samplers.prioritized import PrioritizedSampler
 from torchrl.data.replay_buffers.storages import Storage
 from torchrl.data.replay_buffers.utils import unravel_index
 
+from morl_trl._torchrl_compat import sampler_generator
 from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
 
 __all__ = ["TorchPrioritizedSampler", "RunningMaxPrioritizedSampler", "native_prioritized_sampler_available", "normalize_device", "prioritized_sampler"]
@@ -170,7 +171,7 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         else:  # the same guard without a host synchronisation: a device-side assert
             torch._assert_async((p_sum > 0) & torch.isfinite(p_min) & (p_min > 0),
                                 _NON_POSITIVE.format(sum="?", min="?", n=n))
-        rng = self._rng
+        rng = sampler_generator(self)
         u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
         mass = u.to(device=self.device, dtype=self.dtype) * p_sum
         index = self._sum_tree.scan_lower_bound(mass).clamp_max_(n - 1)
@@ -193,7 +194,7 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         draws and arithmetic (hence the same indices), minus the checks that read device values
         (positive total, indices in range: the descent never enters a zero-sum subtree, so every
         index lands on a written leaf) -- capturable in a CUDA graph."""
-        rng = self._rng
+        rng = sampler_generator(self)
         u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else self.device)
         return self.descend_unchecked(u)
 

@@ -41,7 +41,7 @@ from morl_trl.metrics import (
 from morl_trl.preferences import check_simplex, energy_weights
 from morl_trl.transforms import DiscountedVectorReturn, PreferenceConditioning
 
-__all__ = ["MultiContextEvaluator"]
+__all__ = ["MultiContextEvaluator", "suite_contexts"]
 
 Policy = Callable[[TensorDictBase], TensorDictBase]
 EnvFactory = Callable[..., EnvBase]
@@ -242,11 +242,10 @@ class MultiContextEvaluator:
             raise ValueError(f"weights must be a [W, k] weight set or a positive int, got {weights!r}")
         self._n_weights = n_weights
         n_total = len(self.context_names) * n_weights * episodes
-        if chunk_size is None:
-            chunk_size = n_total
-        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+        if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1):
             raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
-        self.chunk_size = chunk_size
+        self._whole_grid = chunk_size is None  # (a pool of one sub-env per row, whatever the weights of a call)
+        self.chunk_size = n_total if chunk_size is None else chunk_size
 
         probe = None
         if self.domain is not None:
@@ -311,12 +310,8 @@ class MultiContextEvaluator:
 
     # ------------------------------------------------------------------ setup helpers
     def _resolve_contexts(self, contexts, env_factory) -> tuple[tuple[str, ...], torch.Tensor | None]:
-        from morl_trl.envs.registry import domain_of, evaluation_suite, is_randomized
-
         if contexts is None:
             return ("default",), None
-        if isinstance(contexts, str):
-            contexts = evaluation_suite(contexts) if is_randomized(contexts) else [contexts]
         if isinstance(contexts, Mapping):
             if not contexts:
                 raise ValueError("contexts is empty")
@@ -336,19 +331,8 @@ class MultiContextEvaluator:
             if len({v.shape for v in vecs}) != 1:
                 raise ValueError(f"contexts have different sizes: {[tuple(v.shape) for v in vecs]}")
             return names, torch.stack(vecs)
-        ids = list(contexts)
-        if not ids:
-            raise ValueError("contexts is empty")
-        if len(set(ids)) != len(ids):
-            raise ValueError(f"duplicate context ids in {ids}")
-        specs = [domain_of(i) for i in ids]  # raises on unknown ids
-        domains = {s.train_id for s in specs}
-        if len(domains) != 1:
-            raise ValueError(
-                f"contexts {ids} belong to several domains {sorted(domains)}; evaluate one domain at a time"
-            )
-        self.domain = specs[0]
-        return tuple(ids), torch.stack([self.domain.context_of(i) for i in ids])
+        self.domain, names, table = suite_contexts(contexts)
+        return names, table
 
     def _resolve_bounds(self, bounds, k: int) -> dict[str, Bounds]:
         out = {}
@@ -365,16 +349,22 @@ class MultiContextEvaluator:
             out[c] = b
         return out
 
-    def _pool_size(self, group: str | None) -> int:
-        rows = self._n_weights * self.episodes * (1 if group is not None else len(self.context_names))
-        return min(self.chunk_size, rows)
+    def _pool_size(self, group: str | None, n_weights: int | None = None) -> int:
+        n_weights = self._n_weights if n_weights is None else n_weights
+        rows = n_weights * self.episodes * (1 if group is not None else len(self.context_names))
+        return rows if self._whole_grid else min(self.chunk_size, rows)
 
-    def _env(self, group: str | None) -> EnvBase:
+    def _env(self, group: str | None, n_weights: int | None = None) -> EnvBase:
         """The pool env of ``group`` (a context name for ``{name: env_factory}``, else ``None``):
-        built once with the evaluation transforms appended, kept for later evaluations."""
-        num_envs = self._pool_size(group)
+        built once with the evaluation transforms appended, kept for later evaluations (an
+        evaluation at other weights that needs another pool size replaces it)."""
+        num_envs = self._pool_size(group, n_weights)
         env = self._envs.get((group, num_envs))
         if env is None:
+            for key in [key for key in self._envs if key[0] == group]:
+                old = self._envs.pop(key)
+                if not old.is_closed:
+                    old.close()
             factory = self.env_factory if group is None else self.context_factories[group]
             env = factory(num_envs=num_envs, seed=self.seed)
             if not isinstance(env, EnvBase):
@@ -417,28 +407,41 @@ class MultiContextEvaluator:
         )
 
     # ------------------------------------------------------------------ running
-    def evaluate(self, policy: Policy | str | None = None) -> EvaluationResult:
-        """Run the grid (optionally with another ``policy``) and compute every metric."""
+    def evaluate(self, policy: Policy | str | None = None, *, weights: torch.Tensor | np.ndarray | None = None,
+                 seed: int | None = None) -> EvaluationResult:
+        """Run the grid (optionally with another ``policy``) and compute every metric.
+
+        ``weights`` ``[W', k]`` (on the simplex) and ``seed`` replace the evaluator's own for this
+        call only: the same contexts, episodes, env and discount at other weights (GPI-LS's values
+        at the corner weights of its CCS, :mod:`morl_trl.recipes.gpi`). The result's ``weights``
+        are the ones evaluated.
+        """
         policy = self.policy if policy is None else policy
-        C, W, E = len(self.context_names), len(self.weights), self.episodes
         k = len(self.objective_names)
+        if weights is None:
+            weights = self.weights
+        else:
+            weights = torch.as_tensor(check_simplex(_as_2d(weights), k, name="weights"), dtype=torch.float64)
+        seed = self.seed if seed is None else int(seed)
+        C, W, E = len(self.context_names), len(weights), self.episodes
         # grid row r = (c * W + w) * E + e
-        pref_rows = self.weights.repeat_interleave(E, dim=0)
+        pref_rows = weights.repeat_interleave(E, dim=0)
         if self.context_factories is None:
             ctx_rows = None if self.contexts is None else self.contexts.repeat_interleave(W * E, dim=0)
-            disc, und, lengths, sorl = self._run_pool(policy, self._env(None), ctx_rows, pref_rows.repeat(C, 1))
+            disc, und, lengths, sorl = self._run_pool(policy, self._env(None, W), ctx_rows, pref_rows.repeat(C, 1), seed)
         else:
-            runs = [self._run_pool(policy, self._env(name), None, pref_rows) for name in self.context_names]
+            runs = [self._run_pool(policy, self._env(name, W), None, pref_rows, seed) for name in self.context_names]
             disc, und, lengths = (torch.cat(parts) for parts in list(zip(*runs))[:3])
             # f_SORL only where every context's env emits it
             sorl = None if any(r[3] is None for r in runs) else torch.cat([r[3] for r in runs])
         if sorl is not None:
             sorl = sorl.reshape(C, W, E, 2)
-        return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E), sorl)
+        return self._result(disc.reshape(C, W, E, k), und.reshape(C, W, E, k), lengths.reshape(C, W, E), sorl, weights)
 
     __call__ = evaluate
 
-    def _check_contexts(self, td: TensorDictBase, which: torch.Tensor, wanted: torch.Tensor, rows: torch.Tensor) -> None:
+    def _check_contexts(self, td: TensorDictBase, which: torch.Tensor, wanted: torch.Tensor, rows: torch.Tensor,
+                        rows_per_context: int) -> None:
         """Raise unless the env reports the contexts it was given for the sub-envs ``which``."""
         got = td.get("context", None)
         if got is None:
@@ -451,7 +454,7 @@ class MultiContextEvaluator:
         if bool(off.any()):
             ok = ~off.any(-1)
             i = int((~ok).nonzero()[0, 0])
-            name = self.context_names[int(rows[i]) // (len(self.weights) * self.episodes)]
+            name = self.context_names[int(rows[i]) // rows_per_context]
             raise ValueError(
                 f"the env from env_factory reset a sub-env to context {got[i].tolist()} where the evaluator "
                 f"gave {name!r} = {wanted[i].tolist()} in the reset TensorDict: something in its stack "
@@ -460,7 +463,8 @@ class MultiContextEvaluator:
                 "otherwise be labelled with contexts they did not run"
             )
 
-    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor):
+    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor,
+                  seed: int):
         """Run every row as one episode on the pool ``env`` (``chunk_size`` sub-envs).
 
         Sub-env ``i`` starts on row ``i``; whenever a sub-env finishes its episode it is
@@ -479,7 +483,8 @@ class MultiContextEvaluator:
         m = int(batch_size[0])
         k = len(self.objective_names)
         pref_key = self.preference_key
-        inner.set_seed(self.seed)
+        inner.set_seed(seed)
+        rows_per_context = n_rows // len(self.context_names)
 
         row = torch.arange(m)  # the grid row each sub-env runs (-1: idle)
         next_row = m
@@ -512,14 +517,14 @@ class MultiContextEvaluator:
         dev = self.device
         rng_devices = [dev.index or 0] if dev.type == "cuda" else []
         with torch.random.fork_rng(devices=rng_devices), torch.no_grad(), set_exploration_type(self.exploration_type):
-            torch.manual_seed(self.seed)
+            torch.manual_seed(seed)
             first = TensorDict({pref_key: pref_rows[row]}, batch_size=batch_size, device=dev)
             if ctx_rows is not None:
                 first.set("context", ctx_rows[row])
             td = reset(first)
             out_dev = td.get("done").device
             if ctx_rows is not None:
-                self._check_contexts(td, everyone.to(out_dev), ctx_rows[row].to(out_dev), row)
+                self._check_contexts(td, everyone.to(out_dev), ctx_rows[row].to(out_dev), row, rows_per_context)
             while True:
                 if action_spec is not None:
                     td.set(action_key, action_spec.rand())
@@ -590,12 +595,13 @@ class MultiContextEvaluator:
                     td_next.set("_reset", resetting.to(out_dev).reshape(td_next.get("done").shape))
                     td_next = reset(td_next)
                     if fresh is not None and ctx_rows is not None:
-                        self._check_contexts(td_next, fresh.to(out_dev), ctx_rows[row[fresh]].to(out_dev), row[fresh])
+                        self._check_contexts(td_next, fresh.to(out_dev), ctx_rows[row[fresh]].to(out_dev), row[fresh],
+                                            rows_per_context)
                 td = td_next
         return disc, und, lengths, (sorl if sorl_key is not None else None)
 
     # ------------------------------------------------------------------ metrics
-    def _result(self, disc, und, lengths, sorl=None) -> EvaluationResult:
+    def _result(self, disc, und, lengths, sorl=None, weights=None) -> EvaluationResult:
         values = disc.mean(dim=2).numpy()  # [C, W, k]
         per_context = {}
         eum_w = self.eum_weights.numpy()
@@ -641,7 +647,7 @@ class MultiContextEvaluator:
             contexts=torch.zeros(len(self.context_names), 0) if self.contexts is None else self.contexts.clone(),
             context_parameters=self.context_parameters,
             objective_names=self.objective_names,
-            weights=self.weights.clone(),
+            weights=(self.weights if weights is None else weights).clone(),
             returns=disc,
             undiscounted_returns=und,
             lengths=lengths,
@@ -665,6 +671,32 @@ class MultiContextEvaluator:
             f"episodes={self.episodes}, gamma={self.gamma}, chunk_size={self.chunk_size}, "
             f"reference={'yes' if self.reference is not None else 'no'})"
         )
+
+
+def suite_contexts(contexts: str | Sequence[str]) -> tuple:
+    """``(domain spec, names, [C, c] context vectors)`` of the env ids ``contexts`` (one domain), or of
+    a training id's evaluation suite: the contexts, in the order, that
+    :class:`MultiContextEvaluator` evaluates for the same ``contexts``.
+
+    Example:
+        >>> spec, names, table = suite_contexts("MOLavaGridDR-v0")
+        >>> len(names), names[0], table.shape
+        (8, 'MOLavaGridCheckerBoard-v0', torch.Size([8, 93]))
+    """
+    from morl_trl.envs.registry import domain_of, evaluation_suite, is_randomized
+
+    if isinstance(contexts, str):
+        contexts = evaluation_suite(contexts) if is_randomized(contexts) else [contexts]
+    ids = list(contexts)
+    if not ids:
+        raise ValueError("contexts is empty")
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"duplicate context ids in {ids}")
+    specs = [domain_of(i) for i in ids]  # raises on unknown ids
+    domains = {s.train_id for s in specs}
+    if len(domains) != 1:
+        raise ValueError(f"contexts {ids} belong to several domains {sorted(domains)}; evaluate one domain at a time")
+    return specs[0], tuple(ids), torch.stack([specs[0].context_of(i) for i in ids])
 
 
 def _as_2d(weights):

@@ -10,6 +10,7 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators
 from torchrl.objectives.value import ValueEstimatorBase
 
+from morl_trl._torchrl_compat import module_kwargs
 from morl_trl.objectives.value import VectorTD0Estimator
 from morl_trl.preferences import PREFERENCE_DISTRIBUTIONS, check_simplex, sample_preferences
 
@@ -23,7 +24,7 @@ def module_output(net, tensordict: TensorDictBase, out_key: NestedKey) -> torch.
     is called on its input tensors directly: the generic path costs a few hundred
     microseconds per call in TensorDict bookkeeping, several times per loss evaluation.
     """
-    if type(net) is TensorDictModule and not getattr(net, "_kwargs", None) and list(net.out_keys) == [out_key]:
+    if type(net) is TensorDictModule and not module_kwargs(net) and list(net.out_keys) == [out_key]:
         return net.module(*(tensordict.get(key) for key in net.in_keys))
     return net(tensordict.copy()).get(out_key)
 

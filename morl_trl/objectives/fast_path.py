@@ -22,6 +22,7 @@ from tensordict.nn import ProbabilisticTensorDictModule, TensorDictModule
 from tensordict.utils import NestedKey
 from torch import Tensor
 
+from morl_trl._torchrl_compat import module_kwargs
 from morl_trl.objectives.networks import PreferenceConditionedMLP
 
 __all__ = ["FunctionalNetwork", "GaussianActorPlan"]
@@ -63,7 +64,7 @@ class FunctionalNetwork:
     @classmethod
     def of(cls, module: TensorDictModule, params: TensorDictBase, prefix: tuple[str, ...] = ("module",)):
         """The plan for a plain positional ``TensorDictModule(PreferenceConditionedMLP)``, else ``None``."""
-        if type(module) is not TensorDictModule or getattr(module, "_kwargs", None):
+        if type(module) is not TensorDictModule or module_kwargs(module):
             return None
         net = module.module
         if not isinstance(net, PreferenceConditionedMLP) or not net.supports_forward_with:
@@ -95,7 +96,7 @@ class GaussianActorPlan:
         if not isinstance(modules, torch.nn.ModuleList) or len(modules) != 2:
             return None
         body, dist_module = modules
-        if type(body) is not TensorDictModule or getattr(body, "_kwargs", None):
+        if type(body) is not TensorDictModule or module_kwargs(body):
             return None
         if not isinstance(dist_module, ProbabilisticTensorDictModule):
             return None

@@ -77,6 +77,15 @@ class PCNNetwork(nn.Module):
         return self.fc(self.s_emb(obs) * self.c_emb(c))
 
 
+def _same(held, leaf) -> bool:
+    """``held`` is ``leaf`` (a parameter: gradients must reach that very leaf), or, for a buffer,
+    the same memory read the same way (TorchRL keeps a shallow copy of buffers)."""
+    if held is leaf:
+        return True
+    return (held is not None and not isinstance(leaf, nn.Parameter) and held.data_ptr() == leaf.data_ptr()
+            and held.shape == leaf.shape and held.stride() == leaf.stride() and held.dtype == leaf.dtype)
+
+
 def make_pcn_network(obs_dim: int, action_dim: int, num_objectives: int, scaling_factor,
                      hidden: int | Sequence[int] = (256, 256, 256, 256), *, discrete: bool = True) -> TensorDictModule:
     """:class:`PCNNetwork` as a ``TensorDictModule`` reading ``observation``, ``desired_return`` and
@@ -124,6 +133,22 @@ class PCNLoss(LossModule):
     def _forward_value_estimator_keys(self, **kwargs) -> None:
         pass
 
+    def _module_holds_params(self) -> bool:
+        """Whether every functional parameter (and buffer) of the loss is the very tensor the network
+        module holds at that place, as :meth:`convert_to_functional` leaves them (PCN has no target
+        copy): then the network runs as it is. Anything that put other tensors in
+        ``policy_network_params`` (or in the module) makes this false and the loss swaps them in."""
+        leaves = list(self.policy_network_params.values(True, True))
+        held = getattr(self, "_held", None)
+        if held is None or len(held) != len(leaves):
+            module = self.policy_network
+            held = []
+            for k in self.policy_network_params.keys(True, True):
+                *path, name = (k,) if isinstance(k, str) else k
+                held.append((module.get_submodule(".".join(path)), name))
+            self._held = held
+        return all(_same(getattr(m, name, None), leaf) for (m, name), leaf in zip(held, leaves))
+
     out_keys = ["loss_pcn", "entropy"]
 
     @property
@@ -132,8 +157,11 @@ class PCNLoss(LossModule):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDict:
         key = self.tensor_keys.log_probs if self.discrete else self.tensor_keys.action_pred
-        with self.policy_network_params.to_module(self.policy_network, preserve_module_state=False):
+        if self._module_holds_params():  # swapping the same tensors in is a no-op (~0.25 ms per update on a CPU core)
             pred = module_output(self.policy_network, tensordict, key)
+        else:
+            with self.policy_network_params.to_module(self.policy_network, preserve_module_state=False):
+                pred = module_output(self.policy_network, tensordict, key)
         action = tensordict.get(self.tensor_keys.action)
         if self.discrete:
             logp = pred

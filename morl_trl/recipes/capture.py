@@ -58,6 +58,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.objectives import SoftUpdate
 
+from morl_trl._torchrl_compat import replay_sample_unit, sampler_generator, storage_data
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
 
@@ -159,16 +160,18 @@ class CapturedUpdate:
 
         if not self.capture_sampling or not self.agent.samples_one_batch or self.agent.policy_freq > 1:
             return False
-        sampler, storage = getattr(buffer, "_sampler", None), getattr(buffer, "_storage", None)
-        return (type(buffer) is TensorDictReplayBuffer and isinstance(sampler, TorchPrioritizedSampler)
-                and type(storage) is LazyTensorStorage and not (buffer._transform is not None and len(buffer._transform))
-                and getattr(buffer, "_sample_unit", None) is None and not buffer._writer.tracks_generations
+        if type(buffer) is not TensorDictReplayBuffer:
+            return False
+        sampler, storage, transform = buffer.sampler, buffer.storage, buffer.transform
+        return (isinstance(sampler, TorchPrioritizedSampler)
+                and type(storage) is LazyTensorStorage and not (transform is not None and len(transform))
+                and replay_sample_unit(buffer) is None and not buffer.writer.tracks_generations
                 and bool(self.agent.cfg.prioritized) and sampler.reduction == "max"
                 and sampler.supports_unchecked(storage) and buffer.priority_key == self.agent.loss.tensor_keys.priority
                 and torch.device(storage.device).type == torch.device(self.agent.device).type)
 
     def _build_whole(self, buffer):
-        sampler, storage, batch_size = buffer._sampler, buffer._storage, buffer._batch_size
+        sampler, storage, batch_size = buffer.sampler, buffer.storage, buffer.batch_size
         step = self.fn if not self.cudagraphs else self.step  # our own graph replaces CudaGraphModule
         descend, write = sampler.descend_unchecked, sampler.write_priorities_unchecked
         if self.compiled:
@@ -177,13 +180,13 @@ class CapturedUpdate:
                 step = torch.compile(self.step, mode=mode, dynamic=False)
             # the tree walks (one small op per level) fuse into a few kernels
             descend, write = (torch.compile(f, mode=mode, dynamic=False) for f in (descend, write))
-        rng = sampler._rng
+        rng = sampler_generator(sampler)
 
         def whole() -> TensorDictBase:
             # the uniform draws stay eager (compiled code draws from its own generator)
             u = torch.rand(batch_size, generator=rng, device=rng.device if rng is not None else sampler.device)
             index, weight = descend(u)
-            batch = storage._storage[index]
+            batch = storage_data(storage)[index]
             batch.set("index", index)
             batch.set("priority_weight", weight)
             result = step(batch)

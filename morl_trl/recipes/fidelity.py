@@ -302,31 +302,47 @@ _SAC_ALPHA = Same("alpha", expect=lambda v, cfg: 1.0)  # autotune: the scripts' 
 _SAC_ACTOR = Same("actor_scale", expect=lambda v, cfg: "tanh_log_std" if _continuous(cfg.env_id) else cfg.actor_scale)
 
 
-SAC = {
-    "init.buffer_size": Same("buffer_size"),
-    "init.tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
-    "init.batch_size": Same("batch_size"),
-    "init.learning_starts": Same("init_random_frames"),
-    "init.net_arch": Same("hidden", expect=_mario_after_cnn),
-    "init.policy_lr": Same("lr"),
-    "init.q_lr": Same("q_lr"),
-    "init.update_frequency": Same("update_frequency"),
-    "init.target_net_freq": Same("target_update_period", expect=_target_frames,
-                                 ours=lambda cfg: None if cfg.tau is not None else cfg.target_update_period),
-    "init.alpha": _SAC_ALPHA,
-    "init.autotune": Same("learn_alpha"),
-    "init.target_entropy_scale": Same("target_entropy_scale"),
-    "init.policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
+# the SAC agent's arguments, the same rows for the SAC baseline (``init.*``) and for every MORL/D member
+# (``policy_args.*``: MOSAC); each table adds its own net_arch row (see _sac_agent)
+_SAC_ARGS = {
+    "buffer_size": Same("buffer_size"),
+    "tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
+    "batch_size": Same("batch_size"),
+    "learning_starts": Same("init_random_frames"),
+    "policy_lr": Same("lr"),
+    "q_lr": Same("q_lr"),
+    "update_frequency": Same("update_frequency"),
+    "target_net_freq": Same("target_update_period", expect=_target_frames,
+                            ours=lambda cfg: None if cfg.tau is not None else cfg.target_update_period),
+    "alpha": _SAC_ALPHA,
+    "autotune": Same("learn_alpha"),
+    "target_entropy_scale": Same("target_entropy_scale"),
+    "policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
+}
+# the SAC agent's networks, the same rows for the SAC baseline and MORL/D
+_SAC_NETWORK = {
     "network.actor": _SAC_ACTOR,
-    "network.critic": Code("recipes.sac: two critics on the scalar reward"),
     "network.optimizers": Same("(lr, q_lr, alpha_lr, adam_eps)",
                                expect=lambda v, cfg: (3e-4, 1e-3, 1e-3, None) if _continuous(cfg.env_id)
                                else (3e-4, 3e-4, 3e-4, 1e-4),
                                ours=lambda cfg: (cfg.lr, cfg.q_lr, cfg.alpha_lr, cfg.adam_eps)),
-    "network.num_q_nets": Code("two critics"),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
     "network.init": _ACTOR_CRITIC_INIT,
+}
+
+
+def _sac_agent(prefix: str, *, net_arch) -> dict[str, Any]:
+    """:data:`_SAC_ARGS` under ``prefix`` (``init`` / ``policy_args``) and the table's ``net_arch`` rule."""
+    return {**{f"{prefix}.{k}": rule for k, rule in _SAC_ARGS.items()},
+            f"{prefix}.net_arch": Same("hidden", expect=net_arch)}
+
+
+SAC = {
+    **_sac_agent("init", net_arch=_mario_after_cnn),
+    **_SAC_NETWORK,
+    "network.critic": Code("recipes.sac: two critics on the scalar reward"),
+    "network.num_q_nets": Code("two critics"),
     "network.training_reward": Code("transforms: the domain's original scalar reward (SPEC §4)"),
     "derived.initial_alpha": Same("alpha"),
     "derived.target_entropy": Code("objectives: -|A| (continuous) / target_entropy_scale * ln|A| (discrete)"),
@@ -355,40 +371,18 @@ MORLD = {
     "policy_args.weights": Code("preferences.equally_spaced_weights(k, pop_size, seed)"),
     "policy_args.asymmetric": NotApplicable("False in every script"),
     "policy_args.scalarization": Code("recipes.morld: w . Q"),
-    "policy_args.buffer_size": Same("buffer_size"),
+    **_sac_agent("policy_args", net_arch=_net_arch),
     "policy_args.gamma": Same("gamma", ours=_gamma),
-    "policy_args.tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
-    "policy_args.batch_size": Same("batch_size"),
-    "policy_args.learning_starts": Same("init_random_frames"),
-    "policy_args.net_arch": Same("hidden", expect=_net_arch),
-    "policy_args.policy_lr": Same("lr"),
-    "policy_args.q_lr": Same("q_lr"),
-    "policy_args.update_frequency": Same("update_frequency"),
-    "policy_args.target_net_freq": Same("target_update_period", expect=_target_frames,
-                                        ours=lambda cfg: None if cfg.tau is not None else cfg.target_update_period),
-    "policy_args.alpha": _SAC_ALPHA,
-    "policy_args.autotune": Same("learn_alpha"),
-    "policy_args.target_entropy_scale": Same("target_entropy_scale"),
-    "policy_args.policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
     "policy_args.id": NotApplicable("a member's index (no setting)"),
     "policy_args.log": NotApplicable("logging switch"),
     "policy_args.seed": _SEED,
     "policy_args.parent_rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
     "policy_args.device": NotApplicable("`device` (the hardware; no effect on results)"),
-    "train.num_eval_episodes_for_front": Code("recipes.morld", open="a member's archived evaluation is the mean return "
-                                              "of its training episodes since the last exchange (the authors: 5 "
-                                              "separate stochastic episodes per member)"),
-    "network.actor": _SAC_ACTOR,
+    "train.num_eval_episodes_for_front": Same("morld_eval_episodes"),  # recipes.morld.MORLDAgent.evaluate_members
+    **_SAC_NETWORK,
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
-    "network.optimizers": Same("(lr, q_lr, alpha_lr, adam_eps)",
-                               expect=lambda v, cfg: (3e-4, 1e-3, 1e-3, None) if _continuous(cfg.env_id)
-                               else (3e-4, 3e-4, 3e-4, 1e-4),
-                               ours=lambda cfg: (cfg.lr, cfg.q_lr, cfg.alpha_lr, cfg.adam_eps)),
     "network.critic_loss": Code("objectives.population: MSE of scalarised values against the min of the targets"),
-    "network.layer_norm": _NO_LN,
-    "network.dropout": _NO_DROPOUT,
-    "network.init": _ACTOR_CRITIC_INIT,
     "derived.eval_action": Code("recipes.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled actions"),
     "derived.exchanges_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "
                                          "(the authors: round robin, one member per exchange_every frames)"),
@@ -397,8 +391,8 @@ MORLD = {
     "derived.updates_for_non_active_member_per_exchange": Code("recipes.morld", open="no catch-up updates after an "
                                                                "exchange (our members learn concurrently)"),
     "derived.psa_rule": Code("recipes.morld.psa_weights (tests/recipes/test_morld.py)"),
-    "derived.archive_eval_episodes_per_exchange": Code("recipes.morld", open="no separate evaluation episodes after "
-                                                       "an exchange (the training episodes' returns are archived)"),
+    "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
+                                                       ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
     "derived.env_reset_at_each_exchange": Code("recipes.morld", open="members keep their sub-envs' episodes going "
                                                "across exchanges"),
 }

@@ -76,14 +76,18 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
 
 # morl_baselines/multi_policy/gpi_pd/gpi_pd_continuous_action.py: GPIPDContinuousAction.__init__ (GPILSContinuousAction:
 # dyna off), for an env with continuous actions (applied over the discrete values above)
+_CONTINUOUS_GPI = dict(tau=0.005, buffer_size=400_000, hidden=(256, 256), batch_size=128, gpi_num_nets=2,
+                       gpi_policy_delay=2, init_random_frames=100, gpi_gradient_updates=20, gpi_policy_noise=0.2,
+                       gpi_noise_clip=0.5, prioritized=True, gpi_min_priority=0.1, per_alpha=0.6,
+                       gpi_dynamics_rollout_starts=1000)
+# the dynamics model's settings: GPI-PD's only (GPI-LS has none of these keys, and refuses them)
+_CONTINUOUS_DYNAMICS = dict(gpi_dynamics_hidden=(200, 200, 200, 200), gpi_dynamics_train_freq=250,
+                            gpi_dynamics_rollout_len=5, gpi_dynamics_rollout_freq=250,
+                            gpi_dynamics_rollout_batch=50_000, gpi_dynamics_buffer=200_000,
+                            gpi_uncertainty_threshold=2.0, gpi_real_ratio=0.1)
 FOREIGN_DEFAULTS_CONTINUOUS: dict[str, dict[str, Any]] = {
-    algo: dict(tau=0.005, buffer_size=400_000, hidden=(256, 256), batch_size=128, gpi_num_nets=2, gpi_policy_delay=2,
-               init_random_frames=100, gpi_gradient_updates=20, gpi_policy_noise=0.2, gpi_noise_clip=0.5,
-               prioritized=True, gpi_min_priority=0.1, per_alpha=0.6, gpi_dynamics_hidden=(200, 200, 200, 200),
-               gpi_dynamics_train_freq=250, gpi_dynamics_rollout_len=5, gpi_dynamics_rollout_starts=1000,
-               gpi_dynamics_rollout_freq=250, gpi_dynamics_rollout_batch=50_000, gpi_dynamics_buffer=200_000,
-               gpi_uncertainty_threshold=2.0, gpi_real_ratio=0.1)
-    for algo in ("gpi_ls", "gpi_pd")
+    "gpi_ls": dict(_CONTINUOUS_GPI),
+    "gpi_pd": dict(_CONTINUOUS_GPI, **_CONTINUOUS_DYNAMICS),
 }
 
 FOREIGN_NOTES: dict[str, str] = {

@@ -26,12 +26,18 @@ The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` override
    ``gpi_uncertainty_threshold`` go to a model buffer; updates then draw ``gpi_real_ratio``
    of each batch from the real buffer and the rest from the model buffer.
 
-Evaluation (the off-policy loop's evaluator) acts by GPI over ``M`` for each evaluation
+Evaluation goes through :class:`~morl_trl.evaluation.MultiContextEvaluator` only, as for every
+method. The run's evaluator (:func:`~morl_trl.recipes.parts.make_evaluator`: the suite's contexts,
+the run's weights and seed, the same result files) acts by GPI over ``M`` for each evaluation
 weight, as the authors: discrete with dropout off, continuous over the candidate actions
 ``pi(s, w_j)`` with the critic's dropout on and, by default, the critic conditioned as the
 authors' vectorised evaluator did (``gpi_eval_conditioning``, see
-:class:`~morl_trl.objectives.gpi.GPIContinuousPolicy`). The CCS values are Monte-Carlo
-discounted returns of the GPI policy on the training domain (``gpi_front_episodes`` per weight).
+:class:`~morl_trl.objectives.gpi.GPIContinuousPolicy`; its table of contexts is the evaluator's,
+:func:`~morl_trl.evaluation.suite_contexts`). The CCS values are Monte-Carlo discounted returns of
+the GPI policy (``gpi_front_episodes`` per weight) from a second evaluator on the same env with no
+context given at reset: each episode's context is drawn by the training id's sampler, as the
+authors evaluated on their DR training env (SPEC §6), never on the evaluation suite
+(:attr:`GPIAgent.front_evaluator`).
 
 Example:
     >>> from morl_trl.recipes import resolve_config
@@ -52,10 +58,10 @@ import torch
 from tensordict import TensorDict
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import HardUpdate
 
-from morl_trl.envs import domain_of, make_env
+from morl_trl.envs import domain_of
+from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
 from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
@@ -63,41 +69,14 @@ from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
 from morl_trl.recipes.agent import Agent, action_spec, epsilon_greedy, is_discrete, num_objectives, obs_shape
 from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
+from morl_trl.recipes.parts import evaluation_contexts, policy_env_factory
 from morl_trl.runs.env_state import transforms_of
-from morl_trl.transforms import PreferenceConditioning, compose_policy_env
+from morl_trl.transforms import PreferenceConditioning
 
-__all__ = ["GPIAgent", "make_gpi_agent", "evaluate_gpi_weights"]
+__all__ = ["GPIAgent", "make_gpi_agent"]
 
 _KEYS = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "terminated"),
          ("next", "done"))
-
-
-@torch.no_grad()
-def evaluate_gpi_weights(policy, env_id: str, weights: np.ndarray, *, episodes: int, gamma: float, history_len: int,
-                         seed: int, device, max_steps: int = 100_000) -> np.ndarray:
-    """``[m, k]``: the mean discounted vector return of ``policy`` for each weight of ``weights``
-    ``[m, k]`` over ``episodes`` episodes of ``env_id`` (all ``m * episodes`` in one batched env;
-    a DR id draws fresh contexts: the authors' ``policy_evaluation_mo`` on their training env)."""
-    W = torch.as_tensor(np.repeat(weights, episodes, 0), dtype=torch.float32, device=device)
-    n, k = W.shape
-    env = compose_policy_env(make_env(env_id, num_envs=n, seed=seed, device=device), history_len=history_len)
-    env.append_transform(PreferenceConditioning(k, mode="given"))
-    td = env.reset(TensorDict(preference=W, batch_size=[n], device=device))
-    ret = torch.zeros(n, k, device=device)
-    disc = torch.ones(n, 1, device=device)
-    alive = torch.ones(n, 1, dtype=torch.bool, device=device)
-    with set_exploration_type(ExplorationType.DETERMINISTIC):
-        for _ in range(max_steps):
-            td = policy(td)
-            td, root = env.step_and_maybe_reset(td)
-            ret += alive * disc * td["next", "reward"].float()
-            disc = disc * gamma
-            alive &= ~td["next", "done"].reshape(n, 1)
-            if not alive.any():
-                break
-            td = root
-    env.close()
-    return ret.reshape(len(weights), episodes, k).mean(1).cpu().double().numpy()
 
 
 class GPIAgent(Agent):
@@ -127,6 +106,7 @@ class GPIAgent(Agent):
         self.iteration = 0
         self.iteration_end = cfg.gpi_iteration_frames
         self.evaluations = 0
+        self._front_evaluator = None
         self.frames = 0
         self._begin_iteration(None)
 
@@ -144,15 +124,27 @@ class GPIAgent(Agent):
         kinds = (GPIPolicy, GPIContinuousPolicy)
         return [m for m in self.explore_policy.modules() if isinstance(m, kinds)] + [self.eval_policy, self.gpi_policy]
 
+    @property
+    def front_evaluator(self) -> MultiContextEvaluator:
+        """The evaluator of the CCS values: the run's evaluation env (:func:`~morl_trl.recipes.parts.policy_env_factory`)
+        with no context given at reset, so that each episode runs on a context the training id's sampler
+        draws (the authors' ``policy_evaluation_mo`` on their DR training env, SPEC §6), ``gpi_front_episodes``
+        episodes per weight, the run's discount; the weights and seed are those of each call."""
+        if self._front_evaluator is None:
+            self._front_evaluator = MultiContextEvaluator(
+                self.gpi_policy, None, weights=np.eye(self.k), episodes=self.cfg.gpi_front_episodes, gamma=self.gamma,
+                env_factory=policy_env_factory(self.cfg, self.device), device=self.device, seed=self.cfg.seed,
+                sorl_key=None)
+        return self._front_evaluator
+
     def _evaluate(self, weights: np.ndarray, support: np.ndarray, policy=None) -> np.ndarray:
-        """``policy`` (the evaluation policy: GPI over ``support`` for discrete actions) at ``weights``."""
+        """``[m, k]``: the mean discounted vector return of ``policy`` (GPI over ``support``) at each of
+        ``weights`` ``[m, k]``, from :attr:`front_evaluator` (a new seed, so new contexts, every call)."""
         policy = self.eval_policy if policy is None else policy
         policy.set_support(torch.as_tensor(support, dtype=torch.float32))
         self.evaluations += 1
-        values = evaluate_gpi_weights(policy, self.cfg.env_id, weights, episodes=self.cfg.gpi_front_episodes,
-                                      gamma=self.gamma, history_len=self.cfg.history_len,
-                                      seed=self.cfg.seed + 10_000 * self.evaluations, device=self.device)
-        return values
+        result = self.front_evaluator.evaluate(policy, weights=weights, seed=self.cfg.seed + 10_000 * self.evaluations)
+        return result.returns.mean(dim=(0, 2)).numpy()  # [contexts=1, m, episodes, k] -> [m, k]
 
     def _end_iteration(self) -> None:
         # the CCS values: Monte-Carlo discounted returns of the GPI policy over M (the authors', both action types)
@@ -368,16 +360,11 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
 
 
 def _evaluation_contexts(cfg) -> torch.Tensor | None:
-    """``[E, c]``: the evaluator's contexts in its order (``None`` where the registry has none)."""
-    from morl_trl.envs import domain_of
-    from morl_trl.envs.registry import evaluation_suite, is_randomized
-
+    """``[E, c]``: the run evaluator's contexts in its order (:func:`~morl_trl.evaluation.suite_contexts`
+    of :func:`~morl_trl.recipes.parts.evaluation_contexts`); ``None`` for a domain whose contexts are not vectors."""
     try:
-        spec = domain_of(cfg.env_id)
-        ids = list(cfg.eval_contexts) if cfg.eval_contexts else (
-            evaluation_suite(spec.train_id) if is_randomized(spec.train_id) else [spec.train_id])
-        return torch.stack([torch.as_tensor(spec.context_of(i), dtype=torch.float32) for i in ids])
-    except Exception:  # (a domain without registered contexts: the single-env indexing)
+        return suite_contexts(evaluation_contexts(cfg, domain_of(cfg.env_id)))[2]
+    except (KeyError, ValueError, TypeError, NotImplementedError):  # (no registered context vectors)
         return None
 
 

@@ -23,7 +23,7 @@ from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
 __all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
-           "load_reference", "no_reference_note"]
+           "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note"]
 
 
 def run_domain(cfg) -> DomainSpec:
@@ -86,22 +86,34 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
     )
 
 
-def make_evaluator(cfg, agent, spec: DomainSpec, reference=None) -> MultiContextEvaluator:
-    """The multi-context evaluator of ``agent.eval_policy`` on the policy stack of training (same env, same history)."""
-    device = agent.device
+def evaluation_contexts(cfg, spec: DomainSpec) -> str | list[str]:
+    """What the run's evaluator evaluates on: ``cfg.eval_contexts``, else the domain's evaluation suite
+    (its vectors, in the evaluator's order: :func:`morl_trl.evaluation.suite_contexts`)."""
+    return list(cfg.eval_contexts) if cfg.eval_contexts else spec.train_id
+
+
+def policy_env_factory(cfg, device: torch.device):
+    """``env_factory(num_envs, seed)`` of the evaluators: the training id (a DR id draws a context per
+    episode, unless the evaluator gives one at reset) under the policy's history, without the
+    training preference."""
 
     def env_factory(num_envs: int, seed: int):
-        # the training id: the evaluator's contexts, given at every reset, replace the env's draws
         return compose_policy_env(make_env(cfg.env_id, num_envs=num_envs, seed=seed, device=device),
                                   history_len=cfg.history_len)
 
+    return env_factory
+
+
+def make_evaluator(cfg, agent, spec: DomainSpec, reference=None) -> MultiContextEvaluator:
+    """The multi-context evaluator of ``agent.eval_policy`` on the policy stack of training (same env, same history)."""
+    device = agent.device
     return MultiContextEvaluator(
         agent.eval_policy,
-        list(cfg.eval_contexts) if cfg.eval_contexts else spec.train_id,
+        evaluation_contexts(cfg, spec),
         weights=cfg.eval_weights,
         episodes=cfg.eval_episodes,
         gamma=run_discount(cfg, spec),
-        env_factory=env_factory,
+        env_factory=policy_env_factory(cfg, device),  # (the evaluator's contexts, given at every reset, replace its draws)
         reference=reference,
         ref_point=cfg.ref_point,
         exploration_type=agent.eval_exploration,

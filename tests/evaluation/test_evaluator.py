@@ -112,6 +112,33 @@ def test_a_smaller_pool_streams_through_the_grid_with_the_same_returns(chunk_siz
     assert list(ev._envs) == [(None, chunk_size)]  # one batched env of that size
 
 
+def test_a_call_may_evaluate_other_weights_on_the_same_contexts():
+    """``evaluate(weights=...)``: the evaluator's contexts and episodes at the call's weights (GPI's CCS values)."""
+    ev = make(episodes=2)
+    r = ev.evaluate(weights=[[0.0, 1.0], [0.6, 0.4]])
+    assert r.returns.shape == (2, 2, 2, 2) and r.weights.tolist() == [[0.0, 1.0], [0.6, 0.4]]
+    for c, (s, b) in enumerate([(0.5, 1.0), (2.0, 0.0)]):  # straight for w[1] > 0.5, alternating otherwise
+        np.testing.assert_allclose(r.returns[c, :, 0].numpy(), [straight(s, b), alternate(s, b)], rtol=1e-6)
+    assert list(ev._envs) == [(None, 8)]  # one pool per evaluation: 2 contexts x 2 weights x 2 episodes
+    np.testing.assert_allclose(ev.evaluate().returns[:, :, 0].numpy(), expected_returns(), rtol=1e-6)
+    assert ev.evaluate().weights.tolist() == WEIGHTS.double().tolist()  # the evaluator's own are unchanged
+    with pytest.raises(ValueError, match="weights"):
+        ev.evaluate(weights=[[0.5, 0.6]])
+
+
+def test_a_call_seed_replaces_the_evaluator_seed():
+    """``evaluate(seed=s)`` draws what an evaluator built with ``seed=s`` draws (here a random policy's actions)."""
+    def coin(td):
+        td["action"] = torch.randint(0, 2, td["preference"].shape[:-1])
+        return td
+
+    a = make(policy=coin, seed=3).evaluate()
+    b = make(policy=coin, seed=0).evaluate(seed=3)
+    c = make(policy=coin, seed=0).evaluate()
+    torch.testing.assert_close(a.returns, b.returns)
+    assert not torch.equal(a.returns, c.returns)
+
+
 def test_policy_ignoring_the_preference_single_objective_baseline():
     always_right = TensorDictModule(
         lambda obs: torch.ones(obs.shape[:-1], dtype=torch.long), in_keys=["observation"], out_keys=["action"]

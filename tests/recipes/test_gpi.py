@@ -122,3 +122,74 @@ def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
 def test_optimizer_follows_fused_optimizer(fused):
     _, _, agent = _agent("gpi_ls", fused_optimizer=fused)
     assert [g["fused"] for g in agent.optimizers["qvalue"].param_groups] == [fused]
+
+
+# ---------------------------------------------------------------------- evaluation: the shared evaluator only
+LAVA_SUITE = ("MOLavaGridCheckerBoard-v0", "MOLavaGridSmiley-v0", "MOLavaGridSnake-v0", "MOLavaGridIslands-v0",
+              "MOLavaGridLabyrinth-v0", "MOLavaGridMaze-v0", "MOLavaGridCorridor-v0", "MOLavaGridRoom-v0")
+
+
+class _Spy:
+    """A GPI policy that records the contexts of the sub-envs it acts for."""
+
+    def __init__(self, policy):
+        self.policy, self.contexts = policy, []
+
+    def set_support(self, support):
+        self.policy.set_support(support)
+
+    def __call__(self, td):
+        self.contexts.append(td["context"].clone())
+        return self.policy(td)
+
+
+def test_gpi_run_is_evaluated_by_gpi_on_the_evaluation_suite_contexts():
+    from morl_trl.envs import domain_of
+    from morl_trl.recipes.off_policy import build
+
+    cfg = resolve_config("gpi_ls", "MOLavaGridDR-v0", **{**_tiny("gpi_ls"), "eval_weights": 2})
+    _, agent, _, evaluator = build(cfg, torch.device("cpu"))
+    spy = _Spy(agent.eval_policy)
+    evaluator.max_steps = 3  # (the first step is what is checked)
+    with pytest.warns(UserWarning, match="still running"):
+        result = evaluator.evaluate(spy)
+    assert result.context_names == LAVA_SUITE and result.weights.shape == (2, 2)
+    spec = domain_of("MOLavaGridDR-v0")
+    suite = torch.stack([spec.context_of(name) for name in LAVA_SUITE])  # [8, 93]: each context's lava map
+    # the first step: 8 contexts x 2 weights, in the evaluator's order, each context as the suite defines it
+    torch.testing.assert_close(spy.contexts[0], suite.repeat_interleave(2, 0))
+    assert float(suite[0].sum()) != float(suite[1].sum())  # (distinct maps: the check can fail)
+
+
+def test_gpi_ccs_values_come_from_the_evaluator_on_contexts_the_training_sampler_draws():
+    from morl_trl.envs import make_env
+    from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
+
+    cfg, _, agent = _agent("gpi_ls", gpi_front_episodes=2)
+    assert isinstance(agent.front_evaluator, MultiContextEvaluator) and agent.front_evaluator.episodes == 2
+    spy = _Spy(agent.gpi_policy)
+    agent.front_evaluator.max_steps = 3  # (the first step is what is checked)
+    with pytest.warns(UserWarning, match="still running"):
+        values = agent._evaluate(np.eye(2), agent.support, spy)  # 2 weights x 2 episodes
+    assert values.shape == (2, 2) and agent.evaluations == 1
+    # each episode's context: the training id's sampler at the evaluation's seed (seed + 10,000 x evaluations)
+    drawn = make_env(cfg.env_id, num_envs=4, seed=cfg.seed + 10_000).reset()["context"]
+    torch.testing.assert_close(spy.contexts[0], drawn)
+    assert len({tuple(c.tolist()) for c in drawn}) == 4  # four fresh contexts
+    suite = {tuple(c.tolist()) for c in suite_contexts("MOLavaGridDR-v0")[2]}
+    assert not any(tuple(c.tolist()) in suite for c in drawn)  # never the evaluation suite's
+    spy.contexts.clear()
+    with pytest.warns(UserWarning, match="still running"):
+        agent._evaluate(np.eye(2), agent.support, spy)
+    torch.testing.assert_close(spy.contexts[0], make_env(cfg.env_id, num_envs=4, seed=cfg.seed + 20_000).reset()["context"])
+
+
+def test_continuous_gpi_conditions_on_the_run_evaluators_contexts():
+    pytest.importorskip("mujoco")
+    from morl_trl.recipes.off_policy import build
+
+    cfg = resolve_config("gpi_ls", "MOHopperDR-v5", hidden=(16,), num_envs=2, buffer_size=1024, progress=False,
+                         eval_weights=3)
+    _, agent, _, evaluator = build(cfg, torch.device("cpu"))
+    assert evaluator.contexts.shape == (6, 8)
+    torch.testing.assert_close(agent.eval_policy.context_table, evaluator.contexts)

@@ -9,42 +9,25 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from morl_trl.recipes.config.domains import HUMANOID, domain_table, frozen
+from morl_trl.recipes.config.families import ACTOR_CRITIC, algorithm_config, pick
 
 __all__ = ["CAPQLConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
 
 
-@dataclass
-class CAPQLConfig:
-    """CAPQL's keys (Hopper's values: ``[capql.hopper]``)."""
-
-    frames_per_batch: int = 64
-    init_random_frames: int = 1_000  # learning_starts
-    buffer_size: int = 1_000_000
-    batch_size: int = 256
-    prioritized: bool = False
-    per_alpha: float = 0.6
-    per_beta: float = 0.4
-    per_importance_weights: bool = True
-    # optim: one Adam (lr 3e-4) per network, one critic and one actor step per frame, Polyak 0.005
-    lr: float = 3e-4
-    updates_per_batch: int = 0
-    tau: float | None = 0.005
-    target_update_period: int = 1000
-    max_grad_norm: float | None = None
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
+CAPQLConfig = algorithm_config(
+    "CAPQLConfig", "CAPQL's keys (Hopper's values: ``[capql.hopper]``).",
+    # optim: one Adam (lr 3e-4) per network, one critic and one actor step per frame, Polyak 0.005;
     # temperature fixed at 0.2; log-std clamped to [-20, 2]
-    alpha: float = 0.2
-    learn_alpha: bool = False
-    actor_scale: str = "clamped_log_std"
+    pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
+                        "per_alpha", "per_beta", "per_importance_weights", "lr", "updates_per_batch", "tau",
+                        "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha", "actor_scale"),
+         learn_alpha=False, actor_scale="clamped_log_std"),
     # a new weight every step from the 22.5-degree cone, stored with the transition and reused by the loss
-    preference_distribution: str = "cone"
-    preference_resample: str = "step"
-    loss_fresh_preferences: bool = False
+    dict(preference_distribution="cone", preference_resample="step", loss_fresh_preferences=False),
     # after learning_starts the authors collect with the deterministic tanh(mean)
-    capql_deterministic_collection: bool = True
+    dict(capql_deterministic_collection=True),
+)
 
 
 SHARED_DEFAULTS = frozen({})

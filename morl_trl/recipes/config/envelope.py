@@ -10,48 +10,27 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from morl_trl.recipes.config.domains import LAVA_GRID, MARIO, domain_table, frozen
+from morl_trl.recipes.config.families import DQN_EXPLORATION, DQN_OPTIM, DQN_REPLAY, algorithm_config, pick
 
 __all__ = ["EnvelopeConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
 
 
-@dataclass
-class EnvelopeConfig:
-    """Envelope's keys (LunarLander's values: ``[envelope.lunarlander]``)."""
-
-    # collector and replay (PER without importance weights, priority from the first sampled weight)
-    frames_per_batch: int = 64
-    init_random_frames: int = 100  # learning_starts
-    buffer_size: int = 1_000_000
-    batch_size: int = 128
-    prioritized: bool = True
-    per_alpha: float = 0.6
-    per_beta: float = 0.4
-    per_importance_weights: bool = False
-    envelope_priority: str = "first"
-    per_running_max: bool = True  # MORL-Baselines' buffer: (p + running max)^alpha, new items at the max
+EnvelopeConfig = algorithm_config(
+    "EnvelopeConfig", "Envelope's keys (LunarLander's values: ``[envelope.lunarlander]``).",
+    # collector and replay (PER without importance weights, priority from the first sampled weight;
+    # MORL-Baselines' buffer: (p + running max)^alpha, new items at the max)
+    DQN_REPLAY, dict(envelope_priority="first", per_running_max=True),
     # optim: one update per frame, hard target copy every 1000 updates, gradient norm 1
-    lr: float = 3e-4
-    updates_per_batch: int = 0
-    target_update_period: int = 1000
-    tau: float | None = None
-    max_grad_norm: float | None = 1.0
+    pick(DQN_OPTIM, max_grad_norm=1.0),
     # network: w concatenated after the first hidden layer, orthogonal init
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    envelope_network: str = "authors"
+    dict(hidden=(256, 256, 256, 256), envelope_network="authors"),
     # exploration: epsilon 1 -> 0.05 over 1M frames after learning_starts
-    eps_start: float = 1.0
-    eps_end: float = 0.05
-    eps_frames: int = 1_000_000
+    DQN_EXPLORATION,
     # preferences: |N(0, I)| normalised, one per episode; 8 sampled per update; lambda fixed at 0.95
-    preference_distribution: str = "gaussian"
-    preference_resample: str = "episode"
-    num_sampled_prefs: int = 8
-    homotopy_lambda0: float = 0.95
-    homotopy_final: float | None = None
-    homotopy_frames: int | None = None
+    dict(preference_distribution="gaussian", preference_resample="episode", num_sampled_prefs=8, homotopy_lambda0=0.95,
+         homotopy_final=None, homotopy_frames=None),
+)
 
 
 SHARED_DEFAULTS = frozen({})

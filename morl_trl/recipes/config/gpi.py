@@ -23,45 +23,24 @@ from morl_trl.recipes.config.domains import (
     domain_table,
     frozen,
 )
+from morl_trl.recipes.config.families import DQN_EXPLORATION, DQN_OPTIM, DQN_REPLAY, algorithm_config
 
 __all__ = ["GPILSConfig", "GPIPDConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_PD", "QUICK", "QUICK_PD"]
 
 
-@dataclass
-class GPILSConfig:
-    """GPI-LS's keys (LunarLander's values: ``[gpi_ls.lunarlander]``)."""
-
-    frames_per_batch: int = 64
-    init_random_frames: int = 100  # learning_starts
-    buffer_size: int = 1_000_000
-    batch_size: int = 128
-    prioritized: bool = True
-    per_alpha: float = 0.6
-    per_beta: float = 0.4
-    per_importance_weights: bool = False
-    lr: float = 3e-4
-    updates_per_batch: int = 0
-    target_update_period: int = 1000  # frames
-    tau: float | None = None
-    max_grad_norm: float | None = None
+GPILSConfig = algorithm_config(
+    "GPILSConfig", "GPI-LS's keys (LunarLander's values: ``[gpi_ls.lunarlander]``).",
+    DQN_REPLAY, DQN_OPTIM,
     # the first width is the state/weight feature width (after the CNN on pixels)
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    eps_start: float = 1.0
-    eps_end: float = 0.05
-    eps_frames: int = 1_000_000
-    gpi_iteration_frames: int = 50_000  # timesteps_per_iter
-    gpi_front_episodes: int = 5  # num_eval_episodes_for_front
-    gpi_num_nets: int = 2
-    gpi_dropout: float = 0.01
-    gpi_layer_norm: bool = True
-    gpi_eval_conditioning: str = "authors"
-    gpi_gradient_updates: int = 1
-    gpi_min_priority: float = 0.01
-    gpi_dynamics_rollout_starts: int = 5_000
+    dict(hidden=(256, 256, 256, 256)),
+    DQN_EXPLORATION,
+    dict(gpi_iteration_frames=50_000,  # timesteps_per_iter
+         gpi_front_episodes=5,  # num_eval_episodes_for_front
+         gpi_num_nets=2, gpi_dropout=0.01, gpi_layer_norm=True, gpi_eval_conditioning="authors",
+         gpi_gradient_updates=1, gpi_min_priority=0.01, gpi_dynamics_rollout_starts=5_000),
     # continuous actions (TD3-style actor)
-    gpi_policy_noise: float = 0.2
-    gpi_noise_clip: float = 0.5
-    gpi_policy_delay: int = 2
+    dict(gpi_policy_noise=0.2, gpi_noise_clip=0.5, gpi_policy_delay=2),
+)
 
 
 @dataclass

@@ -15,43 +15,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from morl_trl.recipes.config.domains import HALF_CHEETAH, HOPPER, HUMANOID, LAVA_GRID, LUNAR_LANDER, domain_table, frozen
+from morl_trl.recipes.config.families import ACTOR_CRITIC, algorithm_config, pick
 
 __all__ = ["MORLDConfig", "MORLDPSAConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
 
 
-@dataclass
-class MORLDConfig:
-    """MORL/D SB's keys (Half-Cheetah's member values: ``[morld_sb.cheetah.policy_args]``, MOSAC)."""
-
-    # each member owns num_envs sub-envs; frames_per_batch covers all of them
-    frames_per_batch: int = 60
-    init_random_frames: int = 25_000  # learning_starts, on the shared frame counter
-    buffer_size: int = 1_000_000  # one buffer shared by the members
-    batch_size: int = 256
-    prioritized: bool = False
-    # optim: actor 3e-4, critics and temperature 1e-3 (continuous); Polyak 0.005
-    lr: float = 3e-4
-    q_lr: float | None = 1e-3
-    alpha_lr: float | None = 1e-3
-    adam_eps: float | None = None
-    updates_per_batch: int = 0
-    update_frequency: int = 1
-    tau: float | None = 0.005
-    target_update_period: int = 1000
-    max_grad_norm: float | None = None
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    alpha: float = 1.0
-    learn_alpha: bool = True
-    target_entropy_scale: float = 0.3
+MORLDConfig = algorithm_config(
+    "MORLDConfig", "MORL/D SB's keys (Half-Cheetah's member values: ``[morld_sb.cheetah.policy_args]``, MOSAC).",
+    # each member owns num_envs sub-envs; frames_per_batch covers all of them; learning_starts on the shared
+    # frame counter; one buffer shared by the members; actor 3e-4, critics and temperature 1e-3 (continuous);
     # MOSAC's actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every 2nd
     # critic step (mosac_continuous_action.py:95-103,141,460-482)
-    actor_scale: str = "tanh_log_std"
-    policy_freq: int = 2
+    pick(ACTOR_CRITIC, [k for k in ACTOR_CRITIC if k not in ("per_alpha", "per_beta", "per_importance_weights")],
+         frames_per_batch=60, init_random_frames=25_000, q_lr=1e-3, alpha_lr=1e-3, alpha=1.0),
     # population
-    pop_size: int = 6
-    exchange_every: int = 20_000
-    weight_adaptation: str = "none"
-    psa_delta: float = 0.1
+    # the archive evaluation after every exchange: 5 stochastic episodes per member on a DR env of their own
+    # (num_eval_episodes_for_front, morld.py:516)
+    dict(pop_size=6, exchange_every=20_000, weight_adaptation="none", psa_delta=0.1, morld_eval_episodes=5),
+)
 
 
 @dataclass

@@ -13,38 +13,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from morl_trl.recipes.config.domains import HOPPER, HUMANOID, LAVA_GRID, domain_table, frozen
+from morl_trl.recipes.config.families import ACTOR_CRITIC, algorithm_config, pick
 
 __all__ = ["MOSACConfig", "MOSACDiscreteConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_DISCRETE", "QUICK"]
 
 
-@dataclass
-class MOSACConfig:
-    """Continuous MOSAC's keys."""
-
-    frames_per_batch: int = 64
-    init_random_frames: int = 10_000
-    buffer_size: int = 1_000_000
-    batch_size: int = 256
-    prioritized: bool = False
-    per_alpha: float = 0.6
-    per_beta: float = 0.4
-    per_importance_weights: bool = True
-    lr: float = 3e-4
-    q_lr: float | None = None
-    alpha_lr: float | None = None
-    updates_per_batch: int = 0
-    tau: float | None = 0.005
-    target_update_period: int = 1000
-    max_grad_norm: float | None = None
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    alpha: float = 0.2
-    learn_alpha: bool = True
+MOSACConfig = algorithm_config(
+    "MOSACConfig", "Continuous MOSAC's keys.",
     # the class defaults of the authors' MOSAC (mosac_continuous_action.py:95-103,141,460-482)
-    actor_scale: str = "tanh_log_std"
-    policy_freq: int = 2
-    loss_fresh_preferences: bool = False
-    preference_distribution: str = "dirichlet"
-    preference_resample: str = "episode"
+    pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
+                        "per_alpha", "per_beta", "per_importance_weights", "lr", "q_lr", "alpha_lr", "updates_per_batch",
+                        "tau", "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha",
+                        "actor_scale", "policy_freq"),
+         init_random_frames=10_000),
+    dict(loss_fresh_preferences=False, preference_distribution="dirichlet", preference_resample="episode"),
+)
 
 
 @dataclass

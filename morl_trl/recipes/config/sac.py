@@ -11,45 +11,22 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from morl_trl.recipes.config.domains import LAVA_GRID, LUNAR_LANDER, MARIO, domain_table, frozen
+from morl_trl.recipes.config.families import ACTOR_CRITIC, algorithm_config, pick
 
 __all__ = ["SACConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
 
 
-@dataclass
-class SACConfig:
-    """SAC's keys (MuJoCo's values: ``[sac.hopper]``, SACContinuous)."""
-
-    frames_per_batch: int = 64
-    init_random_frames: int = 1_000  # learning_starts
-    buffer_size: int = 1_000_000
-    batch_size: int = 256
-    prioritized: bool = False
-    per_alpha: float = 0.6
-    per_beta: float = 0.4
-    # optim: actor 3e-4, critics and temperature 1e-3; Polyak 0.005 every update
-    lr: float = 3e-4
-    q_lr: float | None = 1e-3
-    alpha_lr: float | None = 1e-3
-    adam_eps: float | None = None
-    updates_per_batch: int = 0
-    update_frequency: int = 1
-    tau: float | None = 0.005
-    target_update_period: int = 1000
-    max_grad_norm: float | None = None
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    # temperature tuned from 1.0 (target entropy -|A|; discrete: target_entropy_scale * ln|A|)
-    alpha: float = 1.0
-    learn_alpha: bool = True
-    target_entropy_scale: float = 0.3
+SACConfig = algorithm_config(
+    "SACConfig", "SAC's keys (MuJoCo's values: ``[sac.hopper]``, SACContinuous).",
+    # optim: actor 3e-4, critics and temperature 1e-3; Polyak 0.005 every update;
+    # temperature tuned from 1.0 (target entropy -|A|; discrete: target_entropy_scale * ln|A|);
     # the authors' actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every
     # 2nd critic step (sac_continuous.py:134,435-456)
-    actor_scale: str = "tanh_log_std"
-    policy_freq: int = 2
-    preference_distribution: str = "dirichlet"
-    preference_resample: str = "episode"
+    pick(ACTOR_CRITIC, [k for k in ACTOR_CRITIC if k != "per_importance_weights"], q_lr=1e-3, alpha_lr=1e-3,
+         alpha=1.0),
+    dict(preference_distribution="dirichlet", preference_resample="episode"),
+)
 
 
 SHARED_DEFAULTS = frozen({"eval_exploration": "random"})
