@@ -532,7 +532,7 @@ class GPIContinuousPolicy(TensorDictModuleBase):
         """``[*B, m, k]``: the critic's conditioning weight of each candidate row ``i`` (see the class)."""
         support = self.support.to(tensordict.device or "cpu")
         ctx = tensordict.get("context", None) if self.context_table is not None else None
-        if ctx is None:
+        if ctx is None or ctx.shape[-1] == 0:  # (an env without context parameters: its one context)
             return support.expand(*lead, m, support.shape[-1])
         table = self.context_table.to(ctx.device)
         e = torch.cdist(ctx.float().reshape(-1, ctx.shape[-1]), table).argmin(-1).reshape(lead)  # [*B]
