@@ -27,13 +27,17 @@ import numpy as np  # noqa: E402
 from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, evaluate_policy, write_result  # noqa: E402
 
 
-def _row_act(act_one):
-    """A policy for the evaluator from ``act_one(obs [..], w [k]) -> action`` applied row by row."""
+def _row_act(act_one, space=None):
+    """A policy for the evaluator from ``act_one(obs [..], w [k]) -> action`` applied row by row;
+    continuous actions clipped to ``space`` (MB trains PGMORL's MOPPO behind gymnasium's ClipAction,
+    and its eval() returns the unclipped Gaussian sample)."""
     import torch
 
     def policy(td):
         obs, w = td.get("observation").cpu().numpy(), td.get("preference").cpu().numpy()
         actions = np.stack([np.asarray(act_one(o, wi)) for o, wi in zip(obs, w)])
+        if space is not None and hasattr(space, "low"):
+            actions = np.clip(actions, space.low, space.high)
         return td.set("action", torch.as_tensor(actions).to(td.get("action").dtype if "action" in td.keys() else None))
 
     return policy
@@ -78,17 +82,17 @@ def _pcn_policy(agent, k: int):
                      max_return=[100.0] * k)  # MB's PCN.train default max_return
 
 
-def _policy(case: dict, agent):
+def _policy(case: dict, agent, space):
     algo = case["algo"]
     if algo == "pcn":
         return _pcn_policy(agent, agent.reward_dim)
     if algo == "morld":  # MB's Pareto archive (filled after each exchange), else the population
         members = agent.archive.individuals or agent.population
-        return _row_act(_nearest(members, lambda m: m.weights))
+        return _row_act(_nearest(members, lambda m: m.weights), space)
     if algo == "pgmorl":
         members = agent.archive.individuals or agent.agents
-        return _row_act(_nearest(members, lambda m: m.np_weights))
-    return _row_act(lambda o, w: agent.eval(o, w))
+        return _row_act(_nearest(members, lambda m: m.np_weights), space)
+    return _row_act(lambda o, w: agent.eval(o, w), space)
 
 
 def _call(fn, **kwargs):
@@ -106,6 +110,14 @@ def run(case_name: str, seed: int, out: Path) -> None:
 
     from morl_trl.envs.foreign import MO_GYMNASIUM_REF_POINTS
 
+    # MB 1.3.0's DST termination function (GPI-PD's model rollouts) imports mo_gymnasium.deep_sea_treasure,
+    # which mo-gymnasium >= 1.1 moved to mo_gymnasium.envs.deep_sea_treasure: alias the old path
+    import mo_gymnasium.envs.deep_sea_treasure as dst_pkg
+    import mo_gymnasium.envs.deep_sea_treasure.deep_sea_treasure as dst_mod
+
+    sys.modules.setdefault("mo_gymnasium.deep_sea_treasure", dst_pkg)
+    sys.modules.setdefault("mo_gymnasium.deep_sea_treasure.deep_sea_treasure", dst_mod)
+
     case = CASES[case_name]
     seed_everything(seed)
     torch.set_num_threads(1)
@@ -117,7 +129,7 @@ def run(case_name: str, seed: int, out: Path) -> None:
 
     def evaluate(frames: int) -> None:
         t = time.perf_counter()
-        m = evaluate_policy(_policy(case, agent), case["env"], case["gamma"], seed)
+        m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
         eval_s[0] += time.perf_counter() - t
         print(f"[mb {case_name} s{seed}] {frames} frames: {m}", flush=True)

@@ -378,9 +378,7 @@ MORLD = {
     "policy_args.seed": _SEED,
     "policy_args.parent_rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
     "policy_args.device": NotApplicable("`device` (the hardware; no effect on results)"),
-    "train.num_eval_episodes_for_front": Code("recipes.morld", open="a member's archived evaluation is the mean return "
-                                              "of its training episodes since the last exchange (the authors: 5 "
-                                              "separate stochastic episodes per member)"),
+    "train.num_eval_episodes_for_front": Same("morld_eval_episodes"),  # recipes.morld.MORLDAgent.evaluate_members
     **_SAC_NETWORK,
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
@@ -393,8 +391,8 @@ MORLD = {
     "derived.updates_for_non_active_member_per_exchange": Code("recipes.morld", open="no catch-up updates after an "
                                                                "exchange (our members learn concurrently)"),
     "derived.psa_rule": Code("recipes.morld.psa_weights (tests/recipes/test_morld.py)"),
-    "derived.archive_eval_episodes_per_exchange": Code("recipes.morld", open="no separate evaluation episodes after "
-                                                       "an exchange (the training episodes' returns are archived)"),
+    "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
+                                                       ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
     "derived.env_reset_at_each_exchange": Code("recipes.morld", open="members keep their sub-envs' episodes going "
                                                "across exchanges"),
 }

@@ -15,11 +15,14 @@ training env holds ``P * num_envs`` sub-envs, member ``p`` acting in sub-envs
 ``p * num_envs .. (p + 1) * num_envs - 1``. Each member gets one update per ``update_frequency`` of
 its own frames (``updates_per_batch = 0``), the authors' update-to-data ratio per member.
 
-Where this differs from the authors' loop, on purpose: the members train concurrently, not turn by
-turn (so there is no "update the others ``update_passes`` times" step and no transfer), and a
-member's archived evaluation is the mean discounted vector return of its training episodes that
-ended since the last exchange (sampled actions, training contexts) instead of separate episodes
-on an evaluation env. The PSA rule, its ``delta = 0.1``, the archive's distance threshold (0.01)
+After every exchange each member is evaluated as the authors': the mean discounted vector return
+of ``morld_eval_episodes`` (5) episodes with sampled actions on a DR env of its own
+(:meth:`MORLDAgent.evaluate_members`, not training frames); ``morld_eval_episodes=0`` archives the
+mean return of its training episodes since the last exchange instead.
+
+Where this still differs from the authors' loop: the members train concurrently, not turn by turn
+(so there is no "update the others ``update_passes`` times" step, no env reset at each exchange
+and every member collects its own frames). The PSA rule, its ``delta = 0.1``, the archive's distance threshold (0.01)
 and the weights' L1 renormalisation are MORL-Baselines 1.3.0's.
 
 Example:
@@ -41,6 +44,7 @@ import warnings
 import torch
 from tensordict import TensorDictBase
 from torch import nn
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
@@ -71,8 +75,8 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_morld_agent",
-           "make_morld_training_env", "orthogonal_population_init_", "psa_weights"]
+__all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_member_env",
+           "make_morld_agent", "make_morld_training_env", "orthogonal_population_init_", "psa_weights"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -221,6 +225,8 @@ class MORLDAgent(Agent):
         self._next_exchange = cfg.exchange_every
         self._member_frames = 0  # member frames not yet turned into updates (update_frequency)
         self.exchanges = 0
+        self.eval_episodes = 0  # archive-evaluation episodes run so far (not training frames)
+        self._eval_env = None  # the members' evaluation env (evaluate_members), built on first use
         self._snapshots = (None, None)  # (archive version, stacked snapshots) cache of snapshots()
 
     def snapshots(self):
@@ -271,6 +277,37 @@ class MORLDAgent(Agent):
         self._return_sum += torch.where(done, ret.to(self._return_sum.dtype), 0.0).sum(1)
         self._return_count += done.sum((1, 2))
 
+    @torch.no_grad()
+    def evaluate_members(self) -> torch.Tensor:
+        """``[P, k]``: each member's mean discounted vector return over ``cfg.morld_eval_episodes``
+        episodes with sampled actions on a DR env of its own (the authors' archive evaluation after
+        every exchange: ``num_eval_episodes_for_front`` = 5 per member, ``morld.py:281-334,576-578``;
+        not counted as training frames). All ``P * n`` episodes run at once, sub-env ``i`` driven
+        by member ``i // n``; each sub-env's first episode counts."""
+        cfg, P, n = self.cfg, self.population, self.cfg.morld_eval_episodes
+        if self._eval_env is None:
+            self._eval_env = make_member_env(cfg, self.device, n, seed=cfg.seed + 7919)
+        env = self._eval_env
+        k = self._return_sum.shape[-1]
+        returns = torch.zeros(P * n, k, dtype=torch.float64, device=self.device)
+        finished = torch.zeros(P * n, dtype=torch.bool, device=self.device)
+        limit = domain_of(cfg.env_id).max_episode_steps or 100_000
+        with set_exploration_type(ExplorationType.RANDOM):
+            td = env.reset()
+            for _ in range(limit):
+                td, root = env.step_and_maybe_reset(self.explore_policy(td))
+                nxt = td.get("next")
+                done = nxt.get("done").reshape(-1)
+                new = done & ~finished
+                ret = nxt.get("episode_discounted_return").reshape(P * n, k).to(returns.dtype)
+                returns = torch.where(new.unsqueeze(-1), ret, returns)
+                finished |= done
+                if bool(finished.all()):
+                    break
+                td = root
+        self.eval_episodes += int(finished.sum())
+        return returns.reshape(P, n, k).mean(1).cpu()
+
     def member_evaluations(self) -> torch.Tensor:
         """``[P, k]``: each member's mean discounted return since the last exchange (NaN: no episode ended)."""
         total, count = self._return_sum.cpu(), self._return_count.unsqueeze(-1).double().cpu()
@@ -278,8 +315,10 @@ class MORLDAgent(Agent):
 
     @torch.no_grad()
     def exchange(self) -> None:
-        """Archive the evaluated members (non-dominated filter); with PSA, adapt the weights."""
-        evals = self.member_evaluations()
+        """Evaluate the members (:meth:`evaluate_members`; ``morld_eval_episodes=0``: their training
+        episodes since the last exchange, :meth:`member_evaluations`), archive them (non-dominated
+        filter); with PSA, adapt the weights."""
+        evals = self.evaluate_members() if self.cfg.morld_eval_episodes else self.member_evaluations()
         evaluated = ~torch.isnan(evals).any(-1)
         weights = self.loss.weights.detach().cpu()
         if evaluated.any():
@@ -299,7 +338,8 @@ class MORLDAgent(Agent):
         state = super().state_dict()
         state["morld"] = {"archive": self.archive.state_dict(), "return_sum": self._return_sum.clone(),
                           "return_count": self._return_count.clone(), "next_exchange": self._next_exchange,
-                          "member_frames": self._member_frames, "exchanges": self.exchanges}
+                          "member_frames": self._member_frames, "exchanges": self.exchanges,
+                          "eval_episodes": self.eval_episodes}
         return state
 
     def load_state_dict(self, state: dict) -> None:
@@ -310,13 +350,22 @@ class MORLDAgent(Agent):
         self._return_count.copy_(m["return_count"])
         self._next_exchange, self._member_frames = m["next_exchange"], m["member_frames"]
         self.exchanges = m["exchanges"]
+        self.eval_episodes = m.get("eval_episodes", 0)
 
 
 # ---------------------------------------------------------------------- builders
+def make_member_env(cfg, device: torch.device, per_member: int, *, seed: int):
+    """``P * per_member`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``per_member``) + the
+    policy's history + discounted vector returns. No preference: a member's weight lives in the
+    loss, not in the data."""
+    env = make_env(cfg.env_id, num_envs=cfg.pop_size * per_member, device=device, seed=seed)
+    env = compose_policy_env(env, history_len=cfg.history_len)
+    env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
+    return env
+
+
 def make_morld_training_env(cfg, device: torch.device):
-    """``P * num_envs`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``num_envs``) + the
-    policy's history + discounted vector returns (each member's evaluation). No preference: a
-    member's weight lives in the loss, not in the data."""
+    """The training env: :func:`make_member_env` with ``num_envs`` sub-envs per member."""
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
@@ -324,10 +373,7 @@ def make_morld_training_env(cfg, device: torch.device):
                          f"{total * max(1, cfg.frames_per_batch // total)}")
     if cfg.prioritized:
         raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
-    env = make_env(cfg.env_id, num_envs=total, device=device, seed=cfg.seed)
-    env = compose_policy_env(env, history_len=cfg.history_len)
-    env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
-    return env
+    return make_member_env(cfg, device, cfg.num_envs, seed=cfg.seed)
 
 
 @torch.no_grad()

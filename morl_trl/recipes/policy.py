@@ -210,7 +210,8 @@ def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
 
 def _build_agent(cfg: TrainConfig, device: torch.device):
     spec = run_domain(cfg)
-    env = build_training_env(cfg.replace(num_envs=1), device)  # (only its specs are used)
+    # (only its specs are used: one sub-env, but PGMORL's layout fixes num_envs = pop x envs per member)
+    env = build_training_env(cfg if cfg.algo == "pgmorl" else cfg.replace(num_envs=1), device)
     agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     env.close()
     return agent

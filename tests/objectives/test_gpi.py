@@ -202,3 +202,20 @@ def test_dropout_keeps_the_expectation_and_rate():
     assert abs(float((y == 0).float().mean()) - 0.1) < 0.005
     assert abs(float(y.mean()) - 1.0) < 0.01
     assert dropout(x, 0.1, False) is x
+
+
+def test_continuous_gpi_policy_on_an_env_without_context_parameters():
+    """A foreign env (MO-Gymnasium's mo-mountaincarcontinuous-v0) has contexts of width 0 and one
+    context: the policy acts as without a context table (it raised on the reshape before)."""
+    from tensordict import TensorDict
+
+    from morl_trl.objectives.gpi import GPIActor, GPIContinuousPolicy, GPIVectorCritic
+
+    torch.manual_seed(0)
+    actor = GPIActor(4, 2, 3, low=-torch.ones(3), high=torch.ones(3), hidden=(8,))
+    critic = GPIVectorCritic(4, 3, 2, hidden=(8,))
+    td = TensorDict(observation=torch.zeros(5, 4), preference=torch.full((5, 2), .5), context=torch.zeros(5, 0),
+                    batch_size=[5])
+    with_table = GPIContinuousPolicy(actor, critic, support=torch.eye(2), gpi=True, context_table=torch.zeros(1, 0))
+    without = GPIContinuousPolicy(actor, critic, support=torch.eye(2), gpi=True)
+    assert torch.equal(with_table(td.clone())["action"], without(td.clone())["action"])

@@ -18,10 +18,9 @@ SHARED_RECORD = ROOT.parent / "shared" / "reference" / "hyperparameters.toml"
 #: stale and must go, so nothing is hidden either way).
 KNOWN_OPEN = {
     *((algo, s) for algo in ("morld", "morld_psa") for s in (
-        "init.update_passes", "train.num_eval_episodes_for_front", "derived.exchanges_per_member",
+        "init.update_passes", "derived.exchanges_per_member",
         "derived.own_env_steps_per_member",
-        "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange",
-        "derived.archive_eval_episodes_per_exchange")),
+        "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange")),
 }
 
 

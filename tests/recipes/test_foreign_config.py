@@ -59,3 +59,15 @@ def test_evaluation_on_a_foreign_env_reports_igd_and_the_hypervolume_ratio():
     assert m["igd"] == pytest.approx(igd(np.array([[0.7, -1.0]]), true), rel=1e-6)
     assert m["hv_ratio"] == pytest.approx(0.7 * 24 / hypervolume(true, [0.0, -25.0]), rel=1e-6)
     assert 0 < m["hv_ratio"] < 0.1
+
+
+def test_pgmorl_policy_of_a_run_is_rebuilt_with_its_env_layout():
+    """train()/load_policy rebuild the agent from a run's config: PGMORL's num_envs is fixed to
+    pop x envs per member, so the one-sub-env shortcut of the other methods is refused by it
+    (morl_trl.train("pgmorl", env="mo-hopper-v5") failed after training before this)."""
+    from morl_trl.recipes.policy import _build_agent
+
+    cfg = resolve_config("pgmorl", "mo-mountaincarcontinuous-v0", pgmorl_pop=2, pgmorl_envs_per_member=1, num_envs=2,
+                         frames_per_batch=8)
+    agent = _build_agent(cfg, torch.device("cpu"))
+    assert type(agent).__name__ == "PGMORLAgent"

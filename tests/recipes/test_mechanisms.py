@@ -566,3 +566,30 @@ def test_pgmorl_resets_every_sub_env_at_the_start_of_each_iteration(reset, conti
         last, first = before["collector", "traj_ids"][:, -1], after["collector", "traj_ids"][:, 0]
         assert not bool(before["next", "done"][:, -1].any())
         assert int((last == first).sum()) == continuing  # sub-envs whose episode continues into the next batch
+
+
+# ---------------------------------------------------------------------- MORL/D: the archive evaluation
+def test_morld_evaluates_each_member_on_5_separate_stochastic_episodes_per_exchange(single_thread):
+    """The authors' MORL/D evaluates every member after each exchange with num_eval_episodes_for_front = 5
+    stochastic episodes on a DR env (morld.py:281-334,576-578): pop_size x 5 episodes (LavaGrid 25,
+    the others 30), never counted as training frames; the archive holds the non-dominated evaluations."""
+    from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+
+    assert [resolve_config(a, e).pop_size * resolve_config(a, e).morld_eval_episodes for a, e in
+            (("morld", "MOLavaGridDR-v0"), ("morld_psa", "MOLunarLanderDR-v0"))] == [25, 30]
+    torch.manual_seed(0)
+    cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,))
+    env = make_morld_training_env(cfg, CPU)
+    agent = make_morld_agent(cfg, env, gamma=0.995, device=CPU)
+    evals = agent.evaluate_members()
+    assert evals.shape == (5, 2) and bool(torch.isfinite(evals).all())
+    assert agent.eval_episodes == 25 and agent._eval_env.batch_size == torch.Size([25])
+    agent.exchange()
+    assert agent.eval_episodes == 50 and agent.exchanges == 1
+    archived = agent.archive.evaluations
+    assert 1 <= archived.shape[0] <= 5
+    # without it (morld_eval_episodes=0) the archive takes the training episodes' returns: none ended yet
+    other = make_morld_agent(resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,), morld_eval_episodes=0),
+                             env, gamma=0.995, device=CPU)
+    other.exchange()
+    assert other.eval_episodes == 0 and len(other.archive) == 0

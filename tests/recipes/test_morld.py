@@ -150,7 +150,9 @@ def test_population_learns_a_front_no_single_member_covers():
 
 def test_exchange_archives_member_returns_and_adapts_weights():
     torch.manual_seed(0)
-    cfg, env, agent = _bandit_agent()
+    # morld_eval_episodes=0: the archive takes the members' training episodes (the authors': separate
+    # evaluation episodes, tests/recipes/test_mechanisms.py)
+    cfg, env, agent = _bandit_agent(morld_eval_episodes=0)
     # three finished episodes: sub-envs 0 and 1 (member 0), 5 (member 1), 11 (member 2)
     done = torch.zeros(12, 1, 1, dtype=torch.bool)
     done[[0, 1, 5, 11]] = True
@@ -171,7 +173,7 @@ def test_exchange_archives_member_returns_and_adapts_weights():
     assert not torch.equal(agent.loss.weights, before)
     assert agent.member_evaluations().isnan().all()  # the next period starts afresh
     # the state (weights in the loss, archive, exchange bookkeeping) round-trips
-    _, _, other = _bandit_agent()
+    _, _, other = _bandit_agent(morld_eval_episodes=0)
     other.load_state_dict(agent.state_dict())
     torch.testing.assert_close(other.loss.weights, agent.loss.weights)
     assert other.archive.evaluations.tolist() == agent.archive.evaluations.tolist() and other.exchanges == 1

@@ -29,7 +29,9 @@ MORLDConfig = algorithm_config(
     pick(ACTOR_CRITIC, [k for k in ACTOR_CRITIC if k not in ("per_alpha", "per_beta", "per_importance_weights")],
          frames_per_batch=60, init_random_frames=25_000, q_lr=1e-3, alpha_lr=1e-3, alpha=1.0),
     # population
-    dict(pop_size=6, exchange_every=20_000, weight_adaptation="none", psa_delta=0.1),
+    # the archive evaluation after every exchange: 5 stochastic episodes per member on a DR env of their own
+    # (num_eval_episodes_for_front, morld.py:516)
+    dict(pop_size=6, exchange_every=20_000, weight_adaptation="none", psa_delta=0.1, morld_eval_episodes=5),
 )
 
 
