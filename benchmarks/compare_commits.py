@@ -46,6 +46,13 @@ PAIR_SETTINGS = {
     "pgmorl": dict(overrides={"frames_per_batch": 24 * 256}),
     "pcn": dict(overrides={"pcn_er_episodes": 16}, warm=2048, frames=4096),
 }
+# ``--as-before``: the "after" checkout configured to do the work "before" did where issue 27 changed
+# an algorithm's work to the authors' (not a speed change): PCN's network (the authors' net_arch
+# [256] * 4 instead of MORL-Baselines' hidden_dim 64 with one hidden layer: ~15x the arithmetic
+# per update), the delayed actor of SAC and MOSAC / MORL/D (policy_freq 2: a critic step per
+# update and two actor steps every second one, each on a fresh forward of the whole loss).
+AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "morld": {"policy_freq": 1}, "sac": {"policy_freq": 1}}
+
 
 def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: dict, warm: int = 0) -> dict:
     """Frames/s (environment frames, all sub-envs) of the checkout on ``sys.path``'s training loop."""
@@ -125,6 +132,8 @@ def main(argv=None) -> int:
     p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
                    help="wall time, or the worker's process CPU time (steadier on a shared machine)")
     p.add_argument("--timeout", type=float, default=1800, help="seconds per worker before it counts as failed")
+    p.add_argument("--as-before", action="store_true",
+                   help="configure 'after' to do the work 'before' did where issue 27 changed it (AS_BEFORE)")
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     p.add_argument("--overrides", default="{}", help=argparse.SUPPRESS)
     p.add_argument("--warm", type=int, default=0, help=argparse.SUPPRESS)
@@ -157,7 +166,8 @@ def main(argv=None) -> int:
             for name in order:
                 if name in errors:
                     continue
-                res = run_worker(checkouts[name], pair, frames, args.clock, overrides, warm, args.timeout)
+                mine = {**overrides, **AS_BEFORE.get(algo, {})} if args.as_before and name == "after" else overrides
+                res = run_worker(checkouts[name], pair, frames, args.clock, mine, warm, args.timeout)
                 if "error" in res:
                     errors[name] = res["error"]
                 else:
@@ -168,6 +178,8 @@ def main(argv=None) -> int:
         note = "; ".join(f"{k} failed: {v}" for k, v in errors.items())
         if setting:
             note = (note + "; " if note else "") + f"{frames} frames, {setting}"
+        if args.as_before and algo in AS_BEFORE:
+            note = (note + "; " if note else "") + f"after with {AS_BEFORE[algo]}"
         algo_, env_id = pair.split(":")
         print(f"{algo_:<9} {env_id:<20} {med['before']:>11.1f} {med['after']:>10.1f} "
               f"{med['after'] / med['before']:>12.2f}x {share['before']:>7.0%} {share['after']:>6.0%}  {note}",

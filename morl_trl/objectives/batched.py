@@ -40,8 +40,8 @@ import torch
 from torch import Tensor, nn
 from torch.nn import functional as F
 
-__all__ = ["BatchedLinear", "BatchedLayerNorm", "BatchedMLP", "batched_dropout", "linear_dropout_norm_relu",
-           "INITS"]
+__all__ = ["BatchedLinear", "BatchedLayerNorm", "BatchedMLP", "batched_dropout", "batched_linear", "hidden_block",
+           "linear_dropout_norm_relu", "INITS"]
 
 #: the initialisations of :class:`BatchedLinear`
 INITS = ("orthogonal", "torch")
@@ -49,6 +49,13 @@ INITS = ("orthogonal", "torch")
 
 def _members(t: Tensor, members: slice | None) -> Tensor:
     return t if members is None else t[members]
+
+
+def batched_linear(x: Tensor, weight: Tensor, bias: Tensor) -> Tensor:
+    """:class:`BatchedLinear` on given tensors: ``x`` ``[E, *B, in]`` (or ``[E * N, in]``), ``weight``
+    ``[E, in, out]``, ``bias`` ``[E, 1, out]`` -> ``[E, *B, out]`` (one ``baddbmm``)."""
+    flat = x.reshape(weight.shape[0], -1, x.shape[-1])
+    return torch.baddbmm(bias, flat, weight).reshape(*x.shape[:-1], weight.shape[-1])
 
 
 class BatchedLinear(nn.Module):
@@ -101,9 +108,7 @@ class BatchedLinear(nn.Module):
             nn.init.uniform_(self.bias, -bound, bound)
 
     def forward(self, x: Tensor, members: slice | None = None) -> Tensor:
-        w, b = _members(self.weight, members), _members(self.bias, members)
-        flat = x.reshape(w.shape[0], -1, x.shape[-1])
-        return torch.baddbmm(b, flat, w).reshape(*x.shape[:-1], w.shape[-1])
+        return batched_linear(x, _members(self.weight, members), _members(self.bias, members))
 
     def member_linear(self, e: int) -> nn.Linear:
         """Member ``e`` as a (detached copy) ``nn.Linear``."""
@@ -188,11 +193,21 @@ def linear_dropout_norm_relu(x: Tensor, linear: BatchedLinear, norm: BatchedLaye
         >>> torch.equal(fast, torch.relu(norm(batched_dropout(lin(x), 0.1, True))))
         True
     """
-    h = linear(x, members)
+    norm_params = None if norm is None else (_members(norm.weight, members), _members(norm.bias, members), norm.eps)
+    return hidden_block(x, _members(linear.weight, members), _members(linear.bias, members), norm_params, p,
+                        training)
+
+
+def hidden_block(x: Tensor, weight: Tensor, bias: Tensor, norm: tuple[Tensor, Tensor, float] | None, p: float,
+                 training: bool) -> Tensor:
+    """:func:`linear_dropout_norm_relu` on given tensors (``norm``: ``(weight, bias, eps)`` or ``None``)."""
+    h = batched_linear(x, weight, bias)
     if training and p > 0.0:
         h.mul_(_dropout_mask(h, p))  # h is the matmul's fresh output: BaddbmmBackward does not keep it
     if norm is not None:
-        h = norm(h, members)
+        nw, nb, eps = norm
+        flat = h.reshape(nw.shape[0], -1, h.shape[-1])
+        h = _affine(F.layer_norm(flat, flat.shape[-1:], eps=eps), nw, nb).reshape(h.shape)
     return h.relu_()
 
 

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import torch
@@ -23,7 +24,13 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torch.nn import functional as F
 
-from morl_trl.objectives.batched import BatchedLayerNorm, BatchedLinear, linear_dropout_norm_relu
+from morl_trl.objectives.batched import (
+    BatchedLayerNorm,
+    BatchedLinear,
+    batched_linear,
+    hidden_block,
+    linear_dropout_norm_relu,
+)
 from morl_trl.objectives.common import MultiObjectiveLossModule
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN, orthogonal_init_
@@ -81,6 +88,40 @@ class GPIQNetwork(nn.Module):
         self.out = BatchedLinear(num_nets, hidden[-1], num_actions * num_objectives)
 
     def forward(self, observation: torch.Tensor, preference: torch.Tensor, members: slice | None = None) -> torch.Tensor:
+        return self.forward_with(None, observation, preference, members)
+
+    @property
+    def supports_forward_with(self) -> bool:
+        """Whether :meth:`forward_with` takes given parameters: flat observations (no ``NatureCNN``)."""
+        return not isinstance(self.state_features, nn.ModuleList)
+
+    def forward_with(self, params: TensorDictBase | None, observation: torch.Tensor, preference: torch.Tensor,
+                     members: slice | None = None) -> torch.Tensor:
+        """:meth:`forward` with the parameters taken from ``params`` (a TensorDict shaped as
+        ``TensorDict.from_module(self)``, e.g. a loss's functional or target parameters; ``None``: the
+        module's own), nothing swapped into the module: the same operations at a fraction of
+        ``TensorDict.to_module``'s cost. Flat observations only (:attr:`supports_forward_with`).
+
+        Example:
+            >>> from tensordict import TensorDict
+            >>> q = GPIQNetwork(6, 3, 2, hidden=(16, 16)).eval()
+            >>> params = TensorDict.from_module(q).detach()
+            >>> x, w = torch.randn(5, 6), torch.full((5, 2), 0.5)
+            >>> torch.equal(q.forward_with(params, x, w), q(x, w))
+            True
+        """
+        if params is None:
+            get = lambda *path: functools.reduce(getattr, path, self)  # noqa: E731
+        else:
+            if not self.supports_forward_with:
+                raise ValueError("forward_with takes parameters for flat observations only (this network has a "
+                                 "NatureCNN per member)")
+            get = lambda *path: params.get(path)  # noqa: E731
+
+        def tensors(*path):
+            w, b = get(*path, "weight"), get(*path, "bias")
+            return (w, b) if members is None else (w[members], b[members])
+
         lead = preference.shape[:-1]
         chosen = range(self.num_nets) if members is None else range(self.num_nets)[members]
         e = len(chosen)
@@ -90,13 +131,14 @@ class GPIQNetwork(nn.Module):
             sf = torch.stack([self.state_features[i](pixels) for i in chosen])
         else:
             s = observation.reshape(1, -1, observation.shape[-1]).to(dtype).expand(e, -1, -1)
-            sf = self.state_features(s, members)
+            sf = batched_linear(s, *tensors("state_features"))
         w = preference.to(dtype).reshape(1, -1, preference.shape[-1]).expand(e, -1, -1)
-        x = F.relu(sf) * F.relu(self.weight_features(w, members))
-        for i, layer in enumerate(self.hidden):
-            x = linear_dropout_norm_relu(x, layer, None if self.norms is None else self.norms[i], self.dropout,
-                                         self.training, members)
-        return self.out(x, members).reshape(e, *lead, self.num_actions, self.num_objectives)
+        # relu in place on the fresh matmul outputs (their backward keeps the inputs, not the outputs)
+        x = sf.relu_() * batched_linear(w, *tensors("weight_features")).relu_()
+        for i in range(len(self.hidden)):
+            norm = None if self.norms is None else (*tensors("norms", str(i)), self.norms[i].eps)
+            x = hidden_block(x, *tensors("hidden", str(i)), norm, self.dropout, self.training)
+        return batched_linear(x, *tensors("out")).reshape(e, *lead, self.num_actions, self.num_objectives)
 
 
 def gpi_action(q: torch.Tensor, preference: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -283,8 +325,11 @@ class GPILoss(MultiObjectiveLossModule):
 
     # ---------------------------------------------------------------- pieces
     def _q(self, params, obs: torch.Tensor, w: torch.Tensor, members: slice | None = None) -> torch.Tensor:
+        net = self.value_network.module
+        if net.supports_forward_with:  # the same operations, without swapping the parameters in and out
+            return net.forward_with(params.get("module"), obs, w, members)
         with params.to_module(self.value_network, preserve_module_state=False):
-            return self.value_network.module(obs, w, members=members)
+            return net(obs, w, members=members)
 
     @torch.no_grad()
     def _min_member(self, q: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
