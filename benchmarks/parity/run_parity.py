@@ -147,6 +147,10 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
     plt.close(fig)
 
 
+def _num(value) -> str:
+    return "-" if value is None else f"{value:,.0f}"
+
+
 def write_results(out: Path, seeds: list[int], command: str) -> Path:
     import platform
 
@@ -224,7 +228,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
             verdict = "-"
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
         summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get('mb', '-')} | {verdict} | {fps.get('ours', 0):,.0f} | {fps.get('mb', 0):,.0f} "
+                       f"| {hv.get('mb', '-')} | {verdict} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
                        f"| {ratio} |")
     lines += summary + [""] + body
     notes = out.parent / "NOTES.md"  # hand-written findings (kept across regenerations)
