@@ -214,7 +214,8 @@ def _target_frames(v, cfg):
     return None if cfg.tau is not None and v == 1 else v // cfg.update_frequency
 
 
-ENVELOPE = {
+#: the rows the DQN family (Envelope, GPI-LS/PD) shares: the config family ``recipes.config.families.DQN_*``
+_DQN_ROWS = {
     "init.learning_rate": Same("lr"),
     "init.initial_epsilon": Same("eps_start"),
     "init.final_epsilon": Same("eps_end"),
@@ -222,6 +223,10 @@ ENVELOPE = {
     "init.tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
     "init.target_net_update_freq": Same("target_update_period"),
     "init.buffer_size": Same("buffer_size"),
+}
+
+ENVELOPE = {
+    **_DQN_ROWS,
     "init.net_arch": Same("hidden", expect=_mario_after_cnn),
     "init.batch_size": Same("batch_size"),
     "init.learning_starts": Same("init_random_frames"),
@@ -509,13 +514,7 @@ PGMORL = {
 _GPI_DISCRETE_NET = Code("objectives.gpi.GPIQNetwork (state x weight features, [Linear, Dropout, LayerNorm, ReLU] "
                          "blocks)")
 GPI = {
-    "init.learning_rate": Same("lr"),
-    "init.initial_epsilon": Same("eps_start"),
-    "init.final_epsilon": Same("eps_end"),
-    "init.epsilon_decay_steps": Same("eps_frames"),
-    "init.tau": Same("tau", expect=lambda v, cfg: None if v == 1.0 else v),
-    "init.target_net_update_freq": Same("target_update_period"),
-    "init.buffer_size": Same("buffer_size"),
+    **_DQN_ROWS,
     "init.net_arch": Same("hidden", expect=_net_arch),
     "init.num_nets": Same("gpi_num_nets"),
     "init.num_q_nets": Same("gpi_num_nets"),
