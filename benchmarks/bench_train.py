@@ -177,13 +177,14 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
     import tempfile
 
     import morl_trl
+    from torchrl.collectors import Collector
+
     from morl_trl.evaluation import MultiContextEvaluator
-    from morl_trl.recipes.parts import RecipeCollector
     from morl_trl.runs.run import Run
 
     c = _parity_case(case, frames)
     marks: dict = {"eval": 0.0}
-    iterator, evaluate, finish = RecipeCollector.iterator, MultiContextEvaluator.evaluate, Run.finish
+    iterator, evaluate, finish = Collector.iterator, MultiContextEvaluator.evaluate, Run.finish
 
     def timed_iterator(self):
         marks.setdefault("start", CLOCK())
@@ -202,7 +203,7 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
         marks["loop_eval"] = marks["eval"]
         return finish(self, *args, **kwargs)
 
-    RecipeCollector.iterator, MultiContextEvaluator.evaluate, Run.finish = timed_iterator, timed_evaluate, timed_finish
+    Collector.iterator, MultiContextEvaluator.evaluate, Run.finish = timed_iterator, timed_evaluate, timed_finish
     quiet = io.StringIO()  # (the run's own lines: start, evaluations, report)
     try:
         with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):
@@ -210,7 +211,7 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
                            eval_weights=16, eval_episodes=1, gamma=c["gamma"], eval_random_baseline=False,
                            progress=False, run_dir=f"{tmp}/run", **c["ours"])
     finally:
-        RecipeCollector.iterator, MultiContextEvaluator.evaluate, Run.finish = iterator, evaluate, finish
+        Collector.iterator, MultiContextEvaluator.evaluate, Run.finish = iterator, evaluate, finish
     wall = marks["end"] - marks["start"] - marks["loop_eval"]
     return {"fps": marks["frames"] / wall, "frames": marks["frames"], "env": c["env"], "algo": c["algo"]}
 
