@@ -84,6 +84,11 @@ class Agent:
         (PGMORL counts one member's, as the authors)."""
         return batch.numel()
 
+    def env_reset_due(self) -> bool:
+        """Whether the training loop must restart every episode now (``collector.reset()``) before the
+        next batch: never, unless the algorithm says so (MORL/D's round robin at an exchange)."""
+        return False
+
     def frames_to_collect(self, frames_done: int) -> int:
         """The frames the collector still has to collect when ``frames_done`` frames (as
         :meth:`frames_of` counts them) are done: ``cfg.frames - frames_done``."""

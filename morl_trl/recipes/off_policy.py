@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import collector_state, load_collector_state
+from morl_trl._torchrl_compat import collector_state, load_collector_state, reset_collector
 from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
@@ -202,6 +202,8 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
                     path = run.stop(str(err), snapshot(), buffer)
                     raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
                 agent.on_frames(run.frames)  # the schedules (epsilon, homotopy)
+                if agent.env_reset_due():  # (MORL/D's round robin: the next member starts on a reset env)
+                    reset_collector(collector)
                 collector.update_policy_weights_()
                 run.batch_done(frames, losses, updates, epsilon=agent.epsilon)
                 if run.eval_due():
