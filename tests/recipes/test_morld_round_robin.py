@@ -197,3 +197,17 @@ def test_round_robin_settings_are_checked():
         make_morld_agent(cfg, build(cfg, CPU), gamma=0.99, device=CPU)
     with pytest.raises(ValueError, match="'morld_schedule'"):
         resolve_config("morld", "MOLavaGridDR-v0", morld_schedule="turns")
+
+
+def test_the_fidelity_rows_of_the_round_robin_are_the_authors_and_concurrent_is_reported_as_a_difference():
+    from morl_trl.recipes import fidelity
+
+    settings = ("init.update_passes", "derived.exchanges_per_member", "derived.own_env_steps_per_member",
+                "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange")
+    by = {r.setting: r for r in fidelity.compare("morld", "MOHalfCheetahDR-v5")}
+    assert [by[s].status for s in settings] == ["same"] * 5
+    assert by["derived.exchanges_per_member"].ours == (84, 84, 83, 83, 83, 83)
+    cfg = resolve_config("morld", "MOHalfCheetahDR-v5", morld_schedule="concurrent")
+    by = {r.setting: r for r in fidelity.compare("morld", "MOHalfCheetahDR-v5", cfg)}
+    assert by["derived.env_reset_at_each_exchange"].status == "differs: ours 'concurrent', the authors' 'round_robin'"
+    assert by["derived.updates_for_non_active_member_per_exchange"].status == "differs: ours 0, the authors' 10"
