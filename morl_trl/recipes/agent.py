@@ -84,9 +84,10 @@ class Agent:
         (PGMORL counts one member's, as the authors)."""
         return batch.numel()
 
-    def env_reset_due(self) -> bool:
-        """Whether the training loop must restart every episode now (``collector.reset()``) before the
-        next batch: never, unless the algorithm says so (MORL/D's round robin at an exchange)."""
+    def before_batch(self) -> bool:
+        """Called by the training loop before a batch is collected (once the collector is built, then
+        after every batch's :meth:`learn`); ``True``: restart every episode first (``collector.reset()``).
+        Default: nothing to do (MORL/D's round robin resets at an exchange, PGMORL re-seeds its simulators)."""
         return False
 
     def frames_to_collect(self, frames_done: int) -> int:

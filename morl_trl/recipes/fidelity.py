@@ -414,7 +414,7 @@ MORLD = {
     "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
                                                        ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
     "derived.env_reset_at_each_exchange": Same("morld_schedule", expect=lambda v, cfg: "round_robin" if v else
-                                               "concurrent"),  # recipes.morld: Agent.env_reset_due
+                                               "concurrent"),  # recipes.morld: Agent.before_batch
 }
 
 PCN = {
@@ -511,7 +511,11 @@ PGMORL = {
     "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
-    "derived.vector_env_reset_each_iteration": Same("pgmorl_reset_each_iteration", expect=lambda v, cfg: True),
+    # recipes.pgmorl.PGMORLAgent.reseed_env (tests/recipes/test_pgmorl.py)
+    "derived.vector_env_reset_each_iteration": Same("(pgmorl_reset_each_iteration, pgmorl_reseed_each_iteration)",
+                                                    expect=lambda v, cfg: (True, True),
+                                                    ours=lambda cfg: (cfg.pgmorl_reset_each_iteration,
+                                                                      cfg.pgmorl_reseed_each_iteration)),
     "derived.global_step_per_iteration": Same("frames_per_batch / pgmorl_pop",
                                               ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),
     "derived.ppo_batch": Same("frames_per_batch / pgmorl_pop", ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),

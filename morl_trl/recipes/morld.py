@@ -18,7 +18,7 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
   actor steps and target copies on the shared counter's clock, as the authors' ``global_step``).
   At the end of the turn (the exchange) every other member gets ``morld_update_passes`` (10)
   catch-up updates, the members are evaluated and archived (and PSA adapts the weights), and
-  the env is reset (``Agent.env_reset_due``: the training loop restarts every episode, as each
+  the env is reset (``Agent.before_batch``: the training loop restarts every episode, as each
   member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
   :class:`~morl_trl.recipes.optim.MemberAdam` (each member's own Adam moments and step count)
   and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
@@ -455,7 +455,7 @@ class MORLDAgent(Agent):
         self.critic_steps += 1
         return self.clock % self.policy_freq == 0
 
-    def env_reset_due(self) -> bool:
+    def before_batch(self) -> bool:
         """Round robin: after an exchange the next member starts on a reset env (once; the authors' ``train()``
         starts with ``env.reset()``, ``mosac_continuous_action.py:526``)."""
         due, self._reset_due = self._reset_due, False

@@ -133,7 +133,7 @@ def test_round_robin_trains_one_member_per_turn_resets_the_env_and_catches_the_o
                 for k in after[p]:
                     if k.startswith("target."):
                         assert torch.equal(after[p][k], after[p]["critic." + k[len("target."):]]), k
-        if agent.env_reset_due():
+        if agent.before_batch():
             reset_collector(collector)
     collector.shutdown()
     # turns of 20 frames = 2 batches: members 0, 1, 2, 0, 1

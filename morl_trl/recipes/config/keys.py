@@ -223,6 +223,7 @@ KEYS: dict[str, Key] = {
     'pgmorl_clip': Key('pgmorl', 'float', 'PPO ratio and value clip', _float(0.0, 10.0, open_low=True)),
     'pgmorl_gae_lambda': Key('pgmorl', 'float', 'GAE lambda', _float(0.0, 1.0)),
     'pgmorl_reset_each_iteration': Key('pgmorl', 'bool', "reset every sub-env at the start of each iteration, abandoning the running episodes (the authors' envs.reset at each member's train(), mo_ppo.py:628); false: episodes continue across iterations", _bool, inert=False),
+    'pgmorl_reseed_each_iteration': Key('pgmorl', 'bool', "at that reset, re-seed member p's sub-env i with its seed + i (the run's seed, 42 once the task selection made the member a copy), as the authors' envs.reset(seed=member.seed) (mo_ppo.py:628; the simulators' initial-state noise repeats each iteration, the DR contexts do not); false: one stream per sub-env for the whole run", _bool, inert=False),
     'pgmorl_eval_obs': Key('pgmorl', 'str', "observations of the evaluated policy: 'raw' (the authors: normalised policies fed raw observations) or 'normalized' (the training normalisation, frozen)", _choice(("raw", "normalized"))),
     'pop_size': Key('morld', 'int', 'population size P (concurrent schedule: each member owns num_envs sub-envs, P * num_envs in all)', _int(1, 4096)),
     'exchange_every': Key('morld', 'int', 'frames between exchanges (archive update, weight adaptation); round robin: the frames of one member\'s turn', _int(1)),
