@@ -62,11 +62,11 @@ import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
-from torchrl.envs import ClipTransform, VecNorm
+from torchrl.envs import ClipTransform
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
-from morl_trl._torchrl_compat import transform_step
+from morl_trl._torchrl_compat import VecNormNonNegativeVar, transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
@@ -131,7 +131,7 @@ def make_pgmorl_training_env(cfg, device: torch.device):
     if not is_discrete(spec):  # the authors' ClipAction: the env gets the clipped action, the rollout keeps the sample
         env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
                                            low=float(spec.space.low.min()), high=float(spec.space.high.max())).to(device))
-    env.append_transform(VecNorm(in_keys=["observation"], decay=1.0, eps=1e-8, new_api=True, reduce_batch_dims=True))
+    env.append_transform(VecNormNonNegativeVar(in_keys=["observation"], decay=1.0, eps=1e-8, reduce_batch_dims=True))
     # ClipTransform keeps its bounds where it was built: on the env's device (the GPU run found them on the CPU)
     env.append_transform(ClipTransform(in_keys=["observation"], low=-10.0, high=10.0).to(device))
     env.append_transform(DiscountedVectorReturn(gamma))
@@ -225,8 +225,8 @@ class PGMORLAgent(Agent):
         self.sim_env = None  # the training env's simulators (reseed_env), when pgmorl_reseed_each_iteration
         self.generator = torch.Generator().manual_seed(cfg.seed + 11)
         # TorchRL's VecNorm + clip on the batch's vector rewards -> ("next", "reward_norm")
-        self.reward_norm = VecNorm(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8, new_api=True,
-                                   reduce_batch_dims=True)
+        self.reward_norm = VecNormNonNegativeVar(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8,
+                                                 reduce_batch_dims=True)
         self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0).to(device)
 
     # ------------------------------------------------------------------ frame budget
