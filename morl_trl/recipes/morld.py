@@ -196,7 +196,8 @@ class MemberTargetUpdate:
     @torch.no_grad()
     def step(self) -> None:
         agent = self._agent
-        if self.tau is None and agent.clock % self.period_frames:
+        clock = agent.clock if agent.clock is not None else agent.critic_steps  # (outside learn(): updates)
+        if self.tau is None and clock % self.period_frames:
             return
         for source, target in zip(self.sources, self.targets):
             new = source if self.tau is None else target.lerp(source, self.tau)
@@ -350,7 +351,7 @@ class MORLDAgent(Agent):
         for opt in optimizers.values():
             if isinstance(opt, MemberAdam):
                 opt.members = self.members
-        self.clock = 0
+        self.clock: int | None = None  # (None: an update outside learn(), counted as the concurrent schedule's)
         self.turn_frames = 0
         self.member_updates = torch.zeros(P, dtype=torch.long)
         self.member_frames = torch.zeros(P, dtype=torch.long)
@@ -437,20 +438,23 @@ class MORLDAgent(Agent):
     def _updates_at(self, buffer, clocks: list[int], *, done: int):
         """One :meth:`update` at each shared-counter frame of ``clocks``; ``done``: updates of this batch before them."""
         losses = None
-        for i, g in enumerate(clocks):
-            self.clock = g
-            try:
-                losses = self.update(buffer)
-            except NonFiniteLossError as err:
-                err.updates_done = done + i
-                raise
+        try:
+            for i, g in enumerate(clocks):
+                self.clock = g
+                try:
+                    losses = self.update(buffer)
+                except NonFiniteLossError as err:
+                    err.updates_done = done + i
+                    raise
+        finally:
+            self.clock = None
         return losses
 
     def next_is_actor_turn(self) -> bool:
         """Round robin: the actor (and temperature) steps when the update's shared frame is a multiple of
         ``policy_freq``, as the authors' ``global_step % policy_freq == 0`` (a catch-up update at an exchange,
         whose frame is a multiple of ``exchange_every``: the actor steps)."""
-        if not self.round_robin:
+        if not self.round_robin or self.clock is None:
             return super().next_is_actor_turn()
         self.critic_steps += 1
         return self.clock % self.policy_freq == 0
