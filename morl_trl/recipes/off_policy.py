@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import collector_state, load_collector_state
+from morl_trl._torchrl_compat import collector_state, load_collector_state, reset_collector
 from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
@@ -154,6 +154,8 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
         load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
+    if agent.before_batch():
+        reset_collector(collector)
 
     notes = [] if reference is not None else [no_reference_note(spec)]
     if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
@@ -202,6 +204,8 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
                     path = run.stop(str(err), snapshot(), buffer)
                     raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
                 agent.on_frames(run.frames)  # the schedules (epsilon, homotopy)
+                if agent.before_batch():  # (MORL/D's round robin: the next member starts on a reset env)
+                    reset_collector(collector)
                 collector.update_policy_weights_()
                 run.batch_done(frames, losses, updates, epsilon=agent.epsilon)
                 if run.eval_due():
