@@ -30,6 +30,7 @@ from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
+from morl_trl.recipes.envelope import train_envelope
 from morl_trl.recipes.parts import (
     check_buffer_memory,
     load_reference,
@@ -59,7 +60,7 @@ EXIT_NON_FINITE_LOSS = 3
 
 #: algorithm name -> its own recipe ``recipe(run) -> (summary, agent)``, for an algorithm written top to
 #: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
-RECIPES: dict = {}
+RECIPES: dict = {"envelope": train_envelope}
 
 
 def build(cfg: TrainConfig, device: torch.device):
