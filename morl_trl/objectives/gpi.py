@@ -312,7 +312,9 @@ class GPILoss(MultiObjectiveLossModule):
         saved = state_dict.get(prefix + "weight_support")
         if saved is not None:  # the support's size changes over a run: take the saved one's
             self.weight_support = torch.empty_like(saved, device=self.weight_support.device)
-        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+        # (named, not super(): GPIContinuousLoss borrows this method, and a zero-argument super()
+        # inside it would refuse an instance that is not a GPILoss)
+        MultiObjectiveLossModule._load_from_state_dict(self, state_dict, prefix, *args, **kwargs)
 
     def _set_in_keys(self) -> None:
         k = self.tensor_keys

@@ -30,8 +30,8 @@ import torch
 
 from morl_trl.runs.session import StopRun
 
-__all__ = ["NonFiniteLossError", "adam", "fused_choice", "optimizer_step", "clip_grad_norm", "check_finite",
-           "keep_implementation"]
+__all__ = ["NonFiniteLossError", "MemberAdam", "adam", "fused_choice", "optimizer_step", "clip_grad_norm",
+           "check_finite", "keep_implementation"]
 
 
 class NonFiniteLossError(StopRun):
@@ -105,6 +105,108 @@ def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimize
         if found_inf is not None:
             opt.found_inf = None
     return found_inf
+
+
+class MemberAdam(torch.optim.Optimizer):
+    """Adam over a population's stacked parameters that steps only the members of :attr:`members`.
+
+    Every parameter holds ``P`` members along its group's ``member_dim`` (``0`` for ``[P, ...]``,
+    ``1`` for a critic ensemble ``[n, P, ...]``). :meth:`step` updates, for each member ``p``
+    with ``members[p]`` true, its slice of every parameter, of Adam's two moments and its own step
+    count exactly as ``torch.optim.Adam`` on that member alone would (its bias corrections use its
+    own count); the other members' parameters, moments and counts are left bit for bit as they
+    were, whatever their gradients. This is what a population trained one member at a time needs
+    (MORL/D's round robin, :mod:`morl_trl.recipes.morld`): one batched backward over all members,
+    one step of the active ones. With every member active it is ``P`` independent Adams, as
+    ``torch.optim.Adam`` over the stacked tensors.
+
+    The state is Adam's (``step``, ``exp_avg``, ``exp_avg_sq`` per parameter) with ``step`` a
+    ``[P]`` float tensor; a ``torch.optim.Adam`` state (one scalar ``step`` per parameter, all
+    members stepped together) loads with that count for every member. ``found_inf`` (set by
+    :func:`optimizer_step` with ``on_device``) skips the whole step. No weight decay, amsgrad
+    or maximize.
+
+    Example:
+        >>> w = torch.nn.Parameter(torch.ones(3, 2))  # 3 members of 2 numbers
+        >>> opt = MemberAdam([w], lr=0.1, population=3)
+        >>> opt.members = torch.tensor([False, True, False])
+        >>> w.grad = torch.ones(3, 2)
+        >>> opt.step()
+        >>> w.detach()
+        tensor([[1.0000, 1.0000],
+                [0.9000, 0.9000],
+                [1.0000, 1.0000]])
+        >>> opt.state[w]["step"]
+        tensor([0., 1., 0.])
+    """
+
+    def __init__(self, params, lr: float = 1e-3, *, population: int, betas: tuple[float, float] = (0.9, 0.999),
+                 eps: float = 1e-8, member_dim: int = 0) -> None:
+        if population < 1:
+            raise ValueError(f"population must be at least 1, got {population}")
+        super().__init__(params, dict(lr=lr, betas=betas, eps=eps, member_dim=member_dim))
+        self.population = int(population)
+        device = self.param_groups[0]["params"][0].device
+        #: ``[P]`` bool: the members the next :meth:`step` updates (all of them by default)
+        self.members = torch.ones(self.population, dtype=torch.bool, device=device)
+        self.found_inf: torch.Tensor | None = None
+        for group in self.param_groups:
+            for p in group["params"]:
+                d = group["member_dim"]
+                if p.ndim <= d or p.shape[d] != self.population:
+                    raise ValueError(f"a parameter of shape {tuple(p.shape)} has no population dimension {d} of "
+                                     f"size {self.population} (member_dim={d}, population={self.population})")
+        self._member_dims = [group["member_dim"] for group in self.param_groups]
+        self.register_load_state_dict_post_hook(MemberAdam._per_member_steps)
+
+    @staticmethod
+    def _per_member_steps(opt: "MemberAdam") -> None:
+        """After ``load_state_dict``: a scalar ``step`` (a ``torch.optim.Adam`` state) becomes one count per
+        member; the groups keep their member dimensions (a ``torch.optim.Adam`` state has none)."""
+        for group, d in zip(opt.param_groups, opt._member_dims):
+            group["member_dim"] = d
+        for p, st in opt.state.items():
+            step = st.get("step")
+            if step is not None:
+                step = torch.as_tensor(step, dtype=torch.float32, device=p.device)
+                st["step"] = step.expand(opt.population).clone() if step.ndim == 0 else step.clone()
+
+    @torch.no_grad()
+    def step(self, closure=None):
+        if closure is not None:
+            raise ValueError("MemberAdam.step takes no closure")
+        members = self.members.to(torch.bool)
+        if self.found_inf is not None:
+            members = members & (self.found_inf == 0)
+        for group in self.param_groups:
+            beta1, beta2 = group["betas"]
+            lr, eps, d = group["lr"], group["eps"], group["member_dim"]
+            for p in group["params"]:
+                if p.grad is None:
+                    continue
+                st = self.state[p]
+                if not st:
+                    st["step"] = torch.zeros(self.population, dtype=torch.float32, device=p.device)
+                    st["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+                    st["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+                step, exp_avg, exp_avg_sq = st["step"], st["exp_avg"], st["exp_avg_sq"]
+                step.add_(members.to(step.dtype))
+                shape = [1] * p.ndim
+                shape[d] = self.population
+                mask = members.view(shape)
+                grad = p.grad
+                # torch.optim.Adam's arithmetic (its single-tensor loop), on copies, kept where a member steps
+                new_avg = exp_avg.lerp(grad, 1 - beta1)
+                new_sq = (exp_avg_sq * beta2).addcmul_(grad, grad, value=1 - beta2)
+                count = step.double().clamp(min=1)  # (a member never stepped: any finite value, not used)
+                step_size = (lr / (1 - beta1 ** count)).to(p.dtype).view(shape)
+                bias2_sqrt = ((1 - beta2 ** count) ** 0.5).to(p.dtype).view(shape)
+                denom = (new_sq.sqrt() / bias2_sqrt).add_(eps)
+                new_p = p + (-step_size) * (new_avg / denom)
+                exp_avg.copy_(torch.where(mask, new_avg, exp_avg))
+                exp_avg_sq.copy_(torch.where(mask, new_sq, exp_avg_sq))
+                p.copy_(torch.where(mask, new_p, p))
+        return None
 
 
 def fused_choice(cfg) -> bool | None:

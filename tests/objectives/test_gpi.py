@@ -219,3 +219,21 @@ def test_continuous_gpi_policy_on_an_env_without_context_parameters():
     with_table = GPIContinuousPolicy(actor, critic, support=torch.eye(2), gpi=True, context_table=torch.zeros(1, 0))
     without = GPIContinuousPolicy(actor, critic, support=torch.eye(2), gpi=True)
     assert torch.equal(with_table(td.clone())["action"], without(td.clone())["action"])
+
+
+def test_continuous_gpi_loss_state_loads_with_a_grown_weight_support():
+    # found by the parity benchmark: `morl_trl.train("gpi_ls", env="mo-mountaincarcontinuous-v0")` failed
+    # when the trained policy was reloaded (the borrowed loader's zero-argument super())
+    from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIVectorCritic
+
+    torch.manual_seed(0)
+    make = lambda: GPIContinuousLoss(GPIActor(5, 2, 3, low=-torch.ones(3), high=torch.ones(3), hidden=(16,)),
+                                     GPIVectorCritic(5, 3, 2, hidden=(16,)))
+    trained, fresh = make(), make()
+    support = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]])
+    trained.set_weights(torch.tensor([0.25, 0.75]), support)
+    fresh.load_state_dict(trained.state_dict())
+    assert fresh.weight_support.tolist() == support.tolist()
+    assert fresh.current_weight.tolist() == [0.25, 0.75]
+    for a, b in zip(trained.parameters(), fresh.parameters()):
+        assert torch.equal(a, b)

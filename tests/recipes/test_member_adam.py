@@ -1,0 +1,106 @@
+"""MemberAdam (recipes/optim.py): Adam over a population's stacked parameters stepping only the
+active members, each exactly as torch.optim.Adam on that member alone."""
+
+import copy
+
+import pytest
+import torch
+
+from morl_trl.recipes.optim import MemberAdam, NonFiniteLossError, adam, optimizer_step
+
+P = 4
+
+
+def _params(seed=0):
+    g = torch.Generator().manual_seed(seed)
+    actor = torch.nn.Parameter(torch.randn(P, 5, 3, generator=g))  # [P, in, out]
+    critic = torch.nn.Parameter(torch.randn(2, P, 1, 3, generator=g))  # [n, P, 1, out]: an ensemble's bias
+    return actor, critic
+
+
+def _loss(actor, critic, x):
+    # every member's loss depends only on its own slices (as the population's summed losses)
+    return (torch.tanh(x @ actor).pow(2).sum() + (critic * x.mean()).sin().sum())
+
+
+def test_member_adam_steps_each_active_member_as_a_standalone_adam_on_that_member():
+    actor, critic = _params()
+    opt = MemberAdam([{"params": [actor], "member_dim": 0}, {"params": [critic], "member_dim": 1}],
+                     lr=1e-2, population=P, eps=1e-4)
+    # member 2 alone, as a standalone Adam on copies of its slices
+    ref_a = torch.nn.Parameter(actor.detach()[2].clone())
+    ref_c = torch.nn.Parameter(critic.detach()[:, 2].clone())
+    ref = torch.optim.Adam([ref_a, ref_c], lr=1e-2, eps=1e-4, foreach=False)
+    schedule = [[2], [2, 0], [0], [2], [1, 2, 3], [2]] * 3  # who is active at each step
+    frozen = {}
+    g = torch.Generator().manual_seed(1)
+    for active in schedule:
+        x = torch.randn(P, 7, 5, generator=g)
+        opt.members = torch.tensor([i in active for i in range(P)])
+        before = (actor.detach().clone(), critic.detach().clone(),
+                  {k: v.clone() for k, v in opt.state[actor].items()} if opt.state[actor] else None)
+        optimizer_step(_loss(actor, critic, x), [opt])
+        if 2 in active:
+            ref.zero_grad()
+            (torch.tanh(x[2] @ ref_a).pow(2).sum() + (ref_c * x.mean()).sin().sum()).backward()
+            ref.step()
+        for p in range(P):
+            if p not in active:  # untouched, bit for bit: parameters, moments, step count
+                assert torch.equal(actor[p], before[0][p]) and torch.equal(critic[:, p], before[1][:, p])
+                if before[2] is not None:
+                    for k in ("exp_avg", "exp_avg_sq"):
+                        assert torch.equal(opt.state[actor][k][p], before[2][k][p])
+                    assert opt.state[actor]["step"][p] == before[2]["step"][p]
+        frozen[tuple(active)] = True
+    torch.testing.assert_close(actor.detach()[2], ref_a.detach(), rtol=1e-6, atol=1e-7)
+    torch.testing.assert_close(critic.detach()[:, 2], ref_c.detach(), rtol=1e-6, atol=1e-7)
+    torch.testing.assert_close(opt.state[actor]["exp_avg_sq"][2], ref.state[ref_a]["exp_avg_sq"], rtol=1e-6, atol=0)
+    # each member's own count: member 2 was active 15 times, 0 6 times, 1 and 3 3 times
+    assert opt.state[actor]["step"].tolist() == [6.0, 3.0, 15.0, 3.0]
+    assert opt.state[critic]["step"].tolist() == [6.0, 3.0, 15.0, 3.0]
+
+
+def test_member_adam_with_every_member_active_is_torch_adam_over_the_stacked_tensors():
+    a1, c1 = _params()
+    a2, c2 = (torch.nn.Parameter(t.detach().clone()) for t in (a1, c1))
+    mine = MemberAdam([{"params": [a1]}, {"params": [c1], "member_dim": 1}], lr=3e-3, population=P)
+    ref = torch.optim.Adam([a2, c2], lr=3e-3, foreach=False)
+    g = torch.Generator().manual_seed(3)
+    for _ in range(5):
+        x = torch.randn(P, 7, 5, generator=g)
+        optimizer_step(_loss(a1, c1, x), [mine])
+        optimizer_step(_loss(a2, c2, x), [ref])
+    torch.testing.assert_close(a1, a2, rtol=1e-6, atol=1e-7)
+    torch.testing.assert_close(c1, c2, rtol=1e-6, atol=1e-7)
+
+
+def test_a_torch_adam_state_loads_with_its_count_for_every_member_and_continues_identically():
+    a1, c1 = _params()
+    old = adam([c1], lr=1e-3)  # what a concurrent MORL/D run saved (fused Adam, one scalar step)
+    for _ in range(3):
+        optimizer_step(_loss(a1, c1, torch.ones(P, 2, 5)), [old])
+    mine = MemberAdam([c1], lr=1e-3, population=P, member_dim=1)
+    mine.load_state_dict(copy.deepcopy(old.state_dict()))  # (a state_dict shares the live moments)
+    assert mine.state[c1]["step"].tolist() == [3.0] * P and mine.param_groups[0]["member_dim"] == 1
+    c2 = torch.nn.Parameter(c1.detach().clone())
+    ref = torch.optim.Adam([c2], lr=1e-3, foreach=False)
+    ref.load_state_dict(copy.deepcopy(old.state_dict()))
+    x = torch.full((P, 2, 5), 0.5)
+    mine.members = torch.tensor([True, False, True, True])
+    optimizer_step(_loss(a1, c1, x), [mine])
+    optimizer_step(_loss(a1, c2, x), [ref])
+    torch.testing.assert_close(c1[:, [0, 2, 3]], c2[:, [0, 2, 3]], rtol=1e-6, atol=1e-7)
+    assert mine.state_dict()["state"][0]["step"].tolist() == [4.0, 3.0, 4.0, 4.0]
+
+
+def test_member_adam_goes_through_the_non_finite_guard_and_refuses_a_parameter_without_the_population():
+    actor, critic = _params()
+    opt = MemberAdam([actor], lr=1e-3, population=P)
+    before = actor.detach().clone()
+    with pytest.raises(NonFiniteLossError, match="nan"):
+        optimizer_step(actor.sum() * float("nan"), [opt])
+    assert torch.equal(actor, before) and not opt.state[actor]
+    found = optimizer_step(actor.sum() * float("inf"), [opt], on_device=True)  # skipped on the device
+    assert found.item() == 1.0 and torch.equal(actor, before)
+    with pytest.raises(ValueError, match=r"shape \(2, 4, 1, 3\) has no population dimension 0 of size 3"):
+        MemberAdam([critic], lr=1e-3, population=3)
