@@ -47,7 +47,9 @@ rows for the captured update (``compile``, ``cudagraphs``, ``both``: see
     python benchmarks/bench_losses.py --device cuda [--capture cudagraphs both]
 
 Ours and the peer alternate in rounds so that machine load hits both alike; the
-median rate over rounds is reported. On a shared machine, ``--threads 1 --clock cpu``
+median rate over rounds is reported. Both run in this one process, under the same allocator
+settings: ``--malloc tuned`` (default) sets glibc's thresholds as a trainer does
+(``morl_trl.recipes.allocator``), ``--malloc default`` leaves glibc's own. On a shared machine, ``--threads 1 --clock cpu``
 (process CPU time) gives steadier figures than wall time.
 """
 
@@ -817,8 +819,22 @@ def main(argv=None) -> int:
         default="wall",
         help="wall time (default), or this process's CPU time: steadier on a shared machine, with --threads 1",
     )
+    p.add_argument("--malloc", choices=["tuned", "default"], default="tuned",
+                   help="tuned (default): glibc's thresholds set as a trainer sets them "
+                        "(morl_trl.recipes.allocator.tune_malloc); default: glibc's own. One process: "
+                        "the peer runs under the same setting")
     args = p.parse_args(argv)
     global CLOCK, SYNC, TABLE, FLOPS
+    if args.malloc == "default":
+        import os
+
+        os.environ["MORL_TRL_MALLOC"] = "0"  # (the recipes' build_agent would set it otherwise)
+        malloc_label = "glibc defaults"
+    else:
+        from morl_trl.recipes.allocator import tune_malloc
+
+        malloc_label = ("glibc thresholds set (mmap 32 MiB, trim 256 MiB)" if tune_malloc()
+                        else "unchanged (not glibc, or MORL_TRL_MALLOC / MALLOC_*_ set)")
     TABLE = args.table
     FLOPS = not (args.no_flops or args.tiny)
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
@@ -858,6 +874,7 @@ def main(argv=None) -> int:
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock, device {device}; "
           f"peer: {peer_label}")
     print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
+    print(f"allocator: {malloc_label}, for ours and the peer alike (one process)")
     methods = args.methods if device.type == "cpu" else [m for m in args.methods if not m.startswith("gpi")]
     env_tr = random_transitions(filled, ENVELOPE["obs"], ENVELOPE["k"], num_actions=ENVELOPE["actions"])
     cap_tr = random_transitions(filled, CAPQL["obs"], CAPQL["k"], act_dim=CAPQL["act"], seed=1)

@@ -31,10 +31,21 @@ from morl_trl.objectives.common import MultiObjectiveLossModule, check_preferenc
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 
-__all__ = ["DiscreteMOSACLoss", "MOSACLoss"]
+__all__ = ["DiscreteMOSACLoss", "MOSACLoss", "ALPHA_LOSS_FORMS", "check_alpha_loss_form"]
 
 CRITIC_MIN_MODES = ("scalarized", "elementwise")
 CRITIC_LOSS_MODES = ("scalarized", "vector")
+#: the temperature loss: ``-log_alpha (log pi + target)`` (TorchRL's SACLoss; MORL-Baselines' continuous MOSAC,
+#: ``mosac_continuous_action.py:470`` in MB 1.3.0) or ``-alpha (log pi + target)`` (CleanRL's SAC,
+#: ``sac_continuous_action.py``: ``-log_alpha.exp()``; MORL-Baselines' ``MOSACDiscrete``, ``mosac_discrete_action.py:492``)
+ALPHA_LOSS_FORMS = ("log_alpha", "alpha")
+
+
+def check_alpha_loss_form(form: str) -> str:
+    """``form`` if it is one of :data:`ALPHA_LOSS_FORMS`, else a ``ValueError`` naming the valid ones."""
+    if form not in ALPHA_LOSS_FORMS:
+        raise ValueError(f"alpha_loss_form={form!r}; valid values are {ALPHA_LOSS_FORMS}.")
+    return form
 
 
 class _MOSACBase(MultiObjectiveLossModule):
@@ -75,7 +86,9 @@ class _MOSACBase(MultiObjectiveLossModule):
         reduction,
         use_prioritized_weights,
         deactivate_vmap,
+        alpha_loss_form,
     ) -> None:
+        self.alpha_loss_form = check_alpha_loss_form(alpha_loss_form)
         if critic_min not in CRITIC_MIN_MODES:
             raise ValueError(f"critic_min={critic_min!r}; valid values are {CRITIC_MIN_MODES}.")
         if critic_loss not in CRITIC_LOSS_MODES:
@@ -169,7 +182,60 @@ class _MOSACBase(MultiObjectiveLossModule):
             return self.log_alpha.exp()
 
     def _alpha_objective(self, log_prob: Tensor) -> Tensor:
-        return -self.log_alpha * (log_prob + self.target_entropy)
+        """Per-sample temperature loss on a detached ``log_prob`` (``alpha_loss_form``)."""
+        scale = self.log_alpha.exp() if self.alpha_loss_form == "alpha" else self.log_alpha
+        return -scale * (log_prob + self.target_entropy)
+
+    # ------------------------------------------------- the three parts (TorchRL's SACLoss style)
+    #: the temperature step draws a fresh sample of the (just updated) actor (continuous: the authors'
+    #: ``with no_grad: _, log_pi, _ = actor.get_action(obs)`` after the actor step) rather than reusing the
+    #: actor step's log-probabilities (discrete: ``mosac_discrete_action.py:490-492`` reuses them)
+    fresh_temperature_sample: bool = True
+
+    def _flat(self, tensordict: TensorDictBase) -> TensorDictBase:
+        self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
+        return tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
+
+    def qvalue_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
+        """The critic loss alone (:meth:`forward`'s ``loss_qvalue``, the same computation): the target
+        from the target critics and a sampled next action, the critics' regression. Writes the priority
+        into ``tensordict`` as :meth:`forward` does. Returns ``(loss, {"td_error": ...})``."""
+        data = self._flat(tensordict)
+        loss, td_error = self._qvalue_part(data, self._batch_preferences(data))
+        tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
+        return self._reduce(loss, data), {"td_error": td_error}
+
+    def actor_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
+        """The actor loss alone (:meth:`forward`'s ``loss_actor``): a sampled action scored by the
+        current critics (no target computation). Returns ``(loss, {"log_prob": ...})`` (discrete: the
+        per-state ``sum_a pi log pi``), detached."""
+        data = self._flat(tensordict)
+        loss, log_prob = self._actor_part(data, self._batch_preferences(data))
+        return self._reduce(loss, data), {"log_prob": log_prob.detach()}
+
+    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None) -> Tensor:
+        """The temperature loss alone (``alpha_loss_form``), on ``log_prob`` or, when ``None``, on a
+        fresh sample of the current actor (no gradient to the actor)."""
+        data = self._flat(tensordict)
+        if log_prob is None:
+            with torch.no_grad():
+                log_prob = self._sample_log_prob(data, self._batch_preferences(data))
+        return self._reduce(self._alpha_objective(log_prob.detach()), data)
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``: the three
+        parts on one preference draw, the temperature on the actor loss's log-probabilities."""
+        data = self._flat(tensordict)
+        w = self._batch_preferences(data)
+        loss_qvalue, td_error = self._qvalue_part(data, w)
+        loss_actor, log_prob = self._actor_part(data, w)
+        losses = {
+            "loss_actor": self._reduce(loss_actor, data),
+            "loss_qvalue": self._reduce(loss_qvalue, data),
+            "loss_alpha": self._reduce(self._alpha_objective(log_prob.detach()), data),
+        }
+        return self._output(tensordict, losses, log_prob, td_error)
 
     # ---------------------------------------------------------------- critic
     @property
@@ -321,6 +387,13 @@ class MOSACLoss(_MOSACBase):
         reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
         use_prioritized_weights (bool or "auto"): weight samples by ``"priority_weight"``.
         deactivate_vmap (bool): loop over the critics instead of ``vmap``. Defaults to ``False``.
+        alpha_loss_form (str): the temperature loss, ``"log_alpha"`` (``-log alpha (log pi + target)``,
+            TorchRL's and MORL-Baselines' continuous MOSAC; default) or ``"alpha"`` (``-alpha (...)``,
+            CleanRL's SAC and MORL-Baselines' discrete MOSAC).
+
+    :meth:`qvalue_loss`, :meth:`actor_loss` and :meth:`temperature_loss` compute the three parts
+    alone (TorchRL's ``SACLoss`` style), for a step that updates the critics, the actor and the
+    temperature one after the other (the authors'; :meth:`~morl_trl.recipes.agent.Agent.actor_critic_step`).
 
     Examples:
         >>> from tensordict import TensorDict
@@ -401,6 +474,7 @@ class MOSACLoss(_MOSACBase):
         reduction: str = "mean",
         use_prioritized_weights: str | bool = "auto",
         deactivate_vmap: bool = False,
+        alpha_loss_form: str = "log_alpha",
     ) -> None:
         self._in_keys = None
         super().__init__()
@@ -423,6 +497,7 @@ class MOSACLoss(_MOSACBase):
             reduction=reduction,
             use_prioritized_weights=use_prioritized_weights,
             deactivate_vmap=deactivate_vmap,
+            alpha_loss_form=alpha_loss_form,
         )
         self.register_buffer(
             "target_entropy",
@@ -481,55 +556,49 @@ class MOSACLoss(_MOSACBase):
         return [w if key == keys.preference else action if action is not None and key == keys.action else data.get(key)
                 for key in in_keys]
 
-    def _fast_forward(self, tensordict: TensorDictBase, data: TensorDictBase, w: Tensor, plans) -> TensorDictBase:
-        """:meth:`forward` on the fast path: the same operations and random draws, no parameter swapping."""
+    def _qvalue_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
+        """Per-sample critic loss and priority (:meth:`qvalue_loss`), on the fast path where it applies."""
+        plans = self._fast_plans()
+        if plans is None:
+            data_w = self._with_preference(data, w)
+            target = self._target(data_w, w)
+            q = self._critics(data_w, None, self.qvalue_network_params)
+            return self._critic_objective(q, target, w)
         actor, critic = plans
         next_data = data.get("next")
-        actor_leaves = actor.mlp.leaves(self.actor_network_params)
-        q_leaves = critic.leaves(self.qvalue_network_params)
         with torch.no_grad():
-            target_leaves = critic.leaves(self.target_qvalue_network_params)
             next_action, next_log_prob = compute_rsample_log_prob(
-                actor.dist(actor_leaves, self._inputs(actor.mlp.in_keys, next_data, w)))
-            q_next = self._fast_critics(critic, target_leaves, self._inputs(critic.in_keys, next_data, w, next_action))
+                actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, next_data, w)))
+            q_next = self._fast_critics(critic, critic.leaves(self.target_qvalue_network_params),
+                                        self._inputs(critic.in_keys, next_data, w, next_action))
             next_value = self._select_min(q_next, w) - self._alpha * next_log_prob.unsqueeze(-1)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
-        q = self._fast_critics(critic, q_leaves, self._inputs(critic.in_keys, data, w))
-        loss_qvalue, td_error = self._critic_objective(q, target, w)
+        q = self._fast_critics(critic, critic.leaves(self.qvalue_network_params), self._inputs(critic.in_keys, data, w))
+        return self._critic_objective(q, target, w)
 
-        action, log_prob = compute_rsample_log_prob(actor.dist(actor_leaves, self._inputs(actor.mlp.in_keys, data, w)))
-        q_pi = self._fast_critics(critic, [leaf.detach() for leaf in q_leaves],
-                                  self._inputs(critic.in_keys, data, w, action))
-        return self._losses(tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error)
-
-    def _losses(self, tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error) -> TensorDictBase:
-        loss_actor = self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
-        loss_alpha = self._alpha_objective(log_prob.detach())
-        losses = {
-            "loss_actor": self._reduce(loss_actor, data),
-            "loss_qvalue": self._reduce(loss_qvalue, data),
-            "loss_alpha": self._reduce(loss_alpha, data),
-        }
-        return self._output(tensordict, losses, log_prob, td_error)
-
-    @dispatch
-    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``."""
-        self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
-        data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
-        w = self._batch_preferences(data)
+    def _actor_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
+        """Per-sample actor loss and the sampled actions' log-probabilities (:meth:`actor_loss`)."""
         plans = self._fast_plans()
-        if plans is not None:
-            return self._fast_forward(tensordict, data, w, plans)
-        data_w = self._with_preference(data, w)
+        if plans is None:
+            data_w = self._with_preference(data, w)
+            action, log_prob = self._actor_sample(data_w, self.actor_network_params)
+            q_pi = self._critics(data_w, action, self._cached_detached_qvalue_params)
+        else:
+            actor, critic = plans
+            action, log_prob = compute_rsample_log_prob(
+                actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, data, w)))
+            q_pi = self._fast_critics(critic, [leaf.detach() for leaf in critic.leaves(self.qvalue_network_params)],
+                                      self._inputs(critic.in_keys, data, w, action))
+        return self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1), log_prob
 
-        target = self._target(data_w, w)
-        q = self._critics(data_w, None, self.qvalue_network_params)
-        loss_qvalue, td_error = self._critic_objective(q, target, w)
-
-        action, log_prob = self._actor_sample(data_w, self.actor_network_params)
-        q_pi = self._critics(data_w, action, self._cached_detached_qvalue_params)
-        return self._losses(tensordict, data, q_pi, w, log_prob, loss_qvalue, td_error)
+    def _sample_log_prob(self, data: TensorDictBase, w: Tensor) -> Tensor:
+        """Log-probabilities of freshly sampled actions of the current actor (:meth:`temperature_loss`)."""
+        plans = self._fast_plans()
+        if plans is None:
+            return self._actor_sample(self._with_preference(data, w), self.actor_network_params)[1]
+        actor = plans[0]
+        return compute_rsample_log_prob(
+            actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, data, w)))[1]
 
 
 class DiscreteMOSACLoss(_MOSACBase):
@@ -624,6 +693,7 @@ class DiscreteMOSACLoss(_MOSACBase):
         reduction: str = "mean",
         use_prioritized_weights: str | bool = "auto",
         deactivate_vmap: bool = False,
+        alpha_loss_form: str = "log_alpha",
     ) -> None:
         self._in_keys = None
         super().__init__()
@@ -646,6 +716,7 @@ class DiscreteMOSACLoss(_MOSACBase):
             reduction=reduction,
             use_prioritized_weights=use_prioritized_weights,
             deactivate_vmap=deactivate_vmap,
+            alpha_loss_form=alpha_loss_form,
         )
         if num_actions is None:
             num_actions = getattr(qvalue_network, "num_actions", None)
@@ -678,31 +749,26 @@ class DiscreteMOSACLoss(_MOSACBase):
         next_value = (probs.unsqueeze(-1) * (q_next - self._alpha * log_probs.unsqueeze(-1))).sum(-2)
         return self.value_estimator.value_estimate(data, next_value=next_value)
 
-    @dispatch
-    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha``."""
-        self._check_inputs(tensordict, needs_preference=self._reads_batch_preference)
-        data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
-        w = self._batch_preferences(data)
+    fresh_temperature_sample = False  # the actor step's probabilities (mosac_discrete_action.py:490-492)
+
+    def _qvalue_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
         data_w = self._with_preference(data, w)
         batch, k = data.shape[0], self.num_objectives
-
         target = self._target(data_w, w)
         q = self._critics(data_w, self.qvalue_network_params)
         index = action_index(data.get(self.tensor_keys.action), batch, q.shape[-2])
         q_taken = q.gather(-2, index.view(1, batch, 1, 1).expand(q.shape[0], batch, 1, k)).squeeze(-2)
-        loss_qvalue, td_error = self._critic_objective(q_taken, target, w)
+        return self._critic_objective(q_taken, target, w)
 
+    def _actor_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
+        """Per-state actor loss (exact expectation over the actions) and ``sum_a pi log pi``."""
+        data_w = self._with_preference(data, w)
         probs, log_probs = self._policy(data_w, self.actor_network_params)
         q_pi = self._select_min(self._critics(data_w, self._cached_detached_qvalue_params), w)
         scalar_q_pi = (q_pi * w.unsqueeze(-2)).sum(-1)
         loss_actor = (probs * (self._alpha * log_probs - scalar_q_pi)).sum(-1)
-        neg_entropy = (probs * log_probs).sum(-1)
-        loss_alpha = self._alpha_objective(neg_entropy.detach())
+        return loss_actor, (probs * log_probs).sum(-1)
 
-        losses = {
-            "loss_actor": self._reduce(loss_actor, data),
-            "loss_qvalue": self._reduce(loss_qvalue, data),
-            "loss_alpha": self._reduce(loss_alpha, data),
-        }
-        return self._output(tensordict, losses, neg_entropy, td_error)
+    def _sample_log_prob(self, data: TensorDictBase, w: Tensor) -> Tensor:
+        probs, log_probs = self._policy(self._with_preference(data, w), self.actor_network_params)
+        return (probs * log_probs).sum(-1)

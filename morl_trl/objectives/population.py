@@ -51,6 +51,7 @@ from morl_trl._torchrl_compat import cache_values
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
+from morl_trl.objectives.mosac import check_alpha_loss_form
 from morl_trl.objectives.networks import (
     DEFAULT_NUM_CELLS,
     categorical_actor,
@@ -229,6 +230,11 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             from ``action_spec`` or the actor's spec) or ``target_entropy_weight * log |A|``.
         target_entropy_weight (float): discrete ``"auto"`` scale. Defaults to 0.98.
         action_spec (TensorSpec, optional): for the continuous ``"auto"`` target entropy.
+        alpha_loss_form (str): ``"log_alpha"`` (default) or ``"alpha"``, as
+            :class:`~morl_trl.objectives.MOSACLoss`'s.
+
+    :meth:`qvalue_loss`, :meth:`actor_loss` and :meth:`temperature_loss` compute the three parts
+    alone, as :class:`~morl_trl.objectives.MOSACLoss`'s.
     """
 
     @dataclass
@@ -261,9 +267,11 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
     def __init__(self, actor_network: ProbabilisticActor, qvalue_network: TensorDictModule, *, weights: Tensor,
                  num_actions: int | None = None, num_qvalue_nets: int = 2, alpha_init: float = 1.0,
                  fixed_alpha: bool = False, target_entropy: float | str = "auto",
-                 target_entropy_weight: float = 0.98, action_spec: TensorSpec | None = None) -> None:
+                 target_entropy_weight: float = 0.98, action_spec: TensorSpec | None = None,
+                 alpha_loss_form: str = "log_alpha") -> None:
         self._in_keys = None
         super().__init__()
+        self.alpha_loss_form = check_alpha_loss_form(alpha_loss_form)
         weights = torch.as_tensor(weights, dtype=torch.float32)
         if weights.ndim != 2:
             raise ValueError(f"weights must be [P, k] (one weight per member), got shape {tuple(weights.shape)}")
@@ -353,19 +361,59 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         """Sum over members of each member's batch mean (``x``: ``[P, B]``)."""
         return x.mean(1).sum()
 
-    # ------------------------------------------------------------------ forward
-    @dispatch
-    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha`` on a
-        ``[P, B]`` batch."""
+    def _alpha_objective(self, log_prob: Tensor) -> Tensor:
+        """``[P, B]`` temperature losses on a detached ``log_prob`` (``alpha_loss_form``, as MOSAC's)."""
+        log_alpha = self.log_alpha.view(-1, 1)
+        scale = log_alpha.exp() if self.alpha_loss_form == "alpha" else log_alpha
+        return -scale * (log_prob + self.target_entropy)
+
+    # ------------------------------------------------------------------ the three parts
+    def _checked(self, tensordict: TensorDictBase) -> TensorDictBase:
         if tensordict.ndim != 2 or tensordict.shape[0] != self.population:
             raise ValueError(f"{type(self).__name__} takes a [P, B] batch with P = {self.population} (row p for "
                              f"member p), got batch size {tuple(tensordict.shape)}")
         self._check_inputs(tensordict, needs_preference=False)
+        return tensordict
+
+    @property
+    def fresh_temperature_sample(self) -> bool:
+        """Whether the temperature step draws a fresh sample (continuous, as MOSAC) or reuses the actor
+        step's probabilities (discrete, as ``MOSACDiscrete``)."""
+        return self.num_actions is None
+
+    def qvalue_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
+        """The critics' loss alone (:meth:`forward`'s ``loss_qvalue``); writes the ``[P, B]`` priority."""
+        data = self._checked(tensordict)
+        loss, td_error = (self._continuous_qvalue if self.num_actions is None else self._discrete_qvalue)(data)
+        tensordict.set(self.tensor_keys.priority, td_error)
+        return self._per_member(loss), {"td_error": td_error}
+
+    def actor_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
+        """The actors' loss alone (:meth:`forward`'s ``loss_actor``: no target computation); the
+        metadata's ``log_prob`` is ``[P, B]`` (discrete: ``sum_a pi log pi``), detached."""
+        data = self._checked(tensordict)
+        loss, log_prob = (self._continuous_actor if self.num_actions is None else self._discrete_actor)(data)
+        return self._per_member(loss), {"log_prob": log_prob.detach()}
+
+    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None) -> Tensor:
+        """The temperatures' loss alone, on ``log_prob`` or (``None``) a fresh sample of the current actors."""
+        data = self._checked(tensordict)
+        if log_prob is None:
+            with torch.no_grad():
+                log_prob = self._sample_log_prob(data)
+        return self._per_member(self._alpha_objective(log_prob.detach()))
+
+    @dispatch
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Computes ``loss_qvalue``, ``loss_actor`` and (unless ``fixed_alpha``) ``loss_alpha`` on a
+        ``[P, B]`` batch."""
+        data = self._checked(tensordict)
         if self.num_actions is None:
-            losses, neg_entropy, td_error = self._continuous(tensordict)
+            (loss_qvalue, td_error), (loss_actor, neg_entropy) = self._continuous_qvalue(data), self._continuous_actor(data)
         else:
-            losses, neg_entropy, td_error = self._discrete(tensordict)
+            (loss_qvalue, td_error), (loss_actor, neg_entropy) = self._discrete_qvalue(data), self._discrete_actor(data)
+        losses = {"loss_actor": self._per_member(loss_actor), "loss_qvalue": self._per_member(loss_qvalue),
+                  "loss_alpha": self._per_member(self._alpha_objective(neg_entropy.detach()))}
         tensordict.set(self.tensor_keys.priority, td_error)
         if self.fixed_alpha:
             losses.pop("loss_alpha")
@@ -379,7 +427,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         td = sq - st
         return td.pow(2).sum(0), td.detach().abs().max(0).values
 
-    def _continuous(self, data: TensorDictBase):
+    def _continuous_qvalue(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
         w = self._w(0)
         alpha = self._alpha.view(-1, 1)
         with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
@@ -391,20 +439,18 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             next_value = self._select_min(q_next, w) - (alpha * next_log_prob).unsqueeze(-1)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
         q = self._critics(data, self.qvalue_network_params, self.tensor_keys.state_action_value)
-        loss_qvalue, td_error = self._critic_loss(q, target, w)
+        return self._critic_loss(q, target, w)
 
+    def _continuous_actor(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
+        w = self._w(0)
         with set_exploration_type(ExplorationType.RANDOM):
             action, log_prob = compute_rsample_log_prob(self._actor(data))
         td = data.select(*self.qvalue_network.in_keys, strict=False)
         td.set(self.tensor_keys.action, action)
         q_pi = self._critics(td, self._cached_detached_qvalue_params, self.tensor_keys.state_action_value)
-        loss_actor = alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1)
-        loss_alpha = -self.log_alpha.view(-1, 1) * (log_prob.detach() + self.target_entropy)
-        losses = {"loss_actor": self._per_member(loss_actor), "loss_qvalue": self._per_member(loss_qvalue),
-                  "loss_alpha": self._per_member(loss_alpha)}
-        return losses, log_prob, td_error
+        return self._alpha.view(-1, 1) * log_prob - (self._select_min(q_pi, w) * w).sum(-1), log_prob
 
-    def _discrete(self, data: TensorDictBase):
+    def _discrete_qvalue(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
         w = self._w(1)  # over the actions
         alpha = self._alpha.view(-1, 1, 1)
         key = self.tensor_keys.action_value
@@ -420,18 +466,24 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         action = data.get(self.tensor_keys.action)
         index = action_index(action.reshape(p * b, *action.shape[2:]), p * b, a).view(1, p, b, 1, 1)
         q_taken = q.gather(-2, index.expand(n, p, b, 1, k)).squeeze(-2)
-        loss_qvalue, td_error = self._critic_loss(q_taken, target, self._w(0))
+        return self._critic_loss(q_taken, target, self._w(0))
 
+    def _discrete_actor(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
+        w = self._w(1)
         dist = self._actor(data)
         probs, log_probs = dist.probs, dist.logits
-        q_pi = self._select_min(self._critics(data, self._cached_detached_qvalue_params, key), w)
+        q_pi = self._select_min(self._critics(data, self._cached_detached_qvalue_params, self.tensor_keys.action_value), w)
         scalar_q_pi = (q_pi * w).sum(-1)
-        loss_actor = (probs * (alpha * log_probs - scalar_q_pi)).sum(-1)
-        neg_entropy = (probs * log_probs).sum(-1)
-        loss_alpha = -self.log_alpha.view(-1, 1) * (neg_entropy.detach() + self.target_entropy)
-        losses = {"loss_actor": self._per_member(loss_actor), "loss_qvalue": self._per_member(loss_qvalue),
-                  "loss_alpha": self._per_member(loss_alpha)}
-        return losses, neg_entropy, td_error
+        loss_actor = (probs * (self._alpha.view(-1, 1, 1) * log_probs - scalar_q_pi)).sum(-1)
+        return loss_actor, (probs * log_probs).sum(-1)
+
+    def _sample_log_prob(self, data: TensorDictBase) -> Tensor:
+        """``[P, B]`` log-probabilities of fresh actions of the current actors (discrete: ``sum_a pi log pi``)."""
+        if self.num_actions is None:
+            with set_exploration_type(ExplorationType.RANDOM):
+                return compute_rsample_log_prob(self._actor(data))[1]
+        dist = self._actor(data)
+        return (dist.probs * dist.logits).sum(-1)
 
     @property
     def out_keys(self) -> list[str]:

@@ -126,7 +126,7 @@ def make_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     evaluated with sampled actions as the paper's MORL/D (``eval_exploration="deterministic"``: the mean)."""
     spec, actor, critic = _continuous(cfg, env, device)
     loss = MOSACLoss(actor, critic, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha, action_spec=spec,
-                     **_loss_kwargs(cfg))
+                     alpha_loss_form=cfg.alpha_loss_form, **_loss_kwargs(cfg))
     orthogonal_critic_copies_(loss, critic)
     return _agent(cfg, loss, actor, gamma, device)
 
@@ -141,5 +141,5 @@ def make_discrete_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -
     critic = make_vector_q_network(obs, n, k, num_cells=cfg.hidden).to(device)
     loss = DiscreteMOSACLoss(actor, critic, num_actions=n, alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha,
                              target_entropy=cfg.target_entropy_scale * math.log(n),
-                             use_prioritized_weights=cfg.per_importance_weights)
+                             use_prioritized_weights=cfg.per_importance_weights, alpha_loss_form=cfg.alpha_loss_form)
     return _agent(cfg, loss, actor, gamma, device)

@@ -8,7 +8,7 @@ The builders live with their algorithm (:mod:`morl_trl.recipes.envelope`,
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
@@ -54,9 +54,17 @@ class Agent:
         self._captured = None  # the compiled / CUDA-graphed / device-guarded update, built on first use
         self._guard = None
         self.critic_steps = 0  # updates done (the delayed actor's clock, policy_freq)
+        self._actor_out = None  # the last actor turn's losses (delayed_actor_step)
         if self.policy_freq > 1 and not {"qvalue", "actor"} <= set(optimizers):
             raise ValueError(f"policy_freq={self.policy_freq} delays the actor of an actor-critic loss; "
                              f"{cfg.algo}'s optimizers are {sorted(optimizers)}: set policy_freq=1")
+        if self.policy_freq > 1 and getattr(cfg, "joint_update", False):
+            raise ValueError(f"joint_update=true steps every loss together at each update; policy_freq="
+                             f"{self.policy_freq} delays the actor: set policy_freq=1 or joint_update=false")
+        #: the update steps critics, actor(s), temperature one after the other, each loss computed alone
+        #: (delayed_actor_step: the authors' actor-critic order), rather than one joint step of the summed losses
+        self.steps_each_loss = (not getattr(cfg, "joint_update", False) and {"qvalue", "actor"} <= set(optimizers)
+                                and all(hasattr(loss, m) for m in ("qvalue_loss", "actor_loss", "temperature_loss")))
         if _captures(cfg) and type(self).update is not Agent.update:
             raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent "
                              f"({type(self).__name__}) writes its own update: set compile=false and cudagraphs=false")
@@ -121,7 +129,7 @@ class Agent:
             return self._captured_update(None, buffer)  # samples itself (in the graph, where it can)
         batch = self.sample(buffer)
         actor_turn = self.next_is_actor_turn()
-        if self.policy_freq > 1:
+        if self.steps_each_loss:
             out, _ = self.delayed_actor_step(batch, actor_turn)
         else:
             out = self.loss(batch)
@@ -134,38 +142,65 @@ class Agent:
 
     @property
     def policy_freq(self) -> int:
-        """``cfg.policy_freq``: 1 = one joint step of every loss per update; ``n > 1`` = the delayed actor
+        """``cfg.policy_freq``: 1 = an actor step at every update; ``n > 1`` = the delayed actor
         (:meth:`delayed_actor_step`), as the authors' continuous SAC and MOSAC (``n = 2``)."""
         return int(getattr(self.cfg, "policy_freq", 1))
 
     def next_is_actor_turn(self) -> bool:
         """Counts one more update; whether it is an actor turn (every ``policy_freq``-th: the 2nd, 4th, ...
-        for 2, as the authors' ``global_step % policy_freq == 0`` with an even ``learning_starts``)."""
+        for 2, as the authors' ``global_step % policy_freq == 0`` with an even ``learning_starts``; every
+        update for 1)."""
         self.critic_steps += 1
         return self.critic_steps % self.policy_freq == 0
 
     def delayed_actor_step(self, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
-        """The authors' delayed actor (CleanRL's SAC; their ``sac_continuous.py:435-456``,
-        ``mosac_continuous_action.py:460-482``): one critic step (``loss_qvalue``, the ``qvalue``
-        optimizer); on an actor turn then ``policy_freq`` steps of the other losses (actor and
-        temperature) and their optimizers, each on a fresh forward of the same batch (the updated
-        critic, freshly sampled actions). Returns ``(losses, found_inf)`` (``found_inf``: ``None``
-        unless ``on_device``); the actor's losses are the last actor step's.
+        """The authors' actor-critic step (CleanRL's SAC; their ``sac_continuous.py:435-456``,
+        ``mosac_continuous_action.py:460-482``), each loss computed alone (the loss's
+        ``qvalue_loss`` / ``actor_loss`` / ``temperature_loss``, TorchRL's SACLoss parts):
+
+        1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
+        2. on an actor turn, ``policy_freq`` times: ``actor_loss`` (fresh actions, the updated
+           critics; no target computation) and the ``actor`` optimizer, then, when the
+           temperature is learned, ``temperature_loss`` and the ``alpha`` optimizer, on a fresh
+           sample of the just-updated actor where the loss says so (``fresh_temperature_sample``:
+           continuous, the authors' ``with no_grad: _, log_pi, _ = actor.get_action(obs)`` after the
+           actor step) or on the actor step's log-probabilities (discrete, ``mosac_discrete_action.py:490-492``).
+
+        A non-finite loss is never applied: eager, :class:`NonFiniteLossError` is raised before its
+        step (the steps of this update before it stay applied, as in the authors' order they must come
+        first); on the device its step and every later one of the update are skipped.
+
+        Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless ``on_device``). ``losses``
+        has the keys of the loss's ``forward``; on a critic-only update the actor's and the
+        temperature's are those of the last actor turn (NaN before the first).
         """
+        loss = self.loss
         kw = dict(max_grad_norm=self.max_grad_norm, on_device=on_device)
-        out = self.loss(batch)
-        found = optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]],
-                               losses={"loss_qvalue": out["loss_qvalue"]}, **kw)
+        loss_qvalue, _ = loss.qvalue_loss(batch)
+        found = optimizer_step(loss_qvalue, [self.optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **kw)
         if actor_turn:
-            keys = [k for k in self.loss_keys if k != "loss_qvalue"]
-            others = [opt for name, opt in self.optimizers.items() if name != "qvalue"]
+            alpha_opt = self.optimizers.get("alpha")
             for _ in range(self.policy_freq):
-                actor_out = self.loss(batch)
-                f = optimizer_step(sum(actor_out[k] for k in keys), others, losses={k: actor_out[k] for k in keys},
-                                   **kw)
-                found = torch.maximum(found, f) if on_device else None
-            for k in keys:
-                out.set(k, actor_out.get(k))
+                loss_actor, meta = loss.actor_loss(batch)
+                # on the device a skipped part skips the rest of the update (found_inf carried on)
+                found = optimizer_step(loss_actor, [self.optimizers["actor"]], losses={"loss_actor": loss_actor},
+                                       found_inf=found, **kw)
+                actor_out = {"loss_actor": loss_actor.detach(), "entropy": -meta["log_prob"].mean(-1)}
+                if alpha_opt is not None:
+                    log_prob = None if loss.fresh_temperature_sample else meta["log_prob"]
+                    loss_alpha = loss.temperature_loss(batch, log_prob)
+                    found = optimizer_step(loss_alpha, [alpha_opt], losses={"loss_alpha": loss_alpha},
+                                           found_inf=found, **kw)
+                    actor_out["loss_alpha"] = loss_alpha.detach()
+            self._actor_out = actor_out
+        elif self._actor_out is None:  # no actor turn yet
+            nan = torch.full_like(loss_qvalue.detach(), float("nan"))
+            self._actor_out = {"loss_actor": nan, "entropy": torch.full_like(loss.log_alpha.detach(), float("nan"))}
+            if "alpha" in self.optimizers:
+                self._actor_out["loss_alpha"] = nan
+        with torch.no_grad():
+            alpha = loss.log_alpha.exp()
+        out = TensorDict({"loss_qvalue": loss_qvalue.detach(), **self._actor_out, "alpha": alpha}, batch_size=[])
         return out, found
 
     @property

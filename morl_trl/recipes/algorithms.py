@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_agent, make_mosac_agent
 from morl_trl.recipes.agent import Agent
+from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig
 from morl_trl.recipes.envelope import make_envelope_agent
 from morl_trl.recipes.gpi import make_gpi_agent
@@ -43,7 +44,11 @@ assert tuple(AGENT_BUILDERS) == ALGORITHMS
 
 
 def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
-    """The :class:`Agent` of ``cfg.algo`` for ``env`` (a batched env with ``"preference"``)."""
+    """The :class:`Agent` of ``cfg.algo`` for ``env`` (a batched env with ``"preference"``).
+
+    Sets the process's allocator for training first (:func:`~morl_trl.recipes.allocator.tune_malloc`:
+    glibc only; ``MORL_TRL_MALLOC=0`` turns it off)."""
+    tune_malloc()
     try:
         builder = AGENT_BUILDERS[cfg.algo]
     except KeyError:

@@ -113,7 +113,7 @@ class CapturedUpdate:
 
         self.fn = capture(self.step)
         # the delayed actor (policy_freq > 1): a critic-only and a critic-then-actor update, one graph each
-        self.fn_actor = capture(self.actor_step) if agent.policy_freq > 1 else None
+        self.fn_actor = capture(self.actor_step) if agent.steps_each_loss and agent.policy_freq > 1 else None
         self.capture_sampling = bool(getattr(cfg, "capture_sampling", False))
         self.compiled = bool(getattr(cfg, "compile", False))
         self.cudagraphs = cudagraphs
@@ -124,7 +124,7 @@ class CapturedUpdate:
     def step(self, batch: TensorDictBase) -> TensorDictBase:
         """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite
         (with ``policy_freq > 1``: the critic-only update, :meth:`actor_step` the other)."""
-        return self._step(batch, False)
+        return self._step(batch, self.agent.policy_freq == 1)
 
     def actor_step(self, batch: TensorDictBase) -> TensorDictBase:
         """The delayed actor's actor turn: the critic step, then ``policy_freq`` actor steps."""
@@ -132,7 +132,7 @@ class CapturedUpdate:
 
     def _step(self, batch: TensorDictBase, actor_turn: bool) -> TensorDictBase:
         agent = self.agent
-        if agent.policy_freq > 1:
+        if agent.steps_each_loss:
             out, found_inf = agent.delayed_actor_step(batch, actor_turn, on_device=True)
         else:
             out = agent.loss(batch)

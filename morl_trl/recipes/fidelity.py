@@ -322,7 +322,8 @@ _SAC_ARGS = {
     "alpha": _SAC_ALPHA,
     "autotune": Same("learn_alpha"),
     "target_entropy_scale": Same("target_entropy_scale"),
-    "policy_freq": Same("policy_freq"),  # recipes.agent.Agent.delayed_actor_step
+    # recipes.agent.Agent.delayed_actor_step: each loss alone, the temperature (alpha_loss_form) after each actor step
+    "policy_freq": Same("policy_freq"),
 }
 # the SAC agent's networks, the same rows for the SAC baseline and MORL/D
 _SAC_NETWORK = {

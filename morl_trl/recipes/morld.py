@@ -410,14 +410,16 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
         critic = make_population_q_network(p, obs_dim, n, k, num_cells=cfg.hidden).to(device)
         orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, num_actions=n, alpha_init=cfg.alpha,
-                                   fixed_alpha=not cfg.learn_alpha, target_entropy_weight=cfg.target_entropy_scale)
+                                   fixed_alpha=not cfg.learn_alpha, target_entropy_weight=cfg.target_entropy_scale,
+                                   alpha_loss_form=cfg.alpha_loss_form)
     else:
         actor = make_population_gaussian_actor(p, obs_dim, spec.to(device), num_cells=cfg.hidden,
                                                scale=cfg.actor_scale).to(device)
         critic = make_population_critic(p, obs_dim, spec.shape[-1], k, num_cells=cfg.hidden).to(device)
         orthogonal_population_init_(actor), orthogonal_population_init_(critic)  # the authors' init
         loss = PopulationMOSACLoss(actor, critic, weights=weights, alpha_init=cfg.alpha,
-                                   fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+                                   fixed_alpha=not cfg.learn_alpha, action_spec=spec,
+                                   alpha_loss_form=cfg.alpha_loss_form)
     orthogonal_critic_copies_(loss, critic, orthogonal_population_init_)  # (the loss re-draws its critic copies)
     loss.make_value_estimator(gamma=gamma)
     explore, _ = population_policies(actor, loss.weights)

@@ -67,7 +67,8 @@ def clip_grad_norm(params: Iterable[torch.Tensor], max_norm: float, *, populatio
 
 def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimizer], *,
                    max_grad_norm: float | None = None, population: int | None = None,
-                   losses: Mapping[str, torch.Tensor] | None = None, on_device: bool = False) -> torch.Tensor | None:
+                   losses: Mapping[str, torch.Tensor] | None = None, on_device: bool = False,
+                   found_inf: torch.Tensor | None = None) -> torch.Tensor | None:
     """One optimizer step on ``loss``: guard, zero the gradients, backward, clip each optimizer's
     parameters to ``max_grad_norm`` (:func:`clip_grad_norm`, per member with ``population``),
     step every optimizer.
@@ -78,6 +79,8 @@ def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimize
         losses: the named losses an error names (default ``{"loss": loss}``).
         on_device: skip the step on the device instead of raising (see the module docstring);
             every optimizer must then be fused.
+        found_inf: with ``on_device``, a flag raised by an earlier step of the same update (``1.0``:
+            skip this one too).
 
     Returns:
         ``found_inf`` (``1.0`` where the step was skipped) with ``on_device``, else ``None``.
@@ -86,10 +89,11 @@ def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimize
         NonFiniteLossError: ``loss`` is not finite (eager); nothing was changed.
     """
     optimizers = list(optimizers)
-    found_inf = None
     if on_device:
-        found_inf = (~torch.isfinite(loss)).to(torch.float32)
+        flag = (~torch.isfinite(loss)).to(torch.float32)
+        found_inf = flag if found_inf is None else torch.maximum(flag, found_inf)
     else:
+        found_inf = None
         check_finite(losses if losses is not None else {"loss": loss}, loss)
     for opt in optimizers:
         opt.zero_grad(set_to_none=True)

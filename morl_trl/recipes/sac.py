@@ -3,7 +3,7 @@
 
 TorchRL's own :class:`~torchrl.objectives.SACLoss` (continuous actions: tanh-Gaussian actor, two
 critics, Polyak targets) and :class:`~torchrl.objectives.DiscreteSACLoss` (categorical actor, two
-Q-networks, hard target copies) learn from ``("next", "original_reward")`` ``[*B, 1]`` (the
+Q-networks, hard target copies), with their parts apart (:mod:`morl_trl.objectives.sac`), learn from ``("next", "original_reward")`` ``[*B, 1]`` (the
 authors' ``info['original_scalar_reward']``; SPEC §1 defines it per domain), read with
 ``loss.set_keys(reward="original_reward")``. The networks do not read the preference, so under
 the MORL evaluation protocol every evaluation weight gets the same stochastic policy (sampled
@@ -26,10 +26,10 @@ from __future__ import annotations
 import torch
 from tensordict.nn import TensorDictModule
 from torch import nn
-from torchrl.objectives import DiscreteSACLoss, SACLoss
 
 from morl_trl.objectives import make_categorical_actor, make_gaussian_actor, make_vector_critic, make_vector_q_network
 from morl_trl.objectives.networks import orthogonal_init_
+from morl_trl.objectives.sac import DiscreteSACLoss, SACLoss
 from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.recipes.agent import (
     Agent,
@@ -75,7 +75,7 @@ def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
         critic = TensorDictModule(_DropObjectiveDim(q.module), in_keys=q.in_keys, out_keys=["action_value"])
         loss = DiscreteSACLoss(actor.to(device), critic.to(device), action_space=spec, num_actions=n,
                                loss_function="l2", alpha_init=cfg.alpha, fixed_alpha=not cfg.learn_alpha,
-                               target_entropy_weight=cfg.target_entropy_scale)
+                               target_entropy_weight=cfg.target_entropy_scale, alpha_loss_form=cfg.alpha_loss_form)
     else:
         (obs_dim,) = obs
         actor = make_gaussian_actor(obs_dim, spec.to(device), 1, num_cells=cfg.hidden, preference_key=None,
@@ -83,7 +83,7 @@ def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
         critic = make_vector_critic(obs_dim, spec.shape[-1], 1, num_cells=cfg.hidden, preference_key=None).to(device)
         orthogonal_init_(actor), orthogonal_init_(critic)  # the authors' init: orthogonal (gain 1), zero biases
         loss = SACLoss(actor, critic, num_qvalue_nets=2, loss_function="l2", alpha_init=cfg.alpha,
-                       fixed_alpha=not cfg.learn_alpha, action_spec=spec)
+                       fixed_alpha=not cfg.learn_alpha, action_spec=spec, alpha_loss_form=cfg.alpha_loss_form)
     orthogonal_critic_copies_(loss, critic)  # (the loss re-draws its critic copies with PyTorch's init)
     loss.set_keys(reward=ORIGINAL_REWARD_KEY)
     loss.make_value_estimator(gamma=gamma)

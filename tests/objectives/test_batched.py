@@ -17,6 +17,7 @@ from morl_trl.objectives.batched import (
     BatchedLinear,
     BatchedMLP,
     batched_dropout,
+    dropped_positions,
     linear_dropout_norm_relu,
 )
 
@@ -95,11 +96,19 @@ def test_layer_norm_is_per_member_layer_norm():
     assert torch.allclose(BatchedLayerNorm(2, 2)(x), torch.tensor([[[-1.0, 1.0]], [[0.0, 0.0]]]), atol=1e-4)
 
 
+def _reference_mask(h, p):
+    """The dropout mask the fast code draws on the CPU (the same positions), built plainly: ones, zeros at
+    :func:`dropped_positions`, times ``1 / (1 - p)``."""
+    keep = torch.ones(h.numel() + 1)
+    keep[dropped_positions(h.numel(), p)] = 0.0
+    return keep[:-1].reshape(h.shape) * (1.0 / (1.0 - p))
+
+
 def _reference_block(x, lin, norm, p, training):
     """The GPI block as the networks computed it before (the plain composition, out of place)."""
     h = lin(x)
     if training and p > 0:
-        h = h * ((torch.rand_like(h) >= p).to(h.dtype) * (1.0 / (1.0 - p)))
+        h = h * _reference_mask(h, p)
     h = F.layer_norm(h, h.shape[-1:], eps=norm.eps) * norm.weight + norm.bias
     return F.relu(h)
 
@@ -131,12 +140,43 @@ def test_dropout_masks_and_values():
     x = torch.arange(1.0, 9.0)
     y = batched_dropout(x, 0.5, True)
     torch.manual_seed(5)
-    keep = torch.rand(8) >= 0.5
+    keep = torch.ones(9).index_fill_(0, dropped_positions(8, 0.5), 0.0)[:8].bool()
     assert y.tolist() == torch.where(keep, x * 2, 0.0).tolist()
+    assert 0 < int(keep.sum()) < 8
     with torch.no_grad():  # in place on a fresh mask: the same values
         torch.manual_seed(5)
         assert batched_dropout(x, 0.5, True).tolist() == y.tolist()
     assert batched_dropout(x, 0.5, False) is x
+
+
+def test_dropped_positions_are_the_cumulative_geometric_gaps():
+    """The stream: drop j sits at G_1 + ... + G_j - 1 with G_i torch's geometric draws (in chunks); positions
+    past the end are returned as n."""
+    torch.manual_seed(3)
+    pos = dropped_positions(1000, 0.05)
+    torch.manual_seed(3)
+    gaps = torch.empty(len(pos), dtype=torch.float64).geometric_(0.05)
+    want = (gaps.cumsum(0) - 1).clamp(max=1000).long()
+    assert torch.equal(pos, want)
+    assert int(pos[-1]) == 1000 and int(pos[0]) == int(gaps[0]) - 1
+    # drawn in chunks of 3 gaps (the loop that runs when n p + 6 sigma gaps do not reach n): the same drops
+    torch.manual_seed(3)
+    small = dropped_positions(1000, 0.05, chunk=3)
+    assert torch.equal(small[small < 1000], pos[pos < 1000]) and int(small[-1]) == 1000
+
+
+@pytest.mark.parametrize("p", [0.01, 0.5])
+def test_dropped_positions_are_independent_bernoulli(p):
+    """Every position dropped with probability p, independently of its neighbour (pairs dropped at p^2)."""
+    torch.manual_seed(7)
+    n = 400_000
+    dropped = torch.zeros(n + 1).index_fill_(0, dropped_positions(n, p), 1.0)[:n]
+    sigma = math.sqrt(p * (1 - p) / n)
+    assert abs(float(dropped.mean()) - p) < 5 * sigma
+    both = float((dropped[:-1] * dropped[1:]).mean())
+    assert abs(both - p * p) < 5 * math.sqrt(p * p * (1 - p * p) / n)
+    blocks = dropped.reshape(400, 1000).sum(1)  # counts in disjoint blocks: binomial(1000, p) variance
+    assert 0.7 < float(blocks.var()) / (1000 * p * (1 - p)) < 1.3
 
 
 def test_mlp_member_is_a_plain_mlp():
@@ -155,7 +195,10 @@ def test_mlp_member_is_a_plain_mlp():
 
 
 class _ReferenceGPIQNetwork(GPIQNetwork):
-    """GPIQNetwork's forward as written before the fast block (the plain composition)."""
+    """GPIQNetwork's forward as written before the fast block (the plain composition); the loss runs it
+    (not :meth:`GPIQNetwork.forward_with`), on every row it computes (no first-rows-only GPI target)."""
+
+    supports_forward_with = False
 
     def forward(self, observation, preference, members=None):
         lead = preference.shape[:-1]
@@ -166,7 +209,7 @@ class _ReferenceGPIQNetwork(GPIQNetwork):
         for i, layer in enumerate(self.hidden):
             h = layer(x, members)
             if self.training:
-                h = h * ((torch.rand_like(h) >= self.dropout).to(h.dtype) * (1.0 / (1.0 - self.dropout)))
+                h = h * _reference_mask(h, self.dropout)
             norm = self.norms[i]
             nw, nb = (norm.weight, norm.bias) if members is None else (norm.weight[members], norm.bias[members])
             x = F.relu(F.layer_norm(h, h.shape[-1:]) * nw + nb)
@@ -186,7 +229,7 @@ def test_gpi_pd_update_equals_the_reference_update():
                        ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
                        ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
     support = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.8], [0.7, 0.3], [0.9, 0.1]])
-    params = []
+    params, priorities = [], []
     for net in (fast, slow):
         loss = GPILoss(net, gpi_pd=True)
         loss.make_value_estimator(gamma=0.99)
@@ -194,10 +237,32 @@ def test_gpi_pd_update_equals_the_reference_update():
         opt = torch.optim.Adam(loss.parameters(), lr=1e-2)
         torch.manual_seed(11)
         for _ in range(2):
-            out = loss(data.clone())
+            batch = data.clone()
+            out = loss(batch)
             opt.zero_grad()
             out["loss_qvalue"].backward()
             opt.step()
         params.append(copy.deepcopy(loss.value_network_params.data))
+        priorities.append(batch["td_error"])
     for key, value in params[0].items(True, True):
         assert torch.equal(value, params[1][key]), key
+    assert torch.equal(priorities[0], priorities[1])
+
+
+def test_gpi_target_of_the_first_rows_is_the_whole_ones_first_rows():
+    """GPI-PD's GPI target computed for the real batch's rows alone (what the priorities read) equals those
+    rows of the target over the whole doubled batch, dropout included (the same draws), and leaves the
+    generator where the whole run leaves it."""
+    torch.manual_seed(4)
+    loss = GPILoss(GPIQNetwork(6, 3, 2, hidden=(16, 16, 16), dropout=0.2), gpi_pd=True)
+    next_obs, w = torch.randn(20, 6), torch.softmax(torch.randn(20, 2), -1)
+    sampled = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]])
+    torch.manual_seed(8)
+    whole = loss.gpi_target_value(next_obs, w, sampled)
+    after_whole = torch.rand(3)
+    torch.manual_seed(8)
+    first = loss.gpi_target_value(next_obs, w, sampled, rows=7)
+    assert first.shape == (7, 2) and torch.equal(first, whole[:7])
+    assert torch.equal(torch.rand(3), after_whole)
+    loss.value_network.module.eval()  # without dropout too
+    assert torch.equal(loss.gpi_target_value(next_obs, w, sampled, rows=7), loss.gpi_target_value(next_obs, w, sampled)[:7])

@@ -401,7 +401,7 @@ def _steps(agent) -> dict:
 
 @pytest.mark.parametrize("algo, policy_freq, expected", [
     ("sac", 2, {"actor": 4, "qvalue": 5, "alpha": 4}),  # turns at updates 2 and 4: 2 actor steps each
-    ("sac", 1, {"actor": 5, "qvalue": 5, "alpha": 5}),  # our joint step (policy_freq=1)
+    ("sac", 1, {"actor": 5, "qvalue": 5, "alpha": 5}),  # an actor turn at every update (policy_freq=1)
     ("morld", 2, {"actor": 4, "qvalue": 5, "alpha": 4}),  # MORL/D's MOSAC members, one batched step
 ])
 def test_sac_and_mosac_delay_the_actor_as_the_authors(algo, policy_freq, expected, single_thread):

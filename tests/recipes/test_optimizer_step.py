@@ -19,6 +19,9 @@ CASES = {
     "envelope": ("envelope", "MOLavaGridDR-v0", {}, 4),
     "envelope_torchrl_per": ("envelope", "MOLavaGridDR-v0", dict(per_running_max=False), 4),
     "capql": ("capql", "MOHopperDR-v5", {}, 4),
+    "capql_joint": ("capql", "MOHopperDR-v5", dict(joint_update=True), 4),
+    "sac": ("sac", "MOHopperDR-v5", {}, 4),
+    "sac_discrete": ("sac", "MOLavaGridDR-v0", dict(update_frequency=1), 4),
     "gpi_discrete": ("gpi_ls", "MOLavaGridDR-v0", dict(gpi_iteration_frames=10_000), 4),
     "gpi_continuous": ("gpi_pd", "MOHopperDR-v5", dict(gpi_iteration_frames=10_000, gpi_dynamics_rollout_starts=10_000,
                                                        gpi_dynamics_train_freq=10_000, gpi_policy_delay=2), 4),
@@ -45,9 +48,21 @@ EXPECTED = {
     # CAPQL, continuous GPI-PD and PCN: recorded again on main at 8f2ef91 (2026-11-26) after the optimizer step had
     # matched the old code; issue 27's mechanisms (CAPQL's deterministic collection and orthogonal init, GPI-PD's
     # rollouts, PCN's per-dimension noise and its config without replay keys) landed after that check
-    "capql": (-24.375993597098596, 8),
-    "gpi_discrete": (58.111532349630785, 8),
-    "gpi_continuous": (215.4827253101091, 8),
+    # CAPQL recorded again (issue 26/27, w26a): the update now steps the critics, then the actor on the updated
+    # critics, each loss computed alone (MB's capql.py:336-350 order); joint_update=true (one backward of the summed
+    # losses, the actor seeing the critics before their step) gives the value recorded before
+    "capql": (-24.374934982776935, 8),
+    "capql_joint": (-24.375993597098596, 8),
+    # SAC (new cases, w26a): continuous with the delayed actor, each actor step computing only the actor loss and
+    # the temperature on a fresh sample after it (-alpha form); discrete: critic, actor, temperature in turn on the
+    # actor step's probabilities
+    "sac": (3.4690365331799846, 8),
+    "sac_discrete": (-13.000255060698466, 8),
+    # GPI (both): recorded again after issue 31's CPU dropout masks from geometric gaps (the same distribution,
+    # another stream: tests/objectives/test_batched.py); with the uniform masks they gave 58.111532349630785 and
+    # 215.4827253101091, checked on the code of that change
+    "gpi_discrete": (58.33030691272128, 8),
+    "gpi_continuous": (215.6688145405485, 8),
     "pcn": (-13.34058387607962, 3),
     # PGMORL: recorded again after issue 27's reset of every sub-env at each iteration (the authors'); without it
     # (pgmorl_no_reset) the step gives the value recorded before

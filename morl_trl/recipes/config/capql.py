@@ -21,7 +21,8 @@ CAPQLConfig = algorithm_config(
     # temperature fixed at 0.2; log-std clamped to [-20, 2]
     pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
                         "per_alpha", "per_beta", "per_importance_weights", "lr", "updates_per_batch", "tau",
-                        "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha", "actor_scale"),
+                        "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha", "actor_scale",
+                        "joint_update"),
          learn_alpha=False, actor_scale="clamped_log_std"),
     # a new weight every step from the 22.5-degree cone, stored with the transition and reused by the loss
     dict(preference_distribution="cone", preference_resample="step", loss_fresh_preferences=False),

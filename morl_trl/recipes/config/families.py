@@ -43,6 +43,9 @@ ACTOR_CRITIC = frozen(dict(
     hidden=(256, 256, 256, 256), alpha=0.2, learn_alpha=True, target_entropy_scale=0.3,
     # the authors' SAC/MOSAC actor: log_std = -5 + 3.5 (tanh(x) + 1), 2 actor steps after every 2nd critic step
     actor_scale="tanh_log_std", policy_freq=2,
+    # the temperature's loss: -alpha (log pi + target), the authors' CleanRL-style SAC (sac_continuous_action.py:
+    # alpha_loss = (-log_alpha.exp() * (log_pi + target_entropy)).mean()); MOSAC's members take -log alpha (below)
+    alpha_loss_form="alpha", joint_update=False,
 ))
 
 

@@ -27,7 +27,10 @@ MORLDConfig = algorithm_config(
     # MOSAC's actor: log_std = -5 + 3.5 (tanh(x) + 1); 2 actor (+ temperature) steps after every 2nd
     # critic step (mosac_continuous_action.py:95-103,141,460-482)
     pick(ACTOR_CRITIC, [k for k in ACTOR_CRITIC if k not in ("per_alpha", "per_beta", "per_importance_weights")],
-         frames_per_batch=60, init_random_frames=25_000, q_lr=1e-3, alpha_lr=1e-3, alpha=1.0),
+         frames_per_batch=60, init_random_frames=25_000, q_lr=1e-3, alpha_lr=1e-3, alpha=1.0,
+         # MORL-Baselines' MOSAC: alpha_loss = (-self.log_alpha * (log_pi + self.target_entropy)).mean()
+         # (mosac_continuous_action.py:470 in MB 1.3.0, inside the delayed-actor block the record cites as 460-482)
+         alpha_loss_form="log_alpha"),
     # population
     # the archive evaluation after every exchange: 5 stochastic episodes per member on a DR env of their own
     # (num_eval_episodes_for_front, morld.py:516)
@@ -46,7 +49,9 @@ SHARED_DEFAULTS = frozen({"eval_exploration": "random", "num_envs": 2})
 # MOSACDiscrete: one update per frame (the scripts' update_frequency 1), hard target copies every
 # target_net_freq frames (= updates), Adam eps 1e-4 with one lr 3e-4
 _DISCRETE = dict(tau=None, batch_size=128, init_random_frames=20_000, q_lr=3e-4, alpha_lr=3e-4, adam_eps=1e-4,
-                 update_frequency=1, policy_freq=1)  # MOSACDiscrete steps its actor at every update
+                 update_frequency=1, policy_freq=1,  # MOSACDiscrete steps its actor at every update
+                 # -alpha (...) on the actor step's probabilities (MB 1.3.0 mosac_discrete_action.py:490-492)
+                 alpha_loss_form="alpha")
 DEFAULTS = domain_table({
     HOPPER: dict(init_random_frames=10_000),
     HALF_CHEETAH: dict(exchange_every=10_000),

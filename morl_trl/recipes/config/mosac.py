@@ -24,8 +24,8 @@ MOSACConfig = algorithm_config(
     pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
                         "per_alpha", "per_beta", "per_importance_weights", "lr", "q_lr", "alpha_lr", "updates_per_batch",
                         "tau", "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha",
-                        "actor_scale", "policy_freq"),
-         init_random_frames=10_000),
+                        "actor_scale", "policy_freq", "alpha_loss_form", "joint_update"),
+         init_random_frames=10_000, alpha_loss_form="log_alpha"),  # MB 1.3.0 mosac_continuous_action.py:470
     dict(loss_fresh_preferences=False, preference_distribution="dirichlet", preference_resample="episode"),
 )
 
@@ -40,6 +40,7 @@ class MOSACDiscreteConfig(MOSACConfig):
     target_update_period: int = 2000
     target_entropy_scale: float = 0.3
     policy_freq: int = 1  # MOSACDiscrete steps its actor at every update
+    alpha_loss_form: str = "alpha"  # -alpha (...) (MB 1.3.0 mosac_discrete_action.py:492)
 
 
 SHARED_DEFAULTS = frozen({"eval_exploration": "random"})
