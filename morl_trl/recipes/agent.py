@@ -92,6 +92,12 @@ class Agent:
         (PGMORL counts one member's, as the authors)."""
         return batch.numel()
 
+    def before_batch(self) -> bool:
+        """Called by the training loop before a batch is collected (once the collector is built, then
+        after every batch's :meth:`learn`); ``True``: restart every episode first (``collector.reset()``).
+        Default: nothing to do (MORL/D's round robin resets at an exchange, PGMORL re-seeds its simulators)."""
+        return False
+
     def frames_to_collect(self, frames_done: int) -> int:
         """The frames the collector still has to collect when ``frames_done`` frames (as
         :meth:`frames_of` counts them) are done: ``cfg.frames - frames_done``."""

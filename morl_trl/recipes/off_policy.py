@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import collector_state
+from morl_trl._torchrl_compat import collector_state, reset_collector
 from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
@@ -159,6 +159,8 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
         agent.on_frames(run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
+    if agent.before_batch():
+        reset_collector(collector)
 
     def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
         return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
@@ -172,6 +174,8 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
             frames = run.collected(batch, agent.frames_of(batch))  # (PGMORL: one member's frames, as the authors)
             losses, updates = agent.learn(batch, buffer, frames)  # store + the algorithm's updates
             agent.on_frames(frames)  # the schedules (epsilon, homotopy)
+            if agent.before_batch():  # (MORL/D's round robin: the next member starts on a reset env)
+                reset_collector(collector)
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)
     return run.summary, agent

@@ -23,6 +23,7 @@ from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
 __all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
+           "RecipeCollector",
            "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note", "start_notes",
            "check_buffer_memory"]
 
@@ -62,6 +63,40 @@ def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
     return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
 
 
+class RecipeCollector(Collector):
+    """TorchRL's :class:`~torchrl.collectors.Collector` whose ``update_policy_weights_()`` skips the
+    copy when the collector acts with the training policy itself (same module, hence same
+    parameters: nothing to sync).
+
+    TorchRL copies the source policy's weights onto the collector's policy on every call, even
+    when both are one module: a ``TensorDict.from_module`` of each and an ``update_`` of every
+    parameter onto itself, which in a one-env run (one frame per batch) cost as much as a
+    sixth of collecting the frame. A collector that acts with a copy (another device) syncs
+    as before, as does a call that passes weights.
+
+    Example:
+        >>> from morl_trl.recipes import build_agent, build_training_env, resolve_config
+        >>> cfg = resolve_config("envelope", "deep-sea-treasure-v0", hidden=[8], frames=4, init_random_frames=0)
+        >>> env = build_training_env(cfg, torch.device("cpu"))
+        >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+        >>> collector = make_collector(cfg, env, agent.explore_policy, torch.device("cpu"))
+        >>> collector.shares_policy_weights, [batch.numel() for batch in collector]
+        (True, [1, 1, 1, 1])
+    """
+
+    @property
+    def shares_policy_weights(self) -> bool:
+        """Whether the collector acts with the source policy module itself (``update_policy_weights_()`` has nothing to copy)."""
+        target = getattr(self, "_policy_w_state_dict", None)
+        return target is not None and target is getattr(self, "_orig_policy", None)
+
+    def update_policy_weights_(self, policy_or_weights=None, **kwargs) -> None:
+        if policy_or_weights is None and not kwargs and self.shares_policy_weights:
+            self.increment_version()  # (what TorchRL's call does besides the copy)
+            return
+        super().update_policy_weights_(policy_or_weights, **kwargs)
+
+
 def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int = 0,
                    frames_to_go: int | None = None) -> Collector:
     """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
@@ -73,7 +108,7 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
     def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
         return -(-max(frames, 0) // per_batch) * per_batch
 
-    return Collector(
+    return RecipeCollector(
         env,
         policy,
         frames_per_batch=per_batch,

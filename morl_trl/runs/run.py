@@ -394,6 +394,7 @@ class Run:
     def checkpoint(self, snapshot: dict, buffer=None, **flags) -> Path:
         """Write a checkpoint of the recipe's ``snapshot`` (agent, env, collector, device...), the
         run's counters, RNG states and config, and ``buffer`` (when not empty); move the schedule on."""
+        self.log.flush()  # every log row up to this frame is written before the checkpoint
         if not flags:  # a periodic one (the final and the stop checkpoints leave the schedule as it is)
             while self.next_ckpt <= self.frames:
                 self.next_ckpt += self.cfg.checkpoint_interval
