@@ -223,6 +223,12 @@ class Agent:
         """Whether :meth:`sample` is this class's (one ``buffer.sample()``), which a captured update may replace."""
         return type(self).sample is Agent.sample
 
+    @property
+    def captured_update(self) -> bool:
+        """Whether :meth:`update` runs captured (:class:`~morl_trl.recipes.capture.CapturedUpdate`:
+        ``cfg.compile`` / ``cfg.cudagraphs``, or fused optimizers on an accelerator)."""
+        return self._device_guard()
+
     def _device_guard(self) -> bool:
         """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""
         if self._captured is not None:
