@@ -159,7 +159,7 @@ def _affine(normed: Tensor, w: Tensor, b: Tensor) -> Tensor:
     return (normed * w).add_(b)
 
 
-def _dropout_mask(like: Tensor, p: float) -> Tensor:
+def _dropout_mask(like: Tensor, p: float, of_rows: int | None = None) -> Tensor:
     """The inverted-dropout mask ``keep / (1 - p)`` of ``like``'s shape: iid ``keep ~ Bernoulli(1 - p)``.
 
     CUDA: ``U[0, 1) >= p`` from one ``uniform_`` of ``like``'s size (the values of
@@ -167,7 +167,21 @@ def _dropout_mask(like: Tensor, p: float) -> Tensor:
     geometric gaps (:func:`dropped_positions`): the same distribution from ``~n p`` draws
     instead of ``n`` (torch's CPU generator draws one number at a time: at the GPI networks'
     ``p = 0.01`` the uniform draws were ~15% of an update).
+
+    ``of_rows``: ``like`` ``[E, N, d]`` holds the first ``N`` rows of each member of an
+    ``[E, of_rows, d]`` activation: the mask is drawn for that whole activation (the same
+    draws) and its first ``N`` rows are returned, so rows computed alone get the values they
+    get computed with the rest.
     """
+    if of_rows is not None and of_rows != like.shape[-2]:
+        e, n, d = like.shape
+        if like.device.type != "cpu":
+            return torch.rand(e, of_rows, d, dtype=like.dtype, device=like.device)[:, :n].ge_(p).mul_(1.0 / (1.0 - p))
+        pos = dropped_positions(e * of_rows * d, p)
+        member, within = pos.div(of_rows * d, rounding_mode="floor"), pos.remainder(of_rows * d)
+        pos = torch.where(within < n * d, member * (n * d) + within, e * n * d)  # (the rest: to the spare slot)
+        mask = torch.full((e * n * d + 1,), 1.0 / (1.0 - p), dtype=like.dtype)
+        return mask.index_fill_(0, pos, 0.0)[: e * n * d].view(like.shape)
     if like.device.type != "cpu":
         return torch.rand_like(like).ge_(p).mul_(1.0 / (1.0 - p))
     n = like.numel()
@@ -239,11 +253,13 @@ def linear_dropout_norm_relu(x: Tensor, linear: BatchedLinear, norm: BatchedLaye
 
 
 def hidden_block(x: Tensor, weight: Tensor, bias: Tensor, norm: tuple[Tensor, Tensor, float] | None, p: float,
-                 training: bool) -> Tensor:
-    """:func:`linear_dropout_norm_relu` on given tensors (``norm``: ``(weight, bias, eps)`` or ``None``)."""
+                 training: bool, of_rows: int | None = None) -> Tensor:
+    """:func:`linear_dropout_norm_relu` on given tensors (``norm``: ``(weight, bias, eps)`` or ``None``);
+    ``of_rows``: ``x`` ``[E, N, in]`` holds the first ``N`` rows of an ``of_rows``-row batch, whose
+    dropout masks are drawn (see :func:`_dropout_mask`): each row's output is what it is in the whole."""
     h = batched_linear(x, weight, bias)
     if training and p > 0.0:
-        h.mul_(_dropout_mask(h, p))  # h is the matmul's fresh output: BaddbmmBackward does not keep it
+        h.mul_(_dropout_mask(h, p, of_rows))  # h is the matmul's fresh output: BaddbmmBackward does not keep it
     if norm is not None:
         nw, nb, eps = norm
         if h.dim() == 3:  # (no views: see batched_linear)

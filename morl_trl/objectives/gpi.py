@@ -96,11 +96,16 @@ class GPIQNetwork(nn.Module):
         return not isinstance(self.state_features, nn.ModuleList)
 
     def forward_with(self, params: TensorDictBase | None, observation: torch.Tensor, preference: torch.Tensor,
-                     members: slice | None = None) -> torch.Tensor:
+                     members: slice | None = None, *, of_rows: int | None = None) -> torch.Tensor:
         """:meth:`forward` with the parameters taken from ``params`` (a TensorDict shaped as
         ``TensorDict.from_module(self)``, e.g. a loss's functional or target parameters; ``None``: the
         module's own), nothing swapped into the module: the same operations at a fraction of
         ``TensorDict.to_module``'s cost. Flat observations only (:attr:`supports_forward_with`).
+
+        ``of_rows``: the ``N`` rows given (``preference``'s leading dims, flattened) are the first
+        ``N`` of a batch of ``of_rows``; the dropout masks are drawn for all of them, so each row
+        comes out as it does when the whole batch is run (rows are independent through the
+        network): what a caller that uses only the first rows of a result computes instead.
 
         Example:
             >>> from tensordict import TensorDict
@@ -137,7 +142,7 @@ class GPIQNetwork(nn.Module):
         x = sf.relu_() * batched_linear(w, *tensors("weight_features")).relu_()
         for i in range(len(self.hidden)):
             norm = None if self.norms is None else (*tensors("norms", str(i)), self.norms[i].eps)
-            x = hidden_block(x, *tensors("hidden", str(i)), norm, self.dropout, self.training)
+            x = hidden_block(x, *tensors("hidden", str(i)), norm, self.dropout, self.training, of_rows)
         return batched_linear(x, *tensors("out")).reshape(e, *lead, self.num_actions, self.num_objectives)
 
 
@@ -333,6 +338,18 @@ class GPILoss(MultiObjectiveLossModule):
         with params.to_module(self.value_network, preserve_module_state=False):
             return net(obs, w, members=members)
 
+    def _q_first_rows(self, params, obs: torch.Tensor, w: torch.Tensor, rows: int) -> torch.Tensor:
+        """``_q(params, obs, w)[:, :rows]`` (rows of ``obs``'s first dim), each row as the whole
+        batch's run gives it (the same dropout draws), computing only those rows where the network
+        takes given parameters."""
+        net = self.value_network.module
+        if rows >= obs.shape[0]:
+            return self._q(params, obs, w)
+        if not net.supports_forward_with:
+            return self._q(params, obs, w)[:, :rows]
+        per_row = w[0].numel() // w.shape[-1]  # rows of the network per row of obs (e.g. support weights)
+        return net.forward_with(params.get("module"), obs[:rows], w[:rows], of_rows=obs.shape[0] * per_row)
+
     @torch.no_grad()
     def _min_member(self, q: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
         """``[E, *B, A, k]`` -> ``[*B, A, k]``: per action the member with the lowest ``w . Q``."""
@@ -348,12 +365,20 @@ class GPILoss(MultiObjectiveLossModule):
         return q.gather(1, best.view(-1, 1, 1).expand(-1, 1, q.shape[-1])).squeeze(1)
 
     @torch.no_grad()
-    def gpi_target_value(self, next_obs: torch.Tensor, w: torch.Tensor, sampled: torch.Tensor) -> torch.Tensor:
-        """``[B, k]``: the GPI target over the support weights ``sampled`` ``[P, k]`` (the authors' ``_envelope_target``)."""
+    def gpi_target_value(self, next_obs: torch.Tensor, w: torch.Tensor, sampled: torch.Tensor,
+                         rows: int | None = None) -> torch.Tensor:
+        """``[B, k]``: the GPI target over the support weights ``sampled`` ``[P, k]`` (the authors' ``_envelope_target``).
+
+        ``rows``: only the first ``rows`` of it, computed alone (``[rows, k]``), each as in the whole
+        (:meth:`GPIQNetwork.forward_with`'s ``of_rows``): what the loss reads (the priorities of the real batch)."""
         b, p = next_obs.shape[0], sampled.shape[0]
         obs = next_obs.unsqueeze(1).expand(b, p, *next_obs.shape[1:])
         W = sampled.unsqueeze(0).expand(b, p, sampled.shape[-1])
-        q = self._q(self.target_value_network_params, obs, W)  # [E, B, P, A, k]
+        if rows is not None and rows < b:
+            q = self._q_first_rows(self.target_value_network_params, obs, W, rows)  # [E, rows, P, A, k]
+            b, w = rows, w[:rows]
+        else:
+            q = self._q(self.target_value_network_params, obs, W)  # [E, B, P, A, k]
         scal = torch.einsum("ebpak,bk->ebpa", q, w)
         idx = scal.argmin(0, keepdim=True).unsqueeze(-1).expand(1, *q.shape[1:])
         q = q.gather(0, idx).squeeze(0)  # [B, P, A, k]
@@ -415,16 +440,16 @@ class GPILoss(MultiObjectiveLossModule):
             w = w_now
         gamma = self.value_estimator.gamma
         target = vector_td0_return_estimate(gamma, self.td_target_value(next_obs, w), reward, terminated)
-        if self.gpi_pd:
-            gpi_value = self.gpi_target_value(next_obs, w, self._sampled_support())
-            gpi_target = vector_td0_return_estimate(gamma, gpi_value, reward, terminated)
+        if self.gpi_pd:  # (for the real batch's priorities: the first b rows, computed alone)
+            gpi_value = self.gpi_target_value(next_obs, w, self._sampled_support(), rows=b)
+            gpi_target = vector_td0_return_estimate(gamma, gpi_value, reward[:b], terminated[:b])
 
         q = self._q(self.value_network_params, obs, w)  # [E, 2B, A, k]
         k = q.shape[-1]
         q_taken = q.gather(2, action.view(1, -1, 1, 1).expand(q.shape[0], -1, 1, k)).squeeze(2)  # [E, 2B, k]
         td = (q_taken - target).abs()
         loss = torch.stack([thresholded_huber(td[e], self.min_priority) for e in range(td.shape[0])]).mean()
-        err = ((q_taken - gpi_target).abs() if self.gpi_pd else td).detach().max(0).values[:b]
+        err = ((q_taken[:, :b] - gpi_target).abs() if self.gpi_pd else td[:, :b]).detach().max(0).values
         priority = torch.einsum("bk,bk->b", w[:b], err).abs().clamp(min=self.min_priority)
         tensordict.set(keys.priority, priority.reshape(tensordict.shape))
         out = TensorDict({"loss_qvalue": loss, "td_error_mean": td.detach().mean(),

@@ -195,7 +195,10 @@ def test_mlp_member_is_a_plain_mlp():
 
 
 class _ReferenceGPIQNetwork(GPIQNetwork):
-    """GPIQNetwork's forward as written before the fast block (the plain composition)."""
+    """GPIQNetwork's forward as written before the fast block (the plain composition); the loss runs it
+    (not :meth:`GPIQNetwork.forward_with`), on every row it computes (no first-rows-only GPI target)."""
+
+    supports_forward_with = False
 
     def forward(self, observation, preference, members=None):
         lead = preference.shape[:-1]
@@ -226,7 +229,7 @@ def test_gpi_pd_update_equals_the_reference_update():
                        ("next", "done"): torch.zeros(B, 1, dtype=torch.bool),
                        ("next", "terminated"): torch.zeros(B, 1, dtype=torch.bool)}, [B])
     support = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.8], [0.7, 0.3], [0.9, 0.1]])
-    params = []
+    params, priorities = [], []
     for net in (fast, slow):
         loss = GPILoss(net, gpi_pd=True)
         loss.make_value_estimator(gamma=0.99)
@@ -234,10 +237,32 @@ def test_gpi_pd_update_equals_the_reference_update():
         opt = torch.optim.Adam(loss.parameters(), lr=1e-2)
         torch.manual_seed(11)
         for _ in range(2):
-            out = loss(data.clone())
+            batch = data.clone()
+            out = loss(batch)
             opt.zero_grad()
             out["loss_qvalue"].backward()
             opt.step()
         params.append(copy.deepcopy(loss.value_network_params.data))
+        priorities.append(batch["td_error"])
     for key, value in params[0].items(True, True):
         assert torch.equal(value, params[1][key]), key
+    assert torch.equal(priorities[0], priorities[1])
+
+
+def test_gpi_target_of_the_first_rows_is_the_whole_ones_first_rows():
+    """GPI-PD's GPI target computed for the real batch's rows alone (what the priorities read) equals those
+    rows of the target over the whole doubled batch, dropout included (the same draws), and leaves the
+    generator where the whole run leaves it."""
+    torch.manual_seed(4)
+    loss = GPILoss(GPIQNetwork(6, 3, 2, hidden=(16, 16, 16), dropout=0.2), gpi_pd=True)
+    next_obs, w = torch.randn(20, 6), torch.softmax(torch.randn(20, 2), -1)
+    sampled = torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]])
+    torch.manual_seed(8)
+    whole = loss.gpi_target_value(next_obs, w, sampled)
+    after_whole = torch.rand(3)
+    torch.manual_seed(8)
+    first = loss.gpi_target_value(next_obs, w, sampled, rows=7)
+    assert first.shape == (7, 2) and torch.equal(first, whole[:7])
+    assert torch.equal(torch.rand(3), after_whole)
+    loss.value_network.module.eval()  # without dropout too
+    assert torch.equal(loss.gpi_target_value(next_obs, w, sampled, rows=7), loss.gpi_target_value(next_obs, w, sampled)[:7])
