@@ -19,9 +19,10 @@ from typing import Any
 
 import torch
 from tensordict import TensorDict, TensorDictBase
+from torchrl.envs.transforms.vecnorm import VecNormV2
 from torchrl.objectives.utils import _cache_values, _vmap_func
 
-__all__ = ["collector_state", "load_collector_state", "transform_reset", "transform_step", "cache_values",
+__all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNormNonNegativeVar", "transform_reset", "transform_step", "cache_values",
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
            "module_kwargs"]
@@ -53,6 +54,26 @@ def load_collector_state(collector, state: dict[str, Any], device: torch.device 
     """Restore :func:`collector_state` into a fresh collector (before its first batch)."""
     collector._carrier = state["carrier"].to(device)
     collector._traj_pool.load_state_dict(state["traj_pool"])
+
+
+class VecNormNonNegativeVar(VecNormV2):
+    """TorchRL's ``VecNorm(new_api=True)`` (``VecNormV2``) whose variance ``E[x^2] - E[x]^2`` is
+    clamped at 0 before its square root (its ``_norm``): for a feature equal in every sample so far
+    (e.g. sub-envs started from the same seeded state, PGMORL's re-seed) the rounding can make it
+    slightly negative, and TorchRL's ``sqrt().clamp_min(eps)`` then gives NaN instead of ``eps``."""
+
+    def _norm(self, data, loc, var, count):
+        var = var.apply(lambda v, m: torch.maximum(v, m.pow(2)), loc)
+        return super()._norm(data, loc, var, count)
+
+
+def reset_collector(collector) -> None:
+    """``collector.reset()`` (every sub-env restarts, new trajectory ids) on a copy of its carried
+    TensorDict (``_carrier``): TorchRL's reset zeroes the carrier in place, and our envs' outputs
+    share live state with it (e.g. the DR context tensor, :class:`morl_trl.envs.ContextualMOEnv`),
+    which the zeroing would overwrite before the reset reads it."""
+    collector._carrier = collector._carrier.clone()
+    collector.reset()
 
 
 def transform_reset(transform, tensordict: TensorDictBase, tensordict_reset: TensorDictBase) -> TensorDictBase:

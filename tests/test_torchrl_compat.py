@@ -108,3 +108,37 @@ def test_module_kwargs_says_which_in_keys_go_by_keyword():
     assert hasattr(positional, "_kwargs"), "tensordict's TensorDictModule no longer sets _kwargs (objectives.fast_path)"
     assert not compat.module_kwargs(positional)  # the fast paths call its module on the tensors directly
     assert list(compat.module_kwargs(keyword)) == ["x"]  # (tensordict keeps the in_key names)
+
+
+def test_vecnorm_non_negative_var_gives_eps_not_nan_for_a_feature_equal_in_every_sample():
+    from tensordict import TensorDict
+    from torchrl.envs.transforms.vecnorm import VecNormV2
+
+    from morl_trl._torchrl_compat import VecNormNonNegativeVar
+
+    # running E[x] = 0.5 and E[x^2] rounded just below 0.25 (a feature equal in every sample so far)
+    loc = TensorDict(observation=torch.tensor([0.5, 0.0]), batch_size=[])
+    var = TensorDict(observation=torch.tensor([0.25 - 1e-7, 1.0]), batch_size=[])
+    count = TensorDict(observation=torch.tensor(3), batch_size=[])
+    data = TensorDict(observation=torch.tensor([[0.5, 2.0]]), batch_size=[1])
+    kw = dict(in_keys=["observation"], decay=1.0, eps=1e-8, reduce_batch_dims=True)
+    plain = VecNormV2(**kw)._norm(data.clone(), loc, var, count)["observation"]
+    ours = VecNormNonNegativeVar(**kw)._norm(data.clone(), loc, var, count)["observation"]
+    assert bool(plain[0, 0].isnan()) and plain[0, 1] == 2.0  # TorchRL's: sqrt of a negative
+    assert ours.tolist() == [[0.0, 2.0]]
+
+
+def test_reset_collector_restarts_every_episode_without_touching_the_envs_live_context():
+    from torchrl.collectors import Collector
+
+    from morl_trl._torchrl_compat import reset_collector
+    from morl_trl.envs import make_env
+
+    env = make_env("MOLavaGridDR-v0", num_envs=2, seed=0)
+    collector = Collector(env, None, frames_per_batch=8, total_frames=16, auto_register_policy_transforms=False)
+    first = next(iter(collector))
+    reset_collector(collector)  # (collector.reset() alone zeroes the carrier, which shares the env's context)
+    assert bool((env._context[:, :2] != 0).any())
+    second = next(iter(collector))
+    assert first.shape == second.shape == (2, 4)
+    collector.shutdown()

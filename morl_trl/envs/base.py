@@ -562,6 +562,13 @@ class ContextualMOEnv(EnvBase):
     def _seed_subenvs(self, seed: int) -> None:
         """Seed the domain's own random generators (override in subclasses)."""
 
+    def reseed_subenvs(self, seeds) -> None:
+        """Re-seed each sub-env's own generator, sub-env ``i`` with ``seeds[i]`` (as Gymnasium's
+        ``reset(seed=s)`` of a vector env seeds its copy ``i`` with ``s + i``); takes effect at
+        their next reset. The context sampler's stream is not touched. ``NotImplementedError`` for
+        a domain without per-sub-env generators (the MuJoCo domains have them)."""
+        raise NotImplementedError(f"{type(self).__name__} has no per-sub-env random generators to re-seed")
+
     # ------------------------------------------------------------------ domain hooks
     def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
         raise NotImplementedError

@@ -92,6 +92,12 @@ class Agent:
         (PGMORL counts one member's, as the authors)."""
         return batch.numel()
 
+    def before_batch(self) -> bool:
+        """Called by the training loop before a batch is collected (once the collector is built, then
+        after every batch's :meth:`learn`); ``True``: restart every episode first (``collector.reset()``).
+        Default: nothing to do (MORL/D's round robin resets at an exchange, PGMORL re-seeds its simulators)."""
+        return False
+
     def frames_to_collect(self, frames_done: int) -> int:
         """The frames the collector still has to collect when ``frames_done`` frames (as
         :meth:`frames_of` counts them) are done: ``cfg.frames - frames_done``."""
@@ -216,6 +222,12 @@ class Agent:
     def samples_one_batch(self) -> bool:
         """Whether :meth:`sample` is this class's (one ``buffer.sample()``), which a captured update may replace."""
         return type(self).sample is Agent.sample
+
+    @property
+    def captured_update(self) -> bool:
+        """Whether :meth:`update` runs captured (:class:`~morl_trl.recipes.capture.CapturedUpdate`:
+        ``cfg.compile`` / ``cfg.cudagraphs``, or fused optimizers on an accelerator)."""
+        return self._device_guard()
 
     def _device_guard(self) -> bool:
         """Whether updates go through :class:`~morl_trl.recipes.capture.CapturedUpdate` (decided once)."""

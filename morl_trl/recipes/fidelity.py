@@ -356,6 +356,17 @@ SAC = {
     "derived.eval_action": Same("eval_exploration", expect=lambda v, cfg: "random"),
 }
 
+def _morld_turns(cfg: TrainConfig, *, frames: bool = False):
+    """Round robin: the turns (or frames) of each member (:func:`morl_trl.recipes.morld.round_robin_turns`);
+    concurrent: none (every member collects at every step)."""
+    if cfg.morld_schedule != "round_robin":
+        return "concurrent"
+    from morl_trl.recipes.morld import round_robin_turns
+
+    turns = round_robin_turns(cfg.frames, cfg.exchange_every, cfg.pop_size)
+    return [t * cfg.exchange_every for t in turns] if frames else turns
+
+
 MORLD = {
     "init.scalarization_method": Code("recipes.morld: weighted sum w . Q"),
     "init.evaluation_mode": Code("SER: discounted vector returns, as the evaluator computes them"),
@@ -367,13 +378,14 @@ MORLD = {
     "init.dist_metric": Code("recipes.morld (squared Euclidean distance)"),
     "init.shared_buffer": Code("recipes.morld: one buffer shared by the members"),
     "init.sharing_mechanism": NotApplicable("[] in every script: no parameter sharing"),
-    "init.update_passes": Code("recipes.morld", open="the 10 catch-up updates of the other members after each "
-                               "exchange are not made (our members learn concurrently)"),
+    "init.update_passes": Same("morld_update_passes"),  # recipes.morld.MORLDAgent: catch-up after each exchange
     "init.weight_init_method": Code("preferences.equally_spaced_weights (the authors' 'uniform')"),
     "init.weight_adaptation_method": Same("weight_adaptation", expect=lambda v, cfg: "psa" if v == "PSA" else "none"),
     "init.asymmetric": NotApplicable("False in every script"),
     "init.history_type": NotApplicable("None in every script"),
-    "policy_args.env": Code("recipes.morld: every member steps its own sub-envs of one batched env"),
+    "policy_args.env": Code("recipes.morld: round robin, the acting member steps the training env (num_envs = 1 "
+                            "sub-env, reset at each exchange); morld_schedule='concurrent': every member steps its "
+                            "own sub-envs of one batched env"),
     "policy_args.weights": Code("preferences.equally_spaced_weights(k, pop_size, seed)"),
     "policy_args.asymmetric": NotApplicable("False in every script"),
     "policy_args.scalarization": Code("recipes.morld: w . Q"),
@@ -390,17 +402,20 @@ MORLD = {
     "network.num_q_nets": Code("two critics per member"),
     "network.critic_loss": Code("objectives.population: MSE of scalarised values against the min of the targets"),
     "derived.eval_action": Code("recipes.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled actions"),
-    "derived.exchanges_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "
-                                         "(the authors: round robin, one member per exchange_every frames)"),
-    "derived.own_env_steps_per_member": Code("recipes.morld", open="members learn concurrently on their own sub-envs "
-                                             "(the authors: round robin, one member per exchange_every frames)"),
-    "derived.updates_for_non_active_member_per_exchange": Code("recipes.morld", open="no catch-up updates after an "
-                                                               "exchange (our members learn concurrently)"),
+    # round robin (recipes.morld; tests/recipes/test_morld_round_robin.py): turns of exchange_every frames
+    "derived.exchanges_per_member": Same("round_robin_turns(frames, exchange_every, pop_size)",
+                                         ours=lambda cfg: _morld_turns(cfg)),
+    "derived.own_env_steps_per_member": Same("exchange_every * round_robin_turns(...)",
+                                             ours=lambda cfg: _morld_turns(cfg, frames=True)),
+    # each catch-up update is the member's update(): critic + (the shared step even) actor/alpha + target step
+    "derived.updates_for_non_active_member_per_exchange": Same(
+        "morld_update_passes", expect=lambda v, cfg: int(v.split()[0]),
+        ours=lambda cfg: cfg.morld_update_passes if cfg.morld_schedule == "round_robin" else 0),
     "derived.psa_rule": Code("recipes.morld.psa_weights (tests/recipes/test_morld.py)"),
     "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
                                                        ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
-    "derived.env_reset_at_each_exchange": Code("recipes.morld", open="members keep their sub-envs' episodes going "
-                                               "across exchanges"),
+    "derived.env_reset_at_each_exchange": Same("morld_schedule", expect=lambda v, cfg: "round_robin" if v else
+                                               "concurrent"),  # recipes.morld: Agent.before_batch
 }
 
 PCN = {
@@ -497,7 +512,11 @@ PGMORL = {
     "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
     "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
-    "derived.vector_env_reset_each_iteration": Same("pgmorl_reset_each_iteration", expect=lambda v, cfg: True),
+    # recipes.pgmorl.PGMORLAgent.reseed_env (tests/recipes/test_pgmorl.py)
+    "derived.vector_env_reset_each_iteration": Same("(pgmorl_reset_each_iteration, pgmorl_reseed_each_iteration)",
+                                                    expect=lambda v, cfg: (True, True),
+                                                    ours=lambda cfg: (cfg.pgmorl_reset_each_iteration,
+                                                                      cfg.pgmorl_reseed_each_iteration)),
     "derived.global_step_per_iteration": Same("frames_per_batch / pgmorl_pop",
                                               ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),
     "derived.ppo_batch": Same("frames_per_batch / pgmorl_pop", ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop),

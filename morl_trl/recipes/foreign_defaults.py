@@ -51,7 +51,8 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
     # gamma 0.995, no shared buffer, no weight adaptation) with its default policy
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (batch 128, learning_starts 1000,
     # [256, 256], tau 0.005, autotuned temperature from 0.2)
-    **{algo: dict(**_EVAL, num_envs=1, frames_per_batch=6, updates_per_batch=0, update_frequency=1, gamma=0.995,
+    # (its round robin: one member on one env for exchange_every steps; frames_per_batch 50 divides them)
+    **{algo: dict(**_EVAL, num_envs=1, frames_per_batch=50, updates_per_batch=0, update_frequency=1, gamma=0.995,
                   pop_size=6, exchange_every=40_000, batch_size=128, init_random_frames=1000, hidden=(256, 256),
                   tau=0.005, alpha=0.2, learn_alpha=True, buffer_size=1_000_000, prioritized=False,
                   weight_adaptation="none" if algo == "morld" else "psa", eval_exploration="random")
@@ -62,7 +63,10 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                    pgmorl_evo_iterations=20, pgmorl_num_buffers=100, pgmorl_buffer_size=2, pgmorl_delta_weight=0.2,
                    pgmorl_sparsity=-1.0, gamma=0.995, hidden=(64, 64), pgmorl_minibatches=32, pgmorl_epochs=10,
                    lr=3e-4, pgmorl_clip=0.2, max_grad_norm=0.5, pgmorl_gae_lambda=0.95, init_random_frames=0,
-                   prioritized=False, eval_weights=100, eval_episodes=1, eval_exploration="random"),
+                   prioritized=False, eval_weights=100, eval_episodes=1, eval_exploration="random",
+                   # (MO-PPO's envs.reset(seed) at every train(): a wrapped Gymnasium env's sub-envs cannot be
+                   # re-seeded one by one here, recipes.pgmorl.PGMORLAgent.reseed_env)
+                   pgmorl_reseed_each_iteration=False),
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (one fixed weight in MB; here
     # preference-conditioned)
     "mosac": dict(**_ONE_ENV, **_EVAL, gamma=0.99, tau=0.005, batch_size=128, init_random_frames=1000, hidden=(256, 256),

@@ -8,32 +8,47 @@ moves by Pareto simulated annealing away from its nearest archived neighbour. Ev
 authors': for each evaluation weight the Pareto archive's snapshot whose weight is nearest acts
 (:class:`ArchiveSnapshotRouter`), with sampled actions.
 
-Beyond MORL-Baselines (which trains one member at a time for ``exchange_every`` steps): the
-population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`),
-one optimizer step updates all ``P`` members, and the members collect at the same time: the
-training env holds ``P * num_envs`` sub-envs, member ``p`` acting in sub-envs
-``p * num_envs .. (p + 1) * num_envs - 1``. Each member gets one update per ``update_frequency`` of
-its own frames (``updates_per_batch = 0``), the authors' update-to-data ratio per member.
+The population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`:
+every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_schedule``):
+
+* ``"round_robin"`` (default, the authors' ``MORLD.train``, ``morld.py:421-431,559-567``): member
+  ``p = e mod P`` acts alone for the ``e``-th turn of ``exchange_every`` frames on the training
+  env (``num_envs`` sub-envs; the authors one), with one update of ITS parameters per
+  ``update_frequency`` frames once the shared frame counter passed ``init_random_frames`` (its
+  actor steps and target copies on the shared counter's clock, as the authors' ``global_step``).
+  At the end of the turn (the exchange) every other member gets ``morld_update_passes`` (10)
+  catch-up updates, the members are evaluated and archived (and PSA adapts the weights), and
+  the env is reset (``Agent.before_batch``: the training loop restarts every episode, as each
+  member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
+  :class:`~morl_trl.recipes.optim.MemberAdam` (each member's own Adam moments and step count)
+  and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
+  moments and targets stay bit for bit. ``frames`` counts the acting member's frames and the
+  run ends after the turn that reaches it: ``ceil(frames / exchange_every)`` turns
+  (:func:`round_robin_turns`).
+* ``"concurrent"`` (our earlier scheme, faster, most of all on a GPU; not the authors'): the
+  training env holds ``P * num_envs`` sub-envs, member ``p`` acting in sub-envs ``p * num_envs ..
+  (p + 1) * num_envs - 1``; one optimizer step updates all ``P`` members, each one update per
+  ``update_frequency`` of its own frames (``updates_per_batch = 0``), with no catch-up updates
+  and no reset at an exchange.
 
 After every exchange each member is evaluated as the authors': the mean discounted vector return
 of ``morld_eval_episodes`` (5) episodes with sampled actions on a DR env of its own
 (:meth:`MORLDAgent.evaluate_members`, not training frames); ``morld_eval_episodes=0`` archives the
-mean return of its training episodes since the last exchange instead.
-
-Where this still differs from the authors' loop: the members train concurrently, not turn by turn
-(so there is no "update the others ``update_passes`` times" step, no env reset at each exchange
-and every member collects its own frames). The PSA rule, its ``delta = 0.1``, the archive's distance threshold (0.01)
-and the weights' L1 renormalisation are MORL-Baselines 1.3.0's.
+mean return of its training episodes since the last exchange instead. The PSA rule, its
+``delta = 0.1``, the archive's distance threshold (0.01) and the weights' L1 renormalisation are
+MORL-Baselines 1.3.0's.
 
 Example:
     >>> from morl_trl.recipes import resolve_config
     >>> cfg = resolve_config("morld_psa", "MOLavaGridDR-v0", quick=True, hidden=(16,))
     >>> env = make_morld_training_env(cfg, torch.device("cpu"))
-    >>> env.batch_size, cfg.pop_size, cfg.weight_adaptation
-    (torch.Size([10]), 5, 'psa')
+    >>> env.batch_size, cfg.pop_size, cfg.weight_adaptation, cfg.morld_schedule
+    (torch.Size([1]), 5, 'psa', 'round_robin')
     >>> agent = make_morld_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
-    >>> agent.loss.weights.shape
-    torch.Size([5, 2])
+    >>> agent.loss.weights.shape, agent.active
+    (torch.Size([5, 2]), 0)
+    >>> round_robin_turns(3_000_000, 20_000, 6)  # the authors' Hopper: 150 turns, 25 per member
+    [25, 25, 25, 25, 25, 25]
 """
 
 from __future__ import annotations
@@ -48,6 +63,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
+from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.batched import BatchedLinear
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
 from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
@@ -72,11 +88,13 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.optim import MemberAdam
 from morl_trl.recipes.parts import run_discount
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["ArchiveSnapshotRouter", "MORLDAgent", "ParetoArchive", "archive_eval_policy", "make_member_env",
-           "make_morld_agent", "make_morld_training_env", "orthogonal_population_init_", "psa_weights"]
+__all__ = ["ActiveMemberRouter", "ArchiveSnapshotRouter", "MORLDAgent", "MemberTargetUpdate", "ParetoArchive",
+           "archive_eval_policy", "make_member_env", "make_morld_agent", "make_morld_training_env",
+           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -111,6 +129,95 @@ def psa_weights(weights: torch.Tensor, evaluations: torch.Tensor, archive: torch
         w = torch.where(e >= closest, weights[p] * (1 + delta), weights[p] / (1 + delta))
         new[p] = w / w.abs().sum()
     return new
+
+
+def round_robin_turns(frames: int, exchange_every: int, pop_size: int) -> list[int]:
+    """Turns of ``exchange_every`` frames each member gets in a round-robin run of ``frames``
+    frames: ``ceil(frames / exchange_every)`` turns, member ``e mod P`` taking the ``e``-th (the
+    authors' loop runs whole turns while ``global_step < total_timesteps``; the record's
+    ``derived.exchanges_per_member``).
+
+    Example:
+        >>> round_robin_turns(5_000_000, 10_000, 6)  # Half-Cheetah: 500 turns
+        [84, 84, 83, 83, 83, 83]
+    """
+    turns = -(-frames // exchange_every)
+    return [turns // pop_size + (1 if p < turns % pop_size else 0) for p in range(pop_size)]
+
+
+def _member_view(mask: torch.Tensor, ndim: int, dim: int) -> torch.Tensor:
+    """``[P]`` ``mask`` shaped to broadcast over a ``ndim``-dim tensor with the members along ``dim``."""
+    shape = [1] * ndim
+    shape[dim] = mask.shape[0]
+    return mask.view(shape)
+
+
+class ActiveMemberRouter(nn.Module):
+    """Acting in the round-robin training env: every sub-env is driven by the member ``active``
+    (a 0-dim long tensor the agent fills in place at each exchange, so a collector's policy sees it).
+
+    The ``[N, ...]`` inputs run through the population network as ``[P, N, ...]`` (every member
+    computes; the rows of ``active`` are kept).
+    """
+
+    def __init__(self, net: nn.Module, population: int, active: torch.Tensor) -> None:
+        super().__init__()
+        self.net, self.population = net, population
+        self.active = active  # (not registered: the agent's)
+
+    def forward(self, *inputs: torch.Tensor):
+        out = self.net(*(x.unsqueeze(0).expand(self.population, *x.shape) for x in inputs))
+        idx = self.active.view(1)
+        if isinstance(out, tuple):
+            return tuple(o.index_select(0, idx).squeeze(0) for o in out)
+        return out.index_select(0, idx).squeeze(0)
+
+
+class MemberTargetUpdate:
+    """The target critics of the round robin, stepped for the members of ``agent.members`` only.
+
+    With ``tau`` (continuous MOSAC): Polyak ``target += tau (source - target)`` at every update;
+    without (discrete MOSAC): a hard copy when the update's frame (``agent.clock``, the authors'
+    shared ``global_step``) is a multiple of ``period_frames`` (``target_net_freq``,
+    ``mosac_discrete_action.py:488-491``). The other members' targets are left as they are (a
+    Polyak step of a member that did not learn would still move its targets).
+    """
+
+    def __init__(self, loss: PopulationMOSACLoss, agent: "MORLDAgent", *, tau: float | None,
+                 period_frames: int) -> None:
+        self.sources, self.targets = PolyakUpdate(loss, tau=0.5).leaves()  # (the leaves only: stepped here)
+        p = loss.population
+        for t in self.targets:
+            if t.ndim < 2 or t.shape[1] != p:
+                raise ValueError(f"a target critic leaf of shape {tuple(t.shape)} is not [n, P={p}, ...]")
+        self.tau, self.period_frames = tau, int(period_frames)
+        self._agent = agent
+
+    @torch.no_grad()
+    def step(self) -> None:
+        agent = self._agent
+        clock = agent.clock if agent.clock is not None else agent.critic_steps  # (outside learn(): updates)
+        if self.tau is None and clock % self.period_frames:
+            return
+        for source, target in zip(self.sources, self.targets):
+            new = source if self.tau is None else target.lerp(source, self.tau)
+            target.copy_(torch.where(_member_view(agent.members, target.ndim, 1), new, target))
+
+
+def member_optimizers(cfg, loss: PopulationMOSACLoss) -> dict:
+    """:func:`~morl_trl.recipes.agent.actor_critic_optimizers` as :class:`~morl_trl.recipes.optim.MemberAdam`
+    (the same learning rates and ``adam_eps``): actor ``[P, ...]``, critics ``[n, P, ...]``, temperatures ``[P]``."""
+    eps = {} if cfg.adam_eps is None else {"eps": cfg.adam_eps}
+    q_lr = cfg.lr if cfg.q_lr is None else cfg.q_lr
+    p = loss.population
+    opts = {
+        "actor": MemberAdam(loss.actor_network_params.values(True, True), cfg.lr, population=p, **eps),
+        "qvalue": MemberAdam(loss.qvalue_network_params.values(True, True), q_lr, population=p, member_dim=1, **eps),
+    }
+    if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
+        alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
+        opts["alpha"] = MemberAdam([loss.log_alpha], alpha_lr, population=p, **eps)
+    return opts
 
 
 class ParetoArchive:
@@ -210,24 +317,52 @@ def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
 
 
 class MORLDAgent(Agent):
-    """The MORL/D population (see the module docstring): store, update all members, exchange."""
+    """The MORL/D population (see the module docstring): store, update the members, exchange.
+
+    Round robin: :attr:`active` is the member whose turn it is, :attr:`members` the ``[P]`` mask
+    of the members the current update steps, :attr:`clock` that update's frame on the shared
+    counter; :attr:`member_updates` / :attr:`member_frames` count, per member, the updates it
+    received (its own and the catch-up ones) and the frames it collected, :attr:`env_resets`
+    the resets at exchanges.
+    """
 
     def __init__(self, cfg, loss: PopulationMOSACLoss, explore_policy, eval_policy, optimizers, updater, *, device,
-                 num_envs_per_member: int, eval_exploration) -> None:
+                 num_envs_per_member: int, eval_exploration, member_policy=None) -> None:
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater, device=device,
                          eval_exploration=eval_exploration)
         self.population = loss.population
         self.num_envs_per_member = num_envs_per_member
+        self.round_robin = cfg.morld_schedule == "round_robin"
+        self.member_policy = member_policy if member_policy is not None else explore_policy  # sub-env i: member i // n
         self.archive = ParetoArchive()
         k = loss.num_objectives
-        self._return_sum = torch.zeros(self.population, k, dtype=torch.float64, device=device)
-        self._return_count = torch.zeros(self.population, dtype=torch.long, device=device)
+        P = self.population
+        self._return_sum = torch.zeros(P, k, dtype=torch.float64, device=device)
+        self._return_count = torch.zeros(P, dtype=torch.long, device=device)
         self._next_exchange = cfg.exchange_every
         self._member_frames = 0  # member frames not yet turned into updates (update_frequency)
         self.exchanges = 0
         self.eval_episodes = 0  # archive-evaluation episodes run so far (not training frames)
         self._eval_env = None  # the members' evaluation env (evaluate_members), built on first use
         self._snapshots = (None, None)  # (archive version, stacked snapshots) cache of snapshots()
+        # round robin
+        self.active_member = torch.zeros((), dtype=torch.long, device=device)  # read by the acting router
+        self.members = torch.ones(P, dtype=torch.bool, device=device)  # who the next update steps (updated in place)
+        for opt in optimizers.values():
+            if isinstance(opt, MemberAdam):
+                opt.members = self.members
+        self.clock: int | None = None  # (None: an update outside learn(), counted as the concurrent schedule's)
+        self.turn_frames = 0
+        self.member_updates = torch.zeros(P, dtype=torch.long)
+        self.member_frames = torch.zeros(P, dtype=torch.long)
+        self.env_resets = 0
+        self._reset_due = False
+        self._catching_up = False
+
+    @property
+    def active(self) -> int:
+        """The member whose turn it is (round robin)."""
+        return int(self.active_member)
 
     def snapshots(self):
         """``(weights [S, k], actor parameters [S, ...])`` of the archive, or ``None`` while it is empty."""
@@ -241,9 +376,18 @@ class MORLDAgent(Agent):
         return self._snapshots[1]
 
     # ------------------------------------------------------------------ learning
+    def frames_to_collect(self, frames_done: int) -> int:
+        """Round robin: the frames of the whole turns still to go (the run ends after the turn that reaches ``frames``)."""
+        if not self.round_robin:
+            return super().frames_to_collect(frames_done)
+        e = self.cfg.exchange_every
+        return -(-self.cfg.frames // e) * e - frames_done
+
     def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """Record each member's finished episodes, store the batch in the shared buffer, update all
-        members (one batched step per update), and exchange every ``cfg.exchange_every`` frames."""
+        """Record the finished episodes, store the batch in the shared buffer, update, and exchange
+        every ``cfg.exchange_every`` frames (round robin: after the catch-up updates)."""
+        if self.round_robin:
+            return self._learn_round_robin(batch, buffer, frames)
         self._record_returns(batch)
         buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))  # what the loss reads, no more
         losses, n = None, 0
@@ -259,23 +403,98 @@ class MORLDAgent(Agent):
             self.exchange()
         return losses, n
 
+    def _learn_round_robin(self, batch: TensorDictBase, buffer, frames: int):
+        cfg, P, a = self.cfg, self.population, self.active
+        self._record_returns(batch)
+        buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))
+        start = frames - batch.numel()
+        self.member_frames[a] += batch.numel()
+        # the authors' MOSAC: after the step of shared index g (0-based), an update when g > learning_starts
+        # and g % update_frequency == 0 (mosac_continuous_action.py:558-559; discrete: update_frequency)
+        clocks = [g for g in range(max(start, cfg.init_random_frames + 1), frames) if g % cfg.update_frequency == 0]
+        self.members.copy_(torch.arange(P, device=self.members.device) == a)  # (the optimizers' and targets' mask)
+        losses = self._updates_at(buffer, clocks, done=0)
+        self.member_updates[a] += len(clocks)
+        n = len(clocks)
+        self.turn_frames += batch.numel()
+        if self.turn_frames >= cfg.exchange_every:  # the exchange (morld.py:559-578)
+            passes = cfg.morld_update_passes
+            if P > 1 and passes:
+                self.members.logical_not_()
+                self._catching_up = True
+                try:
+                    out = self._updates_at(buffer, [frames] * passes, done=n)
+                finally:
+                    self._catching_up = False
+                losses = out if out is not None else losses
+                self.member_updates[self.members.cpu()] += passes
+                n += passes
+            self.exchange()
+            self.active_member.fill_((a + 1) % P)
+            self.turn_frames = 0
+            self._reset_due = True
+        return losses, n
+
+    def _updates_at(self, buffer, clocks: list[int], *, done: int):
+        """One :meth:`update` at each shared-counter frame of ``clocks``; ``done``: updates of this batch before them."""
+        losses = None
+        try:
+            for i, g in enumerate(clocks):
+                self.clock = g
+                try:
+                    losses = self.update(buffer)
+                except NonFiniteLossError as err:
+                    err.updates_done = done + i
+                    raise
+        finally:
+            self.clock = None
+        return losses
+
+    def next_is_actor_turn(self) -> bool:
+        """Round robin: the actor (and temperature) steps when the update's shared frame is a multiple of
+        ``policy_freq``, as the authors' ``global_step % policy_freq == 0`` (a catch-up update at an exchange,
+        whose frame is a multiple of ``exchange_every``: the actor steps)."""
+        if not self.round_robin or self.clock is None:
+            return super().next_is_actor_turn()
+        self.critic_steps += 1
+        return self.clock % self.policy_freq == 0
+
+    def before_batch(self) -> bool:
+        """Round robin: after an exchange the next member starts on a reset env (once; the authors' ``train()``
+        starts with ``env.reset()``, ``mosac_continuous_action.py:526``)."""
+        due, self._reset_due = self._reset_due, False
+        self.env_resets += int(due)
+        return due
+
     def sample(self, buffer) -> TensorDictBase:
-        """``P * batch_size`` transitions of the shared buffer, ``batch_size`` per member (``[P, batch_size]``)."""
+        """``[P, batch_size]`` transitions of the shared buffer, ``batch_size`` per member; round robin during
+        a turn: one ``batch_size`` draw for the active member (the other rows repeat it: their updates are masked)."""
         p, b = self.population, self.cfg.batch_size
+        if self.round_robin and not self._catching_up:
+            return buffer.sample(b).to(self.device).expand(p, b)
         with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
             warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
             batch = buffer.sample(p * b)
         return batch.to(self.device).reshape(p, b)
 
     def _record_returns(self, batch: TensorDictBase) -> None:
-        """Add the discounted returns of the episodes ending in ``batch`` ``[P * N, T]`` to their
-        members' sums, on the device (member ``p`` owns rows ``p * N .. p * N + N - 1``): no host read."""
+        """Add the discounted returns of the episodes ending in ``batch`` to their members' sums, on the
+        device (no host read): round robin, all to the active member; concurrent (``[P * N, T]``), member
+        ``p`` owns rows ``p * N .. p * N + N - 1``."""
         nxt = batch.get("next")
-        p = self.population
+        p = 1 if self.round_robin else self.population
+        k = self._return_sum.shape[-1]
         done = nxt.get("done").reshape(p, -1, 1)
-        ret = nxt.get("episode_discounted_return").detach().reshape(p, -1, self._return_sum.shape[-1])
-        self._return_sum += torch.where(done, ret.to(self._return_sum.dtype), 0.0).sum(1)
-        self._return_count += done.sum((1, 2))
+        ret = nxt.get("episode_discounted_return").detach().reshape(p, -1, k)
+        total = torch.where(done, ret.to(self._return_sum.dtype), 0.0).sum(1)
+        count = done.sum((1, 2))
+        if self.round_robin:
+            a = self.active_member.view(1)
+            self._return_sum.index_add_(0, a, total)
+            self._return_count.index_add_(0, a, count)
+        else:
+            self._return_sum += total
+            self._return_count += count
 
     @torch.no_grad()
     def evaluate_members(self) -> torch.Tensor:
@@ -295,7 +514,7 @@ class MORLDAgent(Agent):
         with set_exploration_type(ExplorationType.RANDOM):
             td = env.reset()
             for _ in range(limit):
-                td, root = env.step_and_maybe_reset(self.explore_policy(td))
+                td, root = env.step_and_maybe_reset(self.member_policy(td))
                 nxt = td.get("next")
                 done = nxt.get("done").reshape(-1)
                 new = done & ~finished
@@ -339,7 +558,10 @@ class MORLDAgent(Agent):
         state["morld"] = {"archive": self.archive.state_dict(), "return_sum": self._return_sum.clone(),
                           "return_count": self._return_count.clone(), "next_exchange": self._next_exchange,
                           "member_frames": self._member_frames, "exchanges": self.exchanges,
-                          "eval_episodes": self.eval_episodes}
+                          "eval_episodes": self.eval_episodes, "schedule": self.cfg.morld_schedule,
+                          "active": self.active, "turn_frames": self.turn_frames,
+                          "member_updates": self.member_updates.clone(), "frames_per_member": self.member_frames.clone(),
+                          "env_resets": self.env_resets}
         return state
 
     def load_state_dict(self, state: dict) -> None:
@@ -351,28 +573,51 @@ class MORLDAgent(Agent):
         self._next_exchange, self._member_frames = m["next_exchange"], m["member_frames"]
         self.exchanges = m["exchanges"]
         self.eval_episodes = m.get("eval_episodes", 0)
+        schedule = m.get("schedule", "concurrent")  # (a state written before the round robin: concurrent)
+        if schedule == "round_robin" and not self.round_robin:  # (its Adams count steps per member)
+            raise ValueError("this MORL/D state was trained with morld_schedule='round_robin' (one Adam step count per "
+                             "member); the config says 'concurrent': set morld_schedule='round_robin' to load it")
+        # (older states: member 0's turn, nothing counted yet)
+        self.active_member.fill_(int(m.get("active", 0)))
+        self.turn_frames = int(m.get("turn_frames", 0))
+        self.member_updates = torch.as_tensor(m.get("member_updates", torch.zeros(self.population)), dtype=torch.long).clone()
+        self.member_frames = torch.as_tensor(m.get("frames_per_member", torch.zeros(self.population)),
+                                             dtype=torch.long).clone()
+        self.env_resets = int(m.get("env_resets", 0))
 
 
 # ---------------------------------------------------------------------- builders
-def make_member_env(cfg, device: torch.device, per_member: int, *, seed: int):
-    """``P * per_member`` sub-envs of ``cfg.env_id`` (member ``p`` owns a block of ``per_member``) + the
-    policy's history + discounted vector returns. No preference: a member's weight lives in the
-    loss, not in the data."""
-    env = make_env(cfg.env_id, num_envs=cfg.pop_size * per_member, device=device, seed=seed)
+def make_member_env(cfg, device: torch.device, per_member: int, *, seed: int, members: int | None = None):
+    """``members * per_member`` sub-envs of ``cfg.env_id`` (default ``members = P``: member ``p`` owns a block
+    of ``per_member``) + the policy's history + discounted vector returns. No preference: a member's
+    weight lives in the loss, not in the data."""
+    members = cfg.pop_size if members is None else members
+    env = make_env(cfg.env_id, num_envs=members * per_member, device=device, seed=seed)
     env = compose_policy_env(env, history_len=cfg.history_len)
     env.append_transform(DiscountedVectorReturn(run_discount(cfg, domain_of(cfg.env_id))))
     return env
 
 
 def make_morld_training_env(cfg, device: torch.device):
-    """The training env: :func:`make_member_env` with ``num_envs`` sub-envs per member."""
+    """The training env: round robin, ``num_envs`` sub-envs the acting member steps; concurrent,
+    :func:`make_member_env` with ``num_envs`` sub-envs per member."""
+    if cfg.prioritized:
+        raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
+    if cfg.morld_schedule == "round_robin":
+        if cfg.frames_per_batch % cfg.num_envs or cfg.exchange_every % cfg.frames_per_batch:
+            raise ValueError(f"round robin turns are whole batches of whole steps: exchange_every={cfg.exchange_every} "
+                             f"must be a multiple of frames_per_batch={cfg.frames_per_batch}, itself a multiple of "
+                             f"num_envs={cfg.num_envs} (e.g. frames_per_batch=50 with num_envs=1)")
+        if cfg.updates_per_batch:
+            raise ValueError(f"round robin updates the acting member once per update_frequency frames; "
+                             f"updates_per_batch={cfg.updates_per_batch} is for morld_schedule='concurrent': set "
+                             f"updates_per_batch=0")
+        return make_member_env(cfg, device, cfg.num_envs, seed=cfg.seed, members=1)
     total = cfg.pop_size * cfg.num_envs
     if cfg.frames_per_batch % total:
         raise ValueError(f"frames_per_batch={cfg.frames_per_batch} must be a multiple of pop_size * num_envs = "
                          f"{cfg.pop_size} * {cfg.num_envs} = {total} (MORL/D's sub-envs), e.g. "
                          f"{total * max(1, cfg.frames_per_batch // total)}")
-    if cfg.prioritized:
-        raise ValueError("MORL/D samples its shared buffer uniformly: set prioritized=false")
     return make_member_env(cfg, device, cfg.num_envs, seed=cfg.seed)
 
 
@@ -422,10 +667,27 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
                                    alpha_loss_form=cfg.alpha_loss_form)
     orthogonal_critic_copies_(loss, critic, orthogonal_population_init_)  # (the loss re-draws its critic copies)
     loss.make_value_estimator(gamma=gamma)
-    explore, _ = population_policies(actor, loss.weights)
+    by_member, _ = population_policies(actor, loss.weights)
     holder: dict = {}
     evaluate = archive_eval_policy(actor, loss.weights, lambda: holder["agent"].snapshots())
-    agent = MORLDAgent(cfg, loss, explore, evaluate, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
-                       device=device, num_envs_per_member=cfg.num_envs, eval_exploration=eval_exploration(cfg))
+    kw = dict(device=device, num_envs_per_member=cfg.num_envs, eval_exploration=eval_exploration(cfg),
+              member_policy=by_member)
+    if cfg.morld_schedule == "concurrent":
+        agent = MORLDAgent(cfg, loss, by_member, evaluate, actor_critic_optimizers(cfg, loss),
+                           target_updater(cfg, loss), **kw)
+    else:
+        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
+            raise ValueError("compile / cudagraphs capture one update of every member; MORL/D's round robin steps one "
+                             "member at a time: set compile=false and cudagraphs=false, or morld_schedule='concurrent'")
+        active = torch.zeros((), dtype=torch.long, device=device)
+        tdm = actor.module[0]
+        make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
+        action_key = actor.module[-1].out_keys[0]
+        explore = make(ActiveMemberRouter(tdm.module, p, active), tdm.in_keys, actor.spec[action_key], action_key)
+        agent = MORLDAgent(cfg, loss, explore, evaluate, member_optimizers(cfg, loss), None, **kw)
+        agent.active_member = active
+        agent.target_updater = MemberTargetUpdate(
+            loss, agent, tau=cfg.tau,
+            period_frames=(cfg.target_update_period or 1) * cfg.update_frequency)  # (target_net_freq, in frames)
     holder["agent"] = agent
     return agent

@@ -27,13 +27,18 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 import torch
+from torch.optim.adam import adam as adam_fn
+
+from morl_trl.runs.session import StopRun
 
 __all__ = ["NonFiniteLossError", "MemberAdam", "adam", "fused_choice", "optimizer_step", "clip_grad_norm",
            "check_finite", "keep_implementation"]
 
 
-class NonFiniteLossError(RuntimeError):
-    """A loss came out NaN or infinite; the update was not applied."""
+class NonFiniteLossError(StopRun):
+    """A loss came out NaN or infinite; the update was not applied. Raised inside
+    :meth:`Run.session <morl_trl.runs.Run.session>` it stops the run cleanly (a
+    :class:`~morl_trl.runs.session.StopRun`: the last good state is checkpointed)."""
 
 
 def check_finite(losses: Mapping[str, torch.Tensor], total: torch.Tensor | None = None) -> None:
@@ -113,8 +118,8 @@ class MemberAdam(torch.optim.Optimizer):
     Every parameter holds ``P`` members along its group's ``member_dim`` (``0`` for ``[P, ...]``,
     ``1`` for a critic ensemble ``[n, P, ...]``). :meth:`step` updates, for each member ``p``
     with ``members[p]`` true, its slice of every parameter, of Adam's two moments and its own step
-    count exactly as ``torch.optim.Adam`` on that member alone would (its bias corrections use its
-    own count); the other members' parameters, moments and counts are left bit for bit as they
+    count exactly as ``torch.optim.Adam`` on that member alone would (torch's own Adam, its
+    ``foreach`` arithmetic, runs on the member's slices; its bias corrections use its own count); the other members' parameters, moments and counts are left bit for bit as they
     were, whatever their gradients. This is what a population trained one member at a time needs
     (MORL/D's round robin, :mod:`morl_trl.recipes.morld`): one batched backward over all members,
     one step of the active ones. With every member active it is ``P`` independent Adams, as
@@ -175,37 +180,25 @@ class MemberAdam(torch.optim.Optimizer):
     def step(self, closure=None):
         if closure is not None:
             raise ValueError("MemberAdam.step takes no closure")
-        members = self.members.to(torch.bool)
-        if self.found_inf is not None:
-            members = members & (self.found_inf == 0)
+        if self.found_inf is not None and bool(self.found_inf):
+            return None  # (a non-finite update: skipped, as the fused optimizers do)
+        active = self.members.nonzero().flatten().tolist()
         for group in self.param_groups:
             beta1, beta2 = group["betas"]
-            lr, eps, d = group["lr"], group["eps"], group["member_dim"]
-            for p in group["params"]:
-                if p.grad is None:
-                    continue
+            d = group["member_dim"]
+            params = [p for p in group["params"] if p.grad is not None]
+            for p in params:
                 st = self.state[p]
                 if not st:
                     st["step"] = torch.zeros(self.population, dtype=torch.float32, device=p.device)
                     st["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
                     st["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-                step, exp_avg, exp_avg_sq = st["step"], st["exp_avg"], st["exp_avg_sq"]
-                step.add_(members.to(step.dtype))
-                shape = [1] * p.ndim
-                shape[d] = self.population
-                mask = members.view(shape)
-                grad = p.grad
-                # torch.optim.Adam's arithmetic (its single-tensor loop), on copies, kept where a member steps
-                new_avg = exp_avg.lerp(grad, 1 - beta1)
-                new_sq = (exp_avg_sq * beta2).addcmul_(grad, grad, value=1 - beta2)
-                count = step.double().clamp(min=1)  # (a member never stepped: any finite value, not used)
-                step_size = (lr / (1 - beta1 ** count)).to(p.dtype).view(shape)
-                bias2_sqrt = ((1 - beta2 ** count) ** 0.5).to(p.dtype).view(shape)
-                denom = (new_sq.sqrt() / bias2_sqrt).add_(eps)
-                new_p = p + (-step_size) * (new_avg / denom)
-                exp_avg.copy_(torch.where(mask, new_avg, exp_avg))
-                exp_avg_sq.copy_(torch.where(mask, new_sq, exp_avg_sq))
-                p.copy_(torch.where(mask, new_p, p))
+            for m in active:  # torch's own Adam (its foreach arithmetic) on member m's slices, its own step count
+                sts = [self.state[p] for p in params]
+                adam_fn([p.select(d, m) for p in params], [p.grad.select(d, m) for p in params],
+                        [st["exp_avg"].select(d, m) for st in sts], [st["exp_avg_sq"].select(d, m) for st in sts],
+                        [], [st["step"][m:m + 1] for st in sts], foreach=True, amsgrad=False, beta1=beta1,
+                        beta2=beta2, lr=group["lr"], weight_decay=0.0, eps=group["eps"], maximize=False)
         return None
 
 

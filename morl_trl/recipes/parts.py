@@ -24,7 +24,8 @@ from morl_trl.transforms import compose_policy_env, compose_training_env
 
 __all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
            "RecipeCollector",
-           "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note"]
+           "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note", "start_notes",
+           "check_buffer_memory"]
 
 
 def run_domain(cfg) -> DomainSpec:
@@ -176,3 +177,44 @@ def no_reference_note(spec: DomainSpec) -> str:
         return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
+
+
+def start_notes(cfg, run, spec: DomainSpec, reference) -> list[str]:
+    """What a run says in log.txt as it starts: NHGR without reference data, a budget that never learns."""
+    notes = [] if reference is not None else [no_reference_note(spec)]
+    if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
+        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): the "
+                     f"run takes uniformly random actions only and never learns; raise frames or lower init_random_frames")
+    return notes
+
+
+def check_buffer_memory(cfg, env, device: torch.device) -> None:
+    """``ValueError`` before anything is written when ``cfg.buffer_size`` transitions of ``env``
+    cannot fit in the memory ``device`` has available (the storage is allocated at the first
+    write, so without this check a too large buffer fails only once the run has started)."""
+    fake = env.fake_tensordict()
+    rows = max(fake.numel(), 1)
+    row_bytes = sum(v.element_size() * v.numel() for v in fake.values(include_nested=True, leaves_only=True)
+                    if isinstance(v, torch.Tensor)) / rows
+    need = row_bytes * cfg.buffer_size
+    available = _available_memory(device)
+    if available is not None and need > available:
+        raise ValueError(f"config key 'buffer_size' (buffer) is {cfg.buffer_size:,}; its transitions need about "
+                         f"{need / 2**30:.1f} GiB ({row_bytes:,.0f} bytes each) but {device} has "
+                         f"{available / 2**30:.1f} GiB available: lower buffer_size")
+
+
+def _available_memory(device: torch.device) -> float | None:
+    if device.type == "cuda":
+        try:
+            return float(torch.cuda.mem_get_info(device)[0])
+        except (RuntimeError, AssertionError):
+            return None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None

@@ -40,8 +40,10 @@ policy before that iteration's update) instead of a separate evaluation episode;
 ``VecNorm`` standardises the rewards (mean and std of the reward) where gym's
 ``NormalizeReward`` scales them by the std of the discounted return; every iteration starts from a
 reset of all sub-envs as the authors' (``pgmorl_reset_each_iteration``; false: episodes continue
-across iterations), but the authors also reseed the shared env with the member's seed at that
-reset (the run's seed, 42 for copied members), which we do not; truncation bootstraps; the sparsity
+across iterations), the simulators re-seeded at that reset with the member's seed as the authors'
+``envs.reset(seed=member.seed)`` (``pgmorl_reseed_each_iteration``: member ``p``'s sub-env ``i`` with
+``seed + i``, 42 + i once the task selection made the member a copy; false: one stream per
+sub-env for the whole run); truncation bootstraps; the sparsity
 of the task selection is computed on the non-dominated subset (:func:`morl_trl.metrics.sparsity`).
 
 Example:
@@ -60,11 +62,11 @@ import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
-from torchrl.envs import ClipTransform, VecNorm
+from torchrl.envs import ClipTransform
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
-from morl_trl._torchrl_compat import transform_step
+from morl_trl._torchrl_compat import VecNormNonNegativeVar, transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
@@ -129,7 +131,7 @@ def make_pgmorl_training_env(cfg, device: torch.device):
     if not is_discrete(spec):  # the authors' ClipAction: the env gets the clipped action, the rollout keeps the sample
         env.append_transform(ClipTransform(in_keys_inv=["action"], out_keys_inv=["action"],
                                            low=float(spec.space.low.min()), high=float(spec.space.high.max())).to(device))
-    env.append_transform(VecNorm(in_keys=["observation"], decay=1.0, eps=1e-8, new_api=True, reduce_batch_dims=True))
+    env.append_transform(VecNormNonNegativeVar(in_keys=["observation"], decay=1.0, eps=1e-8, reduce_batch_dims=True))
     # ClipTransform keeps its bounds where it was built: on the env's device (the GPU run found them on the CPU)
     env.append_transform(ClipTransform(in_keys=["observation"], low=-10.0, high=10.0).to(device))
     env.append_transform(DiscountedVectorReturn(gamma))
@@ -217,10 +219,14 @@ class PGMORLAgent(Agent):
         self.iteration = 0
         self.generation = 0
         self.rng = np.random.default_rng(cfg.seed)
+        #: each member's seed: the run's, then 42 once the task selection made it a copy (the authors'
+        #: MOPPO copies are built without a seed, mo_ppo.py:355-377); re-seeds its sub-envs per iteration
+        self.member_seeds = [int(cfg.seed)] * self.P
+        self.sim_env = None  # the training env's simulators (reseed_env), when pgmorl_reseed_each_iteration
         self.generator = torch.Generator().manual_seed(cfg.seed + 11)
         # TorchRL's VecNorm + clip on the batch's vector rewards -> ("next", "reward_norm")
-        self.reward_norm = VecNorm(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8, new_api=True,
-                                   reduce_batch_dims=True)
+        self.reward_norm = VecNormNonNegativeVar(in_keys=["reward"], out_keys=["reward_norm"], decay=1.0, eps=1e-8,
+                                                 reduce_batch_dims=True)
         self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0).to(device)
 
     # ------------------------------------------------------------------ frame budget
@@ -280,6 +286,18 @@ class PGMORLAgent(Agent):
             self._select_tasks()
         return losses, n_updates
 
+    def before_batch(self) -> bool:
+        """Before an iteration (its reset: ``pgmorl_reset_each_iteration``): :meth:`reseed_env`."""
+        self.reseed_env()
+        return False
+
+    def reseed_env(self) -> None:
+        """The authors' ``envs.reset(seed=member.seed)`` at every member's ``train()`` (``mo_ppo.py:628``):
+        member ``p``'s sub-env ``i`` (``p * E + i``) gets ``member_seeds[p] + i`` before the iteration's
+        reset; the DR contexts keep their stream (the authors' draw from the global RNG, SPEC §1)."""
+        if self.sim_env is not None:
+            self.sim_env.reseed_subenvs([self.member_seeds[p] + i for p in range(self.P) for i in range(self.E)])
+
     def _step(self, td: TensorDictBase) -> TensorDictBase:
         out = self.loss(td)
         total = (out["loss_objective"] + out["loss_critic"]) * self.P
@@ -338,6 +356,7 @@ class PGMORLAgent(Agent):
             self.head.load_member_state(p, state["actor"])
             self.critic.module.load_member_state(p, state["critic"])
             self.weights[p] = torch.as_tensor(w, dtype=self.weights.dtype)
+            self.member_seeds[p] = 42  # (a copy: MOPPO's default seed)
             for group in opt.param_groups:  # a fresh optimizer for the copy, as the authors' deepcopy
                 for param in group["params"]:
                     st = opt.state.get(param, {})
@@ -353,7 +372,8 @@ class PGMORLAgent(Agent):
                      archive_members=list(self.archive_members),
                      predictor=(list(self.predictor.weights), list(self.predictor.before), list(self.predictor.after)),
                      evals_before=self.evals_before.copy(), performance=self.performance.copy(),
-                     iteration=self.iteration, generation=self.generation, rng=self.rng.bit_generator.state,
+                     iteration=self.iteration, generation=self.generation, member_seeds=list(self.member_seeds),
+                     rng=self.rng.bit_generator.state,
                      generator=self.generator.get_state(), reward_norm=self.reward_norm.state_dict(),
                      obs_norm=self.obs_norm.state_dict() if self.obs_norm is not None else None)
         return state
@@ -367,6 +387,8 @@ class PGMORLAgent(Agent):
         self.predictor.weights, self.predictor.before, self.predictor.after = (list(x) for x in state["predictor"])
         self.evals_before, self.performance = state["evals_before"].copy(), state["performance"].copy()
         self.iteration, self.generation = state["iteration"], state["generation"]
+        # (an older state: every member a copy once a task selection ran; approximately, none may have)
+        self.member_seeds = [int(x) for x in state.get("member_seeds", [42 if self.generation else self.cfg.seed] * self.P)]
         self.rng.bit_generator.state = state["rng"]
         self.generator.set_state(state["generator"])
         self.reward_norm.load_state_dict(state["reward_norm"])
@@ -412,5 +434,15 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     ref = domain_of(cfg.env_id).hv_ref_point or (-100.0,) * k
     agent = PGMORLAgent(cfg, loss, actor, critic, eval_policy, optimizer, weights=weights, steps=steps, gamma=gamma,
                         ref_point=ref, device=device, obs_norm=obs_norm)
+    if cfg.pgmorl_reseed_each_iteration:
+        sim = env
+        while hasattr(sim, "base_env"):
+            sim = sim.base_env
+        agent.sim_env = sim
+        try:
+            agent.reseed_env()  # (checked at once)
+        except NotImplementedError as err:
+            raise ValueError(f"pgmorl_reseed_each_iteration=true re-seeds every sub-env at each iteration; {err}: "
+                             f"set pgmorl_reseed_each_iteration=false") from None
     holder["agent"] = agent
     return agent

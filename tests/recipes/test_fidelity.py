@@ -16,12 +16,7 @@ SHARED_RECORD = ROOT.parent / "shared" / "reference" / "hyperparameters.toml"
 #: known differences not fixed yet (mechanisms: issue 27's w27m), as (algorithm, setting). Printed
 #: by the test; each must still differ on at least one domain (an entry that no longer differs is
 #: stale and must go, so nothing is hidden either way).
-KNOWN_OPEN = {
-    *((algo, s) for algo in ("morld", "morld_psa") for s in (
-        "init.update_passes", "derived.exchanges_per_member",
-        "derived.own_env_steps_per_member",
-        "derived.updates_for_non_active_member_per_exchange", "derived.env_reset_at_each_exchange")),
-}
+KNOWN_OPEN: set = set()
 
 
 def test_the_record_has_42_pairs_and_every_algorithm_resolves_on_each():

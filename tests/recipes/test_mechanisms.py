@@ -412,8 +412,11 @@ def test_sac_and_mosac_delay_the_actor_as_the_authors(algo, policy_freq, expecte
     from morl_trl.recipes import build_agent, build_training_env
 
     torch.manual_seed(0)
+    # (MORL/D's round robin takes its actor turns from the shared frame clock, test_morld_round_robin.py;
+    # here its batched concurrent schedule, whose updates count them as SAC's)
+    extra = dict(morld_schedule="concurrent", frames_per_batch=60) if algo == "morld" else {}
     cfg = resolve_config(algo, "MOHopperDR-v5", quick=True, hidden=(16,), batch_size=8, buffer_size=1024,
-                         progress=False, policy_freq=policy_freq)
+                         progress=False, policy_freq=policy_freq, **extra)
     assert resolve_config(algo, "MOHopperDR-v5").policy_freq == 2  # the default: the authors'
     env = build_training_env(cfg, CPU)
     agent = build_agent(cfg, env, gamma=0.99, device=CPU)

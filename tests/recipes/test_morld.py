@@ -53,11 +53,16 @@ def test_sac_config_is_spec_section_4():
     assert "sac" in ALGORITHMS
 
 
-def test_quick_morld_runs_p_times_num_envs_sub_envs():
+def test_quick_morld_is_the_round_robin_and_concurrent_runs_p_times_num_envs_sub_envs():
     cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True)
-    assert (cfg.pop_size, cfg.num_envs, cfg.frames_per_batch, cfg.updates_per_batch) == (5, 2, 60, 0)
+    assert (cfg.pop_size, cfg.num_envs, cfg.frames_per_batch, cfg.updates_per_batch, cfg.exchange_every,
+            cfg.morld_schedule, cfg.morld_update_passes) == (5, 1, 50, 0, 2000, "round_robin", 10)
+    concurrent = resolve_config("morld", "MOLavaGridDR-v0", quick=True, morld_schedule="concurrent", num_envs=2,
+                                frames_per_batch=60)
+    assert TRAINING_ENV_BUILDERS["morld"](concurrent, CPU).batch_size == torch.Size([10])
     with pytest.raises(ValueError, match=r"multiple of pop_size \* num_envs = 5 \* 7 = 35"):
-        TRAINING_ENV_BUILDERS["morld"](resolve_config("morld", "MOLavaGridDR-v0", quick=True, num_envs=7), CPU)
+        TRAINING_ENV_BUILDERS["morld"](resolve_config("morld", "MOLavaGridDR-v0", quick=True, num_envs=7,
+                                                      morld_schedule="concurrent"), CPU)
     with pytest.raises(ValueError, match="'weight_adaptation'"):
         resolve_config("morld", "MOLavaGridDR-v0", weight_adaptation="annealing")
 
@@ -116,7 +121,7 @@ class Bandit(EnvBase):
 def _bandit_agent(**overrides):
     cfg = resolve_config("morld_psa", "MOLavaGridDR-v0", pop_size=3, num_envs=4, frames_per_batch=12, hidden=(16,),
                          batch_size=32, lr=3e-3, target_update_period=10, update_frequency=1, init_random_frames=120,
-                         exchange_every=10**9, seed=0, **overrides)
+                         exchange_every=10**9, seed=0, morld_schedule="concurrent", **overrides)
     env = TransformedEnv(Bandit(12), DiscountedVectorReturn(0.9))
     return cfg, env, make_morld_agent(cfg, env, gamma=0.9, device=CPU)
 

@@ -27,13 +27,16 @@ CASES = {
                                                        gpi_dynamics_train_freq=10_000, gpi_policy_delay=2), 4),
     "pcn": ("pcn", "MOLavaGridDR-v0", dict(pcn_er_episodes=2, pcn_step_episodes=1, pcn_model_updates=3,
                                            frames_per_batch=256), 2),  # (episodes: 256 steps)
+    # (PGMORL's re-seed at each iteration, the default since, needs the loop's before_batch: off here,
+    # tests/recipes/test_pgmorl_reseed.py checks it)
     "pgmorl": ("pgmorl", "MOHopperDR-v5", dict(pgmorl_pop=2, pgmorl_envs_per_member=1, frames_per_batch=64,
                                                pgmorl_warmup=1, pgmorl_evo_iterations=1, pgmorl_minibatches=2,
-                                               pgmorl_epochs=1, hidden=(8,)), 4),
+                                               pgmorl_epochs=1, hidden=(8,), pgmorl_reseed_each_iteration=False), 4),
     "pgmorl_no_reset": ("pgmorl", "MOHopperDR-v5", dict(pgmorl_pop=2, pgmorl_envs_per_member=1, frames_per_batch=64,
                                                         pgmorl_warmup=1, pgmorl_evo_iterations=1, pgmorl_minibatches=2,
                                                         pgmorl_epochs=1, hidden=(8,),
-                                                        pgmorl_reset_each_iteration=False), 4),
+                                                        pgmorl_reset_each_iteration=False,
+                                                        pgmorl_reseed_each_iteration=False), 4),
 }
 # keys of SMALL that PCN and PGMORL (no off-policy replay) do not have: their configs refuse them
 NOT_KEYS = {"pcn": ("buffer_size", "init_random_frames", "updates_per_batch"),

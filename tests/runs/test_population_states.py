@@ -84,3 +84,30 @@ def test_a_current_state_is_left_as_it_is():
     loss = dict(state["loss"])
     agent.load_state_dict(state)
     assert all(state["loss"][k] is v for k, v in loss.items())
+
+
+def test_an_old_concurrent_morld_state_loads_into_the_round_robin_with_its_adam_count_for_every_member():
+    from morl_trl.recipes import build_agent, build_training_env, resolve_config
+
+    saved = load_plain(FIXTURES / "population_states" / "morld_continuous.pt")
+    old_agent, _, _ = _load("morld_continuous")  # (the concurrent agent it was written by)
+    algo, env_id, extra = maker.CASES["morld_continuous"]
+    cfg = resolve_config(algo, env_id, progress=False, logger="none", seed=7,
+                         **{**extra, "morld_schedule": "round_robin", "updates_per_batch": 0})
+    env = build_training_env(cfg, torch.device("cpu"))
+    agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    agent.load_state_dict(saved["agent"])
+    for key, value in old_agent.loss.state_dict().items():
+        assert torch.equal(agent.loss.state_dict()[key], value), key
+    # (no round-robin fields in the old state: member 0's turn, nothing counted)
+    assert (agent.active, agent.turn_frames, agent.member_updates.tolist(), agent.exchanges) == (0, 0, [0, 0, 0], 2)
+    old_step = float(next(iter(old_agent.optimizers["actor"].state.values()))["step"])
+    assert old_step > 0 and all(st["step"].tolist() == [old_step] * 3
+                                for st in agent.optimizers["actor"].state.values())
+    maker.sin_step(agent)  # every member active: the old code's step, to rounding (torch's foreach arithmetic)
+    stepped = _as_current(agent, saved["stepped"])
+    now = agent.loss.state_dict()
+    for key, want in stepped.items():
+        torch.testing.assert_close(now[key], want, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ValueError, match="morld_schedule='round_robin'"):
+        old_agent.load_state_dict(agent.state_dict())

@@ -235,6 +235,12 @@ class MujocoContextEnv(ContextualMOEnv):
     def _seed_subenvs(self, seed: int) -> None:
         self._rngs = [np.random.default_rng(seed + i) for i in range(self.num_envs)]
 
+    def reseed_subenvs(self, seeds) -> None:
+        seeds = [int(s) for s in seeds]
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"reseed_subenvs needs one seed per sub-env ({self.num_envs}), got {len(seeds)}")
+        self._rngs = [np.random.default_rng(s) for s in seeds]  # (Gymnasium's np_random for reset(seed=s))
+
     # ------------------------------------------------------------------ reset / step
     def _reset_noise(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """``(qpos, qvel)`` of a fresh episode, drawn as the Gymnasium v5 env draws them."""

@@ -40,6 +40,8 @@ class PGMORLConfig:
     pgmorl_gae_lambda: float = 0.95
     pgmorl_eval_obs: str = "raw"
     pgmorl_reset_each_iteration: bool = True  # envs.reset at each member's train() (mo_ppo.py:628)
+    # ... with reset(seed=member.seed): the run's seed, 42 for a copied member (mo_ppo.py:355-377,628)
+    pgmorl_reseed_each_iteration: bool = True
 
 
 # MOPPO.eval samples its actions
