@@ -26,13 +26,28 @@ for the scratch venv); without it the table says so.
     python benchmarks/bench_train.py --tiny --peer none    # a seconds-long dry run (benchmarks/gpu/check.sh)
 
 ``--tiny`` shrinks the run (16 timed frames, 8 frames per batch, learning from the first batch) to
-check that every row runs, not to measure. ``--table FILE`` appends each row, tab-separated, to
+check that every row runs, not to measure.
+
+**One env, end to end** (``--one-env``): the small MO-Gymnasium cases of the parity benchmark
+(``benchmarks/parity/common.py``: the same env, hyperparameters and networks for both libraries,
+MORL-Baselines' own configuration of one env stepped once between updates), each trained
+``--one-env-frames`` frames by ``morl_trl.train`` and by MORL-Baselines' class through its own
+``train()`` (``benchmarks/parity/mb_runner.py``, in MB's virtual environment ``--mb-python``), one
+after the other in this run. Ours is timed from its first collected batch to the end of its last
+(the frame-0 and final evaluations, the report and the final checkpoint excluded; the loop's own
+bookkeeping, logs and periodic checkpoints included); MB's ``train()`` minus the shared
+evaluations hooked into it (as the parity benchmark does). No MB python: its column says so.
+
+    python benchmarks/bench_train.py --one-env                       # the four default cases, 2,000 frames
+    python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 500
+    python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 30 --peer none   # a dry run ``--table FILE`` appends each row, tab-separated, to
 ``FILE`` as it is measured (what ``benchmarks/gpu/check.sh`` collects into its table).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -51,6 +66,10 @@ from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_disco
 warnings.filterwarnings("ignore")
 
 PAIRS = ("envelope:MOLunarLanderDR-v0", "envelope:MOLavaGridDR-v0", "capql:MOHopperDR-v5")
+ONE_ENV_CASES = ("envelope-dst", "gpi_ls-dst", "pcn-fruit-tree", "capql-mountaincar")
+PARITY = ROOT / "benchmarks" / "parity"
+#: MORL-Baselines' virtual environment: the benchmark machine's, else run_parity.py's default
+MB_PYTHONS = (Path("/tmp/mbvenv/bin/python"), Path.home() / ".cache" / "morl_trl" / "mb-1.3.0" / "bin" / "python")
 PEER_ENVS = {"MOLunarLanderDR-v0": "mo-lunar-lander-v3", "MOHopperDR-v5": "mo-hopper-v5"}
 
 
@@ -139,6 +158,119 @@ def peer(algo: str, env_id: str, device: str, frames: int) -> dict | None:
     return {"fps": frames / wall, "env": gym_id}
 
 
+def _parity_case(case: str, frames: int) -> dict:
+    """The parity case ``case`` with a budget of ``frames`` frames (one evaluation, at the end)."""
+    sys.path.insert(0, str(PARITY))
+    from common import CASES
+
+    if case not in CASES:
+        raise SystemExit(f"unknown parity case {case!r}; valid: {sorted(CASES)}")
+    c = dict(CASES[case])
+    c["frames"] = c["eval_every"] = frames
+    return c
+
+
+def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
+    """``morl_trl.train`` on the parity case: frames/s from the first collected batch to the end of the last."""
+    import contextlib
+    import io
+    import tempfile
+
+    import morl_trl
+    from torchrl.collectors import Collector
+
+    from morl_trl.evaluation import MultiContextEvaluator
+    from morl_trl.runs.run import Run
+
+    c = _parity_case(case, frames)
+    marks: dict = {"eval": 0.0}
+    iterator, evaluate, finish = Collector.iterator, MultiContextEvaluator.evaluate, Run.finish
+
+    def timed_iterator(self):
+        marks.setdefault("start", CLOCK())
+        marks["eval"] = 0.0  # (only the evaluations during collection count against the loop)
+        yield from iterator(self)
+
+    def timed_evaluate(self, *args, **kwargs):
+        t = CLOCK()
+        try:
+            return evaluate(self, *args, **kwargs)
+        finally:
+            marks["eval"] += CLOCK() - t
+
+    def timed_finish(self, *args, **kwargs):
+        marks["end"], marks["frames"] = CLOCK(), self.frames
+        marks["loop_eval"] = marks["eval"]
+        return finish(self, *args, **kwargs)
+
+    Collector.iterator, MultiContextEvaluator.evaluate, Run.finish = timed_iterator, timed_evaluate, timed_finish
+    quiet = io.StringIO()  # (the run's own lines: start, evaluations, report)
+    try:
+        with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):
+            morl_trl.train(c["algo"], env=c["env"], seed=seed, frames=frames, eval_interval=10**9,
+                           eval_weights=16, eval_episodes=1, gamma=c["gamma"], eval_random_baseline=False,
+                           progress=False, run_dir=f"{tmp}/run", **c["ours"])
+    finally:
+        Collector.iterator, MultiContextEvaluator.evaluate, Run.finish = iterator, evaluate, finish
+    wall = marks["end"] - marks["start"] - marks["loop_eval"]
+    return {"fps": marks["frames"] / wall, "frames": marks["frames"], "env": c["env"], "algo": c["algo"]}
+
+
+def mb_python(choice: str | None) -> Path | None:
+    """MORL-Baselines' python: ``choice``, else the first of :data:`MB_PYTHONS` that exists."""
+    if choice is not None:
+        return Path(choice) if Path(choice).exists() else None
+    return next((p for p in MB_PYTHONS if p.exists()), None)
+
+
+def mb_one_env(case: str, frames: int, python: Path, seed: int = 0) -> dict:
+    """MB's class of the parity case through its own ``train()`` (``mb_runner.run``), in MB's python."""
+    import json
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        code = (f"import sys; sys.path.insert(0, {str(PARITY)!r}); import common; "
+                f"common.CASES[{case!r}].update(frames={frames}, eval_every={frames}); import mb_runner; "
+                f"from pathlib import Path; mb_runner.run({case!r}, {seed}, Path({tmp!r}) / 'mb.json')")
+        env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+        done = subprocess.run([str(python), "-c", code], env=env, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"MB's run failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
+        result = json.loads((Path(tmp) / "mb.json").read_text())
+    return {"fps": result["train_fps"], "frames": result["frames"]}
+
+
+def one_env_main(args) -> int:
+    """The ``--one-env`` table: ours vs MB frames/s per parity case, and the ratio (wall clock: MB's runner measures it)."""
+    global CLOCK
+    CLOCK = time.perf_counter
+    python = None if args.peer == "none" else mb_python(args.mb_python)
+    if args.peer == "none":
+        peer_label = "none (--peer none)"
+    elif python is None:
+        peer_label = f"none (no MORL-Baselines python: {args.mb_python or ', '.join(map(str, MB_PYTHONS))})"
+    else:
+        peer_label = f"MORL-Baselines' own train() loop ({python})"
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s), wall clock; one env, "
+          f"{args.one_env_frames} frames per case; peer: {peer_label}")
+    print(f"{'case':<20} {'env':<30} {'ours f/s':>9} {'MB f/s':>9} {'ours/MB':>8}")
+    for case in args.one_env:
+        r = ours_one_env(case, args.one_env_frames)
+        if python is None:
+            peer, ratio = "none", "-"
+        else:
+            try:
+                m = mb_one_env(case, args.one_env_frames, python)
+                peer, ratio = f"{m['fps']:.1f}", f"{r['fps'] / m['fps']:.2f}x"
+            except RuntimeError as err:
+                peer, ratio = "failed", str(err)[:80]
+        print(f"{case:<20} {r['env']:<30} {r['fps']:>9.1f} {peer:>9} {ratio:>8}", flush=True)
+        _table(args.table, "train-one-env", case, "cpu", "eager", "frames/s", f"{r['fps']:.1f}",
+               "" if python is None else peer, "" if python is None else ratio, r["env"])
+    return 0
+
+
 def _table(path, stage, name, device, variant, unit, value, peer, ratio, note) -> None:
     """Appends one tab-separated row to ``path`` (``None``: nothing)."""
     if path:
@@ -169,9 +301,18 @@ def main(argv=None) -> int:
     p.add_argument("--clock", choices=["wall", "cpu"], default="wall",
                    help="wall time (default), or this process's CPU time: steadier on a shared CPU machine "
                         "(with --threads 1); meaningless on cuda, where the device works while the host waits")
+    p.add_argument("--one-env", nargs="*", default=None, metavar="CASE",
+                   help=f"ours vs MB end to end on parity cases (default: {' '.join(ONE_ENV_CASES)}) instead of the pairs")
+    p.add_argument("--one-env-frames", type=int, default=2_000, help="frames per --one-env case")
+    p.add_argument("--mb-python", default=None, help="MORL-Baselines' python for --one-env (default: the first of "
+                                                     + ", ".join(map(str, MB_PYTHONS)) + " that exists)")
     args = p.parse_args(argv)
     global CLOCK
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
+    if args.one_env is not None:
+        args.one_env = args.one_env or list(ONE_ENV_CASES)
+        torch.set_num_threads(args.threads)
+        return one_env_main(args)
     frames = 16 if args.tiny else 128 if args.quick else args.frames
     tiny = TINY if args.tiny else {}
     torch.set_num_threads(args.threads)

@@ -1,7 +1,7 @@
 """Your own training loop from morl_trl's public pieces: Envelope on MO-LavaGrid under domain randomization.
 
-This is not the recipe that ``morl-trl train`` runs (that is ``morl_trl/recipes/off_policy.py``
-with ``morl_trl/recipes/envelope.py``, with checkpoints, resume, logs and a report); it shows
+This is not the recipe that ``morl-trl train`` runs (that is ``morl_trl/recipes/envelope.py``,
+the same loop inside ``Run.session``: checkpoints, resume, logs and a report); it shows
 what a custom trainer composes: a DR env, the policy/training stacks, a vector Q-network with
 its scalarized greedy policy, the Envelope loss, TorchRL's collector and replay buffer, and
 the multi-context evaluator on the same policy stack.

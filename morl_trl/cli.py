@@ -10,6 +10,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import sys
 import time
 from pathlib import Path
@@ -666,6 +667,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except KeyboardInterrupt as err:  # Ctrl-C: one line (a run says where it checkpointed and how to resume)
         print(f"morl-trl {argv[0]}: {err or 'interrupted'}", file=sys.stderr)
+        # exiting already: another Ctrl-C (e.g. during a library's exit hook) ends the process at once, quietly
+        signal.signal(signal.SIGINT, lambda *_: os._exit(130))
         return 130
 
 

@@ -8,9 +8,8 @@ import sys
 
 import torch
 
-from morl_trl.envs import domain_of
 from morl_trl.recipes import TrainConfig
-from morl_trl.recipes.off_policy import _build
+from morl_trl.recipes.off_policy import build
 from morl_trl.runs.checkpoint import find_checkpoint, load_checkpoint
 
 run = sys.argv[1]
@@ -19,7 +18,7 @@ ckpt, _ = find_checkpoint(run)
 for mode in ("raw", "normalized"):
     cfg.pgmorl_eval_obs = mode
     torch.manual_seed(cfg.seed)
-    _, agent, _, evaluator = _build(cfg, domain_of(cfg.env_id), torch.device(cfg.device))
+    _, agent, _, evaluator = build(cfg, torch.device(cfg.device))
     agent.load_state_dict(load_checkpoint(ckpt)["agent"])
     nhgr = evaluator.evaluate().metric("nhgr")
     print(f"pgmorl_eval_obs={mode}: NHGR mean over contexts {sum(nhgr.values()) / len(nhgr):.4f}")

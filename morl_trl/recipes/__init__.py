@@ -1,10 +1,14 @@
 """Training recipes: each algorithm's training loop, written once; ``morl-trl train`` runs them.
 
-Every algorithm runs in the one loop :func:`~morl_trl.recipes.off_policy.run_training`
-(collection, evaluation, checkpoints, logs, report); what differs is its agent, whose
-``learn`` decides what a collected batch does:
+:func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the
+algorithm's recipe; every recipe writes only its loop inside :meth:`Run.session
+<morl_trl.runs.Run.session>` (run directory, resume, evaluations, checkpoints, logs, report,
+Ctrl-C, clean stops). Envelope's recipe is one function read top to bottom; the others are an
+agent each, whose ``learn`` decides what a collected batch does, driven by one generic loop
+(:func:`~morl_trl.recipes.off_policy.train_agent`):
 
-* ``envelope``: :func:`~morl_trl.recipes.envelope.make_envelope_agent`
+* ``envelope``: :func:`~morl_trl.recipes.envelope.train_envelope` (its modules:
+  :func:`~morl_trl.recipes.envelope.make_envelope_agent`)
 * ``capql``, ``mosac``, ``mosac_discrete``: :mod:`morl_trl.recipes.actor_critic`
 * ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :func:`~morl_trl.recipes.morld.make_morld_agent`
   (:class:`~morl_trl.recipes.morld.MORLDAgent`: a batched population, shared buffer, exchanges)

@@ -1,9 +1,20 @@
-"""Envelope Q-learning (Yang et al., 2019): the agent that ``morl-trl train envelope`` trains.
+"""Envelope Q-learning (Yang et al., 2019): ``morl-trl train envelope``, read top to bottom.
 
-A vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its greedy policy
-``argmax_a w · Q(s, a, w)`` (:class:`~morl_trl.objectives.MOQValueModule`), TorchRL's
-epsilon-greedy exploration on top, :class:`~morl_trl.objectives.EnvelopeQLoss` with a hard
-target copy, Adam. The loop that drives it is :mod:`morl_trl.recipes.off_policy`.
+Everything Envelope does per frame is in this file and its loss,
+:class:`~morl_trl.objectives.EnvelopeQLoss`; :func:`train_envelope` reads like TorchRL's
+sota-implementations:
+
+1. the env: the domain-randomized env, the policy's history, a preference ``w`` per sub-env,
+   vector returns (:func:`~morl_trl.recipes.parts.make_training_env`);
+2. the modules (:func:`make_envelope_agent`): a vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its
+   greedy policy ``argmax_a w · Q(s, a, w)`` (:class:`~morl_trl.objectives.MOQValueModule`),
+   TorchRL's ε-greedy exploration on top, the loss with its value estimator, Adam, the target
+   updater (a hard copy every ``target_update_period`` updates);
+3. the replay buffer (prioritized) and TorchRL's collector;
+4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>` (run directory, resume,
+   logs, evaluations and checkpoints when due, Ctrl-C, a clean stop): store the batch, the
+   updates (sample, loss, :func:`~morl_trl.recipes.optim.optimizer_step`, target update, PER
+   priorities), the ε and homotopy schedules.
 
 Faithful to the authors' runs by default (config keys in brackets, ours as options):
 ``w`` concatenated after the first hidden layer with orthogonal init
@@ -23,18 +34,26 @@ Example:
     >>> agent = make_envelope_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
     >>> agent.eval_policy(env.reset())["action"].shape
     torch.Size([2])
+
+    Training (``morl-trl train envelope MOLavaGridDR-v0 --quick`` runs the same):
+
+    >>> from morl_trl.recipes import train
+    >>> summary = train(resolve_config("envelope", "MOLavaGridDR-v0", quick=True))  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import torch
+from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 
+from morl_trl._torchrl_compat import collector_state
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
     adam,
+    epsilon,
     epsilon_greedy,
     eval_exploration,
     fused_choice,
@@ -43,12 +62,28 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
+from morl_trl.recipes.parts import (
+    check_buffer_memory,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    make_replay_buffer,
+    make_training_env,
+    run_discount,
+    run_domain,
+    start_notes,
+)
+from morl_trl.runs.env_state import env_state
+from morl_trl.runs.run import Run
 
-__all__ = ["make_envelope_agent"]
+__all__ = ["make_envelope_agent", "train_envelope"]
 
 
 def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
-    """The Envelope :class:`~morl_trl.recipes.agent.Agent` of ``cfg`` for ``env`` (discrete actions)."""
+    """Envelope's modules for ``env`` (discrete actions), held by an :class:`~morl_trl.recipes.agent.Agent`
+    (its policies, state and checkpoint format; ``morl-trl evaluate`` and
+    :func:`~morl_trl.recipes.policy.load_policy` rebuild it from a run's config)."""
     spec = action_spec(env)
     if not is_discrete(spec):
         raise ValueError(f"envelope needs discrete actions; {cfg.env_id} has {type(spec).__name__}: use capql or mosac")
@@ -70,3 +105,76 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
     optimizers = {"qvalue": adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))}
     return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
                  device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg))
+
+
+def train_envelope(run: Run) -> tuple[dict, Agent]:
+    """Train Envelope in ``run`` (opened by :func:`~morl_trl.recipes.off_policy.run_training`: a new
+    run or the continuation of one); returns ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing)
+    env = make_training_env(cfg, device)
+
+    # 2. the modules: Q-network, greedy and ε-greedy policies, the loss, Adam, the target updater
+    agent = make_envelope_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    loss, optimizer, target = agent.loss, agent.optimizers["qvalue"], agent.target_updater
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)  # (the greedy policy on the evaluation suite)
+
+    # 3. the replay buffer, a resumed run's state, the collector
+    check_buffer_memory(cfg, env, device)
+    buffer = make_replay_buffer(cfg, device)
+    state = run.restore(buffer, map_location=device, env=env)
+    if state is not None:
+        agent.load_state_dict(state["agent"])
+        schedules(agent, run.frames)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+
+    def update() -> TensorDictBase:
+        """One gradient step on a sampled batch (a non-finite loss raises before anything changes)."""
+        if agent.captured_update:  # compile / cudagraphs / fused on an accelerator: the same step, captured
+            return agent.update(buffer)  # (recipes/capture.py: its non-finite guard stays on the device)
+        agent.critic_steps += 1  # (the update counter the checkpoint keeps)
+        batch = buffer.sample().to(device)
+        out = loss(batch)  # the envelope TD loss over the sampled preferences; writes the PER priorities
+        optimizer_step(out["loss_qvalue"], [optimizer], max_grad_norm=cfg.max_grad_norm,
+                       losses={"loss_qvalue": out["loss_qvalue"]})
+        target.step()  # (a hard copy every target_update_period updates)
+        if cfg.prioritized:
+            buffer.update_tensordict_priority(batch)
+        return out.detach()
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch: store it, update, the schedules, then (run.step) evaluate
+    # and checkpoint when due. A checkpoint is the state at the end of a batch, so the batch after it
+    # is the same whether the run resumes or not.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # (uniformly random actions for the first init_random_frames)
+            frames = run.collected(batch)
+            buffer.extend(batch.reshape(-1))
+            losses, updates = None, 0
+            if frames >= cfg.init_random_frames:
+                every = cfg.update_frequency  # one update per `every` frames, or updates_per_batch per batch
+                updates = cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
+                for i in range(updates):
+                    try:
+                        losses = update()
+                    except NonFiniteLossError as err:
+                        err.updates_done = i  # (the run counts the updates applied before it)
+                        raise
+            schedules(agent, frames)
+            collector.update_policy_weights_()
+            run.step(losses, updates, epsilon=agent.epsilon)
+    return run.summary, agent
+
+
+def schedules(agent: Agent, frames: int) -> None:
+    """Envelope's frame-based schedules after ``frames`` frames: ε of the exploration
+    (:func:`~morl_trl.recipes.agent.epsilon`) and the homotopy ``λ`` of the loss."""
+    agent.exploration_module.eps.fill_(epsilon(agent.cfg, frames))
+    agent.loss.update_homotopy(frames)

@@ -1,19 +1,20 @@
-"""The training loop of every algorithm: the paper's experimental loop (§6), read top to bottom.
+"""``morl-trl train``: open the run, then run the algorithm's recipe; and ``morl-trl evaluate``.
 
-Train a generalist under domain randomization, evaluate it periodically on the evaluation
-suite, checkpoint, report. This is what ``morl-trl train`` runs:
+:func:`run_training` opens the :class:`~morl_trl.runs.Run` (a new run, or the continuation of
+one) and hands it to the algorithm's recipe: its own, top to bottom, when it has one
+(:data:`RECIPES`: Envelope, :func:`morl_trl.recipes.envelope.train_envelope`), else the
+loop of every algorithm written as an :class:`~morl_trl.recipes.agent.Agent`
+(:func:`train_agent`):
 
 1. the parts (:mod:`morl_trl.recipes.parts`): the training env, the agent of the algorithm
-   (:func:`~morl_trl.recipes.algorithms.build_agent`: its modules, loss and optimizers, from its
-   recipe module, e.g. :mod:`morl_trl.recipes.envelope`), the evaluator, the replay buffer and
-   TorchRL's collector;
-2. the loop: collect a batch, ``agent.learn`` (store + the algorithm's updates: for Envelope
-   :meth:`Agent.update <morl_trl.recipes.agent.Agent.update>` with
-   :class:`~morl_trl.objectives.EnvelopeQLoss`), the schedules, then evaluate and checkpoint
-   when due.
+   (:func:`~morl_trl.recipes.algorithms.build_agent`: its modules, loss and optimizers), the
+   evaluator, the replay buffer and TorchRL's collector;
+2. the loop inside :meth:`Run.session <morl_trl.runs.Run.session>`: collect a batch,
+   ``agent.learn`` (store + the algorithm's updates), the schedules, ``run.step`` (evaluate and
+   checkpoint when due).
 
 Everything about the run itself (directory, resume, logs, checkpoints, progress bar, report,
-a clean stop) is :class:`morl_trl.runs.Run`.
+Ctrl-C, a clean stop) is :class:`morl_trl.runs.Run` and its session.
 """
 
 from __future__ import annotations
@@ -24,39 +25,42 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import collector_state, load_collector_state, reset_collector
+from morl_trl._torchrl_compat import collector_state, reset_collector
 from morl_trl.envs import make_env
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
-from morl_trl.recipes.optim import NonFiniteLossError
+from morl_trl.recipes.envelope import train_envelope
 from morl_trl.recipes.parts import (
+    check_buffer_memory,
     load_reference,
     make_collector,
     make_evaluator,
     make_replay_buffer,
     make_training_env,
-    no_reference_note,
     run_discount,
     run_domain,
+    start_notes,
 )
 from morl_trl.preferences import check_simplex
-from morl_trl.runs.atomic import DiskFullError, disk_error
-from morl_trl.runs.checkpoint import checkpoint_format, checkpoint_frames, find_checkpoint, load_checkpoint, set_rng_state
-from morl_trl.runs.env_state import env_state, load_context_sampler_state, load_env_state, transforms_of
-from morl_trl.runs.interrupt import GracefulInterrupt, RunInterrupted
+from morl_trl.runs.checkpoint import checkpoint_format, checkpoint_frames, find_checkpoint, load_checkpoint
+from morl_trl.runs.env_state import env_state
 from morl_trl.runs.lock import RunLock
 from morl_trl.runs.run import Run
 from morl_trl.runs.run_dir import check_writable
 from morl_trl.runs.run_log import RunLog
 from morl_trl.transforms import compose_policy_env
 
-__all__ = ["train", "run_training", "evaluate_run", "EXIT_NON_FINITE_LOSS", "make_training_env", "make_replay_buffer",
-           "make_collector", "make_evaluator"]
+__all__ = ["train", "run_training", "train_agent", "evaluate_run", "EXIT_NON_FINITE_LOSS", "RECIPES",
+           "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
 
 #: what ``morl-trl train`` exits with when a non-finite loss stopped the run (after it wrote
 #: a checkpoint of the last good state); 2 is bad input, 1 an unexpected error.
 EXIT_NON_FINITE_LOSS = 3
+
+#: algorithm name -> its own recipe ``recipe(run) -> (summary, agent)``, for an algorithm written top to
+#: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
+RECIPES: dict = {"envelope": train_envelope}
 
 
 def build(cfg: TrainConfig, device: torch.device):
@@ -132,6 +136,16 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
         return {"frames": run.frames, "finished": True}, None, run.dir, cfg
     _set_threads(cfg)
     _seed_everything(cfg.seed)
+    summary, agent = RECIPES.get(cfg.algo, train_agent)(run)
+    return summary, agent, run.dir, cfg
+
+
+def train_agent(run: Run) -> tuple[dict, Agent]:
+    """The loop of every algorithm written as an :class:`Agent` (all but Envelope, whose recipe is
+    :func:`morl_trl.recipes.envelope.train_envelope`): collect a batch, ``agent.learn`` (store
+    + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
+    ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
 
@@ -139,151 +153,32 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
     env, agent, reference, evaluator = build(cfg, device)
     check_buffer_memory(cfg, env, device)
     buffer = make_replay_buffer(cfg, device)
-    state = run.restore(buffer, map_location=device)  # (a resumed run: its checkpoint)
+    state = run.restore(buffer, map_location=device, env=env)  # (a resumed run: its checkpoint)
     if state is not None:
         agent.load_state_dict(state["agent"])
-    exact = state is not None and state["env"]["simulator"] is not None and state["device"] == str(device)
-    if state is not None and not exact:
-        # the simulators cannot continue their episodes: they restart from a seed derived from
-        # the checkpoint (not the run's first seed, which would replay the first episodes);
-        # the transforms' generators continue their streams
-        env.set_seed(cfg.seed + run.frames)
-        for t, saved in zip(transforms_of(env), state["env"]["transforms"]):
-            if "generator" in saved:
-                t.generator.set_state(saved["generator"])
-        load_context_sampler_state(env, state["env"])  # the domain randomization stream continues
+        agent.on_frames(run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
     if agent.before_batch():
         reset_collector(collector)
 
-    notes = [] if reference is not None else [no_reference_note(spec)]
-    if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
-        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): the "
-                     f"run takes uniformly random actions only and never learns; raise frames or lower init_random_frames")
-
     def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
         return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
 
-    interrupt = GracefulInterrupt()
-    started = state is not None
-    try:
-        with run.start(spec, reference, notes=notes), interrupt:
-            if state is None:  # a new run: the untrained policy, then a checkpoint to resume from
-                try:
-                    run.evaluate(evaluator)
-                    run.checkpoint(snapshot(), buffer)
-                except BaseException:
-                    run.abort_start()  # (the run it replaces, if any, is put back)
-                    raise
-                run.started()  # the run it replaces is deleted now
-                started = True
-            else:
-                if exact:
-                    load_env_state(env, state["env"])
-                    load_collector_state(collector, state, device)
-                elif state["device"] != str(device):
-                    run.note(f"resumed with fresh episodes: the device changed from {state['device']} to {device}")
-                else:
-                    run.note(f"resumed with fresh episodes: {spec.name} cannot snapshot its simulator")
-                agent.on_frames(run.frames)
-                set_rng_state(state["rng"])  # last: nothing above draws from the global generators again
-
-            # 2. the loop. One iteration = one batch: collect, store, update, then evaluate and
-            # checkpoint the policy trained on `run.frames` frames. A checkpoint is the state at the
-            # end of a batch (after its evaluation), so the batch after it is the same whether the
-            # run resumes or not.
-            for batch in collector:
-                frames = agent.frames_of(batch)  # (PGMORL: one member's frames, as the authors count)
-                run.frames += frames
-                run.log.training_episodes(run.frames, batch)
-                try:
-                    losses, updates = agent.learn(batch, buffer, run.frames)  # store + the algorithm's updates
-                except NonFiniteLossError as err:
-                    run.updates += getattr(err, "updates_done", 0)
-                    path = run.stop(str(err), snapshot(), buffer)
-                    raise NonFiniteLossError(f"{err}; the last good state is checkpointed in {path}") from None
-                agent.on_frames(run.frames)  # the schedules (epsilon, homotopy)
-                if agent.before_batch():  # (MORL/D's round robin: the next member starts on a reset env)
-                    reset_collector(collector)
-                collector.update_policy_weights_()
-                run.batch_done(frames, losses, updates, epsilon=agent.epsilon)
-                if run.eval_due():
-                    run.evaluate(evaluator)
-                if run.checkpoint_due():
-                    run.checkpoint(snapshot(), buffer)
-                if interrupt.requested and run.frames < cfg.frames:  # Ctrl-C: checkpoint, say how to resume
-                    path = run.checkpoint(snapshot(), buffer, interrupted=True)
-                    msg = (f"interrupted at {run.frames:,} frames; checkpointed in {path.name}; resume with: "
-                           f"{_resume_command(cfg, run.dir)}")
-                    run.note(msg)
-                    run.log.report_stop(msg)
-                    raise RunInterrupted(msg)
-            run.finish(evaluator, snapshot(), buffer, random_baseline=cfg.eval_random_baseline)
-    except RunInterrupted:
-        raise
-    except OSError as err:  # a full disk, a folder made read-only, ...: stop, keep the last good checkpoint
-        if not started:
-            raise
-        reason = err if isinstance(err, DiskFullError) else disk_error(err, "the run's files")
-        msg = (f"stopped: {reason.strerror or reason} at {run.frames:,} frames; the last good checkpoint is "
-               f"{_latest_name(run.dir)}; once the cause is fixed, resume with: {_resume_command(cfg, run.dir)}")
-        for say in (run.log.note, run.log.report_stop):
-            try:
-                say(msg)
-            except OSError:
-                pass  # (the disk may still be full)
-        raise type(reason)(reason.errno, msg) from None
-    except BaseException as err:
-        # a second Ctrl-C (it may surface as another error from where it landed): exit at once
-        if started and (isinstance(err, KeyboardInterrupt) or interrupt.count >= 2):
-            raise KeyboardInterrupt(f"interrupted; the last checkpoint is {_latest_name(run.dir)}; resume with: "
-                                    f"{_resume_command(cfg, run.dir)}") from None
-        raise
-    finally:
-        collector.shutdown()
-    return run.summary, agent, run.dir, cfg
-
-
-def _latest_name(run_dir: Path) -> str:
-    found = find_checkpoint(run_dir, only=("state.pt",))[0]
-    return found.name if found is not None else "none"
-
-
-def _resume_command(cfg: TrainConfig, run_dir: Path) -> str:
-    return f"morl-trl train {cfg.algo} {cfg.env_id} --resume {run_dir}"
-
-
-def check_buffer_memory(cfg: TrainConfig, env, device: torch.device) -> None:
-    """``ValueError`` before anything is written when ``cfg.buffer_size`` transitions of ``env``
-    cannot fit in the memory ``device`` has available (the storage is allocated at the first
-    write, so without this check a too large buffer fails only once the run has started)."""
-    fake = env.fake_tensordict()
-    rows = max(fake.numel(), 1)
-    row_bytes = sum(v.element_size() * v.numel() for v in fake.values(include_nested=True, leaves_only=True)
-                    if isinstance(v, torch.Tensor)) / rows
-    need = row_bytes * cfg.buffer_size
-    available = _available_memory(device)
-    if available is not None and need > available:
-        raise ValueError(f"config key 'buffer_size' (buffer) is {cfg.buffer_size:,}; its transitions need about "
-                         f"{need / 2**30:.1f} GiB ({row_bytes:,.0f} bytes each) but {device} has "
-                         f"{available / 2**30:.1f} GiB available: lower buffer_size")
-
-
-def _available_memory(device: torch.device) -> float | None:
-    if device.type == "cuda":
-        try:
-            return float(torch.cuda.mem_get_info(device)[0])
-        except (RuntimeError, AssertionError):
-            return None
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except OSError:
-        return None
-    return None
+    # 2. the loop. One iteration = one batch: collect, store, update, then (run.step) evaluate and
+    # checkpoint the policy trained on `run.frames` frames. A checkpoint is the state at the end of a
+    # batch (after its evaluation), so the batch after it is the same whether the run resumes or not.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:
+            frames = run.collected(batch, agent.frames_of(batch))  # (PGMORL: one member's frames, as the authors)
+            losses, updates = agent.learn(batch, buffer, frames)  # store + the algorithm's updates
+            agent.on_frames(frames)  # the schedules (epsilon, homotopy)
+            if agent.before_batch():  # (MORL/D's round robin: the next member starts on a reset env)
+                reset_collector(collector)
+            collector.update_policy_weights_()
+            run.step(losses, updates, epsilon=agent.epsilon)
+    return run.summary, agent
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,

@@ -29,12 +29,16 @@ from collections.abc import Iterable, Mapping
 import torch
 from torch.optim.adam import adam as adam_fn
 
+from morl_trl.runs.session import StopRun
+
 __all__ = ["NonFiniteLossError", "MemberAdam", "adam", "fused_choice", "optimizer_step", "clip_grad_norm",
            "check_finite", "keep_implementation"]
 
 
-class NonFiniteLossError(RuntimeError):
-    """A loss came out NaN or infinite; the update was not applied."""
+class NonFiniteLossError(StopRun):
+    """A loss came out NaN or infinite; the update was not applied. Raised inside
+    :meth:`Run.session <morl_trl.runs.Run.session>` it stops the run cleanly (a
+    :class:`~morl_trl.runs.session.StopRun`: the last good state is checkpointed)."""
 
 
 def check_finite(losses: Mapping[str, torch.Tensor], total: torch.Tensor | None = None) -> None:

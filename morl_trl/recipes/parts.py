@@ -23,7 +23,9 @@ from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
 __all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
-           "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note"]
+           "RecipeCollector",
+           "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note", "start_notes",
+           "check_buffer_memory"]
 
 
 def run_domain(cfg) -> DomainSpec:
@@ -61,6 +63,40 @@ def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
     return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
 
 
+class RecipeCollector(Collector):
+    """TorchRL's :class:`~torchrl.collectors.Collector` whose ``update_policy_weights_()`` skips the
+    copy when the collector acts with the training policy itself (same module, hence same
+    parameters: nothing to sync).
+
+    TorchRL copies the source policy's weights onto the collector's policy on every call, even
+    when both are one module: a ``TensorDict.from_module`` of each and an ``update_`` of every
+    parameter onto itself, which in a one-env run (one frame per batch) cost as much as a
+    sixth of collecting the frame. A collector that acts with a copy (another device) syncs
+    as before, as does a call that passes weights.
+
+    Example:
+        >>> from morl_trl.recipes import build_agent, build_training_env, resolve_config
+        >>> cfg = resolve_config("envelope", "deep-sea-treasure-v0", hidden=[8], frames=4, init_random_frames=0)
+        >>> env = build_training_env(cfg, torch.device("cpu"))
+        >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+        >>> collector = make_collector(cfg, env, agent.explore_policy, torch.device("cpu"))
+        >>> collector.shares_policy_weights, [batch.numel() for batch in collector]
+        (True, [1, 1, 1, 1])
+    """
+
+    @property
+    def shares_policy_weights(self) -> bool:
+        """Whether the collector acts with the source policy module itself (``update_policy_weights_()`` has nothing to copy)."""
+        target = getattr(self, "_policy_w_state_dict", None)
+        return target is not None and target is getattr(self, "_orig_policy", None)
+
+    def update_policy_weights_(self, policy_or_weights=None, **kwargs) -> None:
+        if policy_or_weights is None and not kwargs and self.shares_policy_weights:
+            self.increment_version()  # (what TorchRL's call does besides the copy)
+            return
+        super().update_policy_weights_(policy_or_weights, **kwargs)
+
+
 def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int = 0,
                    frames_to_go: int | None = None) -> Collector:
     """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
@@ -72,7 +108,7 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
     def whole_batches(frames: int) -> int:  # the collector works in whole batches anyway
         return -(-max(frames, 0) // per_batch) * per_batch
 
-    return Collector(
+    return RecipeCollector(
         env,
         policy,
         frames_per_batch=per_batch,
@@ -141,3 +177,44 @@ def no_reference_note(spec: DomainSpec) -> str:
         return foreign_nhgr_note(spec)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
+
+
+def start_notes(cfg, run, spec: DomainSpec, reference) -> list[str]:
+    """What a run says in log.txt as it starts: NHGR without reference data, a budget that never learns."""
+    notes = [] if reference is not None else [no_reference_note(spec)]
+    if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
+        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): the "
+                     f"run takes uniformly random actions only and never learns; raise frames or lower init_random_frames")
+    return notes
+
+
+def check_buffer_memory(cfg, env, device: torch.device) -> None:
+    """``ValueError`` before anything is written when ``cfg.buffer_size`` transitions of ``env``
+    cannot fit in the memory ``device`` has available (the storage is allocated at the first
+    write, so without this check a too large buffer fails only once the run has started)."""
+    fake = env.fake_tensordict()
+    rows = max(fake.numel(), 1)
+    row_bytes = sum(v.element_size() * v.numel() for v in fake.values(include_nested=True, leaves_only=True)
+                    if isinstance(v, torch.Tensor)) / rows
+    need = row_bytes * cfg.buffer_size
+    available = _available_memory(device)
+    if available is not None and need > available:
+        raise ValueError(f"config key 'buffer_size' (buffer) is {cfg.buffer_size:,}; its transitions need about "
+                         f"{need / 2**30:.1f} GiB ({row_bytes:,.0f} bytes each) but {device} has "
+                         f"{available / 2**30:.1f} GiB available: lower buffer_size")
+
+
+def _available_memory(device: torch.device) -> float | None:
+    if device.type == "cuda":
+        try:
+            return float(torch.cuda.mem_get_info(device)[0])
+        except (RuntimeError, AssertionError):
+            return None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None

@@ -3,22 +3,21 @@
 The run directory (a new run refuses a non-empty one unless it may overwrite it; ``--resume``
 continues the newest intact checkpoint), ``config.json``, the logs (:class:`~morl_trl.runs.RunLog`),
 the evaluation and checkpoint schedules, checkpoints (:mod:`morl_trl.runs.checkpoint`), the
-progress bar, the report and a clean stop. What the recipe keeps is the learning: build the env,
-the agent and the collector, then the loop::
+progress bar, the report, Ctrl-C and a clean stop. What the recipe keeps is the learning: build
+the env, its modules and the collector, then the loop inside :meth:`Run.session`::
 
     run = Run.open(cfg, resume=..., overwrite=..., load_config=TrainConfig.load, resume_config=resume_config)
-    ...build env, agent, evaluator, buffer (nothing is written before this point)...
-    state = run.restore(buffer)                   # a resumed run: the checkpoint's state
-    with run.start(spec, reference):              # the run directory, config.json, logs, progress bar
-        if state is None:
-            run.evaluate(evaluator); run.checkpoint(snapshot())
+    ...build env, modules, evaluator, buffer (nothing is written before this point)...
+    state = run.restore(buffer, map_location=device, env=env)  # a resumed run: the checkpoint's state
+    ...load the modules' state from it, build the collector...
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector):
         for batch in collector:
-            run.frames += batch.numel()
-            ...the algorithm's per-frame work...
-            run.batch_done(batch.numel(), losses, updates)
-            if run.eval_due(): run.evaluate(evaluator)
-            if run.checkpoint_due(): run.checkpoint(snapshot())
-        run.finish(evaluator, snapshot())
+            frames = run.collected(batch)             # count the frames, log the finished episodes
+            ...the algorithm's per-frame work (it may raise StopRun, e.g. a non-finite loss)...
+            run.step(losses, updates, epsilon=eps)    # log, progress; evaluate / checkpoint when due; Ctrl-C
+
+:mod:`morl_trl.runs.session` says what the session does on entry, on exit and on each way a
+run can stop.
 
 Every write to the run directory goes through this object (and the :class:`RunLog` it holds),
 so run-wide policies (locks, atomic writes, Ctrl-C) have one place to live: :meth:`start`,
@@ -26,7 +25,8 @@ so run-wide policies (locks, atomic writes, Ctrl-C) have one place to live: :met
 
 The config is any object with ``to_dict()``, ``save(path)``, ``validate()``, ``run_dir``,
 ``frames``, ``eval_interval``, ``checkpoint_interval``, ``keep_checkpoints``, ``progress``,
-``logger``, ``algo``, ``env_id`` and ``seed`` (the recipes' ``TrainConfig``).
+``logger``, ``algo``, ``env_id``, ``seed`` and, optionally, ``eval_random_baseline`` (the recipes'
+``TrainConfig``).
 
 Example:
     >>> from types import SimpleNamespace
@@ -54,9 +54,11 @@ from morl_trl.runs.checkpoint import (
     rng_state,
     save_checkpoint,
 )
+from morl_trl.runs.interrupt import RunInterrupted
 from morl_trl.runs.lock import RunLock
 from morl_trl.runs.run_dir import NewRunDir, check_new_run_dir
 from morl_trl.runs.run_log import RunLog, check_logger
+from morl_trl.runs.session import restore_fresh_episodes, session
 
 __all__ = ["Run", "default_run_dir", "eval_line", "start_line"]
 
@@ -128,7 +130,9 @@ class Run:
     """One training run: its directory, config, logs, schedules, checkpoints, progress and report.
 
     Make one with :meth:`open` (it validates and reads, writes nothing), then :meth:`restore`
-    (a resumed run's checkpoint) and ``with run.start(...)`` (see the module docstring).
+    (a resumed run's checkpoint) and ``with run.session(...)`` around the loop (see the module
+    docstring; :meth:`start` alone opens the run directory and logs without the session's
+    first evaluation, resume, stop and Ctrl-C handling).
 
     Attributes:
         cfg: the config the run runs with (a resumed run's saved one, with what a resume may change).
@@ -158,6 +162,10 @@ class Run:
         self.trust_pickle = False
         self.lock: RunLock | None = None
         self._starting: NewRunDir | None = None
+        self.restored: tuple | None = None  # (state, env, device) of restore(env=...), for the session
+        self.exact = False
+        self._session: dict | None = None
+        self._batch_frames = 0
 
     # ------------------------------------------------------------------ before anything is written
     @classmethod
@@ -208,15 +216,46 @@ class Run:
         """A resumed run that already reached ``cfg.frames`` (nothing to do)."""
         return self.resume_from is not None and self.frames >= self.cfg.frames
 
-    def restore(self, buffer=None, map_location=None) -> dict | None:
+    def restore(self, buffer=None, map_location=None, *, env=None) -> dict | None:
         """A resumed run: the checkpoint's state (``buffer`` refilled when it holds one), with
-        the run's counters and schedules continued from it. ``None`` for a new run."""
+        the run's counters and schedules continued from it. ``None`` for a new run.
+
+        With the training ``env`` (call it before building the collector), the run continues
+        exactly where the checkpoint left it (:attr:`exact`: the domain snapshots its simulator
+        and the device is the checkpoint's; :meth:`session` then puts the env and the collector
+        back), else the simulators restart their episodes from a seed derived from the
+        checkpoint (:func:`~morl_trl.runs.session.restore_fresh_episodes`) and the session says so."""
         if self.resume_from is None:
             return None
         state = load_checkpoint(self.resume_from, buffer, map_location=map_location, trust_pickle=self.trust_pickle)
         self.frames, self.updates, self.last_eval = state["frames"], state["updates"], state["last_eval"]
         self.next_eval, self.next_ckpt = state["next_eval"], state["next_ckpt"]
+        if env is not None:
+            self.exact = state["env"]["simulator"] is not None and state["device"] == str(map_location)
+            if not self.exact:
+                restore_fresh_episodes(env, state, self.cfg.seed + self.frames)
+        self.restored = (state, env, map_location)
         return state
+
+    def session(self, spec, reference=None, *, evaluator, snapshot, buffer=None, collector=None,
+                notes: list[str] = (), resume_command: str | None = None):
+        """The run around the recipe's loop (``with run.session(...):``; see :mod:`morl_trl.runs.session`).
+
+        Args:
+            spec: the run's domain (its objectives, for the logs and report).
+            reference: the domain's reference data (NHGR), or ``None``.
+            evaluator: evaluated (``evaluator.evaluate()``) at the start of a new run, when due
+                and at the end.
+            snapshot: ``snapshot() -> dict``, the recipe's own state for a checkpoint (modules,
+                optimizers, env, collector, device); the run adds its counters, RNG and config.
+            buffer: the replay buffer checkpointed with it (``None``: none).
+            collector: put back on an exact resume, shut down at the end.
+            notes: lines for ``log.txt`` after the run's own.
+            resume_command: the command an interrupted run prints (default
+                ``morl-trl train ALGO ENV_ID --resume RUN_DIR``).
+        """
+        return session(self, spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer,
+                       collector=collector, notes=notes, resume_command_text=resume_command)
 
     # ------------------------------------------------------------------ the run directory
     def start(self, spec, reference=None, *, notes: list[str] = ()) -> "Run":
@@ -306,6 +345,33 @@ class Run:
         nhgr = self.summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
         self._bar.set_postfix(nhgr=f"{nhgr:.3f}" if nhgr == nhgr else "-")
 
+    def collected(self, batch, frames: int | None = None, *, log: bool = True) -> int:
+        """A collected ``batch`` (inside :meth:`session`): count its ``frames`` (default
+        ``batch.numel()``; PGMORL counts one member's) and log its finished episodes' returns
+        (``log``). Returns the run's frames so far."""
+        self._batch_frames = batch.numel() if frames is None else frames
+        self.frames += self._batch_frames
+        if log:
+            self.log.training_episodes(self.frames, batch)
+        return self.frames
+
+    def step(self, losses=None, updates: int = 0, *, epsilon: float | None = None) -> None:
+        """The end of a batch (inside :meth:`session`, after :meth:`collected` and the updates):
+        :meth:`batch_done`, then an evaluation and a checkpoint when due, then, after a Ctrl-C, a
+        checkpoint and :class:`~morl_trl.runs.interrupt.RunInterrupted` naming the command that resumes."""
+        session = self._session
+        self.batch_done(self._batch_frames, losses, updates, epsilon=epsilon)
+        if self.eval_due():
+            self.evaluate(session["evaluator"])
+        if self.checkpoint_due():
+            self.checkpoint(session["snapshot"](), session["buffer"])
+        if session["interrupt"].requested and self.frames < self.cfg.frames:  # Ctrl-C: checkpoint, say how to resume
+            path = self.checkpoint(session["snapshot"](), session["buffer"], interrupted=True)
+            msg = f"interrupted at {self.frames:,} frames; checkpointed in {path.name}; resume with: {session['command']}"
+            self.note(msg)
+            self.log.report_stop(msg)
+            raise RunInterrupted(msg)
+
     def eval_due(self) -> bool:
         return self.frames >= self.next_eval
 
@@ -328,6 +394,7 @@ class Run:
     def checkpoint(self, snapshot: dict, buffer=None, **flags) -> Path:
         """Write a checkpoint of the recipe's ``snapshot`` (agent, env, collector, device...), the
         run's counters, RNG states and config, and ``buffer`` (when not empty); move the schedule on."""
+        self.log.flush()  # every log row up to this frame is written before the checkpoint
         if not flags:  # a periodic one (the final and the stop checkpoints leave the schedule as it is)
             while self.next_ckpt <= self.frames:
                 self.next_ckpt += self.cfg.checkpoint_interval

@@ -121,6 +121,9 @@ def _make_logger(kind: str, run_dir: Path, tag: str):
 class RunLog:
     """Writes a run's metrics, fronts, training episodes and final report (see the module docstring)."""
 
+    #: the longest training episodes wait in memory before they are appended to ``train/episodes.csv``
+    FLUSH_SECONDS = 2.0
+
     def __init__(self, run_dir, cfg, spec, tag: str = "train") -> None:
         self.run_dir = Path(run_dir)
         self.cfg = cfg
@@ -131,6 +134,8 @@ class RunLog:
         # a re-evaluation (morl-trl evaluate) writes beside the run's own outputs, not over them
         self.out_dir = self.run_dir if tag == "train" else self.run_dir / tag
         self.last_result = None
+        self._episode_rows: list[dict] = []  # training episodes not yet in train/episodes.csv (flush)
+        self._flushed_at = time.monotonic()
 
     # ------------------------------------------------------------------ resume
     def truncate(self, frames: int) -> int:
@@ -179,9 +184,15 @@ class RunLog:
                 row[key] = float(value)
                 self._scalar(f"train/{key}", row[key], frames)
         _append_rows(self.out_dir / "train" / "losses.csv", [row])
+        self.flush()
 
     def training_episodes(self, frames: int, batch) -> None:
-        """Record the returns of the episodes that ended in this batch (needs DiscountedVectorReturn)."""
+        """Record the returns of the episodes that ended in this batch (needs DiscountedVectorReturn).
+
+        The rows of ``train/episodes.csv`` are held in memory and appended together (:meth:`flush`:
+        with the losses every 50 updates, at least every :attr:`FLUSH_SECONDS`, before every
+        evaluation, checkpoint and report, and on close): a one-env run ends an episode every
+        few frames, and a file append per episode cost more than the frame itself."""
         nxt = batch.get("next")
         done = nxt.get("done").squeeze(-1)
         if not done.any() or "episode_return" not in nxt.keys():
@@ -190,23 +201,33 @@ class RunLog:
         disc = nxt["episode_discounted_return"][done].cpu()
         pref = batch.get("preference")[done].cpu() if "preference" in batch.keys() else None
         ctx = batch.get("context")[done].cpu() if "context" in batch.keys() else None
-        rows = []
+        columns = []  # (names, rows of values) per group of columns, in the file's order
+        if ctx is not None:
+            columns.append(([f"context_{n}" for n in self.spec.context_space.names], ctx.tolist()))
+        if pref is not None:
+            columns.append(([f"preference_{o}" for o in self.objectives], pref.tolist()))
+        columns.append(([f"return_{o}" for o in self.objectives], ret.tolist()))
+        columns.append(([f"discounted_return_{o}" for o in self.objectives], disc.tolist()))
         for i in range(ret.shape[0]):
             row = {"frames": frames}
-            if ctx is not None:
-                row.update({f"context_{n}": float(v) for n, v in zip(self.spec.context_space.names, ctx[i].tolist())})
-            if pref is not None:
-                row.update({f"preference_{o}": float(v) for o, v in zip(self.objectives, pref[i].tolist())})
-            row.update({f"return_{o}": float(v) for o, v in zip(self.objectives, ret[i].tolist())})
-            row.update({f"discounted_return_{o}": float(v) for o, v in zip(self.objectives, disc[i].tolist())})
-            rows.append(row)
-        _append_rows(self.run_dir / "train" / "episodes.csv", rows)
+            for names, values in columns:
+                row.update(zip(names, map(float, values[i])))
+            self._episode_rows.append(row)
+        if time.monotonic() - self._flushed_at >= self.FLUSH_SECONDS:
+            self.flush()
         for j, o in enumerate(self.objectives):
             self._scalar(f"train/episode_return/{o}", float(ret[:, j].mean()), frames)
+
+    def flush(self) -> None:
+        """Append the training episodes held in memory to ``train/episodes.csv``."""
+        rows, self._episode_rows = self._episode_rows, []
+        self._flushed_at = time.monotonic()
+        _append_rows(self.run_dir / "train" / "episodes.csv", rows)
 
     # ------------------------------------------------------------------ evaluation
     def evaluation(self, frames: int, result) -> dict:
         """Log one :class:`~morl_trl.evaluation.EvaluationResult`; returns a small summary."""
+        self.flush()
         self.last_result = result
         rows = [{"frames": frames, **r} for r in result.metric_rows()]
         _append_rows(self.out_dir / "eval" / "metrics.csv", rows)
@@ -228,6 +249,7 @@ class RunLog:
         """Write ``report.md`` and plots for the last evaluation; print the NHGR table."""
         from morl_trl.reporting.report import write_report
 
+        self.flush()  # (its training curves read train/episodes.csv)
         return write_report(self, summary, fps)
 
     def report_stop(self, message: str) -> None:
@@ -237,6 +259,10 @@ class RunLog:
             fh.write(f"\n**Run stopped early.** {message}\n")
 
     def close(self) -> None:
+        try:
+            self.flush()
+        except OSError:  # (a full disk: what a resume keeps was flushed before the last checkpoint)
+            pass
         if self.logger is not None and hasattr(self.logger, "experiment"):
             exp = self.logger.experiment
             if hasattr(exp, "close"):

@@ -221,3 +221,31 @@ def test_normalize_device():
     assert normalize_device(None) is None
     if torch.cuda.is_available():
         assert normalize_device("cuda") == torch.device("cuda", torch.cuda.current_device())
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_cpu_host_path_equals_the_torch_ops_bit_for_bit(dtype, monkeypatch):
+    """The CPU trees do their level-by-level arithmetic on a NumPy view; the torch ops (the
+    path of every other device) give the same tree, bit for bit, and the same scan."""
+    g = torch.Generator().manual_seed(1)
+    cap = 1_000  # 10 levels
+    fast = [SumSegmentTree(cap, dtype=dtype), MinSegmentTree(cap, dtype=dtype)]
+    slow = [SumSegmentTree(cap, dtype=dtype), MinSegmentTree(cap, dtype=dtype)]
+    for t in slow:
+        monkeypatch.setattr(t, "_host", lambda: None)
+    for step in range(60):
+        n = 1 if step % 3 == 0 else 32
+        idx = torch.randint(cap, (n,), generator=g)
+        val = torch.rand(n, generator=g, dtype=dtype) ** 3 * 7
+        for a, b in zip(fast, slow):
+            if step % 2:  # the sampler's sync-free write (repeated indices: the last one wins)
+                a.assign_unchecked(idx, val)
+                b.assign_unchecked(idx, val)
+            else:
+                a[idx] = val
+                b[idx] = val
+            assert torch.equal(a._tree, b._tree)
+            assert a._written == b._written
+        mass = torch.rand(64, generator=g, dtype=dtype) * fast[0].query(0, cap)
+        assert torch.equal(fast[0].scan_lower_bound(mass), slow[0].scan_lower_bound(mass))
+    assert fast[0]._host() is not None and float(fast[0].query(0, cap)) > 0

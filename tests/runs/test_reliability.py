@@ -292,12 +292,12 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
 
 
 def test_a_failed_start_leaves_no_run_dir_and_loses_nothing(run, tmp_path, monkeypatch, cli):
-    import morl_trl.recipes.off_policy as off_policy
+    import morl_trl.recipes.envelope as envelope_recipe
 
     def broken(*args, **kwargs):
         raise ValueError("the env failed to build")
 
-    monkeypatch.setattr(off_policy, "build_training_env", broken)  # (the loop's own name for it)
+    monkeypatch.setattr(envelope_recipe, "make_training_env", broken)  # (the recipe's own name for it)
     fresh = tmp_path / "fresh"
     with pytest.raises(ValueError, match="the env failed to build"):
         train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(fresh), **TINY))

@@ -1,0 +1,37 @@
+"""benchmarks/bench_train.py --one-env: ours vs MORL-Baselines end to end on the parity cases,
+runnable on the CPU with a tiny budget and without MB (its column says so)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _module():
+    spec = importlib.util.spec_from_file_location("bench_train", ROOT / "benchmarks" / "bench_train.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_one_env_row_without_mb_says_so(capsys, tmp_path, single_thread):
+    bt = _module()
+    table = tmp_path / "table.tsv"
+    assert bt.main(["--one-env", "envelope-dst", "--one-env-frames", "6", "--mb-python", str(tmp_path / "no-python"),
+                    "--table", str(table)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "peer: none (no MORL-Baselines python" in out[0]
+    row = out[-1].split()
+    assert row[:2] == ["envelope-dst", "deep-sea-treasure-v0"] and float(row[2]) > 0 and row[3:] == ["none", "-"]
+    stage, case, device, _, unit, fps, peer, ratio, env = table.read_text().rstrip("\n").split("\t")
+    assert (stage, case, unit, peer, ratio, env) == ("train-one-env", "envelope-dst", "frames/s", "", "",
+                                                     "deep-sea-treasure-v0")
+    assert float(fps) > 0
+
+
+def test_ours_counts_the_frames_of_the_loop_only(single_thread):
+    bt = _module()
+    r = bt.ours_one_env("gpi_ls-dst", 8)
+    assert (r["frames"], r["algo"], r["env"]) == (8, "gpi_ls", "deep-sea-treasure-v0") and r["fps"] > 0

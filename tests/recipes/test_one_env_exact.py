@@ -1,0 +1,86 @@
+"""Exactness of the one-env speed work (issue 31): a one-env run (MORL-Baselines' configuration,
+``num_envs=1, frames_per_batch=1``) from a fixed seed gives the same networks, evaluations and
+training logs as before it (values recorded on main at 8e24a7e, 2026-11-26, before the change (GPI-LS's:
+see EXPECTED):
+the pure-torch segment trees, TorchRL's weight copy every batch, a file append per episode)."""
+
+import csv
+from pathlib import Path
+
+import pytest
+import torch
+
+import morl_trl
+
+# name -> (algorithm, env id, overrides)
+CASES = {
+    # Envelope: MORL-Baselines' prioritized rule (RunningMaxPrioritizedSampler)
+    "envelope": ("envelope", "deep-sea-treasure-v0", dict(frames=200, hidden=[16, 16], batch_size=8,
+                                                          init_random_frames=50, eval_interval=100)),
+    # GPI-LS: TorchRL's prioritized rule on our trees (TorchPrioritizedSampler)
+    "gpi_ls": ("gpi_ls", "deep-sea-treasure-v0", dict(frames=150, hidden=[16, 16], batch_size=8, init_random_frames=50,
+                                                      gpi_gradient_updates=1, gpi_iteration_frames=75,
+                                                      eval_interval=10**6)),
+}
+
+#: (sum of p * (1 + index / n) over the policy's parameters, hypervolume of each evaluation,
+#: training episodes logged, sum of their undiscounted returns)
+EXPECTED = {
+    "envelope": (-5.998602081722158, [246.81995421074996, 222.03077598118702, 239.9752753275052], 18,
+                 -83.59999877214432),
+    # GPI-LS: recorded again on main at f9a6dc4 (the CPU dropout masks of issue 31's GPI update work), before
+    # the one-env changes
+    "gpi_ls": (55.80534078173923, [0.0, 16.799999713897705], 16, -122.80000054836273),
+}
+
+
+def fingerprint(case: str, tmp_path: Path) -> tuple:
+    algo, env_id, overrides = CASES[case]
+    run = morl_trl.train(algo, env=env_id, seed=3, eval_weights=4, eval_episodes=1, eval_random_baseline=False,
+                         progress=False, logger="csv", run_dir=str(tmp_path / case), **overrides)
+    params = 0.0
+    for _, p in sorted(run.policy.state_dict().items()):
+        if torch.is_tensor(p) and p.is_floating_point():
+            flat = p.detach().double().reshape(-1)
+            params += float((flat * (1 + torch.arange(flat.numel(), dtype=torch.float64) / flat.numel())).sum())
+    d = Path(run.run_dir)
+    hv = [float(r["hypervolume"]) for r in csv.DictReader((d / "eval" / "metrics.csv").open())]
+    episodes = list(csv.DictReader((d / "train" / "episodes.csv").open()))
+    returns = sum(float(v) for r in episodes for k, v in r.items() if k.startswith("return_"))
+    return params, hv, len(episodes), returns
+
+
+@pytest.mark.parametrize("case", [pytest.param("envelope", marks=pytest.mark.slow), "gpi_ls"])
+def test_a_one_env_run_is_what_it_was_before_the_speed_work(case, tmp_path, single_thread):
+    params, hv, n_episodes, returns = fingerprint(case, tmp_path)
+    want_params, want_hv, want_episodes, want_returns = EXPECTED[case]
+    assert params == pytest.approx(want_params, rel=1e-6, abs=1e-6)
+    assert hv == pytest.approx(want_hv, rel=1e-6)
+    assert (n_episodes, returns) == (want_episodes, pytest.approx(want_returns, rel=1e-9))
+
+
+if __name__ == "__main__":  # prints the values to record in EXPECTED
+    import sys
+    import tempfile
+
+    torch.set_num_threads(1)
+    for name in sys.argv[1:] or sorted(CASES):
+        with tempfile.TemporaryDirectory() as tmp:
+            print(f"    {name!r}: {fingerprint(name, Path(tmp))!r},", flush=True)
+
+
+def test_the_collector_copies_weights_only_when_it_acts_with_a_copy(single_thread):
+    from tensordict import TensorDict
+
+    from morl_trl.recipes import build_agent, build_training_env, resolve_config
+    from morl_trl.recipes.parts import make_collector
+
+    cfg = resolve_config("envelope", "deep-sea-treasure-v0", hidden=[8], frames=4, init_random_frames=0)
+    env = build_training_env(cfg, torch.device("cpu"))
+    agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+    collector = make_collector(cfg, env, agent.explore_policy, torch.device("cpu"))
+    assert collector.shares_policy_weights  # (the same module: nothing to copy)
+    collector.update_policy_weights_()
+    weights = TensorDict.from_module(agent.explore_policy).data.clone().apply(torch.ones_like)
+    collector.update_policy_weights_(weights)  # given weights are still copied in
+    assert all(bool((p == 1).all()) for p in agent.explore_policy.parameters())
