@@ -234,7 +234,8 @@ def mb_one_env(case: str, frames: int, python: Path, seed: int = 0) -> dict:
                 f"common.CASES[{case!r}].update(frames={frames}, eval_every={frames}); import mb_runner; "
                 f"from pathlib import Path; mb_runner.run({case!r}, {seed}, Path({tmp!r}) / 'mb.json')")
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-        done = subprocess.run([str(python), "-c", code], env=env, capture_output=True, text=True)
+        # (in the temporary folder: MB's PCN saves weights/PCN_model.pt in the working directory)
+        done = subprocess.run([str(python), "-c", code], env=env, capture_output=True, text=True, cwd=tmp)
         if done.returncode != 0:
             raise RuntimeError(f"MB's run failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
         result = json.loads((Path(tmp) / "mb.json").read_text())

@@ -50,8 +50,11 @@ PAIR_SETTINGS = {
 # an algorithm's work to the authors' (not a speed change): PCN's network (the authors' net_arch
 # [256] * 4 instead of MORL-Baselines' hidden_dim 64 with one hidden layer: ~15x the arithmetic
 # per update), the delayed actor of SAC and MOSAC / MORL/D (policy_freq 2: a critic step per
-# update and two actor steps every second one, each on a fresh forward of the whole loss).
-AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "morld": {"policy_freq": 1}, "sac": {"policy_freq": 1}}
+# update and two actor steps every second one, each on a fresh forward of the whole loss), MORL/D's
+# round robin (one member acts, one update of all P members' forward per frame: its concurrent schedule
+# with the earlier layout instead).
+AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "sac": {"policy_freq": 1},
+             "morld": {"policy_freq": 1, "morld_schedule": "concurrent", "num_envs": 2, "frames_per_batch": 60}}
 
 
 def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: dict, warm: int = 0) -> dict:

@@ -205,21 +205,32 @@ class _MOSACBase(MultiObjectiveLossModule):
         tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
         return self._reduce(loss, data), {"td_error": td_error}
 
-    def actor_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
-        """The actor loss alone (:meth:`forward`'s ``loss_actor``): a sampled action scored by the
-        current critics (no target computation). Returns ``(loss, {"log_prob": ...})`` (discrete: the
-        per-state ``sum_a pi log pi``), detached."""
+    def actor_dist(self, tensordict: TensorDictBase):
+        """The current actor's distribution on ``tensordict`` (with gradient), as a handle that
+        :meth:`temperature_loss` and then :meth:`actor_loss` can share: one network forward for the
+        temperature's fresh sample and the next actor step's sample, drawn in that order (the same
+        draws as two forwards, the network being unchanged in between)."""
         data = self._flat(tensordict)
-        loss, log_prob = self._actor_part(data, self._batch_preferences(data))
+        w = self._batch_preferences(data)
+        return self._policy_dist(data, w), w
+
+    def actor_loss(self, tensordict: TensorDictBase, dist=None) -> tuple[Tensor, dict[str, Tensor]]:
+        """The actor loss alone (:meth:`forward`'s ``loss_actor``): a sampled action scored by the
+        current critics (no target computation), from ``dist`` (:meth:`actor_dist`) when given.
+        Returns ``(loss, {"log_prob": ...})`` (discrete: the per-state ``sum_a pi log pi``), detached."""
+        data = self._flat(tensordict)
+        dist, w = (None, self._batch_preferences(data)) if dist is None else dist
+        loss, log_prob = self._actor_part(data, w, dist)
         return self._reduce(loss, data), {"log_prob": log_prob.detach()}
 
-    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None) -> Tensor:
+    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None, dist=None) -> Tensor:
         """The temperature loss alone (``alpha_loss_form``), on ``log_prob`` or, when ``None``, on a
-        fresh sample of the current actor (no gradient to the actor)."""
+        fresh sample of the current actor (from ``dist``, :meth:`actor_dist`, when given; no gradient)."""
         data = self._flat(tensordict)
         if log_prob is None:
             with torch.no_grad():
-                log_prob = self._sample_log_prob(data, self._batch_preferences(data))
+                d, w = (None, self._batch_preferences(data)) if dist is None else dist
+                log_prob = self._sample_log_prob(data, w, d)
         return self._reduce(self._alpha_objective(log_prob.detach()), data)
 
     @dispatch
@@ -519,10 +530,17 @@ class MOSACLoss(_MOSACBase):
         return -float(spec.shape[-1:].numel())
 
     # ---------------------------------------------------------------- pieces
-    def _actor_sample(self, data: TensorDictBase, params) -> tuple[Tensor, Tensor]:
+    def _actor_dist(self, data: TensorDictBase, params):
         with set_exploration_type(ExplorationType.RANDOM), params.to_module(self.actor_network, preserve_module_state=False):
-            dist = self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
+            return self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
+
+    @staticmethod
+    def _draw(dist) -> tuple[Tensor, Tensor]:
+        with set_exploration_type(ExplorationType.RANDOM):
             return compute_rsample_log_prob(dist)
+
+    def _actor_sample(self, data: TensorDictBase, params) -> tuple[Tensor, Tensor]:
+        return self._draw(self._actor_dist(data, params))
 
     def _critics(self, data: TensorDictBase, action: Tensor | None, params) -> Tensor:
         """``[n, B, k]`` values of all critics."""
@@ -576,29 +594,29 @@ class MOSACLoss(_MOSACBase):
         q = self._fast_critics(critic, critic.leaves(self.qvalue_network_params), self._inputs(critic.in_keys, data, w))
         return self._critic_objective(q, target, w)
 
-    def _actor_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
-        """Per-sample actor loss and the sampled actions' log-probabilities (:meth:`actor_loss`)."""
+    def _policy_dist(self, data: TensorDictBase, w: Tensor):
+        """The current actor's distribution on ``data`` under the preference ``w`` (on the fast path where it applies)."""
         plans = self._fast_plans()
         if plans is None:
-            data_w = self._with_preference(data, w)
-            action, log_prob = self._actor_sample(data_w, self.actor_network_params)
-            q_pi = self._critics(data_w, action, self._cached_detached_qvalue_params)
+            return self._actor_dist(self._with_preference(data, w), self.actor_network_params)
+        actor = plans[0]
+        return actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, data, w))
+
+    def _actor_part(self, data: TensorDictBase, w: Tensor, dist=None) -> tuple[Tensor, Tensor]:
+        """Per-sample actor loss and the sampled actions' log-probabilities (:meth:`actor_loss`)."""
+        action, log_prob = self._draw(self._policy_dist(data, w) if dist is None else dist)
+        plans = self._fast_plans()
+        if plans is None:
+            q_pi = self._critics(self._with_preference(data, w), action, self._cached_detached_qvalue_params)
         else:
-            actor, critic = plans
-            action, log_prob = compute_rsample_log_prob(
-                actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, data, w)))
+            critic = plans[1]
             q_pi = self._fast_critics(critic, [leaf.detach() for leaf in critic.leaves(self.qvalue_network_params)],
                                       self._inputs(critic.in_keys, data, w, action))
         return self._alpha * log_prob - (self._select_min(q_pi, w) * w).sum(-1), log_prob
 
-    def _sample_log_prob(self, data: TensorDictBase, w: Tensor) -> Tensor:
+    def _sample_log_prob(self, data: TensorDictBase, w: Tensor, dist=None) -> Tensor:
         """Log-probabilities of freshly sampled actions of the current actor (:meth:`temperature_loss`)."""
-        plans = self._fast_plans()
-        if plans is None:
-            return self._actor_sample(self._with_preference(data, w), self.actor_network_params)[1]
-        actor = plans[0]
-        return compute_rsample_log_prob(
-            actor.dist(actor.mlp.leaves(self.actor_network_params), self._inputs(actor.mlp.in_keys, data, w)))[1]
+        return self._draw(self._policy_dist(data, w) if dist is None else dist)[1]
 
 
 class DiscreteMOSACLoss(_MOSACBase):
@@ -760,15 +778,21 @@ class DiscreteMOSACLoss(_MOSACBase):
         q_taken = q.gather(-2, index.view(1, batch, 1, 1).expand(q.shape[0], batch, 1, k)).squeeze(-2)
         return self._critic_objective(q_taken, target, w)
 
-    def _actor_part(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
+    def _policy_dist(self, data: TensorDictBase, w: Tensor):
+        with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
+            return self.actor_network.get_dist(self._with_preference(data, w).select(*self.actor_network.in_keys,
+                                                                                      strict=False))
+
+    def _actor_part(self, data: TensorDictBase, w: Tensor, dist=None) -> tuple[Tensor, Tensor]:
         """Per-state actor loss (exact expectation over the actions) and ``sum_a pi log pi``."""
         data_w = self._with_preference(data, w)
-        probs, log_probs = self._policy(data_w, self.actor_network_params)
+        probs, log_probs = (self._policy(data_w, self.actor_network_params) if dist is None
+                            else (dist.probs, dist.logits))
         q_pi = self._select_min(self._critics(data_w, self._cached_detached_qvalue_params), w)
         scalar_q_pi = (q_pi * w.unsqueeze(-2)).sum(-1)
         loss_actor = (probs * (self._alpha * log_probs - scalar_q_pi)).sum(-1)
         return loss_actor, (probs * log_probs).sum(-1)
 
-    def _sample_log_prob(self, data: TensorDictBase, w: Tensor) -> Tensor:
-        probs, log_probs = self._policy(self._with_preference(data, w), self.actor_network_params)
-        return (probs * log_probs).sum(-1)
+    def _sample_log_prob(self, data: TensorDictBase, w: Tensor, dist=None) -> Tensor:
+        dist = self._policy_dist(data, w) if dist is None else dist
+        return (dist.probs * dist.logits).sum(-1)

@@ -388,19 +388,27 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         tensordict.set(self.tensor_keys.priority, td_error)
         return self._per_member(loss), {"td_error": td_error}
 
-    def actor_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
-        """The actors' loss alone (:meth:`forward`'s ``loss_actor``: no target computation); the
-        metadata's ``log_prob`` is ``[P, B]`` (discrete: ``sum_a pi log pi``), detached."""
+    def actor_dist(self, tensordict: TensorDictBase):
+        """The current actors' distribution on ``tensordict`` (with gradient), to share between
+        :meth:`temperature_loss` and :meth:`actor_loss` (as :meth:`MOSACLoss.actor_dist <morl_trl.objectives.MOSACLoss.actor_dist>`)."""
+        with set_exploration_type(ExplorationType.RANDOM):
+            return self._actor(self._checked(tensordict))
+
+    def actor_loss(self, tensordict: TensorDictBase, dist=None) -> tuple[Tensor, dict[str, Tensor]]:
+        """The actors' loss alone (:meth:`forward`'s ``loss_actor``: no target computation), from
+        ``dist`` (:meth:`actor_dist`) when given; the metadata's ``log_prob`` is ``[P, B]`` (discrete:
+        ``sum_a pi log pi``), detached."""
         data = self._checked(tensordict)
-        loss, log_prob = (self._continuous_actor if self.num_actions is None else self._discrete_actor)(data)
+        loss, log_prob = (self._continuous_actor if self.num_actions is None else self._discrete_actor)(data, dist)
         return self._per_member(loss), {"log_prob": log_prob.detach()}
 
-    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None) -> Tensor:
-        """The temperatures' loss alone, on ``log_prob`` or (``None``) a fresh sample of the current actors."""
+    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None, dist=None) -> Tensor:
+        """The temperatures' loss alone, on ``log_prob`` or (``None``) a fresh sample of the current
+        actors (from ``dist`` when given)."""
         data = self._checked(tensordict)
         if log_prob is None:
             with torch.no_grad():
-                log_prob = self._sample_log_prob(data)
+                log_prob = self._sample_log_prob(data, dist)
         return self._per_member(self._alpha_objective(log_prob.detach()))
 
     @dispatch
@@ -441,10 +449,10 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         q = self._critics(data, self.qvalue_network_params, self.tensor_keys.state_action_value)
         return self._critic_loss(q, target, w)
 
-    def _continuous_actor(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
+    def _continuous_actor(self, data: TensorDictBase, dist=None) -> tuple[Tensor, Tensor]:
         w = self._w(0)
         with set_exploration_type(ExplorationType.RANDOM):
-            action, log_prob = compute_rsample_log_prob(self._actor(data))
+            action, log_prob = compute_rsample_log_prob(self._actor(data) if dist is None else dist)
         td = data.select(*self.qvalue_network.in_keys, strict=False)
         td.set(self.tensor_keys.action, action)
         q_pi = self._critics(td, self._cached_detached_qvalue_params, self.tensor_keys.state_action_value)
@@ -468,21 +476,21 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         q_taken = q.gather(-2, index.expand(n, p, b, 1, k)).squeeze(-2)
         return self._critic_loss(q_taken, target, self._w(0))
 
-    def _discrete_actor(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
+    def _discrete_actor(self, data: TensorDictBase, dist=None) -> tuple[Tensor, Tensor]:
         w = self._w(1)
-        dist = self._actor(data)
+        dist = self._actor(data) if dist is None else dist
         probs, log_probs = dist.probs, dist.logits
         q_pi = self._select_min(self._critics(data, self._cached_detached_qvalue_params, self.tensor_keys.action_value), w)
         scalar_q_pi = (q_pi * w).sum(-1)
         loss_actor = (probs * (self._alpha.view(-1, 1, 1) * log_probs - scalar_q_pi)).sum(-1)
         return loss_actor, (probs * log_probs).sum(-1)
 
-    def _sample_log_prob(self, data: TensorDictBase) -> Tensor:
+    def _sample_log_prob(self, data: TensorDictBase, dist=None) -> Tensor:
         """``[P, B]`` log-probabilities of fresh actions of the current actors (discrete: ``sum_a pi log pi``)."""
+        dist = self._actor(data) if dist is None else dist
         if self.num_actions is None:
             with set_exploration_type(ExplorationType.RANDOM):
-                return compute_rsample_log_prob(self._actor(data))[1]
-        dist = self._actor(data)
+                return compute_rsample_log_prob(dist)[1]
         return (dist.probs * dist.logits).sum(-1)
 
     @property

@@ -56,15 +56,16 @@ class _TemperaturePart:
 
     alpha_loss_form: str = "log_alpha"
 
-    def _fresh_log_prob(self, tensordict: TensorDictBase) -> Tensor:  # pragma: no cover - overridden
+    def _fresh_log_prob(self, tensordict: TensorDictBase, dist=None) -> Tensor:  # pragma: no cover - overridden
         raise NotImplementedError
 
-    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None) -> Tensor:
+    def temperature_loss(self, tensordict: TensorDictBase, log_prob: Tensor | None = None, dist=None) -> Tensor:
         """The temperature loss alone, reduced as :meth:`forward` reduces it, on ``log_prob`` or, when
-        ``None``, on a fresh sample of the current actor (no gradient to the actor)."""
+        ``None``, on a fresh sample of the current actor (from ``dist``, ``actor_dist``, when given;
+        no gradient to the actor)."""
         if log_prob is None:
             with torch.no_grad():
-                log_prob = self._fresh_log_prob(tensordict)
+                log_prob = self._fresh_log_prob(tensordict, dist)
         self._alpha  # noqa: B018 - clamps log_alpha to [min_alpha, max_alpha] as TorchRL's forward does
         scale = self.log_alpha.exp() if self.alpha_loss_form == "alpha" else self.log_alpha
         loss = -scale * (log_prob.detach() + self.target_entropy)
@@ -89,10 +90,35 @@ class SACLoss(_TemperaturePart, _TorchRLSACLoss):
         tensordict.set(self.tensor_keys.priority, metadata["td_error"])
         return loss, metadata
 
-    def _fresh_log_prob(self, tensordict: TensorDictBase) -> Tensor:
+    def actor_dist(self, tensordict: TensorDictBase):
+        """The current actor's distribution on ``tensordict`` (with gradient), to share between
+        :meth:`temperature_loss` and :meth:`actor_loss`: one network forward for the temperature's
+        fresh sample and the next actor step's sample, drawn in that order."""
+        return self._dist(tensordict)
+
+    def _dist(self, tensordict: TensorDictBase):
         with set_exploration_type(ExplorationType.RANDOM), self.actor_network_params.to_module(
                 self.actor_network, preserve_module_state=False):
-            return compute_rsample_log_prob(self.actor_network.get_dist(tensordict))[1]
+            return self.actor_network.get_dist(tensordict)
+
+    def actor_loss(self, tensordict: TensorDictBase, dist=None) -> tuple[Tensor, dict[str, Tensor]]:
+        """TorchRL's ``actor_loss``; from ``dist`` (:meth:`actor_dist`) when given, with TorchRL's
+        arithmetic (``tests/recipes/test_actor_critic_step.py`` checks both give the same loss)."""
+        if dist is None:
+            return super().actor_loss(tensordict)
+        with set_exploration_type(ExplorationType.RANDOM):
+            action, log_prob = compute_rsample_log_prob(dist)
+        td_q = tensordict.select(*self.qvalue_network.in_keys, strict=False)
+        td_q.set(self.tensor_keys.action, action)
+        q = self._vmap_qnetworkN0(td_q, self._cached_detached_qvalue_params).get(self.tensor_keys.state_action_value)
+        loss = self._alpha * log_prob - q.min(0)[0].squeeze(-1)
+        loss = self._reduce_loss(loss, tensordict=tensordict, weights=self._maybe_get_priority_weight(tensordict))
+        return loss, {"log_prob": log_prob.detach()}
+
+    def _fresh_log_prob(self, tensordict: TensorDictBase, dist=None) -> Tensor:
+        dist = self._dist(tensordict) if dist is None else dist
+        with set_exploration_type(ExplorationType.RANDOM):
+            return compute_rsample_log_prob(dist)[1]
 
 
 class DiscreteSACLoss(_TemperaturePart, _TorchRLDiscreteSACLoss):
@@ -113,7 +139,8 @@ class DiscreteSACLoss(_TemperaturePart, _TorchRLDiscreteSACLoss):
         tensordict.set(self.tensor_keys.priority, metadata["td_error"])
         return loss, metadata
 
-    def _fresh_log_prob(self, tensordict: TensorDictBase) -> Tensor:
-        with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
-            dist = self.actor_network.get_dist(tensordict.clone(False))
+    def _fresh_log_prob(self, tensordict: TensorDictBase, dist=None) -> Tensor:
+        if dist is None:
+            with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
+                dist = self.actor_network.get_dist(tensordict.clone(False))
         return (dist.probs * dist.logits).sum(-1)

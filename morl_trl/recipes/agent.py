@@ -186,15 +186,21 @@ class Agent:
         found = optimizer_step(loss_qvalue, [self.optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **kw)
         if actor_turn:
             alpha_opt = self.optimizers.get("alpha")
-            for _ in range(self.policy_freq):
-                loss_actor, meta = loss.actor_loss(batch)
+            dist = None
+            for i in range(self.policy_freq):
+                loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
                 # on the device a skipped part skips the rest of the update (found_inf carried on)
                 found = optimizer_step(loss_actor, [self.optimizers["actor"]], losses={"loss_actor": loss_actor},
                                        found_inf=found, **kw)
                 actor_out = {"loss_actor": loss_actor.detach(), "entropy": -meta["log_prob"].mean(-1)}
                 if alpha_opt is not None:
-                    log_prob = None if loss.fresh_temperature_sample else meta["log_prob"]
-                    loss_alpha = loss.temperature_loss(batch, log_prob)
+                    if loss.fresh_temperature_sample:
+                        # one forward of the updated actor for the temperature's fresh sample and, drawn after
+                        # it, the next actor step's sample (the actor does not change in between)
+                        dist = loss.actor_dist(batch) if i + 1 < self.policy_freq else None
+                        loss_alpha = loss.temperature_loss(batch, dist=dist)
+                    else:
+                        loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
                     found = optimizer_step(loss_alpha, [alpha_opt], losses={"loss_alpha": loss_alpha},
                                            found_inf=found, **kw)
                     actor_out["loss_alpha"] = loss_alpha.detach()

@@ -127,16 +127,8 @@ def session(run, spec, reference=None, *, evaluator, snapshot: Callable[[], dict
                 run.started()  # the run it replaces is deleted now
                 started = True
             elif state is not None:
-                if env is None:
-                    pass  # (a recipe that restores no env)
-                elif run.exact:
-                    load_env_state(env, state["env"])
-                    if collector is not None:
-                        load_collector_state(collector, state, device)
-                elif state["device"] != str(device):
-                    run.note(f"resumed with fresh episodes: the device changed from {state['device']} to {device}")
-                else:
-                    run.note(f"resumed with fresh episodes: {spec.name} cannot snapshot its simulator")
+                if env is not None:  # (restore(env=...): the env, and the collector, continue)
+                    _continue_env(run, spec, state, env, collector, device)
                 set_rng_state(state["rng"])  # last: nothing above draws from the global generators again
             try:
                 yield run  # the recipe's loop
@@ -169,3 +161,17 @@ def session(run, spec, reference=None, *, evaluator, snapshot: Callable[[], dict
         run._session = None
         if collector is not None:
             collector.shutdown()
+
+
+def _continue_env(run, spec, state: dict, env, collector, device) -> None:
+    """A resumed run's env and collector: exactly where the checkpoint left them (:attr:`Run.exact
+    <morl_trl.runs.Run.exact>`), else a note that the episodes restarted (:meth:`Run.restore
+    <morl_trl.runs.Run.restore>` reseeded them) and why."""
+    if run.exact:
+        load_env_state(env, state["env"])
+        if collector is not None:
+            load_collector_state(collector, state, device)
+    elif state["device"] != str(device):
+        run.note(f"resumed with fresh episodes: the device changed from {state['device']} to {device}")
+    else:
+        run.note(f"resumed with fresh episodes: {spec.name} cannot snapshot its simulator")

@@ -46,7 +46,9 @@ def _record(agent):
 
     wrap(loss, "qvalue_loss", "Q")
     wrap(loss, "actor_loss", "A")
-    wrap(loss, "temperature_loss", lambda td, log_prob=None: "T(fresh)" if log_prob is None else "T(reused)")
+    if hasattr(loss, "actor_dist"):
+        wrap(loss, "actor_dist", "D")
+    wrap(loss, "temperature_loss", lambda td, log_prob=None, dist=None: "T(fresh)" if log_prob is None else "T(reused)")
     wrap(loss.value_estimator, "value_estimate", "target")
     for name, opt in agent.optimizers.items():
         wrap(opt, "step", f"step:{name}")
@@ -57,15 +59,16 @@ def _record(agent):
 def test_the_delayed_actor_runs_critic_then_two_actor_and_fresh_temperature_steps(algo, single_thread):
     """policy_freq 2: update 1 is a critic step alone; update 2 a critic step then two (actor step,
     temperature step on a fresh sample of the updated actor) pairs; the target is computed once per
-    update, never in an actor step (before: the whole loss three times on an actor turn)."""
+    update, never in an actor step (before: the whole loss three times on an actor turn). The first
+    temperature's sample and the second actor step's come from one forward of the actor (``D``)."""
     pytest.importorskip("mujoco")
     agent, buffer = _agent(algo, "MOHopperDR-v5")
     assert agent.policy_freq == 2 and agent.steps_each_loss
     events = _record(agent)
     agent.run_updates(buffer, 2)
     critic = ["Q", "target", "step:qvalue"]
-    actor = ["A", "step:actor", "T(fresh)", "step:alpha"]
-    assert events == critic + critic + actor + actor
+    assert events == critic + critic + ["A", "step:actor", "D", "T(fresh)", "step:alpha",
+                                        "A", "step:actor", "T(fresh)", "step:alpha"]
     events.clear()
     agent.run_updates(buffer, 4)  # 6 updates: 6 critic steps and targets, 3 actor turns of 2
     assert events.count("target") == 4 and events.count("step:qvalue") == 4
@@ -162,3 +165,26 @@ def test_the_parts_are_forwards_losses_from_the_same_random_state(fast):
     torch.testing.assert_close(loss.temperature_loss(data, meta_a["log_prob"]), out["loss_alpha"])
     torch.testing.assert_close(-meta_a["log_prob"].mean(), out["entropy"])
     assert data["td_error"].shape == (16,) and torch.equal(data["td_error"], meta_q["td_error"])
+
+
+@pytest.mark.parametrize("which", ["mosac_fast", "mosac", "sac", "population"])
+def test_one_actor_forward_shared_by_temperature_and_actor_step_draws_what_two_forwards_draw(which):
+    """``temperature_loss(dist=d)`` then ``actor_loss(dist=d)`` with ``d = actor_dist(td)`` equal the two
+    calls with their own forwards from the same random state (the network is unchanged in between)."""
+    mosac, sac, pop = _losses("log_alpha")
+    loss = {"mosac_fast": mosac, "mosac": mosac, "sac": sac, "population": pop}[which]
+    if which == "mosac":
+        loss.fast_networks = False
+    data = random_batch(8, 5, 1 if which == "sac" else 2, action_dim=2)
+    if which == "population":
+        data = data.unsqueeze(0)
+    torch.manual_seed(7)
+    t_two, (a_two, meta_two) = loss.temperature_loss(data), loss.actor_loss(data)
+    torch.manual_seed(7)
+    dist = loss.actor_dist(data)
+    t_one, (a_one, meta_one) = loss.temperature_loss(data, dist=dist), loss.actor_loss(data, dist)
+    torch.testing.assert_close(t_one, t_two)
+    torch.testing.assert_close(a_one, a_two)
+    torch.testing.assert_close(meta_one["log_prob"], meta_two["log_prob"])
+    a_one.backward()  # the shared forward carries the actor's gradient
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in loss.actor_network_params.values(True, True))
