@@ -55,8 +55,8 @@ def _members(t: Tensor, members: slice | None) -> Tensor:
 def batched_linear(x: Tensor, weight: Tensor, bias: Tensor) -> Tensor:
     """:class:`BatchedLinear` on given tensors: ``x`` ``[E, *B, in]`` (or ``[E * N, in]``), ``weight``
     ``[E, in, out]``, ``bias`` ``[E, 1, out]`` -> ``[E, *B, out]`` (one ``baddbmm``)."""
-    if x.dim() == 3:  # already [E, N, in]: the product's own tensor, not a view of it (in-place steps on a
-        return torch.baddbmm(bias, x, weight)  # view would cost autograd a copy of the whole gradient: CopySlices)
+    if x.dim() == 3 and x.shape[0] == weight.shape[0]:  # already [E, N, in]: the product's own tensor, not a
+        return torch.baddbmm(bias, x, weight)  # view of it (in-place steps on a view: autograd copies the gradient)
     flat = x.reshape(weight.shape[0], -1, x.shape[-1])
     return torch.baddbmm(bias, flat, weight).reshape(*x.shape[:-1], weight.shape[-1])
 
@@ -262,7 +262,7 @@ def hidden_block(x: Tensor, weight: Tensor, bias: Tensor, norm: tuple[Tensor, Te
         h.mul_(_dropout_mask(h, p, of_rows))  # h is the matmul's fresh output: BaddbmmBackward does not keep it
     if norm is not None:
         nw, nb, eps = norm
-        if h.dim() == 3:  # (no views: see batched_linear)
+        if h.dim() == 3 and h.shape[0] == nw.shape[0]:  # (no views: see batched_linear)
             h = _affine(F.layer_norm(h, h.shape[-1:], eps=eps), nw, nb)
         else:
             flat = h.reshape(nw.shape[0], -1, h.shape[-1])

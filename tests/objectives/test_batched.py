@@ -79,6 +79,17 @@ def test_torch_init_draws_as_morld_population_linear_did():
         BatchedLinear(1, 2, 2, init="xavier")
 
 
+def test_linear_takes_member_major_rows_in_any_leading_shape():
+    """``[E * N, B, in]`` (a population's sub-envs x steps, member-major) is member e's rows e*N..(e+1)*N-1."""
+    torch.manual_seed(12)
+    lin = BatchedLinear(2, 3, 4)
+    x = torch.randn(6, 5, 3)  # 2 members x 3 sub-envs, 5 steps
+    out = lin(x)
+    assert out.shape == (6, 5, 4)
+    for e in range(2):
+        torch.testing.assert_close(out[3 * e: 3 * e + 3], lin.member_linear(e)(x[3 * e: 3 * e + 3]), rtol=1e-6, atol=1e-6)
+
+
 def test_layer_norm_is_per_member_layer_norm():
     torch.manual_seed(1)
     norm = BatchedLayerNorm(2, 4)
