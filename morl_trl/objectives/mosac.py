@@ -31,7 +31,7 @@ from morl_trl.objectives.common import MultiObjectiveLossModule, check_preferenc
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 
-__all__ = ["DiscreteMOSACLoss", "MOSACLoss", "ALPHA_LOSS_FORMS", "check_alpha_loss_form"]
+__all__ = ["DiscreteMOSACLoss", "MOSACLoss", "ALPHA_LOSS_FORMS", "check_alpha_loss_form", "temperature_objective"]
 
 CRITIC_MIN_MODES = ("scalarized", "elementwise")
 CRITIC_LOSS_MODES = ("scalarized", "vector")
@@ -46,6 +46,13 @@ def check_alpha_loss_form(form: str) -> str:
     if form not in ALPHA_LOSS_FORMS:
         raise ValueError(f"alpha_loss_form={form!r}; valid values are {ALPHA_LOSS_FORMS}.")
     return form
+
+
+def temperature_objective(log_alpha: Tensor, log_prob: Tensor, target_entropy, form: str) -> Tensor:
+    """Per-sample temperature loss ``-s (log_prob + target_entropy)``, ``s = alpha`` (``form="alpha"``)
+    or ``log alpha`` (``"log_alpha"``); ``log_prob`` is taken as given (detach it first)."""
+    scale = log_alpha.exp() if form == "alpha" else log_alpha
+    return -scale * (log_prob + target_entropy)
 
 
 class _MOSACBase(MultiObjectiveLossModule):
@@ -183,8 +190,7 @@ class _MOSACBase(MultiObjectiveLossModule):
 
     def _alpha_objective(self, log_prob: Tensor) -> Tensor:
         """Per-sample temperature loss on a detached ``log_prob`` (``alpha_loss_form``)."""
-        scale = self.log_alpha.exp() if self.alpha_loss_form == "alpha" else self.log_alpha
-        return -scale * (log_prob + self.target_entropy)
+        return temperature_objective(self.log_alpha, log_prob, self.target_entropy, self.alpha_loss_form)
 
     # ------------------------------------------------- the three parts (TorchRL's SACLoss style)
     #: the temperature step draws a fresh sample of the (just updated) actor (continuous: the authors'

@@ -51,7 +51,7 @@ from morl_trl._torchrl_compat import cache_values
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
-from morl_trl.objectives.mosac import check_alpha_loss_form
+from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
 from morl_trl.objectives.networks import (
     DEFAULT_NUM_CELLS,
     categorical_actor,
@@ -363,9 +363,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
 
     def _alpha_objective(self, log_prob: Tensor) -> Tensor:
         """``[P, B]`` temperature losses on a detached ``log_prob`` (``alpha_loss_form``, as MOSAC's)."""
-        log_alpha = self.log_alpha.view(-1, 1)
-        scale = log_alpha.exp() if self.alpha_loss_form == "alpha" else log_alpha
-        return -scale * (log_prob + self.target_entropy)
+        return temperature_objective(self.log_alpha.view(-1, 1), log_prob, self.target_entropy, self.alpha_loss_form)
 
     # ------------------------------------------------------------------ the three parts
     def _checked(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -46,7 +46,7 @@ from torchrl.objectives import DiscreteSACLoss as _TorchRLDiscreteSACLoss
 from torchrl.objectives import SACLoss as _TorchRLSACLoss
 from torchrl.objectives.sac import compute_rsample_log_prob
 
-from morl_trl.objectives.mosac import check_alpha_loss_form
+from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
 
 __all__ = ["SACLoss", "DiscreteSACLoss"]
 
@@ -67,8 +67,7 @@ class _TemperaturePart:
             with torch.no_grad():
                 log_prob = self._fresh_log_prob(tensordict, dist)
         self._alpha  # noqa: B018 - clamps log_alpha to [min_alpha, max_alpha] as TorchRL's forward does
-        scale = self.log_alpha.exp() if self.alpha_loss_form == "alpha" else self.log_alpha
-        loss = -scale * (log_prob.detach() + self.target_entropy)
+        loss = temperature_objective(self.log_alpha, log_prob.detach(), self.target_entropy, self.alpha_loss_form)
         return self._reduce_loss(loss, tensordict=tensordict, weights=self._maybe_get_priority_weight(tensordict))
 
 
