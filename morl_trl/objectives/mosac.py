@@ -270,7 +270,10 @@ class _MOSACBase(MultiObjectiveLossModule):
         """``[n, *B, ...]``: :meth:`_critic_ensemble` on the fast path (``leaves`` stacked over the ensemble)."""
         if self._ensemble_mode(leaves[0].device) == "vmap":
             return plan(leaves, inputs)
-        return torch.stack([plan([leaf[i] for leaf in leaves], inputs) for i in range(self.num_qvalue_nets)])
+        # unbind, not leaf[i]: one backward node per leaf that stacks the members' gradients, where a
+        # select per member scatters each into a zero-filled copy of the whole ensemble, then sums them
+        members = zip(*(leaf.unbind(0) for leaf in leaves))
+        return torch.stack([plan(list(member), inputs) for member in members])
 
     def _critic_ensemble(self, td: TensorDictBase, params: TensorDictBase, key: NestedKey) -> Tensor:
         """``[n, *B, ...]``: every critic of the ensemble on ``td``.
