@@ -84,14 +84,18 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"],
-                                 eval_interval=case["eval_every"], eval_weights=EVAL_WEIGHTS,
+            # a case's frames are MB's count; ours counts frames_of() of each batch (PGMORL: one member's, 1 / P)
+            scale = case.get("ours_frame_scale", 1)
+            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"] // scale,
+                                 eval_interval=case["eval_every"] // scale, eval_weights=EVAL_WEIGHTS,
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
                                  progress=False, run_dir=f"{tmp}/run", **case["ours"])
             wall = time.perf_counter() - started[0]
             with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
                 curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
                          for row in csv.DictReader(fh)]
+            for point in curve:
+                point["frames"] *= scale
     finally:
         MultiContextEvaluator.evaluate, Run.start = evaluate, start
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
