@@ -93,15 +93,18 @@ CASES: dict[str, dict] = {
         env="mo-hopper-v5", algo="capql", frames=1_000, eval_every=500, gamma=0.99,
         ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
     ),
-    # PGMORL: 1 warm-up and 1 evolutionary iteration of 32 steps x 4 envs x 6 members (MB: 80, 20, 2048).
-    # `frames` and `eval_every` count env steps of all members, as MB 1.3.0's global_step does
-    # (PGMORL.__train_all_agents adds steps x envs per member; max_iterations divides by pop_size). Ours
-    # counts one member's steps, as the authors' fork (SPEC §6): its budget is frames / ours_frame_scale
-    # and its curve's frames are multiplied back, so both run 2 iterations (1,536 env steps).
+    # PGMORL: 2 warm-up iterations, then one task selection and 1 evolutionary iteration, each iteration
+    # 32 steps x 4 envs x 6 members (MB: 80 and 20 iterations of 2048 steps). `frames` and `eval_every`
+    # count env steps of all members, as MB 1.3.0's global_step does (PGMORL.__train_all_agents adds
+    # steps x envs per member; max_iterations divides by pop_size). Ours counts one member's steps, as
+    # the authors' fork (SPEC §6): its budget is frames / ours_frame_scale and its curve's frames are
+    # multiplied back, so both run 3 iterations (2,304 env steps). Two warm-up iterations, not one: ours
+    # evaluates a member by the returns of its iteration's rollout (recipes/pgmorl.py), so with one the
+    # warm-up's end would reuse the untrained members' returns (prediction deltas of 0).
     "pgmorl-hopper": dict(
-        env="mo-hopper-v5", algo="pgmorl", frames=1_536, eval_every=768, gamma=0.995, ours_frame_scale=6,
-        ours=dict(pgmorl_warmup=1, pgmorl_evo_iterations=1, frames_per_batch=24 * 32),
-        mb=dict(warmup_iterations=1, evolutionary_iterations=1, steps_per_iteration=32), mb_train=dict(),
+        env="mo-hopper-v5", algo="pgmorl", frames=2_304, eval_every=768, gamma=0.995, ours_frame_scale=6,
+        ours=dict(pgmorl_warmup=2, pgmorl_evo_iterations=1, frames_per_batch=24 * 32),
+        mb=dict(warmup_iterations=2, evolutionary_iterations=1, steps_per_iteration=32), mb_train=dict(),
     ),
 }
 if os.environ.get("PARITY_SMOKE"):  # a check of the machinery: every case cut to a few hundred frames
