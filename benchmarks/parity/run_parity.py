@@ -51,6 +51,13 @@ def ensure_mb_venv(venv: Path) -> Path:
 
 
 # ---------------------------------------------------------------------- one run of ours
+def ours_budget(case: dict) -> tuple[int, int, int]:
+    """``(frames, eval_interval, scale)`` for ``morl_trl.train``: a case counts frames as MB does; ours
+    counts one PGMORL member's (the authors' count), ``1 / ours_frame_scale`` of MB's."""
+    scale = case.get("ours_frame_scale", 1)
+    return case["frames"] // scale, case["eval_every"] // scale, scale
+
+
 def run_ours(case_name: str, seed: int, out: Path) -> None:
     import tempfile
 
@@ -84,10 +91,9 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            # a case's frames are MB's count; ours counts frames_of() of each batch (PGMORL: one member's, 1 / P)
-            scale = case.get("ours_frame_scale", 1)
-            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"] // scale,
-                                 eval_interval=case["eval_every"] // scale, eval_weights=EVAL_WEIGHTS,
+            frames, eval_every, scale = ours_budget(case)
+            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=frames,
+                                 eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
                                  progress=False, run_dir=f"{tmp}/run", **case["ours"])
             wall = time.perf_counter() - started[0]
