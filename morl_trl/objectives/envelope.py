@@ -11,6 +11,7 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torchrl.objectives.utils import distance_loss
 
+from morl_trl._torchrl_compat import clear_weakrefs, priority_weight, reduce_loss
 from morl_trl.objectives.common import MultiObjectiveLossModule, module_output
 
 __all__ = ["EnvelopeQLoss"]
@@ -311,10 +312,10 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         td_error = scalar_td[:, 0] if self.priority == "first" else scalar_td.mean(-1)
         tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
 
-        weights = self._maybe_get_priority_weight(data)
+        weights = priority_weight(self, data)
         if weights is not None:
             weights = weights.reshape(batch)
-        loss = self._reduce_loss(per_sample, tensordict=data, weights=weights)
+        loss = reduce_loss(self, per_sample, data, weights)
         if self.reduction == "none":
             out = TensorDict(
                 {
@@ -335,5 +336,5 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
                 },
                 batch_size=[],
             )
-        self._clear_weakrefs(tensordict, out, "value_network_params", "target_value_network_params")
+        clear_weakrefs(self, tensordict, out, "value_network_params", "target_value_network_params")
         return out

@@ -20,6 +20,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.objectives import LossModule
 
+from morl_trl._torchrl_compat import module_kwargs
 from morl_trl.objectives.common import module_output
 from morl_trl.objectives.networks import encoder_and_width
 
@@ -74,7 +75,10 @@ class PCNNetwork(nn.Module):
     def forward(self, observation: torch.Tensor, desired_return: torch.Tensor, desired_horizon: torch.Tensor):
         c = torch.cat([desired_return, desired_horizon], -1).float() * self.scaling_factor
         obs = observation if self.obs_ndim == 3 else observation.float()
-        return self.fc(self.s_emb(obs) * self.c_emb(c))
+        x = self.s_emb(obs) * self.c_emb(c)
+        for m in self.fc:  # each ReLU in place on its Linear's fresh output (the Linear's backward keeps its
+            x = x.relu_() if type(m) is nn.ReLU else m(x)  # input, not its output): nn.ReLU's values
+        return x
 
 
 def _same(held, leaf) -> bool:
@@ -126,7 +130,6 @@ class PCNLoss(LossModule):
 
     def __init__(self, network: TensorDictModule) -> None:
         super().__init__()
-        self._set_deprecated_ctor_keys()
         self.convert_to_functional(network, "policy_network")
         self.discrete = bool(network.module.discrete) if hasattr(network, "module") else True
 
@@ -162,7 +165,22 @@ class PCNLoss(LossModule):
         else:
             with self.policy_network_params.to_module(self.policy_network, preserve_module_state=False):
                 pred = module_output(self.policy_network, tensordict, key)
-        action = tensordict.get(self.tensor_keys.action)
+        return self._losses(pred, tensordict.get(self.tensor_keys.action))
+
+    def losses_of(self, observation: torch.Tensor, action: torch.Tensor, desired_return: torch.Tensor,
+                  desired_horizon: torch.Tensor) -> TensorDict | None:
+        """:meth:`forward` on the batch's tensors, without building its TensorDict (the same operations: what
+        :meth:`PCNAgent.update <morl_trl.recipes.pcn.PCNAgent.update>` runs, ~0.5 ms less per update on a
+        CPU core). ``None`` where the network is not the plain positional module holding the loss's own
+        parameters: call :meth:`forward` then."""
+        net = self.policy_network
+        key = self.tensor_keys.log_probs if self.discrete else self.tensor_keys.action_pred
+        if type(net) is not TensorDictModule or list(net.in_keys) != self.in_keys[:3] or list(net.out_keys) != [key] \
+                or module_kwargs(net) or not self._module_holds_params():
+            return None
+        return self._losses(net.module(observation, desired_return, desired_horizon), action)
+
+    def _losses(self, pred: torch.Tensor, action: torch.Tensor) -> TensorDict:
         if self.discrete:
             logp = pred
             if action.shape == logp.shape:  # one-hot

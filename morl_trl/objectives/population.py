@@ -47,7 +47,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.sac import compute_rsample_log_prob
 
-from morl_trl._torchrl_compat import cache_values
+from morl_trl._torchrl_compat import cache_values, clear_weakrefs
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
@@ -424,8 +424,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         if self.fixed_alpha:
             losses.pop("loss_alpha")
         out = TensorDict({**losses, "alpha": self._alpha, "entropy": -neg_entropy.detach().mean(1)}, batch_size=[])
-        self._clear_weakrefs(tensordict, out, "actor_network_params", "qvalue_network_params",
-                             "target_qvalue_network_params")
+        clear_weakrefs(self, tensordict, out, "actor_network_params", "qvalue_network_params",
+                       "target_qvalue_network_params")
         return out
 
     def _critic_loss(self, q: Tensor, target: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:

@@ -236,9 +236,12 @@ class PCNAgent(Agent):
 
     def update(self, buffer=None) -> TensorDictBase:
         obs, action, ret, horizon = self.replay.sample(self.cfg.batch_size, generator=self.generator)
-        td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
-                        [obs.shape[0]], device=self.device)
-        out = self.loss(td)
+        obs, action, ret, horizon = (t.to(self.device) for t in (obs, action, ret, horizon))
+        out = self.loss.losses_of(obs, action, ret, horizon)
+        if out is None:  # (a custom network: the generic path)
+            td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
+                            [obs.shape[0]], device=self.device)
+            out = self.loss(td)
         optimizer_step(out["loss_pcn"], [self.optimizers["policy"]], losses={"loss_pcn": out["loss_pcn"]})
         return out.detach()
 

@@ -120,3 +120,30 @@ def test_polyak_update_is_bit_identical_to_soft_update():
         assert torch.equal(value, torchrl_.target_qvalue_network_params.get(key)), key
         assert not torch.equal(value, start.get(key)), key
     assert not any(t.requires_grad for t in a.leaves()[1])
+
+
+def test_the_critic_loop_unbinds_the_ensemble_exactly_as_selecting_each_member():
+    """Issue 31: the CPU critic loop takes the members with one ``unbind`` per leaf (its backward stacks the
+    members' gradients) instead of ``leaf[i]`` (each scattered into a zero-filled ensemble, then summed):
+    the same values and the same gradients, bit for bit."""
+    loss = make()
+    critic = loss._fast_plans()[1]
+    torch.manual_seed(1)
+    x, a, w = torch.randn(B, OBS), torch.rand(B, ACT) * 2 - 1, torch.softmax(torch.randn(B, K), -1)
+    leaves = critic.leaves(loss.qvalue_network_params)
+    assert loss._ensemble_mode(leaves[0].device) == "loop" and leaves[0].shape[0] == 2
+    weights = torch.arange(1.0, 1.0 + 2 * K).reshape(2, 1, K)
+
+    def grads(q):
+        (q * weights).sum().backward()
+        out = [leaf.grad.clone() for leaf in leaves]
+        for leaf in leaves:
+            leaf.grad = None
+        return out
+
+    fast = loss._fast_critics(critic, leaves, [x, a, w])
+    fast_grads = grads(fast)
+    ref = torch.stack([critic([leaf[i] for leaf in leaves], [x, a, w]) for i in range(2)])  # the former loop
+    ref_grads = grads(ref)
+    assert torch.equal(fast, ref) and fast.shape == (2, B, K)
+    assert all(torch.equal(f, r) and f.abs().sum() > 0 for f, r in zip(fast_grads, ref_grads))

@@ -64,3 +64,38 @@ def test_other_tensors_in_the_parameters_are_swapped_in():
     out = loss(td)["loss_pcn"]
     bias = loss.policy_network_params.get(("module", "fc", "2", "bias")).detach()
     torch.testing.assert_close(out, -torch.log_softmax(bias, -1)[td["action"]].mean())
+
+
+def test_in_place_relu_forward_equals_the_sequential_bit_for_bit():
+    """PCNNetwork.forward's in-place ReLUs give nn.Sequential's values and gradients exactly (issue 31)."""
+    torch.manual_seed(0)
+    net = make_pcn_network(6, 3, 2, [0.1, 0.2, 0.3], (16, 16, 16)).module
+    td = _batch(32)
+    obs, ret, hor = td["observation"], td["desired_return"], td["desired_horizon"]
+    fast = net(obs, ret, hor)
+    (fast * torch.arange(3.0)).sum().backward()
+    fast_grads = [p.grad.clone() for p in net.parameters()]
+    net.zero_grad(set_to_none=True)
+    c = torch.cat([ret, hor], -1) * net.scaling_factor
+    ref = net.fc(net.s_emb(obs) * net.c_emb(c))  # the previous formulation: nn.ReLU out of place
+    (ref * torch.arange(3.0)).sum().backward()
+    assert torch.equal(fast, ref) and fast.abs().sum() > 0
+    assert len(fast_grads) == 10 and all(torch.equal(g, p.grad) for g, p in zip(fast_grads, net.parameters()))
+
+
+def test_losses_of_equals_forward_on_the_tensordict_bit_for_bit():
+    torch.manual_seed(0)
+    loss = PCNLoss(make_pcn_network(6, 3, 2, [0.1, 0.2, 0.3], (8, 8, 8)))
+    td = _batch()
+    ref = loss(td)
+    ref["loss_pcn"].backward()
+    ref_grads = [p.grad.clone() for p in loss.parameters()]
+    loss.zero_grad(set_to_none=True)
+    fast = loss.losses_of(td["observation"], td["action"], td["desired_return"], td["desired_horizon"])
+    fast["loss_pcn"].backward()
+    assert sorted(fast.keys()) == ["entropy", "loss_pcn"]
+    assert torch.equal(fast["loss_pcn"], ref["loss_pcn"]) and torch.equal(fast["entropy"], ref["entropy"])
+    assert all(torch.equal(g, p.grad) for g, p in zip(ref_grads, loss.parameters()))
+    # other tensors in the functional parameters: no direct path (the caller runs forward)
+    loss.policy_network_params.set(("module", "fc", "2", "weight"), torch.nn.Parameter(torch.zeros(8, 8)))
+    assert loss.losses_of(td["observation"], td["action"], td["desired_return"], td["desired_horizon"]) is None
