@@ -98,9 +98,10 @@ class RecipeCollector(Collector):
 
 
 def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int = 0,
-                   frames_to_go: int | None = None) -> Collector:
+                   frames_to_go: int | None = None, track_traj_ids: bool = False) -> Collector:
     """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
-    frames_done``; uniformly random before ``init_random_frames``)."""
+    frames_done``; uniformly random before ``init_random_frames``). ``track_traj_ids``: write TorchRL's
+    ``("collector", "traj_ids")`` (no recipe reads them: off, one bookkeeping step less per frame)."""
     if frames_to_go is None:
         frames_to_go = cfg.frames - frames_done
     per_batch = cfg.frames_per_batch
@@ -119,8 +120,7 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
         # PGMORL: every iteration starts from a reset, as the authors' member train() (mo_ppo.py:628)
         reset_at_each_iter=bool(cfg.pgmorl_reset_each_iteration),
         auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
-        # per-frame work nothing reads: ("collector", "traj_ids") (no trajectory splitting or slice sampling here)
-        track_traj_ids=False,
+        track_traj_ids=track_traj_ids,
     )
 
 

@@ -561,7 +561,7 @@ def test_pgmorl_resets_every_sub_env_at_the_start_of_each_iteration(reset, conti
     torch.manual_seed(0)
     env = make_pgmorl_training_env(cfg, CPU)
     agent = make_pgmorl_agent(cfg, env, gamma=0.99, device=CPU)
-    collector = make_collector(cfg, env, agent.explore_policy, CPU, frames_to_go=192)
+    collector = make_collector(cfg, env, agent.explore_policy, CPU, frames_to_go=192, track_traj_ids=True)
     batches = [b.clone() for _, b in zip(range(3), collector)]  # [4 sub-envs, 16 steps] each
     collector.shutdown()
     assert [tuple(b.shape) for b in batches] == [(4, 16)] * 3
