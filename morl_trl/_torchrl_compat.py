@@ -18,14 +18,19 @@ from __future__ import annotations
 from typing import Any
 
 import torch
+from torch import Tensor
 from tensordict import TensorDict, TensorDictBase
+from torchrl.data.replay_buffers.samplers import PrioritizedSampler
+from torchrl.envs import EnvBase, Transform
 from torchrl.envs.transforms.vecnorm import VecNormV2
+from torchrl.objectives import LossModule
 from torchrl.objectives.utils import _cache_values, _vmap_func
 
 __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNormNonNegativeVar", "transform_reset", "transform_step", "cache_values",
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
-           "module_kwargs"]
+           "module_kwargs", "SUBCLASS_INTERNALS", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
+           "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params"]
 
 #: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
 cache_values = _cache_values
@@ -39,9 +44,27 @@ new_tensordict_unsafe = TensorDict._new_unsafe
 PRIORITIZED_SAMPLER_INTERNALS = ("_init", "_tree_device_from_storage", "_maybe_init_from_storage",
                                  "_retransform_priority_trees")
 PRIORITIZED_SAMPLER_STATE = ("_max_capacity", "_alpha", "_beta", "_eps", "_max_priority_within_buffer", "_sum_tree",
-                             "_min_tree", "_max_priority")
+                             "_min_tree", "_max_priority", "_device")
 #: the methods of TorchRL's ``EnvBase`` that :class:`morl_trl.envs.ContextualMOEnv` overrides and calls
-ENV_BASE_INTERNALS = ("_step_and_maybe_reset",)
+#: (besides the documented ``_reset`` / ``_step`` / ``_set_seed``)
+ENV_BASE_INTERNALS = ("_step_and_maybe_reset", "_step_mdp", "_post_step_mdp_hooks")
+
+#: per TorchRL class, the private names morl_trl's subclasses of it override, set or call through
+#: ``self`` (TorchRL's subclassing protocol: e.g. an env implements ``_reset`` / ``_step`` /
+#: ``_set_seed`` and says ``_has_frame_skip`` when it skips frames itself, a transform ``_call`` /
+#: ``_reset`` / ``_step``, a loss declares ``_AcceptedKeys`` and ``_schedulable_buffers``, sets
+#: ``_value_estimator`` in ``make_value_estimator`` and keeps its ``in_keys`` in ``_in_keys``). Every name is one the class
+#: defines or sets (``tests/test_torchrl_compat.py``); any other one a subclass reaches through
+#: ``self`` fails ``tests/test_layers.py``.
+SUBCLASS_INTERNALS: dict[type, tuple[str, ...]] = {
+    EnvBase: ("_reset", "_step", "_set_seed", "_has_frame_skip") + ENV_BASE_INTERNALS,
+    Transform: ("_call", "_reset", "_step", "_reset_env_preprocess"),
+    LossModule: ("_AcceptedKeys", "_schedulable_buffers", "_forward_value_estimator_keys", "_value_estimator",
+                 "_in_keys"),
+    PrioritizedSampler: PRIORITIZED_SAMPLER_INTERNALS + PRIORITIZED_SAMPLER_STATE + ("_tree_argmax",
+                                                                                     "_STATE_SCHEMA_VERSION"),
+    VecNormV2: ("_norm",),
+}
 
 
 def collector_state(collector) -> dict[str, Any]:
@@ -105,3 +128,52 @@ def module_kwargs(module) -> list | None:
     """``module._kwargs``: the in_keys a tensordict ``TensorDictModule`` passes by keyword (``None``
     or empty: all positional, so its wrapped module can be called on the input tensors directly)."""
     return getattr(module, "_kwargs", None)
+
+
+# ---------------------------------------------------------------------- LossModule helpers (every loss)
+def priority_weight(loss_module, tensordict: TensorDictBase) -> Tensor | None:
+    """``loss_module._maybe_get_priority_weight(tensordict)``: the importance weights of a prioritised
+    sample (``None`` when the loss does not use them or the sample has none)."""
+    return loss_module._maybe_get_priority_weight(tensordict)
+
+
+def reduce_loss(loss_module, loss: Tensor, tensordict: TensorDictBase, weights: Tensor | None) -> Tensor:
+    """``loss_module._reduce_loss(loss, tensordict=..., weights=...)``: TorchRL's reduction by the
+    module's ``reduction`` (``"mean"`` with weights: ``sum(w loss) / sum(w)``), with its loss mask."""
+    return loss_module._reduce_loss(loss, tensordict=tensordict, weights=weights)
+
+
+def clear_weakrefs(loss_module, *tds) -> None:
+    """``loss_module._clear_weakrefs(*tds)``: what TorchRL's losses do at the end of ``forward`` under
+    ``torch.compile`` (``tds``: TensorDicts or names of the module's parameter TensorDicts)."""
+    loss_module._clear_weakrefs(*tds)
+
+
+def default_device(loss_module) -> torch.device | None:
+    """``loss_module._default_device``: the device of all its parameters (``None`` when spread)."""
+    return loss_module._default_device
+
+
+def target_updater_params(updater) -> tuple[list[str], Any, Any]:
+    """``(updater._target_names, updater._sources, updater._targets)`` of a TorchRL
+    ``TargetNetUpdater``: the loss's target attribute names, and the online and target parameter
+    TensorDicts (sources keyed ``name``, targets ``target_name``)."""
+    return updater._target_names, updater._sources, updater._targets
+
+
+# ---------------------------------------------------------------------- SACLoss (the SAC baseline)
+def sac_alpha(loss) -> Tensor:
+    """``loss._alpha`` of a TorchRL ``SACLoss`` / ``DiscreteSACLoss``: ``exp(log_alpha)``, detached,
+    after clamping ``log_alpha`` in place to ``[min_alpha, max_alpha]`` (as its ``forward`` does)."""
+    return loss._alpha
+
+
+def sac_vmap_qvalue(loss):
+    """``loss._vmap_qnetworkN0``: the critic ``vmap``-ed over the stacked critic parameters
+    (``(td, params) -> td`` with a leading critic dimension)."""
+    return loss._vmap_qnetworkN0
+
+
+def sac_detached_qvalue_params(loss) -> TensorDictBase:
+    """``loss._cached_detached_qvalue_params``: the critics' parameters, detached (cached per call)."""
+    return loss._cached_detached_qvalue_params

@@ -5,6 +5,9 @@ function, is checked against the packages that package may use.
 """
 
 import ast
+import importlib
+import importlib.util
+import inspect
 import re
 from pathlib import Path
 
@@ -238,7 +241,7 @@ def _private_attribute_uses(path: Path, own_classes: set[str]):
     """``(line, name)`` of every ``obj._name`` (and ``getattr/setattr/hasattr(obj, "_name")``) in
     ``path`` on an object other than ``self``, ``cls``, ``super()``, ``type(self)`` or a class of
     morl_trl's own (a subclass reaching its TorchRL base through ``self`` is checked by
-    tests/test_torchrl_compat.py, which lists those names)."""
+    :func:`test_torchrl_private_names_a_subclass_reaches_through_self_are_declared`)."""
 
     def own(node) -> bool:
         if isinstance(node, ast.Name):
@@ -282,3 +285,143 @@ def test_the_torchrl_private_attribute_check_catches_one(tmp_path):
     assert {"_sampler", "_storage", "_sample_unit", "_rng", "_carrier"} <= names
     assert [(line, n) for line, n in _private_attribute_uses(probe, set()) if n in names] == [(2, "_sampler"),
                                                                                               (3, "_sample_unit")]
+
+
+# ---------------------------------------------------------------------- ... and through ``self`` in subclasses
+_FOREIGN = ("torchrl", "tensordict")
+_SETS_ON_SELF = re.compile(r"self\.(_[A-Za-z]\w*)\s*(?::[^=\n]*)?=(?!=)")
+
+
+def _foreign(cls) -> bool:
+    return cls.__module__.split(".")[0] in _FOREIGN
+
+
+def _defined_by(base: type) -> set[str]:
+    """The private names a TorchRL / tensordict class defines: its class attributes and methods, and
+    what its methods (properties included) set on ``self``."""
+    names = {n for n in vars(base) if _is_private(n)}
+    for value in vars(base).values():
+        for func in [getattr(value, a, None) for a in ("fget", "fset", "__func__")] + [value]:
+            if inspect.isfunction(func):
+                try:
+                    names.update(_SETS_ON_SELF.findall(inspect.getsource(func)))
+                except (OSError, TypeError):
+                    continue
+    return names
+
+
+def _subclasses(cls: type) -> set[type]:
+    out, todo = set(), [cls]
+    while todo:
+        c = todo.pop()
+        if c not in out:
+            out.add(c)
+            todo.extend(c.__subclasses__())
+    return out
+
+
+def _self_private_names(node: ast.ClassDef):
+    """``(line, name)`` of every ``self._x`` / ``super()._x`` in a class and every ``_x`` its body
+    defines (methods, nested classes, class attributes)."""
+    for stmt in node.body:
+        if isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and _is_private(stmt.name):
+            yield stmt.lineno, stmt.name
+        elif isinstance(stmt, (ast.Assign, ast.AnnAssign)):
+            for target in stmt.targets if isinstance(stmt, ast.Assign) else [stmt.target]:
+                if isinstance(target, ast.Name) and _is_private(target.id):
+                    yield stmt.lineno, target.id
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Attribute) and _is_private(sub.attr) and (
+                (isinstance(sub.value, ast.Name) and sub.value.id == "self")
+                or (isinstance(sub.value, ast.Call) and isinstance(sub.value.func, ast.Name)
+                    and sub.value.func.id == "super")):
+            yield sub.lineno, sub.attr
+
+
+def _undeclared_torchrl_names(module, path: Path, declared: dict[type, tuple[str, ...]]) -> list[str]:
+    """The private names of a TorchRL / tensordict base that a class of ``module`` (or a mixin of
+    one) overrides or reaches through ``self`` without ``declared[that base]`` naming them."""
+    bad = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        cls = getattr(module, node.name, None) if isinstance(node, ast.ClassDef) else None
+        if not inspect.isclass(cls) or cls.__module__ != module.__name__:
+            continue
+        foreign, allowed = set(), set()
+        for sub in _subclasses(cls):
+            for base in sub.__mro__:
+                if _foreign(base):
+                    foreign |= _defined_by(base)
+            allowed.update(n for b, names in declared.items() if issubclass(sub, b) for n in names)
+        for line, name in sorted(set(_self_private_names(node))):
+            if name in foreign and name not in allowed:
+                bad.append(f"{path}:{line}: {node.name} reaches TorchRL's private .{name} through self "
+                           "(call it through morl_trl._torchrl_compat, or declare the hook in its SUBCLASS_INTERNALS)")
+    return bad
+
+
+def test_torchrl_private_names_a_subclass_reaches_through_self_are_declared():
+    """A subclass of a TorchRL / tensordict class (or a mixin of one) that overrides or reads one of
+    its private names through ``self`` does so only for names declared in
+    ``morl_trl._torchrl_compat.SUBCLASS_INTERNALS`` (each checked by tests/test_torchrl_compat.py);
+    any other use goes through a function of that module."""
+    from morl_trl._torchrl_compat import SUBCLASS_INTERNALS
+
+    bad = []
+    for name, path in MODULES.items():
+        if name != "morl_trl._torchrl_compat":
+            bad += _undeclared_torchrl_names(importlib.import_module(name), path, SUBCLASS_INTERNALS)
+    assert not bad, "\n".join(bad)
+
+
+def test_the_subclass_check_catches_an_undeclared_torchrl_private_name(tmp_path):
+    from torchrl.objectives import LossModule, SACLoss
+
+    probe = tmp_path / "probe_subclass.py"
+    probe.write_text(
+        "from torchrl.objectives import SACLoss\n"
+        "class Mixin:\n"
+        "    def a(self):\n"
+        "        return self._vmap_qnetworkN0, self._own\n"
+        "class Probe(Mixin, SACLoss):\n"
+        "    def _forward_value_estimator_keys(self, **kwargs):\n"
+        "        return super()._maybe_get_priority_weight, self._alpha\n")
+    spec = importlib.util.spec_from_file_location("probe_subclass", probe)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert issubclass(module.Probe, SACLoss)
+    found = _undeclared_torchrl_names(module, probe, {LossModule: ("_forward_value_estimator_keys",)})
+    assert [line.split(": ")[1].split(" ")[0] + line.split("private ")[1].split(" ")[0] for line in found] == [
+        "Mixin._vmap_qnetworkN0", "Probe._alpha", "Probe._maybe_get_priority_weight"]
+    assert len(_undeclared_torchrl_names(module, probe, {LossModule: ("_forward_value_estimator_keys", "_alpha",
+                                                                       "_maybe_get_priority_weight",
+                                                                       "_vmap_qnetworkN0")})) == 0
+
+
+def _torchrl_private_imports(path: Path) -> list[tuple[int, str]]:
+    """``(line, what)`` of every import of a private TorchRL / tensordict module or name."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names if a.name.split(".")[0] in _FOREIGN
+                    and any(_is_private(p) for p in a.name.split("."))]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module and \
+                node.module.split(".")[0] in _FOREIGN:
+            out += [(node.lineno, f"{node.module}.{a.name}") for a in node.names
+                    if any(_is_private(p) for p in node.module.split(".")) or _is_private(a.name)]
+    return out
+
+
+def test_torchrl_private_modules_and_names_are_imported_only_by_the_adapter_module():
+    bad = [f"morl_trl/{path.relative_to(PACKAGE)}:{line}: imports {what} (go through morl_trl._torchrl_compat)"
+           for name, path in MODULES.items() if name != "morl_trl._torchrl_compat"
+           for line, what in _torchrl_private_imports(path)]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_private_torchrl_import_check_catches_one(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("from torchrl.objectives.utils import _vmap_func, distance_loss\n"
+                     "import torchrl._utils\nfrom tensordict._td import TensorDict\n"
+                     "from torchrl.objectives import SACLoss as _Alias\nimport torch._dynamo\n")
+    assert _torchrl_private_imports(probe) == [(1, "torchrl.objectives.utils._vmap_func"), (2, "torchrl._utils"),
+                                               (3, "tensordict._td.TensorDict")]

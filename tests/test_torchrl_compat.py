@@ -2,7 +2,9 @@
 still exists and does what we rely on; a TorchRL release that changes one fails here, by name."""
 
 import inspect
+import re
 
+import pytest
 import torch
 from tensordict import TensorDict
 from torchrl.collectors import Collector
@@ -61,8 +63,41 @@ def test_prioritized_sampler_internals_exist():
 
 
 def test_env_base_internals_exist():
-    missing = [n for n in compat.ENV_BASE_INTERNALS if not callable(getattr(EnvBase, n, None))]
+    missing = [n for n in compat.ENV_BASE_INTERNALS if n not in vars(EnvBase)]
     assert not missing, f"TorchRL's EnvBase no longer has {missing} (morl_trl.envs.ContextualMOEnv overrides them)"
+    assert callable(EnvBase._step_and_maybe_reset) and EnvBase._post_step_mdp_hooks is None
+    assert isinstance(vars(EnvBase)["_step_mdp"], property)  # (a cached step_mdp callable, read by ContextualMOEnv)
+
+
+def _defines(cls: type, name: str) -> bool:
+    """Whether TorchRL's ``cls`` (or a TorchRL / tensordict base of it) has ``name`` as a class
+    attribute or sets it on ``self`` in one of its methods."""
+    for base in cls.__mro__:
+        if base.__module__.split(".")[0] not in ("torchrl", "tensordict"):
+            continue
+        if name in vars(base):
+            return True
+        for value in vars(base).values():
+            funcs = [getattr(value, a, None) for a in ("fget", "fset", "__func__")] + [value]
+            if any(inspect.isfunction(f) and re.search(rf"self\.{name}\s*(:[^=\n]*)?=(?!=)", inspect.getsource(f))
+                   for f in funcs):
+                return True
+    return False
+
+
+@pytest.mark.parametrize("cls", list(compat.SUBCLASS_INTERNALS), ids=lambda c: c.__name__)
+def test_every_declared_subclass_hook_is_one_torchrl_defines(cls):
+    missing = [n for n in compat.SUBCLASS_INTERNALS[cls] if not _defines(cls, n)]
+    assert not missing, (f"TorchRL's {cls.__name__} no longer defines {missing}: the morl_trl subclasses that "
+                         "override or read them (tests/test_layers.py lists where) must follow its new names")
+
+
+def test_the_hook_check_tells_a_torchrl_name_from_a_missing_one():
+    from torchrl.objectives import LossModule, SACLoss
+
+    assert _defines(SACLoss, "_vmap_qnetworkN0")  # set in SACLoss._make_vmap
+    assert _defines(LossModule, "_value_estimator") and _defines(LossModule, "_AcceptedKeys")
+    assert not _defines(LossModule, "_not_a_torchrl_name") and not _defines(SACLoss, "_vmap_qnetwork")
 
 
 # ---------------------------------------------------------------------- replay buffers (the captured update's sampling)
@@ -142,3 +177,68 @@ def test_reset_collector_restarts_every_episode_without_touching_the_envs_live_c
     second = next(iter(collector))
     assert first.shape == second.shape == (2, 4)
     collector.shutdown()
+
+
+# ---------------------------------------------------------------------- LossModule helpers
+def test_priority_weight_and_reduce_loss_give_the_weighted_mean():
+    loss = _sac_loss()
+    td = TensorDict({"priority_weight": torch.tensor([1.0, 3.0])}, [2])
+    weights = compat.priority_weight(loss, td)
+    assert weights.tolist() == [1.0, 3.0], "TorchRL's LossModule._maybe_get_priority_weight no longer reads priority_weight"
+    assert compat.priority_weight(loss, TensorDict({}, [2])) is None
+    value = compat.reduce_loss(loss, torch.tensor([2.0, 4.0]), td, weights)
+    assert value.item() == (2.0 * 1.0 + 4.0 * 3.0) / (1.0 + 3.0), \
+        "TorchRL's LossModule._reduce_loss no longer gives the weighted mean sum(w loss) / sum(w)"
+    assert compat.reduce_loss(loss, torch.tensor([2.0, 4.0]), td, None).item() == 3.0
+
+
+def test_clear_weakrefs_and_default_device_exist_on_every_loss():
+    from torchrl.objectives import LossModule
+
+    assert list(inspect.signature(LossModule._clear_weakrefs).parameters) == ["self", "tds"]
+    sac = _sac_loss()
+    compat.clear_weakrefs(sac, TensorDict({}, []), "actor_network_params")  # (a no-op outside torch.compile)
+    assert compat.default_device(sac) == torch.device("cpu")
+
+
+def test_target_updater_params_pairs_the_online_and_target_parameters():
+    from torchrl.objectives import SoftUpdate
+
+    sac = _sac_loss()
+    names, sources, targets = compat.target_updater_params(SoftUpdate(sac, tau=0.5))
+    assert names == ["target_qvalue_network_params"]
+    assert list(sources.keys()) == ["qvalue_network_params"] and list(targets.keys()) == names
+    leaf = ("module", "mlp", "0", "weight")
+    assert torch.equal(sources["qvalue_network_params"][leaf], sac.qvalue_network_params[leaf])
+    assert torch.equal(targets["target_qvalue_network_params"][leaf], sac.target_qvalue_network_params[leaf])
+
+
+# ---------------------------------------------------------------------- SACLoss (the SAC baseline)
+def _sac_loss(**kw):
+    from torchrl.data import Bounded
+    from torchrl.objectives import SACLoss
+
+    from morl_trl.objectives.networks import make_gaussian_actor, make_vector_critic
+
+    torch.manual_seed(0)
+    spec = Bounded(-1.0, 1.0, (2,))
+    return SACLoss(make_gaussian_actor(5, spec, 1, num_cells=(8,), preference_key=None),
+                   make_vector_critic(5, 2, 1, num_cells=(8,), preference_key=None), action_spec=spec, **kw)
+
+
+def test_sac_alpha_is_the_clamped_temperature():
+    loss = _sac_loss(alpha_init=4.0, max_alpha=2.0)
+    assert abs(compat.sac_alpha(loss).item() - 2.0) < 1e-6, "TorchRL's SACLoss._alpha no longer clamps to max_alpha"
+    assert abs(loss.log_alpha.item() - torch.log(torch.tensor(2.0)).item()) < 1e-6  # (clamped in place)
+    assert not compat.sac_alpha(loss).requires_grad
+
+
+def test_sac_vmap_qvalue_runs_every_critic_on_the_detached_parameters():
+    loss = _sac_loss()
+    params = compat.sac_detached_qvalue_params(loss)
+    assert params.batch_size[0] == 2 and not any(p.requires_grad for p in params.values(True, True))
+    td = TensorDict({"observation": torch.randn(3, 5), "action": torch.zeros(3, 2)}, [3])
+    q = compat.sac_vmap_qvalue(loss)(td, params)["state_action_value"]
+    assert q.shape == (2, 3, 1), "TorchRL's SACLoss._vmap_qnetworkN0 no longer stacks the critics first"
+    with params[0].to_module(loss.qvalue_network):
+        assert torch.allclose(q[0], loss.qvalue_network(td.clone())["state_action_value"])

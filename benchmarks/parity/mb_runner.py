@@ -95,6 +95,22 @@ def _policy(case: dict, agent, space):
     return _row_act(lambda o, w: agent.eval(o, w), space)
 
 
+def evaluate_after_archive_updates(agent, evaluate, eval_every: int) -> None:
+    """Hooks ``evaluate(frames)`` on MB PGMORL's ``__eval_all_agents`` (the only place its Pareto
+    archive changes): after the call that finds ``global_step`` at or past the next multiple of
+    ``eval_every`` (the first: frame 0, before training)."""
+    eval_all = agent._PGMORL__eval_all_agents
+    next_eval = [0]
+
+    def eval_all_and_evaluate(*args, **kwargs):
+        eval_all(*args, **kwargs)
+        if agent.global_step >= next_eval[0]:
+            evaluate(agent.global_step)
+            next_eval[0] = agent.global_step + eval_every
+
+    agent._PGMORL__eval_all_agents = eval_all_and_evaluate
+
+
 def _call(fn, **kwargs):
     """``fn(**kwargs)`` keeping only the keyword arguments it takes (MB's train() signatures differ)."""
     names = inspect.signature(fn).parameters
@@ -168,18 +184,15 @@ def run(case_name: str, seed: int, out: Path) -> None:
         from morl_baselines.multi_policy.pgmorl.pgmorl import PGMORL as cls
     else:
         raise SystemExit(f"no MB runner for {algo}")
-    if algo == "pgmorl":  # MB builds its vector envs from the id; evaluated after each iteration instead
+    if algo == "pgmorl":
+        # MB builds its vector envs from the id. The evaluation acts with MB's Pareto archive, which
+        # only changes in __eval_all_agents (deep copies of the members, after the warm-up and after
+        # every generation, and once before training), so it is evaluated right after that call:
+        # at frame 0 and after each iteration's update, as ours (whose archive takes the members when
+        # each iteration's update is done). Hooked after __train_all_agents instead, as before, the
+        # evaluation at frame F acted with the archive of the iteration before (one iteration stale).
         agent = cls(env_id=case["env"], origin=ref_point, **kw)
-        train_all = agent._PGMORL__train_all_agents
-        next_eval = [case["eval_every"]]
-
-        def train_all_and_evaluate(*args, **kwargs):
-            train_all(*args, **kwargs)
-            if agent.global_step >= next_eval[0]:
-                evaluate(agent.global_step)
-                next_eval[0] += case["eval_every"]
-
-        agent._PGMORL__train_all_agents = train_all_and_evaluate
+        evaluate_after_archive_updates(agent, evaluate, case["eval_every"])
     else:
         agent = cls(env=env, **kw)
     if algo in ("envelope", "capql"):  # untrained policies act: the curve starts at frame 0 as ours

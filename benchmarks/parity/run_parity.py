@@ -51,6 +51,13 @@ def ensure_mb_venv(venv: Path) -> Path:
 
 
 # ---------------------------------------------------------------------- one run of ours
+def ours_budget(case: dict) -> tuple[int, int, int]:
+    """``(frames, eval_interval, scale)`` for ``morl_trl.train``: a case counts frames as MB does; ours
+    counts one PGMORL member's (the authors' count), ``1 / ours_frame_scale`` of MB's."""
+    scale = case.get("ours_frame_scale", 1)
+    return case["frames"] // scale, case["eval_every"] // scale, scale
+
+
 def run_ours(case_name: str, seed: int, out: Path) -> None:
     import tempfile
 
@@ -84,14 +91,17 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=case["frames"],
-                                 eval_interval=case["eval_every"], eval_weights=EVAL_WEIGHTS,
+            frames, eval_every, scale = ours_budget(case)
+            run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=frames,
+                                 eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
                                  progress=False, run_dir=f"{tmp}/run", **case["ours"])
             wall = time.perf_counter() - started[0]
             with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
                 curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
                          for row in csv.DictReader(fh)]
+            for point in curve:
+                point["frames"] *= scale
     finally:
         MultiContextEvaluator.evaluate, Run.start = evaluate, start
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)

@@ -10,7 +10,7 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators
 from torchrl.objectives.value import ValueEstimatorBase
 
-from morl_trl._torchrl_compat import module_kwargs
+from morl_trl._torchrl_compat import default_device, module_kwargs
 from morl_trl.objectives.value import VectorTD0Estimator
 from morl_trl.preferences import PREFERENCE_DISTRIBUTIONS, check_simplex, sample_preferences
 
@@ -162,7 +162,7 @@ class MultiObjectiveLossModule(LossModule):
             )
         self.value_type = value_type
         hp = {"gamma": 0.99, **hyperparams}
-        hp.setdefault("device", self._default_device)
+        hp.setdefault("device", default_device(self))
         self._value_estimator = VectorTD0Estimator(**hp)
         self._forward_value_estimator_keys()
         return self

@@ -24,6 +24,7 @@ from tensordict.utils import NestedKey
 from torch import nn
 from torch.nn import functional as F
 
+from morl_trl._torchrl_compat import clear_weakrefs
 from morl_trl.objectives.batched import (
     BatchedLayerNorm,
     BatchedLinear,
@@ -454,7 +455,7 @@ class GPILoss(MultiObjectiveLossModule):
         tensordict.set(keys.priority, priority.reshape(tensordict.shape))
         out = TensorDict({"loss_qvalue": loss, "td_error_mean": td.detach().mean(),
                           "scalarized_q": torch.einsum("ebk,bk->eb", q_taken.detach(), w).mean()}, batch_size=[])
-        self._clear_weakrefs(tensordict, out, "value_network_params", "target_value_network_params")
+        clear_weakrefs(self, tensordict, out, "value_network_params", "target_value_network_params")
         return out
 
 
@@ -691,6 +692,6 @@ class GPIContinuousLoss(MultiObjectiveLossModule):
         loss_actor = self.actor_loss()
         out = TensorDict({"loss_qvalue": loss_q, "loss_actor": loss_actor,
                           "scalarized_q": torch.einsum("bk,bk->b", q[0].detach(), w).mean()}, batch_size=[])
-        self._clear_weakrefs(tensordict, out, "actor_network_params", "target_actor_network_params",
-                             "qvalue_network_params", "target_qvalue_network_params")
+        clear_weakrefs(self, tensordict, out, "actor_network_params", "target_actor_network_params",
+                       "qvalue_network_params", "target_qvalue_network_params")
         return out

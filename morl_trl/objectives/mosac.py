@@ -26,7 +26,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import distance_loss
 
-from morl_trl._torchrl_compat import cache_values, vmap_func
+from morl_trl._torchrl_compat import cache_values, clear_weakrefs, priority_weight, reduce_loss, vmap_func
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference, module_output
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
@@ -314,10 +314,10 @@ class _MOSACBase(MultiObjectiveLossModule):
         return loss, scalar_td.detach().abs().max(0).values
 
     def _reduce(self, loss: Tensor, data: TensorDictBase) -> Tensor:
-        weights = self._maybe_get_priority_weight(data)
+        weights = priority_weight(self, data)
         if weights is not None:
             weights = weights.reshape(loss.shape)
-        return self._reduce_loss(loss, tensordict=data, weights=weights)
+        return reduce_loss(self, loss, data, weights)
 
     def _output(self, tensordict, losses: dict, log_prob: Tensor, td_error: Tensor) -> TensorDict:
         tensordict.set(self.tensor_keys.priority, td_error.reshape(tensordict.shape))
@@ -327,8 +327,8 @@ class _MOSACBase(MultiObjectiveLossModule):
             out = TensorDict({k: v.reshape(tensordict.shape) for k, v in losses.items()}, batch_size=tensordict.shape)
         else:
             out = TensorDict({**losses, "alpha": self._alpha, "entropy": -log_prob.detach().mean()}, batch_size=[])
-        self._clear_weakrefs(
-            tensordict, out, "actor_network_params", "qvalue_network_params", "target_qvalue_network_params"
+        clear_weakrefs(
+            self, tensordict, out, "actor_network_params", "qvalue_network_params", "target_qvalue_network_params"
         )
         return out
 

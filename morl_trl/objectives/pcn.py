@@ -130,7 +130,6 @@ class PCNLoss(LossModule):
 
     def __init__(self, network: TensorDictModule) -> None:
         super().__init__()
-        self._set_deprecated_ctor_keys()
         self.convert_to_functional(network, "policy_network")
         self.discrete = bool(network.module.discrete) if hasattr(network, "module") else True
 

@@ -46,6 +46,8 @@ from torchrl.objectives import DiscreteSACLoss as _TorchRLDiscreteSACLoss
 from torchrl.objectives import SACLoss as _TorchRLSACLoss
 from torchrl.objectives.sac import compute_rsample_log_prob
 
+from morl_trl._torchrl_compat import (priority_weight, reduce_loss, sac_alpha, sac_detached_qvalue_params,
+                                      sac_vmap_qvalue)
 from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
 
 __all__ = ["SACLoss", "DiscreteSACLoss"]
@@ -66,9 +68,9 @@ class _TemperaturePart:
         if log_prob is None:
             with torch.no_grad():
                 log_prob = self._fresh_log_prob(tensordict, dist)
-        self._alpha  # noqa: B018 - clamps log_alpha to [min_alpha, max_alpha] as TorchRL's forward does
+        sac_alpha(self)  # clamps log_alpha to [min_alpha, max_alpha] as TorchRL's forward does
         loss = temperature_objective(self.log_alpha, log_prob.detach(), self.target_entropy, self.alpha_loss_form)
-        return self._reduce_loss(loss, tensordict=tensordict, weights=self._maybe_get_priority_weight(tensordict))
+        return reduce_loss(self, loss, tensordict, priority_weight(self, tensordict))
 
 
 class SACLoss(_TemperaturePart, _TorchRLSACLoss):
@@ -93,9 +95,9 @@ class SACLoss(_TemperaturePart, _TorchRLSACLoss):
         """The current actor's distribution on ``tensordict`` (with gradient), to share between
         :meth:`temperature_loss` and :meth:`actor_loss`: one network forward for the temperature's
         fresh sample and the next actor step's sample, drawn in that order."""
-        return self._dist(tensordict)
+        return self._current_dist(tensordict)
 
-    def _dist(self, tensordict: TensorDictBase):
+    def _current_dist(self, tensordict: TensorDictBase):
         with set_exploration_type(ExplorationType.RANDOM), self.actor_network_params.to_module(
                 self.actor_network, preserve_module_state=False):
             return self.actor_network.get_dist(tensordict)
@@ -109,13 +111,13 @@ class SACLoss(_TemperaturePart, _TorchRLSACLoss):
             action, log_prob = compute_rsample_log_prob(dist)
         td_q = tensordict.select(*self.qvalue_network.in_keys, strict=False)
         td_q.set(self.tensor_keys.action, action)
-        q = self._vmap_qnetworkN0(td_q, self._cached_detached_qvalue_params).get(self.tensor_keys.state_action_value)
-        loss = self._alpha * log_prob - q.min(0)[0].squeeze(-1)
-        loss = self._reduce_loss(loss, tensordict=tensordict, weights=self._maybe_get_priority_weight(tensordict))
+        q = sac_vmap_qvalue(self)(td_q, sac_detached_qvalue_params(self)).get(self.tensor_keys.state_action_value)
+        loss = sac_alpha(self) * log_prob - q.min(0)[0].squeeze(-1)
+        loss = reduce_loss(self, loss, tensordict, priority_weight(self, tensordict))
         return loss, {"log_prob": log_prob.detach()}
 
     def _fresh_log_prob(self, tensordict: TensorDictBase, dist=None) -> Tensor:
-        dist = self._dist(tensordict) if dist is None else dist
+        dist = self._current_dist(tensordict) if dist is None else dist
         with set_exploration_type(ExplorationType.RANDOM):
             return compute_rsample_log_prob(dist)[1]
 

@@ -6,6 +6,8 @@ import torch
 from torch import Tensor
 from torchrl.objectives import SoftUpdate
 
+from morl_trl._torchrl_compat import target_updater_params
+
 __all__ = ["PolyakUpdate", "polyak_"]
 
 
@@ -51,11 +53,12 @@ class PolyakUpdate(SoftUpdate):
         """``(sources, targets)``: the online and target parameter tensors, paired in order."""
         pairs = self.__dict__.get("_leaf_pairs")
         if pairs is None:
-            for name in self._target_names:
+            target_names, source_params, target_params = target_updater_params(self)
+            for name in target_names:
                 getattr(self.loss_module, name)
             sources, targets = [], []
-            for key, source in self._sources.items():
-                target = self._targets.get(f"target_{key}")
+            for key, source in source_params.items():
+                target = target_params.get(f"target_{key}")
                 for leaf in source.keys(True, True):
                     sources.append(source.get(leaf))
                     targets.append(target.get(leaf))

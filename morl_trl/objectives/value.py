@@ -121,7 +121,7 @@ class VectorTD0Estimator(ValueEstimatorBase):
             skip_existing=skip_existing,
             device=device,
         )
-        self.register_buffer("gamma", torch.as_tensor(gamma, dtype=torch.float32, device=self._device))
+        self.register_buffer("gamma", torch.as_tensor(gamma, dtype=torch.float32, device=device))
 
     @dispatch
     def forward(

@@ -76,6 +76,56 @@ def test_mb_multi_policy_acts_with_member_of_nearest_weight(monkeypatch):
     sys.modules.pop("common", None)
 
 
+def _load_mb_runner(monkeypatch):
+    monkeypatch.syspath_prepend(str(PARITY))
+    spec = importlib.util.spec_from_file_location("mb_runner", PARITY / "mb_runner.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_pgmorl_case_runs_the_same_iterations_on_both_sides(parity):
+    """MB 1.3.0 counts every member's frames (max_iterations = frames // steps // envs // pop, then at
+    least warm-up + one generation); ours counts one member's: its budget is frames / 6, so both run
+    3 PPO iterations of 4 envs x 32 steps per member on pgmorl-hopper."""
+    from common import CASES
+
+    from morl_trl.recipes.pgmorl import pgmorl_iterations
+
+    case = CASES["pgmorl-hopper"]
+    mb = case["mb"]
+    mb_iterations = max(case["frames"] // mb["steps_per_iteration"] // 4 // 6,
+                        mb["warmup_iterations"] + mb["evolutionary_iterations"])
+    frames, eval_every, scale = parity.ours_budget(case)
+    assert (frames, eval_every, scale) == (384, 128, 6)
+    steps = case["ours"]["frames_per_batch"] // 24  # per sub-env and iteration
+    ours_iterations = pgmorl_iterations(frames, 4 * steps, case["ours"]["pgmorl_warmup"],
+                                        case["ours"]["pgmorl_evo_iterations"])
+    assert mb_iterations == ours_iterations == 3
+    assert parity.ours_budget(CASES["gpi_ls-dst"]) == (2_000, 1_000, 1)  # other cases: the same count
+
+
+def test_mb_pgmorl_is_evaluated_after_its_archive_changes(monkeypatch):
+    """MB's PGMORL archive only changes in __eval_all_agents: the runner evaluates right after it
+    (frame 0, then each call at or past the next multiple), never with the archive of an earlier iteration."""
+    mb_runner = _load_mb_runner(monkeypatch)
+
+    class FakePGMORL:
+        def __init__(self):
+            self.global_step, self.archive = 0, []
+
+        def _PGMORL__eval_all_agents(self, *args, **kwargs):
+            self.archive = [self.global_step]
+
+    agent, seen = FakePGMORL(), []
+    mb_runner.evaluate_after_archive_updates(agent, lambda frames: seen.append((frames, list(agent.archive))), 768)
+    for step in (0, 1536, 2304, 2500):  # the calls of train(): before training, after warm-up, generations
+        agent.global_step = step
+        agent._PGMORL__eval_all_agents()
+    assert seen == [(0, [0]), (1536, [1536]), (2304, [2304])]  # 2500 < 2304 + 768: not evaluated
+    sys.modules.pop("common", None)
+
+
 @pytest.mark.slow
 def test_smoke_run_of_our_side_writes_a_curve(tmp_path):
     """PARITY_SMOKE=1: a 200-frame run of our PCN on deep-sea-treasure-v0 through the harness."""
