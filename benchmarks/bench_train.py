@@ -40,6 +40,7 @@ evaluations hooked into it (as the parity benchmark does). No MB python: its col
 
     python benchmarks/bench_train.py --one-env                       # the four default cases, 2,000 frames
     python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 500
+    python benchmarks/bench_train.py --one-env --clock cpu       # each library's process CPU time: steadier when shared
     python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 30 --peer none   # a dry run ``--table FILE`` appends each row, tab-separated, to
 ``FILE`` as it is measured (what ``benchmarks/gpu/check.sh`` collects into its table).
 """
@@ -223,14 +224,17 @@ def mb_python(choice: str | None) -> Path | None:
     return next((p for p in MB_PYTHONS if p.exists()), None)
 
 
-def mb_one_env(case: str, frames: int, python: Path, seed: int = 0) -> dict:
-    """MB's class of the parity case through its own ``train()`` (``mb_runner.run``), in MB's python."""
+def mb_one_env(case: str, frames: int, python: Path, seed: int = 0, clock: str = "wall") -> dict:
+    """MB's class of the parity case through its own ``train()`` (``mb_runner.run``), in MB's python;
+    ``clock="cpu"``: its process's CPU time instead of wall time (``mb_runner``'s ``time.perf_counter``
+    read as ``time.process_time``)."""
     import json
     import subprocess
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        code = (f"import sys; sys.path.insert(0, {str(PARITY)!r}); import common; "
+        code = ("import time; time.perf_counter = time.process_time; " if clock == "cpu" else "")
+        code += (f"import sys; sys.path.insert(0, {str(PARITY)!r}); import common; "
                 f"common.CASES[{case!r}].update(frames={frames}, eval_every={frames}); import mb_runner; "
                 f"from pathlib import Path; mb_runner.run({case!r}, {seed}, Path({tmp!r}) / 'mb.json')")
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
@@ -243,9 +247,8 @@ def mb_one_env(case: str, frames: int, python: Path, seed: int = 0) -> dict:
 
 
 def one_env_main(args) -> int:
-    """The ``--one-env`` table: ours vs MB frames/s per parity case, and the ratio (wall clock: MB's runner measures it)."""
-    global CLOCK
-    CLOCK = time.perf_counter
+    """The ``--one-env`` table: ours vs MB frames/s per parity case, and the ratio (``--clock``: wall time,
+    or each process's CPU time, for both libraries)."""
     python = None if args.peer == "none" else mb_python(args.mb_python)
     if args.peer == "none":
         peer_label = "none (--peer none)"
@@ -253,7 +256,7 @@ def one_env_main(args) -> int:
         peer_label = f"none (no MORL-Baselines python: {args.mb_python or ', '.join(map(str, MB_PYTHONS))})"
     else:
         peer_label = f"MORL-Baselines' own train() loop ({python})"
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s), wall clock; one env, "
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s), {args.clock} clock; one env, "
           f"{args.one_env_frames} frames per case; peer: {peer_label}")
     print(f"{'case':<20} {'env':<30} {'ours f/s':>9} {'MB f/s':>9} {'ours/MB':>8}")
     for case in args.one_env:
@@ -262,7 +265,7 @@ def one_env_main(args) -> int:
             peer, ratio = "none", "-"
         else:
             try:
-                m = mb_one_env(case, args.one_env_frames, python)
+                m = mb_one_env(case, args.one_env_frames, python, clock=args.clock)
                 peer, ratio = f"{m['fps']:.1f}", f"{r['fps'] / m['fps']:.2f}x"
             except RuntimeError as err:
                 peer, ratio = "failed", str(err)[:80]

@@ -57,6 +57,11 @@ class _SegmentTree:
 
     _combine_np: staticmethod
 
+    @staticmethod
+    def _combine_py(left: float, right: float) -> float:
+        """``_combine_np`` of two Python floats (the same value once stored in the tree's dtype)."""
+        raise NotImplementedError
+
     def _host(self) -> np.ndarray | None:
         """A NumPy view of the tree when it lives on the CPU and no graph is being traced (else ``None``)."""
         if self._tree.device.type != "cpu" or torch.compiler.is_compiling():
@@ -65,19 +70,23 @@ class _SegmentTree:
 
     def _write_host(self, tree: np.ndarray, index: np.ndarray, value: np.ndarray) -> None:
         """``tree[index] = value`` (unique indices) and the parents recombined level by level."""
-        combine = self._combine_np
-        if index.size == 1:  # (one new transition per frame: plain scalar arithmetic)
+        if index.size == 1:  # (one new transition per frame: Python floats, rounded where stored)
+            # a float32 sum computed in float64 and rounded once is the float32 sum (53 >= 2 * 24 + 2 bits)
+            combine, item = self._combine_py, tree.item
             node = int(index[0]) + self._size
             tree[node] = value[0]
             for _ in range(self._levels):
                 node >>= 1
-                tree[node] = combine(tree[2 * node], tree[2 * node + 1])
+                tree[node] = combine(item(2 * node), item(2 * node + 1))
             return
+        # row p of the pairs view holds the children (2p, 2p + 1) of node p: one gather and one
+        # two-element reduction (a single addition / minimum) per level
+        pairs, reduce = tree.reshape(-1, 2), self._combine_np.reduce
         node = index + self._size
         tree[node] = value
         for _ in range(self._levels):
-            node = node >> 1  # repeated parents receive identical values: duplicates are harmless
-            tree[node] = combine(tree[2 * node], tree[2 * node + 1])
+            node >>= 1  # repeated parents receive identical values: duplicates are harmless
+            tree[node] = reduce(pairs[node], axis=1)
 
     @staticmethod
     def _last_writes(index: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -100,17 +109,36 @@ class _SegmentTree:
         values = self._tree[self._as_index(index) + self._size]
         return values[0] if scalar else values
 
+    def _set_host(self, host: np.ndarray, index, value) -> None:
+        """``tree[index] = value`` on a CPU tree, in NumPy from the start (no torch op per call)."""
+        idx = (index.numpy() if isinstance(index, torch.Tensor) else np.asarray(index)).reshape(-1)
+        if not idx.size:
+            return
+        if idx.dtype.kind not in "iu":
+            idx = torch.as_tensor(idx, dtype=torch.long).numpy()  # (as _as_index converts)
+        lo, hi = (int(idx[0]),) * 2 if idx.size == 1 else (int(idx.min()), int(idx.max()))
+        if lo < 0 or hi >= self.capacity:
+            raise IndexError(f"segment tree index out of range [0, {self.capacity}): min {lo}, max {hi}.")
+        if isinstance(value, torch.Tensor):
+            val = value.detach().to(self.dtype).numpy().reshape(-1)
+        else:
+            val = np.asarray(value, dtype=host.dtype).reshape(-1)
+        if val.size != idx.size:
+            val = np.broadcast_to(val, idx.shape)
+        if idx.size > 1:
+            idx, val = self._last_writes(idx, val)
+        self._write_host(host, idx, val)
+        self._written = max(self._written, hi + 1)
+
     def __setitem__(self, index, value) -> None:
+        host = self._host()
+        if host is not None:
+            self._set_host(host, index, value)
+            return
         index = self._as_index(index)
         if index.numel() == 0:
             return
         value = torch.as_tensor(value, dtype=self.dtype, device=self.device).reshape(-1).expand(index.shape)
-        host = self._host()
-        if host is not None:
-            idx, val = self._last_writes(index.numpy(), value.detach().numpy())
-            self._write_host(host, idx, val)
-            self._written = max(self._written, int(idx.max()) + 1)
-            return
         if index.numel() > 1:
             # Keep the last write of a repeated index (what a sequential update does).
             unique, inverse = torch.unique(index, return_inverse=True)
@@ -217,6 +245,10 @@ class SumSegmentTree(_SegmentTree):
     neutral = 0.0
     _combine_np = staticmethod(np.add)
 
+    @staticmethod
+    def _combine_py(left: float, right: float) -> float:
+        return left + right
+
     def _combine(self, left, right):
         return left + right
 
@@ -229,12 +261,14 @@ class SumSegmentTree(_SegmentTree):
         if host is not None:
             mass_np = torch.as_tensor(mass, dtype=self.dtype).reshape(-1).numpy().copy()
             node_np = np.ones(mass_np.shape, dtype=np.int64)
+            pairs = host.reshape(-1, 2)  # row p: the children (2p, 2p + 1) of node p
             for _ in range(self._levels):
-                left = 2 * node_np
-                left_sum = host[left]
-                go_right = (mass_np >= left_sum) & (host[left + 1] > 0)
-                mass_np = np.where(go_right, mass_np - left_sum, mass_np)
-                node_np = np.where(go_right, left + 1, left)
+                children = pairs[node_np]
+                left_sum = children[:, 0]
+                go_right = (mass_np >= left_sum) & (children[:, 1] > 0)
+                np.subtract(mass_np, left_sum, out=mass_np, where=go_right)
+                node_np <<= 1
+                node_np += go_right
             return torch.from_numpy(node_np - self._size)
         mass = torch.as_tensor(mass, dtype=self.dtype, device=self.device).reshape(-1).clone()
         node = torch.ones(mass.shape, dtype=torch.long, device=self.device)
@@ -259,6 +293,10 @@ class MinSegmentTree(_SegmentTree):
 
     neutral = math.inf
     _combine_np = staticmethod(np.minimum)
+
+    @staticmethod
+    def _combine_py(left: float, right: float) -> float:
+        return left if left < right or left != left else right  # np.minimum's choice, NaN and signed zeros included
 
     def _combine(self, left, right):
         return torch.minimum(left, right)

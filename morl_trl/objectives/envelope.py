@@ -13,6 +13,7 @@ from torchrl.objectives.utils import distance_loss
 
 from morl_trl._torchrl_compat import clear_weakrefs, priority_weight, reduce_loss
 from morl_trl.objectives.common import MultiObjectiveLossModule, module_output
+from morl_trl.objectives.fast_path import FunctionalNetwork
 
 __all__ = ["EnvelopeQLoss"]
 
@@ -148,6 +149,9 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
 
     default_keys = _AcceptedKeys
     tensor_keys: _AcceptedKeys
+    #: evaluate the networks :func:`~morl_trl.objectives.networks.make_vector_q_network` builds from their
+    #: parameter leaves (:mod:`morl_trl.objectives.fast_path`: the same values); ``False``: TorchRL's ``to_module``
+    fast_networks: bool = True
     _schedulable_buffers = frozenset({"homotopy_lambda"})
 
     value_network: TensorDictModule
@@ -256,9 +260,31 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
             w = torch.cat([data.get(self.tensor_keys.preference).unsqueeze(1).to(w.dtype), w[:, 1:]], 1)
         return w
 
+    def _fast_plan(self) -> FunctionalNetwork | None:
+        """The network's :class:`~morl_trl.objectives.fast_path.FunctionalNetwork` (the networks
+        :func:`~morl_trl.objectives.networks.make_vector_q_network` builds), else ``None``."""
+        if not self.fast_networks:
+            return None
+        cache = self.__dict__.get("_fast_plan_cache")
+        if cache is None:
+            cache = self.__dict__["_fast_plan_cache"] = FunctionalNetwork.of(self.value_network,
+                                                                             self.value_network_params) or False
+        return cache or None
+
     def _q_values(self, data: TensorDictBase, w: torch.Tensor, params: TensorDictBase) -> torch.Tensor:
         """Runs the network once on every (transition, preference) pair: ``[B, N, |A|, k]``."""
         batch, n = w.shape[:2]
+        plan = self._fast_plan()
+        if plan is not None:  # the same operations on the parameter leaves, nothing swapped into the module
+            pref = self.tensor_keys.preference
+            inputs = []
+            for key in plan.in_keys:
+                if key == pref:
+                    inputs.append(w)
+                else:
+                    x = data.get(key)
+                    inputs.append(x.unsqueeze(1).expand(batch, n, *x.shape[1:]))
+            return plan(plan.leaves(params), inputs)
         pairs = data.select(*self._network_input_keys).unsqueeze(1).expand(batch, n)
         pairs.set(self.tensor_keys.preference, w)
         with params.to_module(self.value_network, preserve_module_state=False):
@@ -269,7 +295,9 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         """``[B, N, k]`` target-network value of the envelope-maximising (action, preference)."""
         batch, n, k = w.shape
         q_target = self._q_values(next_data, w, self.target_value_network_params)
-        q_select = self._q_values(next_data, w, self.value_network_params.data) if self.double_dqn else q_target
+        # (under no_grad the parameters themselves give the values of their detached copies)
+        online = self.value_network_params if self._fast_plan() is not None else self.value_network_params.data
+        q_select = self._q_values(next_data, w, online) if self.double_dqn else q_target
         num_actions = q_target.shape[-2]
         if self.envelope:
             # scores[b, i, m, a] = w_i . Q(s'_b, a, w_m): every candidate (w_m, a) under every w_i.

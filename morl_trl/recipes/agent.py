@@ -80,12 +80,24 @@ class Agent:
         evaluation, checkpoints, logs) as it is. Raises :class:`NonFiniteLossError` as
         :meth:`update` does, with ``updates_done``: the updates applied before it.
         """
-        buffer.extend(batch.reshape(-1))
+        self.store(buffer, batch)
         if frames < self.cfg.init_random_frames:
             return None, 0
         every = self.cfg.update_frequency  # one update per `every` frames (the authors' discrete SAC: 4)
         n = self.cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
         return self.run_updates(buffer, n), n
+
+    @property
+    def replay_keys(self) -> list:
+        """The entries of a transition that the replay buffer keeps: those the loss reads
+        (``loss.in_keys``). The collector's batch has many more (episode returns, the
+        ``"next"`` preference, the policy's action values, ...), which only the run's logs read."""
+        return list(self.loss.in_keys)
+
+    def store(self, buffer, batch: TensorDictBase) -> None:
+        """Write ``batch``'s transitions into ``buffer``, :attr:`replay_keys` only (an entry that a
+        transition lacks, e.g. ``"preference"`` of an env without one, is left out)."""
+        buffer.extend(batch.reshape(-1).select(*self.replay_keys, strict=False))
 
     def frames_of(self, batch: TensorDictBase) -> int:
         """How many frames ``batch`` counts against the run's budget ``cfg.frames``: all of them

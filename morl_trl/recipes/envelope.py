@@ -156,7 +156,7 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
-            buffer.extend(batch.reshape(-1))
+            agent.store(buffer, batch)  # the entries the loss reads
             losses, updates = None, 0
             if frames >= cfg.init_random_frames:
                 every = cfg.update_frequency  # one update per `every` frames, or updates_per_batch per batch

@@ -181,7 +181,7 @@ class GPIAgent(Agent):
     # ------------------------------------------------------------------ learning
     def learn(self, batch, buffer, frames: int):
         prev, self.frames = self.frames, frames
-        buffer.extend(batch.reshape(-1))
+        self.store(buffer, batch)
         losses, n = None, 0
         cfg = self.cfg
         if frames >= cfg.init_random_frames:

@@ -119,6 +119,8 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
         # PGMORL: every iteration starts from a reset, as the authors' member train() (mo_ppo.py:628)
         reset_at_each_iter=bool(cfg.pgmorl_reset_each_iteration),
         auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
+        # per-frame work nothing reads: ("collector", "traj_ids") (no trajectory splitting or slice sampling here)
+        track_traj_ids=False,
     )
 
 

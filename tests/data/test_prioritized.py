@@ -1,3 +1,4 @@
+import numpy as np
 import pytest
 import torch
 from scipy.stats import chi2
@@ -249,3 +250,25 @@ def test_cpu_host_path_equals_the_torch_ops_bit_for_bit(dtype, monkeypatch):
         mass = torch.rand(64, generator=g, dtype=dtype) * fast[0].query(0, cap)
         assert torch.equal(fast[0].scan_lower_bound(mass), slow[0].scan_lower_bound(mass))
     assert fast[0]._host() is not None and float(fast[0].query(0, cap)) > 0
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_cpu_host_writes_take_every_index_and_value_form(dtype, monkeypatch):
+    """Python int / list / tensor indices and broadcast values write what the torch path writes; an
+    index out of range is refused with the range, leaving the tree as it was."""
+    fast = [SumSegmentTree(100, dtype=dtype), MinSegmentTree(100, dtype=dtype)]
+    slow = [SumSegmentTree(100, dtype=dtype), MinSegmentTree(100, dtype=dtype)]
+    for t in slow:
+        monkeypatch.setattr(t, "_host", lambda: None)
+    writes = [(3, 0.25), ([1, 2, 2], [0.5, 1.5, 3.0]), (torch.tensor([7, 9]), torch.tensor(2.0)),
+              (torch.tensor([99]), torch.tensor([1e-7], dtype=torch.float64)), (np.array([4, 5]), 0.125)]
+    for index, value in writes:
+        for a, b in zip(fast, slow):
+            a[index] = value
+            b[index] = value
+            assert torch.equal(a._tree, b._tree) and a._written == b._written
+    assert float(fast[0].query(0, 100)) == pytest.approx(0.25 + 0.5 + 3.0 + 4.0 + 1e-7 + 0.25, rel=1e-6)
+    before = fast[0]._tree.clone()
+    with pytest.raises(IndexError, match=r"\[0, 100\): min 5, max 100"):
+        fast[0][[5, 100]] = 1.0
+    assert torch.equal(fast[0]._tree, before)

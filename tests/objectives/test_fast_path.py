@@ -147,3 +147,48 @@ def test_the_critic_loop_unbinds_the_ensemble_exactly_as_selecting_each_member()
     ref_grads = grads(ref)
     assert torch.equal(fast, ref) and fast.shape == (2, B, K)
     assert all(torch.equal(f, r) and f.abs().sum() > 0 for f, r in zip(fast_grads, ref_grads))
+
+
+@pytest.mark.parametrize("preference_layer", [0, 1])
+def test_envelope_fast_path_is_bit_identical_to_the_generic_path(preference_layer):
+    """EnvelopeQLoss evaluates its Q-network (online, detached online, target) from the parameter
+    leaves: the same losses, priorities and parameters after Adam and hard target updates."""
+    from torchrl.objectives import HardUpdate
+
+    from morl_trl.objectives import EnvelopeQLoss, make_vector_q_network
+
+    def envelope():
+        torch.manual_seed(0)
+        q = make_vector_q_network(OBS, 4, K, num_cells=(32, 32), preference_layer=preference_layer)
+        loss = EnvelopeQLoss(q, num_preference_samples=4, homotopy_lambda=0.3)
+        loss.make_value_estimator(gamma=0.99)
+        return loss
+
+    fast, generic = envelope(), envelope()
+    generic.fast_networks = False
+    assert fast._fast_plan() is not None and generic._fast_plan() is None
+    data = random_batch(B, OBS, K, num_actions=4)
+    results = []
+    for loss in (fast, generic):
+        torch.manual_seed(3)
+        opt = torch.optim.Adam(loss.parameters(), lr=1e-2)
+        updater = HardUpdate(loss, value_network_update_interval=2)
+        outs, priorities = [], []
+        for _ in range(4):
+            batch = data.clone()
+            out = loss(batch)
+            opt.zero_grad()
+            out["loss_qvalue"].backward()
+            opt.step()
+            updater.step()
+            outs.append(out.detach())
+            priorities.append(batch["td_error"])
+        results.append((outs, priorities, {k: v.detach().clone() for k, v in loss.state_dict().items()}))
+    (outs_f, prio_f, params_f), (outs_g, prio_g, params_g) = results
+    for a, b in zip(outs_f, outs_g):
+        for key in a.keys():
+            assert torch.equal(a[key], b[key]), key
+    assert all(torch.equal(a, b) for a, b in zip(prio_f, prio_g))
+    assert params_f.keys() == params_g.keys() and all(torch.equal(params_f[k], params_g[k]) for k in params_f)
+    assert not torch.equal(params_f["target_value_network_params.module.mlp.0.weight"],
+                           envelope().state_dict()["target_value_network_params.module.mlp.0.weight"])
