@@ -34,7 +34,8 @@ Example:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import torch
@@ -45,7 +46,7 @@ from torch import Tensor, nn
 from torchrl.data import Bounded, Categorical, TensorSpec
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor
-from torchrl.objectives.sac import compute_rsample_log_prob
+from torchrl.objectives.sac import compute_rsample_log_prob, rsample_and_log_prob
 
 from morl_trl._torchrl_compat import cache_values, clear_weakrefs
 from morl_trl.objectives.batched import BatchedMLP
@@ -234,7 +235,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             :class:`~morl_trl.objectives.MOSACLoss`'s.
 
     :meth:`qvalue_loss`, :meth:`actor_loss` and :meth:`temperature_loss` compute the three parts
-    alone, as :class:`~morl_trl.objectives.MOSACLoss`'s.
+    alone, as :class:`~morl_trl.objectives.MOSACLoss`'s. Inside :meth:`only_member` they are one
+    member's alone, on a ``[1, B]`` batch (MORL/D's round robin).
     """
 
     @dataclass
@@ -272,6 +274,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         self._in_keys = None
         super().__init__()
         self.alpha_loss_form = check_alpha_loss_form(alpha_loss_form)
+        self._only_member: int | None = None  # (only_member)
         weights = torch.as_tensor(weights, dtype=torch.float32)
         if weights.ndim != 2:
             raise ValueError(f"weights must be [P, k] (one weight per member), got shape {tuple(weights.shape)}")
@@ -325,11 +328,68 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
                 value.data.copy_(stacked)
         self.log_alpha.data.copy_(torch.stack([l.log_alpha.data.reshape(()) for l in losses]))
 
+    # ------------------------------------------------------------------ one member alone
+    @contextmanager
+    def only_member(self, member: int) -> Iterator[PopulationMOSACLoss]:
+        """Within it the losses are member ``member``'s alone, on a ``[1, B]`` batch: its slices of
+        the stacked parameters, target critics, weight and temperature run (``1 / P`` of the work of
+        the whole population's update); the gradient reaches its slices only (the other members'
+        are zero). Continuous actions draw the noise of the whole population's sample and keep the
+        member's rows, so its update is, to float rounding, that of an update of all members with
+        the others masked out (MORL/D's round robin, ``tests/recipes/test_morld_round_robin.py``).
+
+        Example:
+            >>> actor = make_population_categorical_actor(3, 4, 2, num_cells=(8,))
+            >>> loss = PopulationMOSACLoss(actor, make_population_q_network(3, 4, 2, 2, num_cells=(8,)),
+            ...                            weights=torch.tensor([[1.0, 0.0], [0.5, 0.5], [0.0, 1.0]]), num_actions=2)
+            >>> _ = loss.make_value_estimator(gamma=0.9)
+            >>> P, B = 3, 5
+            >>> data = TensorDict({"observation": torch.randn(P, B, 4), "action": torch.randint(2, (P, B)),
+            ...     ("next", "observation"): torch.randn(P, B, 4), ("next", "reward"): torch.randn(P, B, 2),
+            ...     ("next", "done"): torch.zeros(P, B, 1, dtype=torch.bool),
+            ...     ("next", "terminated"): torch.zeros(P, B, 1, dtype=torch.bool)}, [P, B])
+            >>> alone = []
+            >>> for p in range(P):
+            ...     with loss.only_member(p):
+            ...         alone.append(loss.qvalue_loss(data[p:p + 1])[0])
+            >>> torch.allclose(sum(alone), loss.qvalue_loss(data)[0])  # the population's: the sum of its members'
+            True
+        """
+        if not 0 <= int(member) < self.population:
+            raise ValueError(f"member={member}; valid: 0 .. {self.population - 1}")
+        previous, self._only_member = self._only_member, int(member)
+        try:
+            yield self
+        finally:
+            self._only_member = previous
+
+    def _member_slice(self, x, dim: int = 0):
+        """``x`` (a tensor or TensorDict of stacked members along ``dim``) as it is, or inside
+        :meth:`only_member` its member's ``[1]`` slice (a view: the gradient reaches ``x``)."""
+        m = self._only_member
+        if m is None:
+            return x
+        if isinstance(x, Tensor):
+            return x.narrow(dim, m, 1)
+        return x.apply(lambda t: t.narrow(dim, m, 1))
+
+    @property
+    def _members(self) -> int:
+        return self.population if self._only_member is None else 1
+
+    def _rsample(self, dist) -> tuple[Tensor, Tensor]:
+        """``(action, log_prob)`` reparameterised; inside :meth:`only_member`, the rows of the member in a
+        draw for the whole population (the noise a population-wide sample gives it)."""
+        if self._only_member is None:
+            return compute_rsample_log_prob(dist)
+        action, log_prob = rsample_and_log_prob(dist, (self.population,))
+        return action[self._only_member], log_prob[self._only_member]
+
     # ------------------------------------------------------------------ pieces
     @property
     def _alpha(self) -> Tensor:
         with torch.no_grad():
-            return self.log_alpha.exp()
+            return self._member_slice(self.log_alpha).exp()
 
     @property
     @cache_values
@@ -350,12 +410,12 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
 
     def _actor(self, data: TensorDictBase):
-        with self.actor_network_params.to_module(self.actor_network, preserve_module_state=False):
+        with self._member_slice(self.actor_network_params).to_module(self.actor_network, preserve_module_state=False):
             return self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
 
     def _w(self, extra_dims: int) -> Tensor:
         """``[P, 1, (1,)*extra_dims, k]``: member weights broadcast over the batch."""
-        return self.weights.view(self.population, 1, *([1] * extra_dims), self.num_objectives)
+        return self._member_slice(self.weights).view(self._members, 1, *([1] * extra_dims), self.num_objectives)
 
     def _per_member(self, x: Tensor) -> Tensor:
         """Sum over members of each member's batch mean (``x``: ``[P, B]``)."""
@@ -363,12 +423,13 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
 
     def _alpha_objective(self, log_prob: Tensor) -> Tensor:
         """``[P, B]`` temperature losses on a detached ``log_prob`` (``alpha_loss_form``, as MOSAC's)."""
-        return temperature_objective(self.log_alpha.view(-1, 1), log_prob, self.target_entropy, self.alpha_loss_form)
+        return temperature_objective(self._member_slice(self.log_alpha).view(-1, 1), log_prob, self.target_entropy,
+                                     self.alpha_loss_form)
 
     # ------------------------------------------------------------------ the three parts
     def _checked(self, tensordict: TensorDictBase) -> TensorDictBase:
-        if tensordict.ndim != 2 or tensordict.shape[0] != self.population:
-            raise ValueError(f"{type(self).__name__} takes a [P, B] batch with P = {self.population} (row p for "
+        if tensordict.ndim != 2 or tensordict.shape[0] != self._members:
+            raise ValueError(f"{type(self).__name__} takes a [P, B] batch with P = {self._members} (row p for "
                              f"member p), got batch size {tuple(tensordict.shape)}")
         self._check_inputs(tensordict, needs_preference=False)
         return tensordict
@@ -438,22 +499,24 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         alpha = self._alpha.view(-1, 1)
         with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
             next_data = data.get("next")
-            next_action, next_log_prob = compute_rsample_log_prob(self._actor(next_data))
+            next_action, next_log_prob = self._rsample(self._actor(next_data))
             td = next_data.select(*self.qvalue_network.in_keys, strict=False)
             td.set(self.tensor_keys.action, next_action)
-            q_next = self._critics(td, self.target_qvalue_network_params, self.tensor_keys.state_action_value)
+            q_next = self._critics(td, self._member_slice(self.target_qvalue_network_params, 1),
+                                   self.tensor_keys.state_action_value)
             next_value = self._select_min(q_next, w) - (alpha * next_log_prob).unsqueeze(-1)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
-        q = self._critics(data, self.qvalue_network_params, self.tensor_keys.state_action_value)
+        q = self._critics(data, self._member_slice(self.qvalue_network_params, 1), self.tensor_keys.state_action_value)
         return self._critic_loss(q, target, w)
 
     def _continuous_actor(self, data: TensorDictBase, dist=None) -> tuple[Tensor, Tensor]:
         w = self._w(0)
         with set_exploration_type(ExplorationType.RANDOM):
-            action, log_prob = compute_rsample_log_prob(self._actor(data) if dist is None else dist)
+            action, log_prob = self._rsample(self._actor(data) if dist is None else dist)
         td = data.select(*self.qvalue_network.in_keys, strict=False)
         td.set(self.tensor_keys.action, action)
-        q_pi = self._critics(td, self._cached_detached_qvalue_params, self.tensor_keys.state_action_value)
+        q_pi = self._critics(td, self._member_slice(self._cached_detached_qvalue_params, 1),
+                             self.tensor_keys.state_action_value)
         return self._alpha.view(-1, 1) * log_prob - (self._select_min(q_pi, w) * w).sum(-1), log_prob
 
     def _discrete_qvalue(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
@@ -464,10 +527,11 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             next_data = data.get("next")
             dist = self._actor(next_data)
             probs, log_probs = dist.probs, dist.logits
-            q_next = self._select_min(self._critics(next_data, self.target_qvalue_network_params, key), w)
+            q_next = self._select_min(self._critics(next_data, self._member_slice(self.target_qvalue_network_params, 1),
+                                                    key), w)
             next_value = (probs.unsqueeze(-1) * (q_next - (alpha * log_probs).unsqueeze(-1))).sum(-2)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
-        q = self._critics(data, self.qvalue_network_params, key)  # [n, P, B, |A|, k]
+        q = self._critics(data, self._member_slice(self.qvalue_network_params, 1), key)  # [n, P, B, |A|, k]
         n, p, b, a, k = q.shape
         action = data.get(self.tensor_keys.action)
         index = action_index(action.reshape(p * b, *action.shape[2:]), p * b, a).view(1, p, b, 1, 1)
@@ -478,7 +542,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         w = self._w(1)
         dist = self._actor(data) if dist is None else dist
         probs, log_probs = dist.probs, dist.logits
-        q_pi = self._select_min(self._critics(data, self._cached_detached_qvalue_params, self.tensor_keys.action_value), w)
+        q_pi = self._select_min(self._critics(data, self._member_slice(self._cached_detached_qvalue_params, 1),
+                                              self.tensor_keys.action_value), w)
         scalar_q_pi = (q_pi * w).sum(-1)
         loss_actor = (probs * (self._alpha.view(-1, 1, 1) * log_probs - scalar_q_pi)).sum(-1)
         return loss_actor, (probs * log_probs).sum(-1)
@@ -488,7 +553,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         dist = self._actor(data) if dist is None else dist
         if self.num_actions is None:
             with set_exploration_type(ExplorationType.RANDOM):
-                return compute_rsample_log_prob(dist)[1]
+                return self._rsample(dist)[1]
         return (dist.probs * dist.logits).sum(-1)
 
     @property

@@ -22,7 +22,13 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
   member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
   :class:`~morl_trl.recipes.optim.MemberAdam` (each member's own Adam moments and step count)
   and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
-  moments and targets stay bit for bit. ``frames`` counts the acting member's frames and the
+  moments and targets stay bit for bit. The acting member's own updates compute that member
+  alone (:meth:`PopulationMOSACLoss.only_member
+  <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`: its slices of the stacked
+  networks on a ``[1, batch_size]`` sample, ``1 / P`` of the work), with the parameters and Adam
+  state, to float rounding, of an update of every member with the others masked out
+  (``MORLDAgent.slice_acting_member = False``, the earlier implementation; the two are compared
+  in ``tests/recipes/test_morld_round_robin.py``); the catch-up updates step all the others at once. ``frames`` counts the acting member's frames and the
   run ends after the turn that reaches it: ``ceil(frames / exchange_every)`` turns
   (:func:`round_robin_turns`).
 * ``"concurrent"`` (our earlier scheme, faster, most of all on a GPU; not the authors'): the
@@ -199,6 +205,12 @@ class MemberTargetUpdate:
         clock = agent.clock if agent.clock is not None else agent.critic_steps  # (outside learn(): updates)
         if self.tau is None and clock % self.period_frames:
             return
+        if agent.sliced_member is not None:  # one member: its slices alone (the masked step's arithmetic)
+            m = agent.sliced_member
+            for source, target in zip(self.sources, self.targets):
+                t, s = target.select(1, m), source.select(1, m)
+                t.copy_(s if self.tau is None else t.lerp(s, self.tau))
+            return
         for source, target in zip(self.sources, self.targets):
             new = source if self.tau is None else target.lerp(source, self.tau)
             target.copy_(torch.where(_member_view(agent.members, target.ndim, 1), new, target))
@@ -326,6 +338,11 @@ class MORLDAgent(Agent):
     the resets at exchanges.
     """
 
+    #: round robin: the acting member's own updates compute that member alone (``False``: every
+    #: member computes and the step is masked to it, the earlier implementation and the reference
+    #: the tests compare against; slower by about the population size)
+    slice_acting_member: bool = True
+
     def __init__(self, cfg, loss: PopulationMOSACLoss, explore_policy, eval_policy, optimizers, updater, *, device,
                  num_envs_per_member: int, eval_exploration, member_policy=None) -> None:
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater, device=device,
@@ -358,11 +375,14 @@ class MORLDAgent(Agent):
         self.env_resets = 0
         self._reset_due = False
         self._catching_up = False
+        #: the member whose own update, computed for it alone, is running (``None`` outside one)
+        self.sliced_member: int | None = None
 
     @property
     def active(self) -> int:
         """The member whose turn it is (round robin)."""
         return int(self.active_member)
+
 
     def snapshots(self):
         """``(weights [S, k], actor parameters [S, ...])`` of the archive, or ``None`` while it is empty."""
@@ -435,6 +455,25 @@ class MORLDAgent(Agent):
             self._reset_due = True
         return losses, n
 
+    def update(self, buffer) -> TensorDictBase:
+        """:meth:`Agent.update <morl_trl.recipes.agent.Agent.update>`; the acting member's own update
+        (round robin, :attr:`slice_acting_member`, not a catch-up update) runs inside :meth:`PopulationMOSACLoss.only_member
+        <morl_trl.objectives.population.PopulationMOSACLoss.only_member>` (its ``entropy`` is
+        reported at its row of a ``[P]`` vector, NaN for the others)."""
+        if not (self.round_robin and self.slice_acting_member and not self._catching_up):
+            return super().update(buffer)
+        self.sliced_member = self.active
+        try:
+            with self.loss.only_member(self.sliced_member):
+                out = super().update(buffer)
+        finally:
+            self.sliced_member = None
+        entropy = out.get("entropy", None)
+        if entropy is not None and entropy.shape[-1:] == (1,) and self.population > 1:
+            full = torch.full((self.population,), float("nan"), dtype=entropy.dtype, device=entropy.device)
+            out.set("entropy", full.index_copy(0, self.active_member.view(1), entropy.reshape(1)))
+        return out
+
     def _updates_at(self, buffer, clocks: list[int], *, done: int):
         """One :meth:`update` at each shared-counter frame of ``clocks``; ``done``: updates of this batch before them."""
         losses = None
@@ -468,8 +507,11 @@ class MORLDAgent(Agent):
 
     def sample(self, buffer) -> TensorDictBase:
         """``[P, batch_size]`` transitions of the shared buffer, ``batch_size`` per member; round robin during
-        a turn: one ``batch_size`` draw for the active member (the other rows repeat it: their updates are masked)."""
+        a turn: one ``batch_size`` draw for the active member, ``[1, batch_size]`` (:attr:`sliced_member`; else
+        the other rows repeat it: their updates are masked)."""
         p, b = self.population, self.cfg.batch_size
+        if self.sliced_member is not None:
+            return buffer.sample(b).to(self.device).unsqueeze(0)
         if self.round_robin and not self._catching_up:
             return buffer.sample(b).to(self.device).expand(p, b)
         with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here

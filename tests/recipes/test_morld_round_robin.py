@@ -211,3 +211,52 @@ def test_the_fidelity_rows_of_the_round_robin_are_the_authors_and_concurrent_is_
     by = {r.setting: r for r in fidelity.compare("morld", "MOHalfCheetahDR-v5", cfg)}
     assert by["derived.env_reset_at_each_exchange"].status == "differs: ours 'concurrent', the authors' 'round_robin'"
     assert by["derived.updates_for_non_active_member_per_exchange"].status == "differs: ours 0, the authors' 10"
+
+
+@pytest.mark.parametrize("env_id", ["MOLavaGridDR-v0", "MOHopperDR-v5"])
+def test_the_acting_members_update_computes_it_alone_with_the_masked_updates_result(env_id, single_thread):
+    """Round robin: the acting member's own updates run on its slices alone (``[1, B]``); after two turns
+    (members 0 and 1, each with the others' catch-up updates at its exchange) every member's parameters,
+    target critics, temperature and Adam state equal those of the earlier implementation, which computed
+    every member and masked the step (``slice_acting_member = False``), to float rounding, and the work per
+    own update is one member's."""
+    if env_id.startswith("MOHopper"):
+        pytest.importorskip("mujoco")
+    cfg = resolve_config("morld", env_id, pop_size=3, num_envs=1, frames_per_batch=10, exchange_every=20,
+                         init_random_frames=0, batch_size=8, hidden=(16,), target_update_period=2, frames=40,
+                         morld_eval_episodes=0, seed=0)
+    env = TRAINING_ENV_BUILDERS["morld"](cfg, CPU)
+    torch.manual_seed(1)
+    td, batches = env.reset(), []
+    for _ in range(4):  # the same four batches of 10 random frames for both
+        batch = env.rollout(10, tensordict=td, auto_reset=False, break_when_any_done=False)
+        td = batch[..., -1]["next"].clone()
+        batches.append(batch)
+    agents = []
+    for sliced in (True, False):
+        torch.manual_seed(0)
+        agent = make_morld_agent(cfg, env, gamma=0.99, device=CPU)
+        agent.slice_acting_member = sliced
+        agents.append(agent)
+    agents[1].load_state_dict(agents[0].state_dict())
+    calls = []
+    for agent in agents:
+        torch.manual_seed(2)
+        buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(100))
+        shapes = []
+        agent.loss.qvalue_loss = (lambda f: lambda data: (shapes.append(tuple(data.shape)), f(data))[1])(
+            agent.loss.qvalue_loss)
+        for i, batch in enumerate(batches):
+            agent.learn(batch, buffer, 10 * (i + 1))
+        calls.append(shapes)
+    sliced, masked = agents
+    # own updates at the shared steps 1..19 (member 0) and 20..39 (member 1), each [1, 8] sliced, [3, 8] masked;
+    # 10 catch-up updates [3, 8] at each exchange
+    assert calls[0] == [(1, 8)] * 19 + [(3, 8)] * 10 + [(1, 8)] * 20 + [(3, 8)] * 10
+    assert calls[1] == [(3, 8)] * 59
+    assert sliced.member_updates.tolist() == masked.member_updates.tolist() == [19 + 10, 10 + 20, 10 + 10]
+    for p in range(3):
+        a, b = _member_state(sliced, p), _member_state(masked, p)
+        assert a.keys() == b.keys()
+        for k in a:
+            torch.testing.assert_close(a[k], b[k], rtol=1e-5, atol=1e-6, msg=lambda m, k=k, p=p: f"member {p} {k}: {m}")
