@@ -74,6 +74,7 @@ from torchrl.objectives import HardUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
 from morl_trl.recipes.agent import adam  # noqa: E402
+from morl_trl.recipes.optim import optimizer_step  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
@@ -203,15 +204,10 @@ def ours_gpi(tr, support, buffer_size, gpi_pd):
                                 batch_size=g["batch"], priority_key="td_error")
     rb.extend(as_tensordict(tr).exclude("preference"))
 
-    def step():
+    def step():  # GPIAgent.update's steps (discrete, no model buffer): the recipe's optimizer_step
         batch = rb.sample()
         out = loss(batch)
-        total = out["loss_qvalue"]
-        if not torch.isfinite(total):
-            raise RuntimeError("non-finite loss")
-        opt.zero_grad(set_to_none=True)
-        total.backward()
-        opt.step()
+        optimizer_step(out["loss_qvalue"], [opt], losses={"loss_qvalue": out["loss_qvalue"]})
         rb.update_tensordict_priority(batch)
 
     return step

@@ -162,8 +162,9 @@ class EpisodeReplay:
         if not len(self):
             raise ValueError("the episode replay is empty: add episodes before sampling")
         e = torch.randint(len(self), (batch_size,), generator=generator)
-        t = (torch.rand(batch_size, generator=generator, dtype=torch.float64) * self.length[e]).long()
-        t = torch.minimum(t, self.length[e] - 1)
+        length = self.length[e]
+        t = (torch.rand(batch_size, generator=generator, dtype=torch.float64) * length).long()
+        t = torch.minimum(t, length - 1)
         idx = self.start[e] + t
         s = self._steps
         return s["observation"][idx], s["action"][idx], s["return_to_go"][idx], s["horizon"][idx]

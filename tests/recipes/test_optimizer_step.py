@@ -114,3 +114,61 @@ if __name__ == "__main__":  # prints EXPECTED (only ever from the code before a 
     for algo in CASES:
         t = time.perf_counter()
         print(f"    {algo!r}: {fingerprint(algo)!r},  # {time.perf_counter() - t:.1f} s", flush=True)
+
+
+def _adam_run(direct: bool, steps: int = 5, **adam_kwargs):
+    """``steps`` updates of a small MLP with a fused Adam: torch's ``opt.step()`` or :func:`fused_adam_step`."""
+    from morl_trl.recipes.optim import adam, fused_adam_step
+
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.ReLU(), torch.nn.Linear(8, 2))
+    opt = adam(net.parameters(), lr=1e-2, **adam_kwargs)
+    x, y = torch.randn(32, 4), torch.randn(32, 2)
+    used = []
+    for _ in range(steps):
+        opt.zero_grad(set_to_none=True)
+        torch.nn.functional.mse_loss(net(x), y).backward()
+        took = direct and fused_adam_step(opt)
+        if not took:
+            opt.step()
+        used.append(bool(took))
+    return net, opt, used
+
+
+def test_fused_adam_step_is_torchs_step_bit_for_bit():
+    ref, ref_opt, _ = _adam_run(direct=False)
+    fast, fast_opt, used = _adam_run(direct=True)
+    assert used == [False, True, True, True, True]  # the first step makes the state: torch's own step
+    for a, b in zip(ref.parameters(), fast.parameters()):
+        assert torch.equal(a, b)
+    for a, b in zip(ref.parameters(), fast.parameters()):
+        ra, fa = ref_opt.state[a], fast_opt.state[b]
+        assert fa["step"].item() == ra["step"].item() == 5.0
+        assert torch.equal(fa["exp_avg"], ra["exp_avg"]) and torch.equal(fa["exp_avg_sq"], ra["exp_avg_sq"])
+    # concrete values: the last layer's bias after five steps (lr 1e-2, from torch.manual_seed(0))
+    assert fast[2].bias.detach().tolist() == pytest.approx([0.095382, -0.226363], abs=1e-6)
+
+
+@pytest.mark.parametrize("kwargs", [dict(amsgrad=True), dict(weight_decay=0.1), dict(fused=False), dict(maximize=True)])
+def test_fused_adam_step_leaves_other_adams_to_torch(kwargs):
+    ref, _, _ = _adam_run(direct=False, **kwargs)
+    fast, _, used = _adam_run(direct=True, **kwargs)
+    assert used == [False] * 5
+    assert all(torch.equal(a, b) for a, b in zip(ref.parameters(), fast.parameters()))
+
+
+def test_fused_adam_step_leaves_hooked_or_scheduled_optimizers_to_torch():
+    from morl_trl.recipes.optim import adam, fused_adam_step
+
+    w = torch.nn.Parameter(torch.ones(2))
+    opt = adam([w], lr=0.1)
+    w.grad = torch.ones(2)
+    opt.step()
+    handle = opt.register_step_post_hook(lambda *a: None)
+    assert fused_adam_step(opt) is False
+    handle.remove()
+    torch.optim.lr_scheduler.StepLR(opt, step_size=1)  # patches opt.step (its call counter)
+    assert fused_adam_step(opt) is False
+    w.grad = None
+    assert fused_adam_step(torch.optim.Adam([w], lr=0.1, fused=True)) is False  # no state, no gradient
+    assert w.detach().tolist() == pytest.approx([0.9, 0.9])
