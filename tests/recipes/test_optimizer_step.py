@@ -172,3 +172,19 @@ def test_fused_adam_step_leaves_hooked_or_scheduled_optimizers_to_torch():
     w.grad = None
     assert fused_adam_step(torch.optim.Adam([w], lr=0.1, fused=True)) is False  # no state, no gradient
     assert w.detach().tolist() == pytest.approx([0.9, 0.9])
+
+
+@pytest.mark.parametrize("case", ["pcn", "gpi_discrete"])
+def test_recipe_updates_take_the_direct_adam_step_and_match_torchs(case, monkeypatch):
+    """The recipes' updates run :func:`fused_adam_step` (counted), and with it forced off (torch's
+    ``opt.step()`` every time) the networks end bit for bit the same (the recorded fingerprint both ways)."""
+    from morl_trl.recipes import optim
+
+    taken = []
+    real = optim.fused_adam_step
+    monkeypatch.setattr(optim, "fused_adam_step", lambda opt: taken.append(real(opt)) or taken[-1])
+    fast = fingerprint(case)
+    assert sum(taken) >= EXPECTED[case][1] - 1  # every update but the first (which makes Adam's state)
+    monkeypatch.setattr(optim, "fused_adam_step", lambda opt: False)
+    assert fingerprint(case) == fast
+    assert fast[0] == pytest.approx(EXPECTED[case][0], rel=1e-9, abs=1e-9)
