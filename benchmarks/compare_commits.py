@@ -53,8 +53,13 @@ PAIR_SETTINGS = {
 # update and two actor steps every second one, each on a fresh forward of the whole loss), MORL/D's
 # round robin (one member acts, one update of all P members' forward per frame: its concurrent schedule
 # with the earlier layout instead).
-AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "sac": {"policy_freq": 1},
-             "morld": {"policy_freq": 1, "morld_schedule": "concurrent", "num_envs": 2, "frames_per_batch": 60}}
+# The actor-critics' one joint backward of the summed losses per update (``joint_update``) is what
+# "before" did; the authors' order (critic step, then actor, then temperature) costs an extra actor
+# forward per update (issue 27).
+AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "sac": {"policy_freq": 1, "joint_update": True},
+             "capql": {"joint_update": True},
+             "morld": {"policy_freq": 1, "joint_update": True, "morld_schedule": "concurrent", "num_envs": 2,
+                       "frames_per_batch": 60}}
 
 
 def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: dict, warm: int = 0) -> dict:
