@@ -3,9 +3,9 @@
 :func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the
 algorithm's recipe; every recipe writes only its loop inside :meth:`Run.session
 <morl_trl.runs.Run.session>` (run directory, resume, evaluations, checkpoints, logs, report,
-Ctrl-C, clean stops). Envelope's recipe is one function read top to bottom; the others are an
-agent each, whose ``learn`` decides what a collected batch does, driven by one generic loop
-(:func:`~morl_trl.recipes.off_policy.train_agent`):
+Ctrl-C, clean stops). Envelope's and GPI-LS / GPI-PD's recipes are one function each, read top to
+bottom; the others are an agent each, whose ``learn`` decides what a collected batch does, driven by
+one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
 
 * ``envelope``: :func:`~morl_trl.recipes.envelope.train_envelope` (its modules:
   :func:`~morl_trl.recipes.envelope.make_envelope_agent`)
@@ -17,8 +17,9 @@ agent each, whose ``learn`` decides what a collected batch does, driven by one g
   episode replay, supervised updates)
 * ``pgmorl``: :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`
   (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`: population PPO, evolution)
-* ``gpi_ls``, ``gpi_pd``: :func:`~morl_trl.recipes.gpi.make_gpi_agent`
-  (:class:`~morl_trl.recipes.gpi.GPIAgent`: weight-support iterations, + Dyna for GPI-PD)
+* ``gpi_ls``, ``gpi_pd``: :func:`~morl_trl.recipes.gpi.train_gpi` (its modules:
+  :func:`~morl_trl.recipes.gpi.make_gpi_agent`; :class:`~morl_trl.recipes.gpi.GPIAgent`: the
+  weight-support iterations, + Dyna for GPI-PD)
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
 settings for the algorithm and domain; ``examples/`` holds ready config files.

@@ -1,8 +1,14 @@
-"""GPI-LS and GPI-PD (Alegre et al., AAMAS 2023): the agents that ``morl-trl train gpi_ls|gpi_pd`` trains.
+"""GPI-LS and GPI-PD (Alegre et al., AAMAS 2023): ``morl-trl train gpi_ls|gpi_pd``, read top to bottom.
 
-The run is :mod:`morl_trl.recipes.off_policy`'s loop; :class:`GPIAgent` overrides
-:meth:`~morl_trl.recipes.agent.Agent.learn` with the authors' weight-support loop
-(MORL-Baselines' ``GPIPD.train`` / ``train_iteration``):
+:func:`train_gpi` is the recipe (env -> modules and loss -> buffer and collector -> the loop), for
+discrete and continuous actions; with its losses (:class:`~morl_trl.objectives.GPILoss`,
+:class:`~morl_trl.objectives.gpi.GPIContinuousLoss`) it is everything GPI does per frame. Its loop is
+the authors' weight-support loop (MORL-Baselines' ``GPIPD.train`` / ``train_iteration``); what it
+keeps between batches and checkpoints is a :class:`GPIAgent` (the modules, the linear support, ``w``
+and ``M``, GPI-PD's model buffer), whose named steps the loop calls: :meth:`GPIAgent.sample_batch`,
+:meth:`GPIAgent.fit_model`, :meth:`GPIAgent.rollout_model`, :meth:`GPIAgent.end_iteration`,
+:meth:`GPIAgent.begin_iteration` (:meth:`GPIAgent.learn` is the loop's body as one call, for
+driving an agent batch by batch). Per batch:
 
 1. Every ``gpi_iteration_frames`` frames an iteration ends: the GPI policy over the support
    ``M`` is evaluated (``gpi_front_episodes`` episodes per weight, in the training domain,
@@ -55,11 +61,12 @@ import warnings
 
 import numpy as np
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.objectives import HardUpdate
 
+from morl_trl._torchrl_compat import collector_state
 from morl_trl.envs import domain_of
 from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
@@ -67,13 +74,27 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import Agent, action_spec, epsilon_greedy, is_discrete, num_objectives, obs_shape
-from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
-from morl_trl.recipes.parts import evaluation_contexts, policy_env_factory
-from morl_trl.runs.env_state import transforms_of
+from morl_trl.recipes.agent import Agent, action_spec, epsilon, epsilon_greedy, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.allocator import tune_malloc
+from morl_trl.recipes.optim import NonFiniteLossError, adam, check_finite, fused_choice, optimizer_step
+from morl_trl.recipes.parts import (
+    check_buffer_memory,
+    evaluation_contexts,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    make_replay_buffer,
+    make_training_env,
+    policy_env_factory,
+    run_discount,
+    run_domain,
+    start_notes,
+)
+from morl_trl.runs.env_state import env_state, transforms_of
+from morl_trl.runs.run import Run
 from morl_trl.transforms import PreferenceConditioning
 
-__all__ = ["GPIAgent", "make_gpi_agent"]
+__all__ = ["GPIAgent", "make_gpi_agent", "train_gpi"]
 
 _KEYS = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "terminated"),
          ("next", "done"))
@@ -90,7 +111,7 @@ class GPIAgent(Agent):
                          device=device, exploration_module=exploration_module)
         self.gpi_policy = eval_policy if gpi_policy is None else gpi_policy
         self.continuous = num_actions is None
-        self._updates = 0
+        self.continuous_updates = 0
         self.gamma = gamma
         self.k = loss.num_objectives
         self.num_actions = num_actions
@@ -108,7 +129,7 @@ class GPIAgent(Agent):
         self.evaluations = 0
         self._front_evaluator = None
         self.frames = 0
-        self._begin_iteration(None)
+        self.begin_iteration(None)
 
     # ------------------------------------------------------------------ weights
     def _apply_weights(self) -> None:
@@ -146,13 +167,18 @@ class GPIAgent(Agent):
         result = self.front_evaluator.evaluate(policy, weights=weights, seed=self.cfg.seed + 10_000 * self.evaluations)
         return result.returns.mean(dim=(0, 2)).numpy()  # [contexts=1, m, episodes, k] -> [m, k]
 
-    def _end_iteration(self) -> None:
+    def end_iteration(self) -> None:
+        """The end of an iteration: the GPI policy over ``M`` evaluated at every weight of ``M``
+        (:attr:`front_evaluator`), each value added to the linear support."""
         # the CCS values: Monte-Carlo discounted returns of the GPI policy over M (the authors', both action types)
         values = self._evaluate(self.support, self.support, self.gpi_policy)
         for v, w in zip(values, self.support):
             self.linear_support.add_solution(v, w)
 
-    def _begin_iteration(self, buffer) -> None:
+    def begin_iteration(self, buffer) -> None:
+        """The next iteration: its weight ``w`` (the extrema first, then the corner weight of the CCS with the
+        highest GPI priority), the support ``M`` (the CCS's weights + the 4 best corners + ``w``) set on the loss,
+        the policies and the sub-envs' preferences; the discrete PER priorities of ``buffer`` recomputed under ``w``."""
         ls = self.linear_support
         if ls.ccs:
             ccs_support = np.stack(ls.get_weight_support())
@@ -180,6 +206,9 @@ class GPIAgent(Agent):
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch, buffer, frames: int):
+        """One batch of :func:`train_gpi`'s loop (store, Dyna, updates, target copy, iteration boundary)
+        as one call, for driving an agent batch by batch (unit tests, benchmarks); the recipe writes
+        the same steps out, and ``tests/recipes/test_gpi_recipe.py`` holds the two equal."""
         prev, self.frames = self.frames, frames
         self.store(buffer, batch)
         losses, n = None, 0
@@ -195,11 +224,11 @@ class GPIAgent(Agent):
         if frames >= self.iteration_end:
             while self.iteration_end <= frames:
                 self.iteration_end += cfg.gpi_iteration_frames
-            self._end_iteration()
-            self._begin_iteration(buffer)
+            self.end_iteration()
+            self.begin_iteration(buffer)
         return losses, n
 
-    def _sample(self, buffer):
+    def sample_batch(self, buffer):
         """``(batch, real part)``: ``gpi_real_ratio`` real transitions and model ones once the model buffer has some."""
         cfg = self.cfg
         if self.model_buffer is None or not len(self.model_buffer) or self.frames < cfg.gpi_dynamics_rollout_starts:
@@ -212,9 +241,10 @@ class GPIAgent(Agent):
         return batch, real
 
     def update(self, buffer):
+        """One update of :func:`train_gpi` (its ``update``), for :meth:`learn`."""
         if self.continuous:
             return self._update_continuous(buffer)
-        batch, real = self._sample(buffer)
+        batch, real = self.sample_batch(buffer)
         out = self.loss(batch)
         optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]], max_grad_norm=self.max_grad_norm,
                        losses={"loss_qvalue": out["loss_qvalue"]})
@@ -227,17 +257,17 @@ class GPIAgent(Agent):
     def _update_continuous(self, buffer):
         """The authors' continuous update: critics every update, the actor every ``gpi_policy_delay``
         updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
-        batch, real = self._sample(buffer)
+        batch, real = self.sample_batch(buffer)
         out = self.loss(batch)
         check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
         optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]])
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
         polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
-        if self._updates % self.cfg.gpi_policy_delay == 0:
+        if self.continuous_updates % self.cfg.gpi_policy_delay == 0:
             # against the critics just updated, as the authors
             optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
             polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
-        self._updates += 1
+        self.continuous_updates += 1
         if self.cfg.prioritized:
             if real is not batch:
                 real.set("td_error", batch["td_error"][: real.shape[0]])
@@ -248,13 +278,18 @@ class GPIAgent(Agent):
     def _dyna(self, buffer, prev: int, frames: int) -> None:
         cfg = self.cfg
         if frames // cfg.gpi_dynamics_train_freq > prev // cfg.gpi_dynamics_train_freq:
-            data = buffer.storage[torch.arange(len(buffer))].to(self.device)
-            x, y = self.dynamics.inputs_targets(data)
-            fit_dynamics(self.dynamics, x.float(), y.float(), lr=cfg.gpi_dynamics_lr,
-                         max_grad_norm=cfg.gpi_dynamics_max_grad_norm)
+            self.fit_model(buffer)
         if frames >= cfg.gpi_dynamics_rollout_starts and \
                 frames // cfg.gpi_dynamics_rollout_freq > prev // cfg.gpi_dynamics_rollout_freq:
             self.rollout_model(buffer)
+
+    def fit_model(self, buffer) -> None:
+        """Refit the dynamics ensemble on every transition of the real ``buffer``
+        (:func:`~morl_trl.objectives.fit_dynamics`: the authors' bootstrap, mini-batches, early stopping)."""
+        data = buffer.storage[torch.arange(len(buffer))].to(self.device)
+        x, y = self.dynamics.inputs_targets(data)
+        fit_dynamics(self.dynamics, x.float(), y.float(), lr=self.cfg.gpi_dynamics_lr,
+                     max_grad_norm=self.cfg.gpi_dynamics_max_grad_norm)
 
     @torch.no_grad()
     def rollout_model(self, buffer) -> int:
@@ -311,7 +346,7 @@ class GPIAgent(Agent):
         state = super().state_dict()
         state.update(linear_support=self.linear_support.state_dict(), weight=self.weight, support=self.support,
                      iteration=self.iteration, iteration_end=self.iteration_end, evaluations=self.evaluations,
-                     frames=self.frames, updates=self._updates,
+                     frames=self.frames, updates=self.continuous_updates,
                      dynamics=None if self.dynamics is None else self.dynamics.model.state_dict())
         return state
 
@@ -320,7 +355,7 @@ class GPIAgent(Agent):
         self.linear_support.load_state_dict(state["linear_support"])
         self.weight, self.support = np.asarray(state["weight"]), np.asarray(state["support"])
         self.iteration, self.iteration_end = state["iteration"], state["iteration_end"]
-        self.evaluations, self.frames, self._updates = state["evaluations"], state["frames"], state.get("updates", 0)
+        self.evaluations, self.frames, self.continuous_updates = state["evaluations"], state["frames"], state.get("updates", 0)
         if self.dynamics is not None and state.get("dynamics") is not None:
             self.dynamics.model.load_state_dict(state["dynamics"])
         self._apply_weights()
@@ -398,3 +433,108 @@ def _make_continuous_gpi_agent(cfg, env, spec, *, gamma: float, device: torch.de
     return GPIAgent(cfg, loss, explore, eval_policy, optimizers, device=device, exploration_module=None, gamma=gamma,
                     preference_transform=prefs[-1] if prefs else None, num_actions=None, dynamics=dynamics,
                     gpi_policy=gpi_policy)
+
+
+def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
+    """Train GPI-LS or GPI-PD (``run.cfg.algo``), discrete or continuous actions, in ``run`` (opened by
+    :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
+    ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing).
+    # Each sub-env draws its episode's preference from the support M (the agent sets it at each iteration).
+    env = make_training_env(cfg, device)
+
+    # 2. the modules (make_gpi_agent): the Q-networks (discrete) or actor + critics (continuous), the GPI
+    # policies over M, the loss, Adam, GPI-PD's dynamics ensemble and model buffer, the linear support
+    # and the first iteration's weight w and support M
+    tune_malloc()  # (the allocator for training, as build_agent)
+    agent = make_gpi_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    loss, optimizers, continuous = agent.loss, agent.optimizers, agent.continuous
+    tau = cfg.tau if cfg.tau is not None else 0.005  # (continuous: Polyak averaging of the targets)
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)  # (GPI over M for each evaluation weight)
+
+    # 3. the replay buffer, a resumed run's state, the collector
+    check_buffer_memory(cfg, env, device)
+    buffer = make_replay_buffer(cfg, device)
+    state = run.restore(buffer, map_location=device, env=env)
+    if state is not None:  # (the model buffer is not checkpointed: GPI-PD refills it at its next rollout)
+        agent.load_state_dict(state["agent"])  # networks, optimizers, the linear support, w, M, the iteration
+        schedules(agent, run.frames)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+
+    def update() -> TensorDictBase:
+        """One gradient step on a sampled batch (a non-finite loss raises before anything changes)."""
+        batch, real = agent.sample_batch(buffer)  # GPI-PD with model data: gpi_real_ratio real, the rest imagined
+        out = loss(batch)  # the TD loss for w (GPI-PD: GPI over M in the target); writes the PER priorities
+        if continuous:  # the authors' TD3-style step: critics every update, the actor every gpi_policy_delay
+            check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
+            optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]])
+            polyak_(loss.target_qvalue_network_params, loss.qvalue_network_params, tau)
+            if agent.continuous_updates % cfg.gpi_policy_delay == 0:
+                optimizer_step(loss.actor_loss(), [optimizers["actor"]])  # against the critics just updated
+                polyak_(loss.target_actor_network_params, loss.actor_network_params, tau)
+            agent.continuous_updates += 1
+        else:
+            optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]], max_grad_norm=agent.max_grad_norm,
+                           losses={"loss_qvalue": out["loss_qvalue"]})
+        if cfg.prioritized:  # the real transitions' priorities (the model buffer has none)
+            if real is not batch:
+                real.set("td_error", batch["td_error"][: real.shape[0]])
+            buffer.update_tensordict_priority(real)
+        return out.detach()
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch: store it; GPI-PD's model fit and rollouts when due; the updates;
+    # the target copy; at the end of an iteration, the CCS and the next w and M; the ε schedule; then
+    # (run.step) evaluate and checkpoint when due. A checkpoint is the state at the end of a batch.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # (uniformly random actions for the first init_random_frames)
+            frames = run.collected(batch)
+            prev, agent.frames = agent.frames, frames
+
+            def due(period: int) -> bool:  # whether this batch crossed a multiple of `period` frames
+                return frames // period > prev // period
+
+            agent.store(buffer, batch)  # the entries the loss reads
+            losses, updates = None, 0
+            if frames >= cfg.init_random_frames:
+                if agent.dynamics is not None:  # GPI-PD's Dyna
+                    if due(cfg.gpi_dynamics_train_freq):
+                        agent.fit_model(buffer)  # the dynamics ensemble on the whole real buffer
+                    if frames >= cfg.gpi_dynamics_rollout_starts and due(cfg.gpi_dynamics_rollout_freq):
+                        agent.rollout_model(buffer)  # imagined transitions (GPI action for w) -> agent.model_buffer
+                # 1 update per frame, gpi_gradient_updates per frame from gpi_dynamics_rollout_starts (the authors'
+                # discrete gating; continuous: always), or updates_per_batch per batch
+                gated = not continuous and frames < cfg.gpi_dynamics_rollout_starts
+                updates = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
+                for i in range(updates):
+                    try:
+                        losses = update()
+                    except NonFiniteLossError as err:
+                        err.updates_done = i  # (the run counts the updates applied before it)
+                        raise
+                if not continuous and due(cfg.target_update_period):
+                    agent.target_updater.step()  # the authors' hard copy every target_update_period frames
+            if frames >= agent.iteration_end:  # the end of an iteration (every gpi_iteration_frames frames)
+                while agent.iteration_end <= frames:
+                    agent.iteration_end += cfg.gpi_iteration_frames
+                agent.end_iteration()  # GPI over M evaluated at each weight of M -> the linear support (CCS)
+                agent.begin_iteration(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
+            schedules(agent, frames)
+            collector.update_policy_weights_()
+            run.step(losses, updates, epsilon=agent.epsilon)
+    return run.summary, agent
+
+
+def schedules(agent: GPIAgent, frames: int) -> None:
+    """GPI's frame-based schedule after ``frames`` frames: ε of the discrete exploration
+    (:func:`~morl_trl.recipes.agent.epsilon`; the continuous actor's noise is fixed)."""
+    if agent.exploration_module is not None:
+        agent.exploration_module.eps.fill_(epsilon(agent.cfg, frames))

@@ -71,7 +71,7 @@ def test_gpi_pd_rolls_out_the_model_into_its_buffer():
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
     agent.learn(td, buffer, 64)  # fits the model (train freq 64) and rolls out (starts at 64)
     assert len(agent.model_buffer) == 50
-    batch, real = agent._sample(buffer)
+    batch, real = agent.sample_batch(buffer)
     assert batch.shape == (16,) and real.shape == (8,)  # real_ratio 0.5
     cfg2, _, strict = _agent("gpi_pd", gpi_uncertainty_threshold=1e-9, gpi_iteration_frames=10_000)
     assert strict.rollout_model(buffer) == 0  # nothing is that certain

@@ -118,7 +118,7 @@ def test_continuous_gpi_recipe_evaluates_by_gpi_and_fills_the_ccs_with_gpi_retur
     assert agent.gpi_policy.context_table is None  # corner weights and CCS values: the single-env indexing
     seen = []
     agent._evaluate = lambda weights, support, policy=None: seen.append(policy) or np.zeros((len(weights), 3))
-    agent._end_iteration()
+    agent.end_iteration()
     assert seen == [agent.gpi_policy]
     _, _, fixed = _gpi("gpi_ls", "MOHopperDR-v5", gamma=0.99, gpi_eval_conditioning="support")
     assert fixed.eval_policy.gpi and fixed.eval_policy.context_table is None
