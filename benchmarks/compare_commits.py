@@ -56,10 +56,13 @@ PAIR_SETTINGS = {
 # The actor-critics' one joint backward of the summed losses per update (``joint_update``) is what
 # "before" did; the authors' order (critic step, then actor, then temperature) costs an extra actor
 # forward per update (issue 27).
-AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "sac": {"policy_freq": 1, "joint_update": True},
+# SAC's and MORL/D's actor scale was softplus (issue 27: the authors' tanh log-std, a few more element-wise ops).
+AS_BEFORE = {"pcn": {"hidden": [64, 64]}, "sac": {"policy_freq": 1, "joint_update": True, "actor_scale": "softplus"},
              "capql": {"joint_update": True},
-             "morld": {"policy_freq": 1, "joint_update": True, "morld_schedule": "concurrent", "num_envs": 2,
-                       "frames_per_batch": 60}}
+             # PGMORL's episodes ran on across iterations (issue 27: a reset, and a re-seed, at every iteration)
+             "pgmorl": {"pgmorl_reset_each_iteration": False, "pgmorl_reseed_each_iteration": False},
+             "morld": {"policy_freq": 1, "joint_update": True, "actor_scale": "softplus",
+                       "morld_schedule": "concurrent", "num_envs": 2, "frames_per_batch": 60}}
 
 
 def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: dict, warm: int = 0) -> dict:
