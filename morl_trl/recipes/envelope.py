@@ -62,6 +62,7 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
 from morl_trl.recipes.parts import (
     check_buffer_memory,
@@ -118,6 +119,7 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
     env = make_training_env(cfg, device)
 
     # 2. the modules: Q-network, greedy and ε-greedy policies, the loss, Adam, the target updater
+    tune_malloc()  # (the allocator for training, as build_agent)
     agent = make_envelope_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     loss, optimizer, target = agent.loss, agent.optimizers["qvalue"], agent.target_updater
     reference = load_reference(cfg, spec)

@@ -60,3 +60,24 @@ def test_turned_off_or_left_to_the_users_settings(env):
     assert got["tuned"] is False
     if "MORL_TRL_MALLOC" in env:  # glibc's defaults: a block of 8 MiB is mapped on its own
         assert got["mapped"] >= 8 << 20
+
+
+class _Tuned(Exception):
+    pass
+
+
+@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac"])  # the two own recipes and the Agent loop
+def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
+    import importlib
+
+    from morl_trl.recipes import resolve_config, train
+
+    def tuned():
+        raise _Tuned
+
+    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.algorithms"):
+        monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
+    with pytest.raises(_Tuned):
+        train(resolve_config(algo, "MOLavaGridDR-v0", run_dir=str(tmp_path / algo), frames=64, num_envs=2,
+                             progress=False))
+    assert not (tmp_path / algo).exists()  # (raised while building: nothing written)
