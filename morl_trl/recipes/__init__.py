@@ -3,8 +3,8 @@
 :func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the
 algorithm's recipe; every recipe writes only its loop inside :meth:`Run.session
 <morl_trl.runs.Run.session>` (run directory, resume, evaluations, checkpoints, logs, report,
-Ctrl-C, clean stops). Envelope's and GPI-LS / GPI-PD's recipes are one function each, read top to
-bottom; the others are an agent each, whose ``learn`` decides what a collected batch does, driven by
+Ctrl-C, clean stops). Envelope's, GPI-LS / GPI-PD's and PCN's recipes are one function each, read
+top to bottom; the others are an agent each, whose ``learn`` decides what a collected batch does, driven by
 one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
 
 * ``envelope``: :func:`~morl_trl.recipes.envelope.train_envelope` (its modules:
@@ -13,8 +13,8 @@ one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
 * ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :func:`~morl_trl.recipes.morld.make_morld_agent`
   (:class:`~morl_trl.recipes.morld.MORLDAgent`: a batched population, shared buffer, exchanges)
 * ``sac`` (the single-objective baseline): :func:`~morl_trl.recipes.sac.make_sac_agent`
-* ``pcn``: :func:`~morl_trl.recipes.pcn.make_pcn_agent` (:class:`~morl_trl.recipes.pcn.PCNAgent`:
-  episode replay, supervised updates)
+* ``pcn``: :func:`~morl_trl.recipes.pcn.train_pcn` (its modules: :func:`~morl_trl.recipes.pcn.make_pcn_agent`;
+  :class:`~morl_trl.recipes.pcn.PCNAgent`: the episode replay, the command, the rounds)
 * ``pgmorl``: :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`
   (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`: population PPO, evolution)
 * ``gpi_ls``, ``gpi_pd``: :func:`~morl_trl.recipes.gpi.train_gpi` (its modules:

@@ -1,16 +1,21 @@
-"""Pareto Conditioned Networks (Reymond et al. 2022): the agent that ``morl-trl train pcn`` trains.
+"""Pareto Conditioned Networks (Reymond et al. 2022): ``morl-trl train pcn``, read top to bottom.
 
 PCN learns a policy conditioned on a *command* -- a desired return and a desired horizon --
 by supervised learning on the steps of the best episodes of a replay of whole episodes
 (:class:`~morl_trl.data.episode_replay.EpisodeReplay`, :class:`~morl_trl.objectives.pcn.PCNLoss`).
-It runs in the loop every algorithm runs (:func:`~morl_trl.recipes.off_policy.run_training`:
-TorchRL's Collector, evaluation, checkpoints); :meth:`PCNAgent.learn` does what differs:
+:func:`train_pcn` is the recipe (env -> modules and loss -> collector -> the loop), for discrete and
+continuous actions; with its loss and the env's command transform
+(:class:`~morl_trl.transforms.command.DesiredReturnConditioning`) it is everything PCN does per
+frame. What it keeps between batches and checkpoints is a :class:`PCNAgent` (the network, the
+replay, the unfinished episodes, the command, the round counters; :meth:`PCNAgent.learn` is the
+loop's body as one call, for driving an agent batch by batch). Per batch:
 
 1. the collected batch is cut into whole episodes per sub-env (an episode may span batches)
-   which enter the episode replay with their returns-to-go (discount: the run's gamma);
+   which enter the episode replay with their returns-to-go (discount: the run's gamma;
+   :meth:`PCNAgent.store_episodes`);
 2. the first ``pcn_er_episodes`` episodes act uniformly at random (the authors' experience
    replay warm-up);
-3. then, and after every further ``pcn_step_episodes`` episodes, ``pcn_model_updates``
+3. then, and after every further ``pcn_step_episodes`` episodes, a round: ``pcn_model_updates``
    supervised updates on ``batch_size`` steps, and a new command for the episodes that start
    next: a random non-dominated return among the ``pcn_er_episodes`` best, plus
    ``U(0, std)`` on one objective, horizon = its length - 2
@@ -37,6 +42,11 @@ Example:
     >>> agent = make_pcn_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
     >>> agent.explore_policy(env.reset())["action"].shape
     torch.Size([2])
+
+    Training (``morl-trl train pcn MOLavaGridDR-v0 --quick`` runs the same):
+
+    >>> from morl_trl.recipes import train
+    >>> summary = train(resolve_config("pcn", "MOLavaGridDR-v0", quick=True))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -46,16 +56,21 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import ClipTransform
 
+from morl_trl._torchrl_compat import collector_state
 from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
 from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
+from morl_trl.recipes.parts import load_reference, make_collector, make_evaluator, run_discount, run_domain, start_notes
+from morl_trl.runs.env_state import env_state
+from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 from morl_trl.transforms.command import DesiredReturnConditioning
 
-__all__ = ["PCNAgent", "PCNPolicy", "make_pcn_agent", "make_pcn_training_env"]
+__all__ = ["PCNAgent", "PCNPolicy", "make_pcn_agent", "make_pcn_training_env", "train_pcn"]
 
 
 def _gamma(cfg) -> float:
@@ -175,7 +190,8 @@ class PCNPolicy(TensorDictModuleBase):
 
 
 class PCNAgent(Agent):
-    """The PCN :class:`~morl_trl.recipes.agent.Agent`: episode replay, warm-up, command rounds (see the module)."""
+    """What PCN keeps between batches and checkpoints (see the module): the network and Adam, the episode replay,
+    the unfinished episodes, the command transform, the warm-up and round counters, its random generator."""
 
     def __init__(self, cfg, loss, explore_policy, eval_policy, optimizer, replay: EpisodeReplay, command, *,
                  device, max_return) -> None:
@@ -190,11 +206,14 @@ class PCNAgent(Agent):
         self.explore_policy.random_actions = True
 
     # ------------------------------------------------------------------ learning
-    def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """Cut ``batch`` ``[N, T]`` into episodes, store the finished ones, run the rounds they make due."""
+    def store_episodes(self, batch: TensorDictBase, frames: int) -> int:
+        """Cut ``batch`` ``[N, T]`` into episodes per sub-env and add the finished ones to the replay, with
+        their returns-to-go (an episode may span batches: its first steps wait in the agent until it ends).
+        Returns how many episodes were added."""
         b = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
         obs, act = b.get("observation").cpu(), b.get("action").cpu()
         rew, done = b.get(("next", "reward")).cpu(), b.get(("next", "done")).reshape(b.shape).cpu()
+        added = 0
         for i in range(b.shape[0]):
             start = 0
             ends = done[i].nonzero().flatten().tolist()
@@ -209,11 +228,23 @@ class PCNAgent(Agent):
                         self._pending[i] = piece
                 else:
                     self.replay.add(piece["observation"], piece["action"], piece["reward"], step=frames)
-                    self.episodes += 1
+                    added += 1
                 start = stop
+        self.episodes += added
+        return added
+
+    def learn(self, batch: TensorDictBase, buffer, frames: int):
+        """One batch of :func:`train_pcn`'s loop as one call, for driving an agent batch by batch (unit tests,
+        benchmarks): store its finished episodes, run the rounds they make due. The recipe writes the same
+        steps out, and ``tests/recipes/test_pcn_recipe.py`` holds the two equal."""
+        self.store_episodes(batch, frames)
         losses, updates = None, 0
         while self.episodes >= self.next_round:
-            losses, n = self._round()
+            try:
+                losses, n = self._round()
+            except NonFiniteLossError as err:
+                err.updates_done += updates  # (this batch's earlier rounds)
+                raise
             updates += n
             self.next_round = self.episodes + self.cfg.pcn_step_episodes
         self.eval_policy.stale = True
@@ -235,6 +266,7 @@ class PCNAgent(Agent):
         return losses, self.cfg.pcn_model_updates
 
     def update(self, buffer=None) -> TensorDictBase:
+        """One supervised update of :func:`train_pcn` (its ``update``), for :meth:`learn`; ``buffer`` is unused."""
         obs, action, ret, horizon = self.replay.sample(self.cfg.batch_size, generator=self.generator)
         obs, action, ret, horizon = (t.to(self.device) for t in (obs, action, ret, horizon))
         out = self.loss.losses_of(obs, action, ret, horizon)
@@ -306,3 +338,77 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
                      max_return=_max_return(cfg, k))
     holder["agent"] = agent
     return agent
+
+
+def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
+    """Train PCN, discrete or continuous actions, in ``run`` (opened by
+    :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
+    ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing):
+    # the DR env + the policy's history + the command (desired return, horizon) per sub-env + vector returns
+    env = make_pcn_training_env(cfg, device)
+
+    # 2. the modules (make_pcn_agent): the command-conditioned network, the exploring policy (random actions
+    # during the warm-up) and the evaluation's, the loss, Adam, the episode replay
+    tune_malloc()  # (the allocator for training, as build_agent)
+    agent = make_pcn_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    loss, optimizer, replay, command = agent.loss, agent.optimizers["policy"], agent.replay, agent.command
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)  # (weight i acts on the i-th best episode's command)
+
+    # 3. a resumed run's state (the replay, the unfinished episodes, the command: all in the agent's state;
+    # PCN has no transition buffer), the collector
+    state = run.restore(None, map_location=device, env=env)
+    if state is not None:
+        agent.load_state_dict(state["agent"])
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+
+    def update() -> TensorDictBase:
+        """One supervised update on ``batch_size`` steps of the replay (a non-finite loss raises before
+        anything changes)."""
+        # an episode uniformly, then a step of it uniformly: (obs, action, return-to-go, horizon left)
+        obs, action, ret, horizon = replay.sample(cfg.batch_size, generator=agent.generator)
+        obs, action, ret, horizon = (t.to(device) for t in (obs, action, ret, horizon))
+        out = loss.losses_of(obs, action, ret, horizon)  # the action taken given (obs, return-to-go, horizon)
+        if out is None:  # (a custom network: the loss's TensorDict path)
+            td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
+                            [obs.shape[0]], device=device)
+            out = loss(td)
+        optimizer_step(out["loss_pcn"], [optimizer], losses={"loss_pcn": out["loss_pcn"]})
+        return out.detach()
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch: store its finished episodes; once the warm-up's pcn_er_episodes
+    # episodes are in, and after every further pcn_step_episodes, a round (the updates, then a new command);
+    # then (run.step) evaluate and checkpoint when due. A checkpoint is the state at the end of a batch.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # (the command is updated per step by the env's DesiredReturnConditioning)
+            frames = run.collected(batch)
+            agent.store_episodes(batch, frames)  # the finished episodes -> the replay, with their returns-to-go
+            losses, updates = None, 0
+            while agent.episodes >= agent.next_round:  # a round
+                for i in range(cfg.pcn_model_updates):
+                    try:
+                        losses = update()
+                    except NonFiniteLossError as err:
+                        err.updates_done = updates + i  # (the run counts the updates applied before it)
+                        raise
+                updates += cfg.pcn_model_updates
+                # the command of the episodes that start next: a random non-dominated return among the
+                # pcn_er_episodes best, plus U(0, std) on one objective; horizon = its length - 2
+                desired, horizon = replay.choose_command(cfg.pcn_er_episodes, generator=agent.generator)
+                command.set_command(desired, horizon)
+                agent.explore_policy.random_actions = False  # (the warm-up is over)
+                agent.rounds += 1
+                agent.next_round = agent.episodes + cfg.pcn_step_episodes
+            agent.eval_policy.stale = True  # (the evaluation's commands: the replay's best episodes, read again)
+            collector.update_policy_weights_()
+            run.step(losses, updates)
+    return run.summary, agent

@@ -1,0 +1,94 @@
+"""PCN's own recipe (recipes/pcn.py: train_pcn) trains exactly as the generic Agent loop (off_policy.train_agent
+with PCNAgent.learn) did before it: same network, optimizer, episode replay, unfinished episodes, command, counters,
+env, RNG, evaluations and logs, from the same seed."""
+
+import csv
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDictBase
+
+from morl_trl.recipes import off_policy, resolve_config, train
+from morl_trl.recipes.config import valid_keys
+from morl_trl.recipes.pcn import PCNAgent
+from morl_trl.runs import latest_checkpoint, load_checkpoint
+
+# batches of 64 frames from 4 sub-envs; the warm-up is the first 2 finished episodes, then a round of 3 updates
+# (and a new command) after every 2 more; checkpoints every 128 frames, evaluations at 0 and at the end
+TINY = dict(num_envs=4, frames_per_batch=64, pcn_er_episodes=2, pcn_step_episodes=2, pcn_model_updates=3,
+            batch_size=16, hidden=(16, 16), eval_weights=2, checkpoint_interval=128, progress=False,
+            eval_random_baseline=False)
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and np.array_equal(a, b)
+    if isinstance(a, TensorDictBase):
+        return _equal(a.to_dict(), b.to_dict())
+    if torch.is_tensor(a):
+        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+def _rows(path) -> list[dict]:
+    with path.open() as fh:  # (the frame rate is the machine's)
+        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
+
+
+def _both(tmp_path, monkeypatch, env_id, **kw):
+    """The recipe's run and the Agent loop's run of PCN on ``env_id`` (TINY + ``kw``), checked equal: every entry
+    of their last checkpoints, metrics.csv and losses.csv rows. Returns the recipe's last checkpoint."""
+    cfg = {k: v for k, v in {**TINY, **kw}.items() if k in valid_keys("pcn")}
+    # (report.md's figures take seconds to draw and are not compared)
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    calls = {"learn": 0}
+    learn = PCNAgent.learn
+
+    def counted(self, *args):
+        calls["learn"] += 1
+        return learn(self, *args)
+    monkeypatch.setattr(PCNAgent, "learn", counted)
+    assert off_policy.RECIPES["pcn"].__name__ == "train_pcn"
+    train(resolve_config("pcn", env_id, run_dir=str(tmp_path / "recipe"), **cfg))
+    assert calls["learn"] == 0  # (two different loops ran)
+    monkeypatch.delitem(off_policy.RECIPES, "pcn")  # the loop of every Agent, with PCNAgent.learn
+    train(resolve_config("pcn", env_id, run_dir=str(tmp_path / "agent"), **cfg))
+    assert calls["learn"] == cfg["frames"] // cfg["frames_per_batch"]
+    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
+    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
+        assert _equal(recipe[key], agent[key]), key
+    for rel in ("eval/metrics.csv", "train/losses.csv"):
+        rows = _rows(tmp_path / "recipe" / rel)
+        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+    return recipe
+
+
+def test_the_pcn_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatch):
+    state = _both(tmp_path, monkeypatch, "MOLavaGridDR-v0", num_envs=2, frames_per_batch=128, frames=1024,
+                  eval_interval=1024, checkpoint_interval=512, eval_contexts=("MOLavaGridRoom-v0",))
+    agent = state["agent"]
+    # the 2 sub-envs' random episodes are truncated at 256 steps (512 frames): the warm-up's 2 episodes, a round
+    # (3 updates, a command); the next 2 (acting on the command) end at 1024 frames: the second round
+    assert (state["frames"], state["updates"]) == (1024, 6)
+    assert (agent["episodes"], agent["rounds"], agent["next_round"]) == (4, 2, 6)
+    assert agent["random_actions"] is False and agent["pending"] == {}
+    assert agent["command"][1].item() == 254.0  # the chosen episode's length - 2
+    assert sorted(agent["replay"]["length"].tolist()) == [256] * 4
+
+
+def test_the_continuous_pcn_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatch):
+    pytest.importorskip("mujoco")
+    state = _both(tmp_path, monkeypatch, "MOHopperDR-v5", num_envs=2, frames=512, eval_interval=512, eval_weights=3,
+                  eval_contexts=("MOHopperDefault-v5",))
+    agent = state["agent"]
+    # Hopper's episodes are short (it falls): 40 episodes in 512 frames, a round every 2 after the warm-up's 2
+    assert (state["frames"], state["updates"]) == (512, 24)
+    assert (agent["episodes"], agent["rounds"], agent["next_round"]) == (40, 8, 42)
+    assert agent["random_actions"] is False
+    # sub-env 1's unfinished episode: 9 steps so far
+    assert {i: piece["reward"].shape for i, piece in agent["pending"].items()} == {1: (9, 3)}
