@@ -66,7 +66,7 @@ class _Tuned(Exception):
     pass
 
 
-@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac"])  # the two own recipes and the Agent loop
+@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "pcn", "sac"])  # the own recipes and the Agent loop
 def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
     import importlib
 
@@ -75,7 +75,8 @@ def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, 
     def tuned():
         raise _Tuned
 
-    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.algorithms"):
+    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.pcn",
+                 "morl_trl.recipes.algorithms"):
         monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
     with pytest.raises(_Tuned):
         train(resolve_config(algo, "MOLavaGridDR-v0", run_dir=str(tmp_path / algo), frames=64, num_envs=2,
