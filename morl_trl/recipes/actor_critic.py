@@ -33,7 +33,6 @@ Example:
 
 from __future__ import annotations
 
-import copy
 import math
 
 import torch
@@ -60,6 +59,7 @@ from morl_trl.recipes.agent import (
     is_discrete,
     num_objectives,
     obs_shape,
+    orthogonal_critic_copies_,
     target_updater,
 )
 from morl_trl.recipes.allocator import tune_malloc
@@ -75,6 +75,7 @@ from morl_trl.recipes.parts import (
     run_domain,
     start_notes,
 )
+from morl_trl.recipes.sac import make_sac_agent
 from morl_trl.runs.env_state import env_state
 from morl_trl.runs.run import Run
 
@@ -97,20 +98,6 @@ def _agent(cfg, loss, actor, gamma, device, **kwargs) -> Agent:
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
                  device=device, eval_exploration=eval_exploration(cfg), **kwargs)
-
-
-@torch.no_grad()
-def orthogonal_critic_copies_(loss, critic, init_=None) -> None:
-    """Give each of the loss's ``num_qvalue_nets`` critic copies (TorchRL re-draws the copies with
-    PyTorch's init) its own orthogonal init (``init_``, default :func:`orthogonal_init_`: gain 1,
-    zero biases; the authors' ``layer_init``), and its target the same values."""
-    init_ = orthogonal_init_ if init_ is None else init_
-    params = loss.qvalue_network_params.data
-    for i in range(params.batch_size[0]):
-        params[i].update_(TensorDict.from_module(init_(copy.deepcopy(critic))).data)
-    target = getattr(loss, "target_qvalue_network_params", None)
-    if target is not None:
-        target.data.update_(params)
 
 
 class DeterministicActing(TensorDictModuleBase):
@@ -180,8 +167,6 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
     """Train CAPQL, MOSAC, discrete MOSAC or SAC (``run.cfg.algo``) in ``run`` (opened by
     :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
     ``(last evaluation summary, agent)``."""
-    from morl_trl.recipes.sac import make_sac_agent  # (recipes/sac.py builds on this module)
-
     cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
