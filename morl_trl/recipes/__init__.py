@@ -3,16 +3,19 @@
 :func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the
 algorithm's recipe; every recipe writes only its loop inside :meth:`Run.session
 <morl_trl.runs.Run.session>` (run directory, resume, evaluations, checkpoints, logs, report,
-Ctrl-C, clean stops). Envelope's, GPI-LS / GPI-PD's and PCN's recipes are one function each, read
-top to bottom; the others are an agent each, whose ``learn`` decides what a collected batch does, driven by
-one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
+Ctrl-C, clean stops). Envelope's, GPI-LS / GPI-PD's, the actor-critics' (CAPQL, MOSAC, SAC) and
+PCN's recipes are one function each, read top to bottom; the others are an agent each, whose ``learn``
+decides what a collected batch does, driven by one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
 
 * ``envelope``: :func:`~morl_trl.recipes.envelope.train_envelope` (its modules:
   :func:`~morl_trl.recipes.envelope.make_envelope_agent`)
-* ``capql``, ``mosac``, ``mosac_discrete``: :mod:`morl_trl.recipes.actor_critic`
+* ``capql``, ``mosac``, ``mosac_discrete``, ``sac``: :func:`~morl_trl.recipes.actor_critic.train_actor_critic`
+  (its modules: :func:`~morl_trl.recipes.actor_critic.make_capql_agent`,
+  :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`,
+  :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent`, SAC's
+  :func:`~morl_trl.recipes.sac.make_sac_agent` on the scalar reward)
 * ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :func:`~morl_trl.recipes.morld.make_morld_agent`
   (:class:`~morl_trl.recipes.morld.MORLDAgent`: a batched population, shared buffer, exchanges)
-* ``sac`` (the single-objective baseline): :func:`~morl_trl.recipes.sac.make_sac_agent`
 * ``pcn``: :func:`~morl_trl.recipes.pcn.train_pcn` (its modules: :func:`~morl_trl.recipes.pcn.make_pcn_agent`;
   :class:`~morl_trl.recipes.pcn.PCNAgent`: the episode replay, the command, the rounds)
 * ``pgmorl``: :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`

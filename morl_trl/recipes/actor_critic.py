@@ -1,9 +1,24 @@
-"""CAPQL (Lu, Herman & Yu, 2023) and multi-objective SAC (MORL/D's building block, continuous
-and discrete): the agents that ``morl-trl train capql|mosac|mosac_discrete`` train.
+"""CAPQL (Lu, Herman & Yu, 2023), multi-objective SAC (MORL/D's building block, continuous and
+discrete) and the single-objective SAC baseline: ``morl-trl train capql|mosac|mosac_discrete|sac``,
+read top to bottom.
 
-A preference-conditioned actor ``pi(a | s, w)`` (tanh-Gaussian or categorical), two vector
-critics ``Q(s, a, w)`` ``[k]`` with Polyak (or hard) targets, Adam for actor, critics and,
-when learned, the temperature. The loop that drives them is :mod:`morl_trl.recipes.off_policy`.
+The agents: a preference-conditioned actor ``pi(a | s, w)`` (tanh-Gaussian or categorical), two
+vector critics ``Q(s, a, w)`` ``[k]`` with Polyak (or hard) targets, Adam for actor, critics and,
+when learned, the temperature (SAC's: :func:`morl_trl.recipes.sac.make_sac_agent`, TorchRL's
+losses on the scalar reward). :func:`train_actor_critic` is the recipe of all four, in the spirit
+of TorchRL's sota-implementations; with the loss it calls (:class:`~morl_trl.objectives.CAPQLLoss`,
+:class:`~morl_trl.objectives.MOSACLoss`, :class:`~morl_trl.objectives.DiscreteMOSACLoss`,
+:mod:`morl_trl.objectives.sac`) it is everything these algorithms do per frame:
+
+1. the env (:func:`~morl_trl.recipes.parts.make_training_env`);
+2. the modules (``make_*_agent``): actor, critics, the loss with its value estimator, Adam, the
+   target updater;
+3. the replay buffer and TorchRL's collector;
+4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>`: store the batch, then one
+   update per ``update_frequency`` frames (or ``updates_per_batch`` per batch): sample; the
+   critic step; on an actor turn (every ``policy_freq``-th update) ``policy_freq`` x (the actor
+   step, the temperature step); the target step; the PER priorities (``joint_update=true``: one
+   step of the summed losses instead).
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -18,11 +33,10 @@ Example:
 
 from __future__ import annotations
 
-import copy
 import math
 
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
@@ -36,6 +50,7 @@ from morl_trl.objectives import (
     make_vector_q_network,
 )
 from morl_trl.objectives.networks import orthogonal_init_
+from morl_trl._torchrl_compat import collector_state
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
@@ -44,10 +59,27 @@ from morl_trl.recipes.agent import (
     is_discrete,
     num_objectives,
     obs_shape,
+    orthogonal_critic_copies_,
     target_updater,
 )
+from morl_trl.recipes.allocator import tune_malloc
+from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
+from morl_trl.recipes.parts import (
+    check_buffer_memory,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    make_replay_buffer,
+    make_training_env,
+    run_discount,
+    run_domain,
+    start_notes,
+)
+from morl_trl.recipes.sac import make_sac_agent
+from morl_trl.runs.env_state import env_state
+from morl_trl.runs.run import Run
 
-__all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent"]
+__all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic"]
 
 
 def _continuous(cfg, env, device):
@@ -66,20 +98,6 @@ def _agent(cfg, loss, actor, gamma, device, **kwargs) -> Agent:
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
                  device=device, eval_exploration=eval_exploration(cfg), **kwargs)
-
-
-@torch.no_grad()
-def orthogonal_critic_copies_(loss, critic, init_=None) -> None:
-    """Give each of the loss's ``num_qvalue_nets`` critic copies (TorchRL re-draws the copies with
-    PyTorch's init) its own orthogonal init (``init_``, default :func:`orthogonal_init_`: gain 1,
-    zero biases; the authors' ``layer_init``), and its target the same values."""
-    init_ = orthogonal_init_ if init_ is None else init_
-    params = loss.qvalue_network_params.data
-    for i in range(params.batch_size[0]):
-        params[i].update_(TensorDict.from_module(init_(copy.deepcopy(critic))).data)
-    target = getattr(loss, "target_qvalue_network_params", None)
-    if target is not None:
-        target.data.update_(params)
 
 
 class DeterministicActing(TensorDictModuleBase):
@@ -143,3 +161,103 @@ def make_discrete_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -
                              target_entropy=cfg.target_entropy_scale * math.log(n),
                              use_prioritized_weights=cfg.per_importance_weights, alpha_loss_form=cfg.alpha_loss_form)
     return _agent(cfg, loss, actor, gamma, device)
+
+
+def train_actor_critic(run: Run) -> tuple[dict, Agent]:
+    """Train CAPQL, MOSAC, discrete MOSAC or SAC (``run.cfg.algo``) in ``run`` (opened by
+    :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
+    ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing)
+    env = make_training_env(cfg, device)
+
+    # 2. the modules: actor, critics (TorchRL's copies, orthogonal init), the loss, Adam, the target updater
+    tune_malloc()  # (the allocator for training, as build_agent)
+    make_agent = {"capql": make_capql_agent, "mosac": make_mosac_agent, "mosac_discrete": make_discrete_mosac_agent,
+                  "sac": make_sac_agent}[cfg.algo]
+    agent = make_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    loss, optimizers, target = agent.loss, agent.optimizers, agent.target_updater
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)  # (the actor, eval_exploration, on the evaluation suite)
+
+    # 3. the replay buffer, a resumed run's state, the collector
+    check_buffer_memory(cfg, env, device)
+    buffer = make_replay_buffer(cfg, device)
+    state = run.restore(buffer, map_location=device, env=env)
+    if state is not None:
+        agent.load_state_dict(state["agent"])  # networks, optimizers, the target updater, critic_steps
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+    clip = dict(max_grad_norm=cfg.max_grad_norm)
+    alpha_optimizer = optimizers.get("alpha")  # (a learned temperature)
+    last_actor: dict = {}  # the last actor turn's losses, logged with the critic-only updates after it
+
+    def update() -> TensorDictBase:
+        """One update on a sampled batch (a non-finite loss raises before its own step)."""
+        if agent.captured_update:  # compile / cudagraphs / fused on an accelerator: the same step, captured
+            return agent.update(buffer)  # (recipes/capture.py: its non-finite guard stays on the device)
+        batch = buffer.sample().to(device)
+        agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
+        actor_turn = agent.critic_steps % agent.policy_freq == 0  # every policy_freq-th update (the 2nd, 4th, ...)
+        if not agent.steps_each_loss:  # joint_update=true: one step of the summed losses, the actor on the old critics
+            out = loss(batch)
+            optimizer_step(sum(out[k] for k in agent.loss_keys), optimizers.values(),
+                           losses={k: out[k] for k in agent.loss_keys}, **clip)
+        else:  # the authors' order (their sac_continuous.py:435-456, mosac_continuous_action.py:460-482)
+            # the critic step: the targets (target critics, the actor's next actions, the temperature), the critics
+            loss_qvalue, _ = loss.qvalue_loss(batch)
+            optimizer_step(loss_qvalue, [optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **clip)
+            if actor_turn:  # policy_freq x (the actor step on the updated critics, the temperature step)
+                dist = None
+                for i in range(agent.policy_freq):
+                    loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
+                    optimizer_step(loss_actor, [optimizers["actor"]], losses={"loss_actor": loss_actor}, **clip)
+                    last_actor.update(loss_actor=loss_actor.detach(), entropy=-meta["log_prob"].mean(-1))
+                    if alpha_optimizer is not None:
+                        if loss.fresh_temperature_sample:  # continuous: a fresh sample of the updated actor,
+                            # which is also the next actor step's sample (the actor does not change in between)
+                            dist = loss.actor_dist(batch) if i + 1 < agent.policy_freq else None
+                            loss_alpha = loss.temperature_loss(batch, dist=dist)
+                        else:  # discrete: the actor step's log-probabilities (mosac_discrete_action.py:490-492)
+                            loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
+                        optimizer_step(loss_alpha, [alpha_optimizer], losses={"loss_alpha": loss_alpha}, **clip)
+                        last_actor["loss_alpha"] = loss_alpha.detach()
+            elif not last_actor:  # no actor turn yet: NaN actor losses
+                nan = torch.full_like(loss_qvalue.detach(), float("nan"))
+                last_actor.update(loss_actor=nan, entropy=torch.full_like(loss.log_alpha.detach(), float("nan")))
+                if alpha_optimizer is not None:
+                    last_actor["loss_alpha"] = nan
+            with torch.no_grad():
+                alpha = loss.log_alpha.exp()
+            out = TensorDict({"loss_qvalue": loss_qvalue.detach(), **last_actor, "alpha": alpha}, batch_size=[])
+        target.step()  # Polyak averaging with tau (a hard copy every target_update_period updates without)
+        if cfg.prioritized:
+            buffer.update_tensordict_priority(batch)
+        return out.detach()
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch: store it, update, then (run.step) evaluate and checkpoint
+    # when due. A checkpoint is the state at the end of a batch, so the batch after it is the same whether
+    # the run resumes or not.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # (uniformly random actions for the first init_random_frames)
+            frames = run.collected(batch)
+            agent.store(buffer, batch)  # the entries the loss reads
+            losses, updates = None, 0
+            if frames >= cfg.init_random_frames:
+                every = cfg.update_frequency  # one update per `every` frames, or updates_per_batch per batch
+                updates = cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
+                for i in range(updates):
+                    try:
+                        losses = update()
+                    except NonFiniteLossError as err:
+                        err.updates_done = i  # (the run counts the updates applied before it)
+                        raise
+            collector.update_policy_weights_()
+            run.step(losses, updates, epsilon=None)
+    return run.summary, agent

@@ -7,6 +7,8 @@ The builders live with their algorithm (:mod:`morl_trl.recipes.envelope`,
 
 from __future__ import annotations
 
+import copy
+
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
@@ -16,11 +18,13 @@ from torchrl.modules import EGreedyModule
 from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 from morl_trl.recipes.state_upgrade import upgrade_agent_state
 
 __all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
-           "target_updater", "actor_critic_optimizers", "eval_exploration", "epsilon", "epsilon_greedy"]
+           "target_updater", "actor_critic_optimizers", "orthogonal_critic_copies_", "eval_exploration", "epsilon",
+           "epsilon_greedy"]
 
 
 def _captures(cfg) -> bool:
@@ -362,3 +366,17 @@ def actor_critic_optimizers(cfg, loss) -> dict:
         alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
         opts["alpha"] = adam([loss.log_alpha], alpha_lr, fused=fused_choice(cfg), **eps)
     return opts
+
+
+@torch.no_grad()
+def orthogonal_critic_copies_(loss, critic, init_=None) -> None:
+    """Give each of the loss's ``num_qvalue_nets`` critic copies (TorchRL re-draws the copies with
+    PyTorch's init) its own orthogonal init (``init_``, default :func:`orthogonal_init_`: gain 1,
+    zero biases; the authors' ``layer_init``), and its target the same values."""
+    init_ = orthogonal_init_ if init_ is None else init_
+    params = loss.qvalue_network_params.data
+    for i in range(params.batch_size[0]):
+        params[i].update_(TensorDict.from_module(init_(copy.deepcopy(critic))).data)
+    target = getattr(loss, "target_qvalue_network_params", None)
+    if target is not None:
+        target.data.update_(params)

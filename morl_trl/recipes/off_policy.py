@@ -3,7 +3,8 @@
 :func:`run_training` opens the :class:`~morl_trl.runs.Run` (a new run, or the continuation of
 one) and hands it to the algorithm's recipe: its own, top to bottom, when it has one
 (:data:`RECIPES`: Envelope, :func:`morl_trl.recipes.envelope.train_envelope`; GPI-LS and GPI-PD,
-:func:`morl_trl.recipes.gpi.train_gpi`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`), else the
+:func:`morl_trl.recipes.gpi.train_gpi`; CAPQL, MOSAC, discrete MOSAC and SAC,
+:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`), else the
 loop of every algorithm written as an :class:`~morl_trl.recipes.agent.Agent`
 (:func:`train_agent`):
 
@@ -28,6 +29,7 @@ import torch
 
 from morl_trl._torchrl_compat import collector_state, reset_collector
 from morl_trl.envs import make_env
+from morl_trl.recipes.actor_critic import train_actor_critic
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
@@ -63,7 +65,8 @@ EXIT_NON_FINITE_LOSS = 3
 
 #: algorithm name -> its own recipe ``recipe(run) -> (summary, agent)``, for an algorithm written top to
 #: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
-RECIPES: dict = {"envelope": train_envelope, "gpi_ls": train_gpi, "gpi_pd": train_gpi, "pcn": train_pcn}
+RECIPES: dict = {"envelope": train_envelope, "gpi_ls": train_gpi, "gpi_pd": train_gpi,
+                 **dict.fromkeys(("capql", "mosac", "mosac_discrete", "sac"), train_actor_critic), "pcn": train_pcn}
 
 
 def build(cfg: TrainConfig, device: torch.device):
@@ -145,7 +148,7 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
 
 def train_agent(run: Run) -> tuple[dict, Agent]:
     """The loop of every algorithm written as an :class:`Agent` (all but those of :data:`RECIPES`, Envelope,
-    GPI-LS / GPI-PD and PCN, which have their own): collect a batch, ``agent.learn`` (store
+    GPI-LS / GPI-PD, the actor-critics and PCN, which have their own): collect a batch, ``agent.learn`` (store
     + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
     ``(last evaluation summary, agent)``."""
     cfg = run.cfg

@@ -30,7 +30,6 @@ from torch import nn
 from morl_trl.objectives import make_categorical_actor, make_gaussian_actor, make_vector_critic, make_vector_q_network
 from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.objectives.sac import DiscreteSACLoss, SACLoss
-from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
 from morl_trl.recipes.agent import (
     Agent,
     action_spec,
@@ -38,6 +37,7 @@ from morl_trl.recipes.agent import (
     eval_exploration,
     is_discrete,
     obs_shape,
+    orthogonal_critic_copies_,
     target_updater,
 )
 

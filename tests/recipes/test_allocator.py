@@ -66,7 +66,8 @@ class _Tuned(Exception):
     pass
 
 
-@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "pcn", "sac"])  # the own recipes and the Agent loop
+# the own recipes (Envelope, GPI, the actor-critics', PCN's) and the Agent loop (MORL/D)
+@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac", "pcn", "morld"])
 def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
     import importlib
 
@@ -75,7 +76,8 @@ def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, 
     def tuned():
         raise _Tuned
 
-    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.pcn",
+    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.actor_critic",
+                 "morl_trl.recipes.pcn",
                  "morl_trl.recipes.algorithms"):
         monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
     with pytest.raises(_Tuned):

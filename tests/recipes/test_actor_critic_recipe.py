@@ -1,0 +1,103 @@
+"""The actor-critics' own recipe (recipes/actor_critic.py: train_actor_critic, for capql, mosac, mosac_discrete
+and sac) trains exactly as the generic Agent loop (off_policy.train_agent with Agent.learn / Agent.update) did
+before it: same networks, optimizers, temperature, targets, counters, env, RNG, evaluations and logs, from the
+same seed."""
+
+import csv
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDictBase
+
+from morl_trl.recipes import off_policy, resolve_config, train
+from morl_trl.recipes.agent import Agent
+from morl_trl.recipes.config import valid_keys
+from morl_trl.runs import latest_checkpoint, load_checkpoint
+
+# 128 frames in batches of 32, updates from 64 frames on (3 batches), checkpoints at 64 and 128, evaluations at
+# 0 and 128. 3 updates per batch: with policy_freq 2 the actor turns (2 actor + 2 temperature steps each) fall
+# on the 2nd, 4th, 6th and 8th updates, across batch boundaries, with critic-only updates between them
+TINY = dict(frames=128, num_envs=2, frames_per_batch=32, init_random_frames=64, updates_per_batch=3, batch_size=16,
+            hidden=(16, 16), buffer_size=1024, eval_interval=128, eval_weights=2, eval_episodes=1,
+            checkpoint_interval=64, progress=False, eval_random_baseline=False)
+HOPPER = dict(eval_contexts=("MOHopperDefault-v5",), eval_weights=3)
+# (hard target copies every 4 updates, so that the 9 or 24 updates make some)
+LAVA = dict(eval_contexts=("MOLavaGridRoom-v0",), target_update_period=4)
+
+CASES = {  # id: (algo, env id, config changes, updates (= critic steps), actor steps)
+    # policy_freq 2 (the authors' continuous SAC and MOSAC): 4 actor turns of 2 actor steps
+    "sac-continuous": ("sac", "MOHopperDR-v5", HOPPER, 9, 8),
+    # the authors' discrete SAC: one update per update_frequency=4 frames (8 per batch), an actor turn at each
+    "sac-discrete": ("sac", "MOLavaGridDR-v0", dict(LAVA, updates_per_batch=0), 24, 24),
+    # CAPQL: policy_freq 1 (an actor step at every update), fixed temperature; with PER
+    "capql": ("capql", "MOHopperDR-v5", dict(HOPPER, prioritized=True), 9, 9),
+    "mosac": ("mosac", "MOHopperDR-v5", HOPPER, 9, 8),
+    # one step of the summed losses per update
+    "mosac-joint": ("mosac", "MOHopperDR-v5", dict(HOPPER, policy_freq=1, joint_update=True), 9, 9),
+    "mosac_discrete": ("mosac_discrete", "MOLavaGridDR-v0", dict(LAVA, prioritized=True), 9, 9),
+}
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and np.array_equal(a, b)
+    if isinstance(a, TensorDictBase):
+        return _equal(a.to_dict(), b.to_dict())
+    if torch.is_tensor(a):
+        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+def _rows(path) -> list[dict]:
+    with path.open() as fh:  # (the frame rate is the machine's)
+        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_actor_critic_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatch, case):
+    algo, env_id, changes, updates, actor_steps = CASES[case]
+    if env_id.startswith("MOHopper"):
+        pytest.importorskip("mujoco")
+    cfg = {k: v for k, v in {**TINY, **changes}.items() if k in valid_keys(algo)}
+    assert set(changes) - {"eval_contexts"} <= set(cfg)  # (every change is a key of the algorithm)
+    # (report.md's figures take seconds to draw and are not compared)
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    calls = {"learn": 0, "update": 0}
+
+    def counted(owner, name, key):
+        method = getattr(owner, name)
+
+        def wrapped(self, *args, **kw):
+            calls[key] += 1
+            return method(self, *args, **kw)
+        monkeypatch.setattr(owner, name, wrapped)
+
+    counted(Agent, "learn", "learn")
+    counted(Agent, "update", "update")
+    assert off_policy.RECIPES[algo].__name__ == "train_actor_critic"
+    train(resolve_config(algo, env_id, run_dir=str(tmp_path / "recipe"), **cfg))
+    recipe_calls = dict(calls)
+    monkeypatch.delitem(off_policy.RECIPES, algo)  # the loop of every Agent: Agent.learn -> Agent.update
+    train(resolve_config(algo, env_id, run_dir=str(tmp_path / "agent"), **cfg))
+    agent_calls = {k: v - recipe_calls[k] for k, v in calls.items()}
+    # (two different loops ran: the recipe's calls neither Agent.learn nor Agent.update)
+    assert (recipe_calls["learn"], recipe_calls["update"]) == (0, 0)
+    assert (agent_calls["learn"], agent_calls["update"]) == (4, updates)
+
+    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
+    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
+        assert _equal(recipe[key], agent[key]), key
+    assert (recipe["frames"], recipe["updates"], recipe["agent"]["critic_steps"]) == (128, updates, updates)
+    # the critics' Adam stepped once per update, the actor's policy_freq times per actor turn
+    steps = {name: int(opt["state"][0]["step"]) for name, opt in recipe["agent"]["optimizers"].items()}
+    assert (steps["qvalue"], steps["actor"]) == (updates, actor_steps)
+    if "alpha" in steps:  # (a learned temperature: one step after each actor step)
+        assert steps["alpha"] == actor_steps
+    for rel in ("eval/metrics.csv", "train/losses.csv"):
+        rows = _rows(tmp_path / "recipe" / rel)
+        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
