@@ -14,6 +14,8 @@ from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.config import valid_keys
 from morl_trl.runs import latest_checkpoint, load_checkpoint
+from morl_trl.runs.interrupt import RunInterrupted
+from morl_trl.runs.run import Run
 
 # 128 frames in batches of 32, updates from 64 frames on (3 batches), checkpoints at 64 and 128, evaluations at
 # 0 and 128. 3 updates per batch: with policy_freq 2 the actor turns (2 actor + 2 temperature steps each) fall
@@ -101,3 +103,33 @@ def test_the_actor_critic_recipe_trains_exactly_as_the_agent_loop(tmp_path, monk
     for rel in ("eval/metrics.csv", "train/losses.csv"):
         rows = _rows(tmp_path / "recipe" / rel)
         assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+
+
+def test_a_mosac_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_path, monkeypatch):
+    """Ctrl-C after the batch at 96 frames (6 updates: actor turns at the 2nd, 4th and 6th; a checkpoint,
+    RunInterrupted), then ``--resume``: MuJoCo snapshots its simulator, so the run continues exactly (the
+    delayed actor's clock, critic_steps, comes back from the checkpoint: the 8th update is again an actor turn)."""
+    pytest.importorskip("mujoco")
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    cfg = {k: v for k, v in {**TINY, **HOPPER}.items() if k in valid_keys("mosac")}
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    train(resolve_config("mosac", "MOHopperDR-v5", run_dir=str(whole), **cfg))
+    step = Run.step
+
+    def ctrl_c_at_96(run, *args, **kw):
+        if run.frames == 96:
+            run._session["interrupt"].requested = True  # (what the first Ctrl-C's handler does)
+        return step(run, *args, **kw)
+
+    monkeypatch.setattr(Run, "step", ctrl_c_at_96)
+    with pytest.raises(RunInterrupted, match="interrupted at 96 frames"):
+        train(resolve_config("mosac", "MOHopperDR-v5", run_dir=str(resumed), **cfg))
+    monkeypatch.setattr(Run, "step", step)
+    train(resume=resumed)
+    assert "resumed from frames_000000000096 at 96 frames" in (resumed / "log.txt").read_text()
+    a, b = (load_checkpoint(latest_checkpoint(run)) for run in (whole, resumed))
+    assert (a["frames"], a["updates"], a["agent"]["critic_steps"]) == (128, 9, 9)
+    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
+        assert _equal(a[key], b[key]), key
+    for rel in ("eval/metrics.csv", "train/losses.csv"):
+        assert _rows(whole / rel) == _rows(resumed / rel), rel
