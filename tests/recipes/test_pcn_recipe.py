@@ -92,3 +92,39 @@ def test_the_continuous_pcn_recipe_trains_exactly_as_the_agent_loop(tmp_path, mo
     assert agent["random_actions"] is False
     # sub-env 1's unfinished episode: 9 steps so far
     assert {i: piece["reward"].shape for i, piece in agent["pending"].items()} == {1: (9, 3)}
+
+
+@pytest.mark.slow  # (three short runs)
+def test_a_pcn_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_path, monkeypatch):
+    """Ctrl-C after the batch at 512 frames (the warm-up's episodes and the first round: a checkpoint,
+    RunInterrupted), then ``--resume``: MO-LavaGrid snapshots its simulator, so the run continues exactly (the
+    replay, the unfinished episodes, the command and the generator come back from the checkpoint)."""
+    from morl_trl.runs.interrupt import RunInterrupted
+    from morl_trl.runs.run import Run
+
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    cfg = {k: v for k, v in TINY.items() if k in valid_keys("pcn")} | dict(
+        num_envs=2, frames_per_batch=128, frames=1024, eval_interval=1024, checkpoint_interval=512,
+        eval_contexts=("MOLavaGridRoom-v0",))
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    train(resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(whole), **cfg))
+    step = Run.step
+
+    def ctrl_c_at_512(run, *args, **kw):
+        if run.frames == 512:
+            run._session["interrupt"].requested = True  # (what the first Ctrl-C's handler does)
+        return step(run, *args, **kw)
+
+    monkeypatch.setattr(Run, "step", ctrl_c_at_512)
+    with pytest.raises(RunInterrupted, match="interrupted at 512 frames"):
+        train(resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg))
+    monkeypatch.setattr(Run, "step", step)
+    train(resume=resumed)
+    log = (resumed / "log.txt").read_text()
+    assert "resumed from frames_000000000512 at 512 frames" in log and "fresh episodes" not in log
+    a, b = (load_checkpoint(latest_checkpoint(run)) for run in (whole, resumed))
+    assert (a["frames"], a["updates"], a["agent"]["rounds"]) == (1024, 6, 2)
+    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
+        assert _equal(a[key], b[key]), key
+    for rel in ("eval/metrics.csv", "train/losses.csv"):
+        assert _rows(whole / rel) == _rows(resumed / rel), rel
