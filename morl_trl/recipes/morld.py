@@ -8,6 +8,15 @@ moves by Pareto simulated annealing away from its nearest archived neighbour. Ev
 authors': for each evaluation weight the Pareto archive's snapshot whose weight is nearest acts
 (:class:`ArchiveSnapshotRouter`), with sampled actions.
 
+:func:`train_morld` is the recipe, read top to bottom (env -> the population, its loss and optimizers ->
+the shared replay buffer and collector -> the loop), for both schedules and both variants. What lives
+between batches and in checkpoints is a :class:`MORLDAgent` (the population, the archive, the turn and the
+counters), whose named steps the loop calls: :meth:`~MORLDAgent.record_returns`, ``store``,
+:meth:`~MORLDAgent.own_updates` (the acting member's updates at the frames of :func:`update_clocks`),
+:meth:`~MORLDAgent.catch_up_updates`, :meth:`~MORLDAgent.exchange`, :meth:`~MORLDAgent.next_turn`;
+concurrent, :meth:`~MORLDAgent.concurrent_updates_due` and :meth:`~MORLDAgent.exchanges_due`
+(:meth:`MORLDAgent.learn` is the loop's body as one call, for driving an agent batch by batch).
+
 The population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`:
 every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_schedule``):
 
@@ -67,6 +76,7 @@ from tensordict import TensorDictBase
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
+from morl_trl._torchrl_compat import collector_state, reset_collector
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives import PolyakUpdate
@@ -94,13 +104,25 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
+from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import MemberAdam
-from morl_trl.recipes.parts import run_discount
+from morl_trl.recipes.parts import (
+    check_buffer_memory,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    make_replay_buffer,
+    run_discount,
+    run_domain,
+    start_notes,
+)
+from morl_trl.runs.env_state import env_state
+from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ActiveMemberRouter", "ArchiveSnapshotRouter", "MORLDAgent", "MemberTargetUpdate", "ParetoArchive",
            "archive_eval_policy", "make_member_env", "make_morld_agent", "make_morld_training_env",
-           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns"]
+           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns", "train_morld", "update_clocks"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -149,6 +171,20 @@ def round_robin_turns(frames: int, exchange_every: int, pop_size: int) -> list[i
     """
     turns = -(-frames // exchange_every)
     return [turns // pop_size + (1 if p < turns % pop_size else 0) for p in range(pop_size)]
+
+
+def update_clocks(cfg, start: int, frames: int) -> list[int]:
+    """Round robin: the shared-counter frames of the acting member's updates in the batch of frames
+    ``start .. frames - 1``, as the authors' MOSAC: after the step of shared index ``g`` (0-based), an
+    update when ``g > learning_starts`` and ``g % update_frequency == 0``
+    (``mosac_continuous_action.py:558-559``; discrete: ``update_frequency``).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> update_clocks(SimpleNamespace(init_random_frames=4, update_frequency=2), 0, 10)
+        [6, 8]
+    """
+    return [g for g in range(max(start, cfg.init_random_frames + 1), frames) if g % cfg.update_frequency == 0]
 
 
 def _member_view(mask: torch.Tensor, ndim: int, dim: int) -> torch.Tensor:
@@ -404,56 +440,86 @@ class MORLDAgent(Agent):
         return -(-self.cfg.frames // e) * e - frames_done
 
     def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """Record the finished episodes, store the batch in the shared buffer, update, and exchange
-        every ``cfg.exchange_every`` frames (round robin: after the catch-up updates)."""
-        if self.round_robin:
-            return self._learn_round_robin(batch, buffer, frames)
-        self._record_returns(batch)
-        buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))  # what the loss reads, no more
-        losses, n = None, 0
-        if frames >= self.cfg.init_random_frames:
-            if self.cfg.updates_per_batch:
-                n = self.cfg.updates_per_batch
-            else:
-                self._member_frames += batch.numel() // self.population
-                n, self._member_frames = divmod(self._member_frames, self.cfg.update_frequency)
-            losses = self.run_updates(buffer, n)
-        while frames >= self._next_exchange:
-            self._next_exchange += self.cfg.exchange_every
-            self.exchange()
-        return losses, n
-
-    def _learn_round_robin(self, batch: TensorDictBase, buffer, frames: int):
-        cfg, P, a = self.cfg, self.population, self.active
-        self._record_returns(batch)
-        buffer.extend(batch.reshape(-1).select(*self.loss.in_keys, strict=False))
-        start = frames - batch.numel()
+        """One batch of :func:`train_morld`'s loop as one call (for driving an agent batch by batch, as the
+        generic :func:`~morl_trl.recipes.off_policy.train_agent`): record the finished episodes, store the
+        batch in the shared buffer, update, and exchange every ``cfg.exchange_every`` frames (round robin:
+        after the catch-up updates; the env reset is :meth:`before_batch`'s)."""
+        self.record_returns(batch)
+        self.store(buffer, batch)
+        if not self.round_robin:
+            losses, n = None, 0
+            if frames >= self.cfg.init_random_frames:
+                n = self.concurrent_updates_due(batch)
+                losses = self.run_updates(buffer, n)
+            for _ in range(self.exchanges_due(frames)):
+                self.exchange()
+            return losses, n
+        cfg, a = self.cfg, self.active
         self.member_frames[a] += batch.numel()
-        # the authors' MOSAC: after the step of shared index g (0-based), an update when g > learning_starts
-        # and g % update_frequency == 0 (mosac_continuous_action.py:558-559; discrete: update_frequency)
-        clocks = [g for g in range(max(start, cfg.init_random_frames + 1), frames) if g % cfg.update_frequency == 0]
-        self.members.copy_(torch.arange(P, device=self.members.device) == a)  # (the optimizers' and targets' mask)
-        losses = self._updates_at(buffer, clocks, done=0)
-        self.member_updates[a] += len(clocks)
-        n = len(clocks)
         self.turn_frames += batch.numel()
-        if self.turn_frames >= cfg.exchange_every:  # the exchange (morld.py:559-578)
-            passes = cfg.morld_update_passes
-            if P > 1 and passes:
-                self.members.logical_not_()
-                self._catching_up = True
-                try:
-                    out = self._updates_at(buffer, [frames] * passes, done=n)
-                finally:
-                    self._catching_up = False
-                losses = out if out is not None else losses
-                self.member_updates[self.members.cpu()] += passes
-                n += passes
+        losses = self.own_updates(buffer, update_clocks(cfg, frames - batch.numel(), frames))
+        n = len(update_clocks(cfg, frames - batch.numel(), frames))
+        if self.turn_frames >= cfg.exchange_every:
+            out = self.catch_up_updates(buffer, frames, done=n)
+            losses = out if out is not None else losses
+            n += self.catch_up_passes
             self.exchange()
-            self.active_member.fill_((a + 1) % P)
-            self.turn_frames = 0
+            self.next_turn()
             self._reset_due = True
         return losses, n
+
+    def concurrent_updates_due(self, batch: TensorDictBase) -> int:
+        """Concurrent: the updates of all members this batch earns, ``cfg.updates_per_batch``, or (0) one
+        per ``update_frequency`` of each member's frames (a remainder carries over to the next batch)."""
+        if self.cfg.updates_per_batch:
+            return self.cfg.updates_per_batch
+        self._member_frames += batch.numel() // self.population
+        n, self._member_frames = divmod(self._member_frames, self.cfg.update_frequency)
+        return n
+
+    def exchanges_due(self, frames: int) -> int:
+        """Concurrent: the exchanges due after ``frames`` frames (one per ``exchange_every`` frames passed)."""
+        n = 0
+        while frames >= self._next_exchange:
+            self._next_exchange += self.cfg.exchange_every
+            n += 1
+        return n
+
+    def own_updates(self, buffer, clocks: list[int]) -> TensorDictBase | None:
+        """Round robin: one update of the acting member alone at each shared-counter frame of ``clocks``
+        (only its parameters, Adam moments and targets step); returns the last losses (``None``: none)."""
+        a = self.active
+        self.members.copy_(torch.arange(self.population, device=self.members.device) == a)  # (optimizers', targets' mask)
+        losses = self._updates_at(buffer, clocks, done=0)
+        self.member_updates[a] += len(clocks)
+        return losses
+
+    @property
+    def catch_up_passes(self) -> int:
+        """Round robin: the catch-up updates each other member gets at an exchange (``morld_update_passes``;
+        none with one member)."""
+        return self.cfg.morld_update_passes if self.population > 1 else 0
+
+    def catch_up_updates(self, buffer, frames: int, *, done: int) -> TensorDictBase | None:
+        """Round robin, at the exchange after ``frames`` frames (the authors' ``morld.py:559-567``):
+        :attr:`catch_up_passes` updates of every member but the acting one, all at once (their own
+        ``batch_size`` samples each, at the shared frame ``frames``); ``done``: the batch's updates before them."""
+        passes = self.catch_up_passes
+        if not passes:
+            return None
+        self.members.copy_(torch.arange(self.population, device=self.members.device) != self.active)
+        self._catching_up = True
+        try:
+            losses = self._updates_at(buffer, [frames] * passes, done=done)
+        finally:
+            self._catching_up = False
+        self.member_updates[self.members.cpu()] += passes
+        return losses
+
+    def next_turn(self) -> None:
+        """Round robin: the next member's turn (``(active + 1) mod P``, on a reset env: the loop's)."""
+        self.active_member.fill_((self.active + 1) % self.population)
+        self.turn_frames = 0
 
     def update(self, buffer) -> TensorDictBase:
         """:meth:`Agent.update <morl_trl.recipes.agent.Agent.update>`; the acting member's own update
@@ -519,7 +585,7 @@ class MORLDAgent(Agent):
             batch = buffer.sample(p * b)
         return batch.to(self.device).reshape(p, b)
 
-    def _record_returns(self, batch: TensorDictBase) -> None:
+    def record_returns(self, batch: TensorDictBase) -> None:
         """Add the discounted returns of the episodes ending in ``batch`` to their members' sums, on the
         device (no host read): round robin, all to the active member; concurrent (``[P * N, T]``), member
         ``p`` owns rows ``p * N .. p * N + N - 1``."""
@@ -733,3 +799,74 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
             period_frames=(cfg.target_update_period or 1) * cfg.update_frequency)  # (target_net_freq, in frames)
     holder["agent"] = agent
     return agent
+
+
+# ---------------------------------------------------------------------- the recipe
+def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
+    """Train MORL/D (``morld``, or ``morld_psa``: with Pareto simulated annealing of the weights) in ``run``
+    (opened by :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one), on
+    either schedule (``morld_schedule``, see the module docstring); returns ``(last evaluation summary, agent)``.
+    """
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+    round_robin = cfg.morld_schedule == "round_robin"
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing).
+    # Round robin: num_envs sub-envs the acting member steps; concurrent: num_envs per member, P blocks.
+    env = make_morld_training_env(cfg, device)
+
+    # 2. the modules (make_morld_agent): the population's actor and critics (every parameter [P, ...]), the
+    # loss (PopulationMOSACLoss, each member's weight), the optimizers (round robin: MemberAdam, one Adam
+    # per member) and targets (MemberTargetUpdate), the acting router, the Pareto archive's evaluation policy
+    tune_malloc()  # (the allocator for training, as build_agent)
+    agent = make_morld_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)  # (the archive snapshot nearest each evaluation weight)
+
+    # 3. the shared replay buffer, a resumed run's state, the collector (round robin: whole turns)
+    check_buffer_memory(cfg, env, device)
+    buffer = make_replay_buffer(cfg, device)
+    state = run.restore(buffer, map_location=device, env=env)
+    if state is not None:
+        agent.load_state_dict(state["agent"])  # population, optimizers, archive, the turn and the counters
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
+                               frames_to_go=agent.frames_to_collect(run.frames))
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch: record the finished episodes' returns, store the batch, the
+    # updates, the exchange when due, then (run.step) evaluate and checkpoint when due. A checkpoint is the
+    # state at the end of a batch (after its evaluation), so the batch after it is the same on a resume.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # (uniformly random actions for the first init_random_frames)
+            frames = run.collected(batch)
+            agent.record_returns(batch)  # (the archive's evaluation with morld_eval_episodes=0)
+            agent.store(buffer, batch)  # the entries the loss reads, into the buffer all members share
+            if round_robin:  # the authors' MORLD.train: member `agent.active` acts for exchange_every frames
+                a = agent.active
+                agent.member_frames[a] += batch.numel()
+                agent.turn_frames += batch.numel()
+                clocks = update_clocks(cfg, frames - batch.numel(), frames)  # one per update_frequency frames
+                losses = agent.own_updates(buffer, clocks)  # the acting member alone, at each of those frames
+                updates = len(clocks)
+                if agent.turn_frames >= cfg.exchange_every:  # the exchange (morld.py:559-578)
+                    out = agent.catch_up_updates(buffer, frames, done=updates)  # morld_update_passes per other member
+                    losses = out if out is not None else losses
+                    updates += agent.catch_up_passes
+                    agent.exchange()  # evaluate the members, archive them, PSA: adapt the weights
+                    agent.next_turn()  # the next member, on a reset env (each member's train() resets it)
+                    reset_collector(collector)
+                    agent.env_resets += 1
+            else:  # concurrent: every member acts in its block of sub-envs, all updated together
+                losses, updates = None, 0
+                if frames >= cfg.init_random_frames:
+                    updates = agent.concurrent_updates_due(batch)
+                    losses = agent.run_updates(buffer, updates)
+                for _ in range(agent.exchanges_due(frames)):
+                    agent.exchange()
+            collector.update_policy_weights_()
+            run.step(losses, updates)
+    return run.summary, agent

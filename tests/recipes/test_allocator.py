@@ -66,7 +66,8 @@ class _Tuned(Exception):
     pass
 
 
-# the own recipes (Envelope, GPI, the actor-critics', PCN's) and the Agent loop (MORL/D)
+# the own recipes (Envelope, GPI, the actor-critics', PCN's, MORL/D's); every recipe module's tune_malloc is stubbed,
+# and build_agent's (recipes/algorithms.py: the Agent loop's)
 @pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac", "pcn", "morld"])
 def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
     import importlib
@@ -77,7 +78,7 @@ def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, 
         raise _Tuned
 
     for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.actor_critic",
-                 "morl_trl.recipes.pcn",
+                 "morl_trl.recipes.pcn", "morl_trl.recipes.morld",
                  "morl_trl.recipes.algorithms"):
         monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
     with pytest.raises(_Tuned):

@@ -165,7 +165,7 @@ def test_exchange_archives_member_returns_and_adapts_weights():
     ret[0], ret[1], ret[5], ret[11] = torch.tensor([0.0, 1.0]), torch.tensor([0.0, 3.0]), torch.tensor([0.7, 0.7]), \
         torch.tensor([0.1, 0.0])
     batch = TensorDict({"next": TensorDict(done=done, episode_discounted_return=ret, batch_size=[12, 1])}, [12, 1])
-    agent._record_returns(batch)
+    agent.record_returns(batch)
     torch.testing.assert_close(agent.member_evaluations(),
                                torch.tensor([[0.0, 2.0], [0.7, 0.7], [0.1, 0.0]], dtype=torch.float64))
     before = agent.loss.weights.clone()
