@@ -81,5 +81,6 @@ def test_the_morld_recipe_trains_exactly_as_the_agent_loop_concurrent(tmp_path, 
 @pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="needs mujoco")
 def test_the_morld_recipe_trains_exactly_as_the_agent_loop_on_hopper(tmp_path, monkeypatch):
-    state = _both(tmp_path, monkeypatch, "morld", "MOHopperDR-v5", **ROUND_ROBIN)
+    state = _both(tmp_path, monkeypatch, "morld", "MOHopperDR-v5", **dict(ROUND_ROBIN, eval_weights=3),
+                  eval_contexts=("MOHopperDefault-v5",))
     _round_robin_counters(state)
