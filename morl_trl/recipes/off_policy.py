@@ -4,7 +4,8 @@
 one) and hands it to the algorithm's recipe: its own, top to bottom, when it has one
 (:data:`RECIPES`: Envelope, :func:`morl_trl.recipes.envelope.train_envelope`; GPI-LS and GPI-PD,
 :func:`morl_trl.recipes.gpi.train_gpi`; CAPQL, MOSAC, discrete MOSAC and SAC,
-:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`), else the
+:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`; PGMORL,
+:func:`morl_trl.recipes.pgmorl.train_pgmorl`), else the
 loop of every algorithm written as an :class:`~morl_trl.recipes.agent.Agent`
 (:func:`train_agent`):
 
@@ -36,6 +37,7 @@ from morl_trl.recipes.config import TrainConfig, resume_config
 from morl_trl.recipes.envelope import train_envelope
 from morl_trl.recipes.gpi import train_gpi
 from morl_trl.recipes.pcn import train_pcn
+from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
     check_buffer_memory,
     load_reference,
@@ -66,7 +68,8 @@ EXIT_NON_FINITE_LOSS = 3
 #: algorithm name -> its own recipe ``recipe(run) -> (summary, agent)``, for an algorithm written top to
 #: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
 RECIPES: dict = {"envelope": train_envelope, "gpi_ls": train_gpi, "gpi_pd": train_gpi,
-                 **dict.fromkeys(("capql", "mosac", "mosac_discrete", "sac"), train_actor_critic), "pcn": train_pcn}
+                 **dict.fromkeys(("capql", "mosac", "mosac_discrete", "sac"), train_actor_critic), "pcn": train_pcn,
+                 "pgmorl": train_pgmorl}
 
 
 def build(cfg: TrainConfig, device: torch.device):
@@ -148,7 +151,7 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
 
 def train_agent(run: Run) -> tuple[dict, Agent]:
     """The loop of every algorithm written as an :class:`Agent` (all but those of :data:`RECIPES`, Envelope,
-    GPI-LS / GPI-PD, the actor-critics and PCN, which have their own): collect a batch, ``agent.learn`` (store
+    GPI-LS / GPI-PD, the actor-critics, PCN and PGMORL, which have their own): collect a batch, ``agent.learn`` (store
     + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
     ``(last evaluation summary, agent)``."""
     cfg = run.cfg
