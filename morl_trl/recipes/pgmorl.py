@@ -12,7 +12,8 @@ loop's body as one call, for driving an agent batch by batch).
 A population of ``P`` PPO agents with vector critics, run as ONE batched module
 (:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
 owns sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration: every member
-collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps). As the authors, an iteration counts ONE member's frames
+collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps). As the
+authors, an iteration counts ONE member's frames
 (``E x 2048`` = 8192) against ``frames``, and the run ends after the warm-up and the whole
 generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 iterations,
 3.28M counted frames; every member collected them, 19.7M env steps in all):
@@ -326,7 +327,7 @@ class PGMORLAgent(Agent):
         total = (out["loss_objective"] + out["loss_critic"]) * self.P
         optimizer_step(total, [self.optimizers["ppo"]], max_grad_norm=self.cfg.max_grad_norm, population=self.P,
                        losses={k: out[k] for k in ("loss_objective", "loss_critic")})  # each member's norm clipped
-        return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
+        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
 
     def generation_ends(self) -> bool:
         """Whether the iterations done (:attr:`iteration`) end the warm-up (``pgmorl_warmup``) or a generation
@@ -534,7 +535,7 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
         total = (out["loss_objective"] + out["loss_critic"]) * P  # (scaled by P: each member's gradient is its own)
         optimizer_step(total, [optimizer], max_grad_norm=cfg.max_grad_norm, population=P,  # each member's norm clipped
                        losses={k: out[k] for k in ("loss_objective", "loss_critic")})
-        return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
+        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
 
     def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
         return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
