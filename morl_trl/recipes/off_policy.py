@@ -4,8 +4,8 @@
 one) and hands it to the algorithm's recipe: its own, top to bottom, when it has one
 (:data:`RECIPES`: Envelope, :func:`morl_trl.recipes.envelope.train_envelope`; GPI-LS and GPI-PD,
 :func:`morl_trl.recipes.gpi.train_gpi`; CAPQL, MOSAC, discrete MOSAC and SAC,
-:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`; MORL/D,
-:func:`morl_trl.recipes.morld.train_morld`), else the
+:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`; PGMORL,
+:func:`morl_trl.recipes.pgmorl.train_pgmorl`; MORL/D, :func:`morl_trl.recipes.morld.train_morld`), else the
 loop of every algorithm written as an :class:`~morl_trl.recipes.agent.Agent`
 (:func:`train_agent`):
 
@@ -38,6 +38,7 @@ from morl_trl.recipes.envelope import train_envelope
 from morl_trl.recipes.gpi import train_gpi
 from morl_trl.recipes.morld import train_morld
 from morl_trl.recipes.pcn import train_pcn
+from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
     check_buffer_memory,
     load_reference,
@@ -69,7 +70,7 @@ EXIT_NON_FINITE_LOSS = 3
 #: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
 RECIPES: dict = {"envelope": train_envelope, "gpi_ls": train_gpi, "gpi_pd": train_gpi,
                  **dict.fromkeys(("capql", "mosac", "mosac_discrete", "sac"), train_actor_critic), "pcn": train_pcn,
-                 **dict.fromkeys(("morld", "morld_psa"), train_morld)}
+                 "pgmorl": train_pgmorl, **dict.fromkeys(("morld", "morld_psa"), train_morld)}
 
 
 def build(cfg: TrainConfig, device: torch.device):
@@ -151,7 +152,7 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
 
 def train_agent(run: Run) -> tuple[dict, Agent]:
     """The loop of every algorithm written as an :class:`Agent` (all but those of :data:`RECIPES`, Envelope,
-    GPI-LS / GPI-PD, the actor-critics, PCN and MORL/D, which have their own): collect a batch, ``agent.learn`` (store
+    GPI-LS / GPI-PD, the actor-critics, PCN, PGMORL and MORL/D, which have their own): collect a batch, ``agent.learn`` (store
     + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
     ``(last evaluation summary, agent)``."""
     cfg = run.cfg

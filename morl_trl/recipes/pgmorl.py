@@ -1,10 +1,19 @@
-"""PGMORL (Xu et al. 2020): the agent that ``morl-trl train pgmorl`` trains.
+"""PGMORL (Xu et al. 2020): ``morl-trl train pgmorl``, read top to bottom.
+
+:func:`train_pgmorl` is the recipe (env -> modules and loss -> collector -> the loop); with
+TorchRL's ``ClipPPOLoss`` and :func:`~morl_trl.objectives.pgmorl.vector_gae` it is everything PGMORL
+does per iteration. What it keeps between iterations and checkpoints is a :class:`PGMORLAgent` (the
+population, the weights, the performance buffer, the Pareto archive, the prediction model, the
+``VecNorm`` statistics), whose named steps the loop calls: :meth:`PGMORLAgent.prepare_batch`,
+:meth:`PGMORLAgent.evaluate_members`, :meth:`PGMORLAgent.generation_ends`,
+:meth:`PGMORLAgent.select_tasks`, :meth:`PGMORLAgent.before_batch` (:meth:`PGMORLAgent.learn` is the
+loop's body as one call, for driving an agent batch by batch).
 
 A population of ``P`` PPO agents with vector critics, run as ONE batched module
 (:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
 owns sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration: every member
-collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps), then
-:meth:`PGMORLAgent.learn`. As the authors, an iteration counts ONE member's frames
+collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps). As the
+authors, an iteration counts ONE member's frames
 (``E x 2048`` = 8192) against ``frames``, and the run ends after the warm-up and the whole
 generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 iterations,
 3.28M counted frames; every member collected them, 19.7M env steps in all):
@@ -66,7 +75,7 @@ from torchrl.envs import ClipTransform
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
-from morl_trl._torchrl_compat import VecNormNonNegativeVar, transform_step
+from morl_trl._torchrl_compat import VecNormNonNegativeVar, collector_state, transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
@@ -76,6 +85,7 @@ from morl_trl.objectives.pgmorl import (
     vector_gae,
 )
 from morl_trl.recipes.agent import Agent, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
 from morl_trl.recipes.pgmorl_evolution import (
     PerformanceBuffer,
@@ -84,9 +94,12 @@ from morl_trl.recipes.pgmorl_evolution import (
     nondominated,
     select_tasks,
 )
+from morl_trl.recipes.parts import load_reference, make_collector, make_evaluator, run_discount, run_domain, start_notes
+from morl_trl.runs.env_state import env_state
+from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env", "pgmorl_iterations"]
+__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env", "pgmorl_iterations", "train_pgmorl"]
 
 
 def pgmorl_iterations(frames: int, frames_per_iteration: int, warmup: int, evo_iterations: int) -> int:
@@ -243,48 +256,84 @@ class PGMORLAgent(Agent):
 
     # ------------------------------------------------------------------ learning
     def learn(self, batch: TensorDictBase, buffer, frames: int):
-        P, E = self.P, self.E
-        b = batch.reshape(P, E, batch.shape[-1])
-        self._record_performance(b)
-        b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
-                     ("next", "done"), ("next", "terminated")).detach()
-        nxt = b.get("next")
-        self.reward_clip(transform_step(self.reward_norm, b, nxt))  # the statistics take the batch, then normalise it
+        """One iteration of :func:`train_pgmorl`'s loop (the members' performance, reward normalisation, GAE,
+        the PPO epochs, the evaluations and the task selection when due) as one call, for driving an agent
+        batch by batch (unit tests); the recipe writes the same steps out, and
+        ``tests/recipes/test_pgmorl_recipe.py`` holds the two equal."""
+        b = self.prepare_batch(batch)
         if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
-            self._evaluate_all(add_to_prediction=False)
-        with torch.no_grad():
-            value = self.critic.module(b.get("observation"))
-            next_value = self.critic.module(b.get(("next", "observation")))
-            adv, target = vector_gae(self.gamma, self.cfg.pgmorl_gae_lambda, value, next_value,
-                                     b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
-                                     b.get(("next", "terminated")))
-        flat = TensorDict({
-            "observation": b.get("observation"), "action": b.get("action"),
-            "action_log_prob": b.get("action_log_prob"), "state_value": value, "value_target": target,
-            "advantage_vector": adv,
-        }, [P, E, b.shape[-1]]).reshape(P, -1)
-        losses = None
-        n_updates = 0
-        N = flat.shape[1]
-        mb = max(1, N // self.cfg.pgmorl_minibatches)
-        members = torch.arange(P).unsqueeze(-1)
+            self.evaluate_members(add_to_prediction=False)
+        flat = self.advantages(b)
+        losses, n_updates = None, 0
         for _ in range(self.cfg.pgmorl_epochs):
-            perm = torch.rand(P, N, generator=self.generator).argsort(-1)
-            for start in range(0, N, mb):
-                td = flat[members, perm[:, start:start + mb]]
-                td.set("advantage", scalarize_advantage(td.get("advantage_vector"), self.weights, normalize_dims=(1,)))
+            for td in self.minibatches(flat):
                 try:
-                    losses = self._step(td)
+                    losses = self.ppo_update(td)
                 except NonFiniteLossError as err:
                     err.updates_done = n_updates
                     raise
                 n_updates += 1
         self.iteration += 1
-        W, G = self.cfg.pgmorl_warmup, self.cfg.pgmorl_evo_iterations
-        if self.iteration == W or (self.iteration > W and (self.iteration - W) % G == 0):
-            self._evaluate_all(add_to_prediction=True)
-            self._select_tasks()
+        if self.generation_ends():
+            self.evaluate_members(add_to_prediction=True)
+            self.select_tasks()
         return losses, n_updates
+
+    def prepare_batch(self, batch: TensorDictBase) -> TensorDictBase:
+        """The collected ``batch`` ``[P * E, T]`` as ``[P, E, T]``: each member's performance recorded from its
+        episodes that ended in it (:meth:`record_performance`), then the entries PPO reads, with the vector
+        rewards normalised (``VecNorm``, its statistics updated with the batch first) and clipped at +-10 into
+        ``("next", "reward_norm")``."""
+        b = batch.reshape(self.P, self.E, batch.shape[-1])
+        self.record_performance(b)
+        b = b.select("observation", "action", "action_log_prob", ("next", "observation"), ("next", "reward"),
+                     ("next", "done"), ("next", "terminated")).detach()
+        self.reward_clip(transform_step(self.reward_norm, b, b.get("next")))
+        return b
+
+    @torch.no_grad()
+    def advantages(self, b: TensorDictBase) -> TensorDictBase:
+        """``[P, E * T]``: each member's transitions with its critic's values, the per-objective GAE
+        (:func:`~morl_trl.objectives.pgmorl.vector_gae` on the normalised rewards) and the value targets."""
+        P = self.P
+        value = self.critic.module(b.get("observation"))
+        next_value = self.critic.module(b.get(("next", "observation")))
+        adv, target = vector_gae(self.gamma, self.cfg.pgmorl_gae_lambda, value, next_value,
+                                 b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
+                                 b.get(("next", "terminated")))
+        return TensorDict({
+            "observation": b.get("observation"), "action": b.get("action"),
+            "action_log_prob": b.get("action_log_prob"), "state_value": value, "value_target": target,
+            "advantage_vector": adv,
+        }, [P, self.E, b.shape[-1]]).reshape(P, -1)
+
+    def minibatches(self, flat: TensorDictBase):
+        """One epoch: ``pgmorl_minibatches`` minibatches ``[P, N / pgmorl_minibatches]`` of ``flat`` ``[P, N]``, each
+        member's own random permutation (:attr:`generator`), the advantage scalarised with the member's weight
+        and standardised per member and minibatch (``"advantage"``)."""
+        N = flat.shape[1]
+        mb = max(1, N // self.cfg.pgmorl_minibatches)
+        members = torch.arange(self.P).unsqueeze(-1)
+        perm = torch.rand(self.P, N, generator=self.generator).argsort(-1)
+        for start in range(0, N, mb):
+            td = flat[members, perm[:, start:start + mb]]
+            td.set("advantage", scalarize_advantage(td.get("advantage_vector"), self.weights, normalize_dims=(1,)))
+            yield td
+
+    def ppo_update(self, td: TensorDictBase) -> TensorDictBase:
+        """One PPO step of every member on its minibatch ``td`` ``[P, n]``: ``ClipPPOLoss``, the loss scaled by ``P``
+        so each member's gradient is its own, each member's gradient norm clipped to ``max_grad_norm``, Adam."""
+        out = self.loss(td)
+        total = (out["loss_objective"] + out["loss_critic"]) * self.P
+        optimizer_step(total, [self.optimizers["ppo"]], max_grad_norm=self.cfg.max_grad_norm, population=self.P,
+                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})  # each member's norm clipped
+        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
+
+    def generation_ends(self) -> bool:
+        """Whether the iterations done (:attr:`iteration`) end the warm-up (``pgmorl_warmup``) or a generation
+        (every ``pgmorl_evo_iterations`` after it): the members are evaluated and the tasks selected."""
+        W, G = self.cfg.pgmorl_warmup, self.cfg.pgmorl_evo_iterations
+        return self.iteration == W or (self.iteration > W and (self.iteration - W) % G == 0)
 
     def before_batch(self) -> bool:
         """Before an iteration (its reset: ``pgmorl_reset_each_iteration``): :meth:`reseed_env`."""
@@ -298,15 +347,9 @@ class PGMORLAgent(Agent):
         if self.sim_env is not None:
             self.sim_env.reseed_subenvs([self.member_seeds[p] + i for p in range(self.P) for i in range(self.E)])
 
-    def _step(self, td: TensorDictBase) -> TensorDictBase:
-        out = self.loss(td)
-        total = (out["loss_objective"] + out["loss_critic"]) * self.P
-        optimizer_step(total, [self.optimizers["ppo"]], max_grad_norm=self.cfg.max_grad_norm, population=self.P,
-                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})  # each member's norm clipped
-        return TensorDict({"loss_objective": out["loss_objective"].detach(), "loss_critic": out["loss_critic"].detach()}, [])
-
-    def _record_performance(self, b: TensorDictBase) -> None:
-        """Each member's mean discounted return over its episodes ending in ``b`` (one host read)."""
+    def record_performance(self, b: TensorDictBase) -> None:
+        """Each member's mean discounted return (raw rewards) over its episodes ending in ``b`` ``[P, E, T]``
+        (one host read); a member none of whose episodes ended keeps its last one."""
         k = self.performance.shape[-1]
         done = b.get(("next", "done")).reshape(self.P, -1, 1)  # [P, E * T, 1]
         ret = b.get(("next", "episode_discounted_return")).double().reshape(self.P, -1, k)
@@ -318,7 +361,10 @@ class PGMORLAgent(Agent):
     def _member_state(self, p: int) -> dict:
         return {"actor": self.head.member_state(p), "critic": self.critic.module.member_state(p)}
 
-    def _evaluate_all(self, *, add_to_prediction: bool) -> None:
+    def evaluate_members(self, *, add_to_prediction: bool) -> None:
+        """Every member's evaluation (:attr:`performance`) into the performance buffer (with a copy of the member)
+        and the Pareto archive (with a snapshot of its actor); with ``add_to_prediction``, the sample
+        (weight, evaluation before, evaluation now) to the prediction model."""
         for p in range(self.P):
             perf = self.performance[p].copy()
             if not np.isfinite(perf).all():
@@ -343,7 +389,10 @@ class PGMORLAgent(Agent):
             return None
         return torch.stack([e["weight"] for e in self.archive_members]), [e["actor"] for e in self.archive_members]
 
-    def _select_tasks(self) -> None:
+    def select_tasks(self) -> None:
+        """The prediction-guided task selection (:func:`~morl_trl.recipes.pgmorl_evolution.select_tasks`, once the
+        prediction model has 4 distinct samples): slot ``p`` takes a copy of the chosen policy of the performance
+        buffer (its Adam moments reset, seed 42) and trains it with the chosen weight; a new generation."""
         if len({tuple(a) for a in self.predictor.after}) < 4 or not self.population.individuals:
             return  # the prediction model needs 4 distinct samples: the members keep their tasks
         tasks = select_tasks(self.population, self.archive, self.predictor, self.P,
@@ -446,3 +495,98 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
                              f"set pgmorl_reseed_each_iteration=false") from None
     holder["agent"] = agent
     return agent
+
+
+def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
+    """Train PGMORL in ``run`` (opened by :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the
+    continuation of one); returns ``(last evaluation summary, agent)``."""
+    cfg = run.cfg
+    device = torch.device(cfg.device)
+    spec = run_domain(cfg)
+    P = cfg.pgmorl_pop
+
+    # 1. the env (everything is built before the run directory is touched: a failed start writes nothing):
+    # P x E sub-envs (member p owns sub-envs p*E .. p*E+E-1) + history + VecNorm/clip on the observations
+    # + the vector returns of the members' evaluation
+    env = make_pgmorl_training_env(cfg, device)
+
+    # 2. the modules (make_pgmorl_agent): the population's actor and vector critic as ONE batched module each,
+    # ClipPPOLoss, Adam (eps 1e-5), the members' weights (the authors' grid), the performance buffer, the Pareto
+    # archive, the prediction model, the reward VecNorm; the evaluation acts with the archive's snapshots
+    tune_malloc()  # (the allocator for training, as build_agent)
+    agent = make_pgmorl_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
+    loss, optimizer, critic, weights = agent.loss, agent.optimizers["ppo"], agent.critic.module, agent.weights
+    reference = load_reference(cfg, spec)
+    evaluator = make_evaluator(cfg, agent, spec, reference)
+
+    # 3. a resumed run's state (PPO has no replay buffer: the population, archive and statistics are all in the
+    # agent's state), the collector of the iterations still to run (pgmorl_iterations: whole generations;
+    # every member collects, one member's frames are counted)
+    state = run.restore(None, map_location=device, env=env)
+    if state is not None:
+        agent.load_state_dict(state["agent"])
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
+                               frames_to_go=agent.frames_to_collect(run.frames))
+    agent.before_batch()  # each member's sub-envs re-seeded for the first iteration's reset (the authors' seed)
+
+    def update(td: TensorDictBase) -> TensorDictBase:
+        """One PPO step of every member on its minibatch ``td`` ``[P, n]`` (a non-finite loss raises first)."""
+        out = loss(td)  # ratio and value clip pgmorl_clip, no entropy bonus, value loss 0.25 * max(unclipped, clipped)
+        total = (out["loss_objective"] + out["loss_critic"]) * P  # (scaled by P: each member's gradient is its own)
+        optimizer_step(total, [optimizer], max_grad_norm=cfg.max_grad_norm, population=P,  # each member's norm clipped
+                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})
+        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
+
+    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
+        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+
+    # 4. the loop. One iteration = one batch (every sub-env reset at its start: pgmorl_reset_each_iteration):
+    # GAE; pgmorl_epochs epochs of pgmorl_minibatches PPO updates per member; at the end of the warm-up and of
+    # every generation, the members' evaluations -> performance buffer, Pareto archive, prediction model, then
+    # the task selection; then (run.step) evaluate and checkpoint when due. A checkpoint is the state at the end
+    # of an iteration.
+    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, collector=collector,
+                     notes=start_notes(cfg, run, spec, reference)):
+        for batch in collector:  # [P * E, T]
+            frames = run.collected(batch, agent.frames_of(batch))  # one member's frames (E x T), as the authors
+            # [P, E, T]: each member's evaluation from its episodes that ended (agent.performance), the rewards
+            # normalised (VecNorm) and clipped into ("next", "reward_norm")
+            b = agent.prepare_batch(batch)
+            if agent.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
+                agent.evaluate_members(add_to_prediction=False)
+            # per-objective GAE on the normalised rewards with each member's vector critic -> [P, E * T]
+            with torch.no_grad():
+                value = critic(b.get("observation"))
+                next_value = critic(b.get(("next", "observation")))
+                adv, target = vector_gae(agent.gamma, cfg.pgmorl_gae_lambda, value, next_value,
+                                         b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
+                                         b.get(("next", "terminated")))
+            flat = TensorDict({"observation": b.get("observation"), "action": b.get("action"),
+                               "action_log_prob": b.get("action_log_prob"), "state_value": value,
+                               "value_target": target, "advantage_vector": adv}, b.shape).reshape(P, -1)
+            # the PPO epochs: each member's own random minibatches, its advantage scalarised with its weight and
+            # standardised per member and minibatch
+            losses, updates = None, 0
+            N = flat.shape[1]
+            size = max(1, N // cfg.pgmorl_minibatches)
+            members = torch.arange(P).unsqueeze(-1)
+            for _ in range(cfg.pgmorl_epochs):
+                perm = torch.rand(P, N, generator=agent.generator).argsort(-1)
+                for start in range(0, N, size):
+                    td = flat[members, perm[:, start:start + size]]
+                    td.set("advantage", scalarize_advantage(td.get("advantage_vector"), weights, normalize_dims=(1,)))
+                    try:
+                        losses = update(td)
+                    except NonFiniteLossError as err:
+                        err.updates_done = updates  # (the run counts the updates applied before it)
+                        raise
+                    updates += 1
+            agent.iteration += 1
+            if agent.generation_ends():  # the warm-up's end, then every pgmorl_evo_iterations iterations
+                # each member's evaluation -> performance buffer, Pareto archive (+ snapshot), prediction sample
+                agent.evaluate_members(add_to_prediction=True)
+                agent.select_tasks()  # each slot: a copy of a buffer policy + a weight (predicted HV gain + sparsity)
+            agent.before_batch()  # the next iteration's sub-envs re-seeded with their member's seed
+            collector.update_policy_weights_()
+            run.step(losses, updates, epsilon=agent.epsilon)
+    return run.summary, agent

@@ -66,9 +66,9 @@ class _Tuned(Exception):
     pass
 
 
-# the own recipes (Envelope, GPI, the actor-critics', PCN's, MORL/D's); every recipe module's tune_malloc is stubbed,
-# and build_agent's (recipes/algorithms.py: the Agent loop's)
-@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac", "pcn", "morld"])
+# the own recipes (Envelope, GPI, the actor-critics', PCN's, PGMORL's, MORL/D's); every recipe module's tune_malloc
+# is stubbed, and build_agent's (recipes/algorithms.py: the Agent loop's)
+@pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac", "pcn", "pgmorl", "morld"])
 def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
     import importlib
 
@@ -78,10 +78,14 @@ def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, 
         raise _Tuned
 
     for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.actor_critic",
-                 "morl_trl.recipes.pcn", "morl_trl.recipes.morld",
+                 "morl_trl.recipes.pcn", "morl_trl.recipes.pgmorl", "morl_trl.recipes.morld",
                  "morl_trl.recipes.algorithms"):
         monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
+    env_id, layout = "MOLavaGridDR-v0", {}
+    if algo == "pgmorl":  # (continuous actions; 1 member on the 2 sub-envs)
+        pytest.importorskip("mujoco", reason="PGMORL runs on MuJoCo: needs mujoco")
+        env_id, layout = "MOHopperDR-v5", dict(pgmorl_pop=1, pgmorl_envs_per_member=2, frames_per_batch=64)
     with pytest.raises(_Tuned):
-        train(resolve_config(algo, "MOLavaGridDR-v0", run_dir=str(tmp_path / algo), frames=64, num_envs=2,
-                             progress=False))
+        train(resolve_config(algo, env_id, run_dir=str(tmp_path / algo), frames=64, num_envs=2, progress=False,
+                             **layout))
     assert not (tmp_path / algo).exists()  # (raised while building: nothing written)

@@ -70,10 +70,10 @@ def test_a_member_the_task_selection_copied_is_reseeded_with_42(monkeypatch):
 
     cfg, env, agent, _ = _run(True, batches=1)
     agent.performance[:] = [[1.0, 2.0, 3.0], [2.0, 1.0, 3.0]]
-    agent._evaluate_all(add_to_prediction=False)
+    agent.evaluate_members(add_to_prediction=False)
     agent.predictor.after = [np.array([i, 0.0, 0.0]) for i in range(4)]
     monkeypatch.setattr(pgmorl, "select_tasks", lambda *a, **k: [(0, [0.0, 0.5, 0.5], None), (1, [0.5, 0.5, 0.0], None)])
-    agent._select_tasks()
+    agent.select_tasks()
     assert agent.member_seeds == [42, 42] and agent.generation == 1
     agent.reseed_env()
     sim = _simulators(env)
