@@ -122,7 +122,8 @@ from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ActiveMemberRouter", "ArchiveSnapshotRouter", "MORLDAgent", "MemberTargetUpdate", "ParetoArchive",
            "archive_eval_policy", "make_member_env", "make_morld_agent", "make_morld_training_env",
-           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns", "train_morld", "update_clocks"]
+           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns",
+           "train_morld", "update_clocks"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -489,7 +490,8 @@ class MORLDAgent(Agent):
         """Round robin: one update of the acting member alone at each shared-counter frame of ``clocks``
         (only its parameters, Adam moments and targets step); returns the last losses (``None``: none)."""
         a = self.active
-        self.members.copy_(torch.arange(self.population, device=self.members.device) == a)  # (optimizers', targets' mask)
+        # (the mask the optimizers and target updates read)
+        self.members.copy_(torch.arange(self.population, device=self.members.device) == a)
         losses = self._updates_at(buffer, clocks, done=0)
         self.member_updates[a] += len(clocks)
         return losses

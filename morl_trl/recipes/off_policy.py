@@ -152,8 +152,8 @@ def _run_training(cfg, resume, overwrite, trust_pickle, lock):
 
 def train_agent(run: Run) -> tuple[dict, Agent]:
     """The loop of every algorithm written as an :class:`Agent` (all but those of :data:`RECIPES`, Envelope,
-    GPI-LS / GPI-PD, the actor-critics, PCN, PGMORL and MORL/D, which have their own): collect a batch, ``agent.learn`` (store
-    + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
+    GPI-LS / GPI-PD, the actor-critics, PCN, PGMORL and MORL/D, which have their own; it drives any Agent): collect a
+    batch, ``agent.learn`` (store + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
     ``(last evaluation summary, agent)``."""
     cfg = run.cfg
     device = torch.device(cfg.device)

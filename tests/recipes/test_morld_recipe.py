@@ -73,8 +73,8 @@ def test_the_morld_recipe_trains_exactly_as_the_agent_loop_concurrent(tmp_path, 
               eval_interval=36, checkpoint_interval=36)
     state = _both(tmp_path, monkeypatch, "morld", "MOLavaGridDR-v0", morld_schedule="concurrent", **kw, **LAVA)
     m = state["agent"]["morld"]
-    # 5 batches of 12 frames (2 per member and sub-env), 2 updates of all members per batch (all past init_random_frames=10);
-    # an exchange every 24 frames
+    # 5 batches of 12 frames (2 per member and sub-env), 2 updates of all members per batch (all past
+    # init_random_frames=10); an exchange every 24 frames
     assert (state["frames"], state["updates"], m["exchanges"], m["env_resets"]) == (60, 10, 2, 0)
 
 
