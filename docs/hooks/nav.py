@@ -44,6 +44,7 @@ LAYOUT: list[tuple[str | None, list[tuple[str | None, str]]]] = [
         (None, "algorithms/pgmorl.md"),
         (None, "fidelity.md"),
         (None, "algorithms-fidelity-mechanisms.md"),
+        (None, "claims.md"),
     ]),
     ("Training and runs", [
         (None, "training.md"),

@@ -150,7 +150,7 @@ class GPIQNetwork(nn.Module):
 def gpi_action(q: torch.Tensor, preference: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """GPI over a support: ``q`` ``[*B, M, |A|, k]`` (``Q(s, a, w_i)`` for the ``M`` support weights),
     ``preference`` ``[*B, k]``; returns ``(action [*B], policy index [*B])`` maximising ``w . Q(s, a, w_i)``
-    over ``(i, a)`` (ties: the lowest policy index, then the lowest action, as the authors' ``max``).
+    over ``(i, a)`` (ties: the lowest policy index, then the lowest action: ``argmax``'s first maximum).
 
     Example:
         >>> q = torch.tensor([[[[1.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [0.0, 2.0]]]])  # [B=1, M=2, A=2, k=2]

@@ -264,7 +264,7 @@ class GPIAgent(Agent):
         tau = self.cfg.tau if self.cfg.tau is not None else 0.005
         polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
         if self.continuous_updates % self.cfg.gpi_policy_delay == 0:
-            # against the critics just updated, as the authors
+            # against the critics just updated (the record gives the delay, not this order)
             optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
             polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
         self.continuous_updates += 1

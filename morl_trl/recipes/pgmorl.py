@@ -29,7 +29,8 @@ generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 
    evaluation enters the performance buffer, the Pareto archive and the prediction model, and
    the prediction-guided task selection (:mod:`morl_trl.recipes.pgmorl_evolution`) gives each
    slot a (policy of the buffer, weight) pair: the slot takes a copy of that policy (its Adam
-   moments reset, as the authors' fresh optimizer) and trains it with that weight.
+   moments reset: our choice, the record does not say what the authors' copy keeps) and trains
+   it with that weight.
 
 The initial weights are the first ``P`` of the authors' grid ``generate_weights(delta_weight)``.
 Training observations are normalised by TorchRL's ``VecNorm`` (running mean and variance over
@@ -406,7 +407,7 @@ class PGMORLAgent(Agent):
             self.critic.module.load_member_state(p, state["critic"])
             self.weights[p] = torch.as_tensor(w, dtype=self.weights.dtype)
             self.member_seeds[p] = 42  # (a copy: MOPPO's default seed)
-            for group in opt.param_groups:  # a fresh optimizer for the copy, as the authors' deepcopy
+            for group in opt.param_groups:  # a fresh optimizer for the copy (ours: not in the record)
                 for param in group["params"]:
                     st = opt.state.get(param, {})
                     for key in ("exp_avg", "exp_avg_sq"):

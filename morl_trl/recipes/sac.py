@@ -61,7 +61,7 @@ class _DropObjectiveDim(nn.Module):
 def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     """SAC (continuous) or discrete SAC for ``env`` on its ``original_reward``; TorchRL's losses.
 
-    The critic loss is the squared error (``loss_function="l2"``, as the authors' CleanRL-style SAC);
+    The critic loss is the squared error (``loss_function="l2"``; the record does not give its form);
     the temperature starts at ``cfg.alpha`` and is tuned unless ``learn_alpha`` is false (discrete:
     towards ``target_entropy_scale * log |A|``).
     """

@@ -148,3 +148,12 @@ def test_fused_adam_by_default_and_the_authors_per_tensor_adam_as_an_option(algo
     for name in names:
         assert fused.optimizers[name].defaults["fused"] is True
         assert plain.optimizers[name].defaults["fused"] is False
+
+
+def test_the_sac_baseline_is_evaluated_with_sampled_actions_as_the_authors():
+    # hyperparameters.toml sac.*.derived eval_action: "SAMPLED from the policy ..., not the mean/argmax" (SPEC §5 14)
+    for env_id in ("MOHopperDR-v5", "MOLunarLanderDR-v0", "MOLavaGridDR-v0"):
+        assert resolve_config("sac", env_id).eval_exploration == "random"
+    pytest.importorskip("mujoco")
+    _, _, agent = _agent("sac", "MOHopperDR-v5")
+    assert agent.eval_exploration == ExplorationType.RANDOM

@@ -7,7 +7,9 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from morl_trl.objectives.pgmorl import ppo_population_mlp, scalarize_advantage, vector_gae
+from morl_trl.objectives.batched import BatchedMLP
+from morl_trl.objectives.pgmorl import (PPOGaussianHead, make_population_ppo_actor, make_population_value_network,
+                                     ppo_population_mlp, scalarize_advantage, vector_gae)
 from morl_trl.recipes import resolve_config, run_training
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
 from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
@@ -220,3 +222,24 @@ def test_a_run_does_the_iterations_of_its_budget_counting_one_members_frames(tmp
                          run_dir=str(tmp_path / "run"))
     summary, agent, _, _ = run_training(cfg)
     assert agent.iteration == 5 and summary["frames"] == 160
+
+
+def test_population_networks_have_the_authors_mo_ppo_init():
+    # hyperparameters.toml [pgmorl.hopper.network] (mo_ppo.py:154-209): orthogonal init, hidden gain sqrt(2),
+    # critic output gain 1, actor output gain 0.01, zero biases; the state-independent log-std starts at 0
+    torch.manual_seed(3)
+    actor = make_population_ppo_actor(3, obs_dim=5, action_dim=2, num_cells=(16, 16))
+    critic = make_population_value_network(3, obs_dim=5, num_objectives=3, num_cells=(16, 16))
+    head = next(m for m in actor.modules() if isinstance(m, PPOGaussianHead))
+    assert torch.equal(head.log_std.detach(), torch.zeros(3, 1, 2))
+    for net, out_gain in [(head.mean, 0.01), (next(m for m in critic.modules() if isinstance(m, BatchedMLP)), 1.0)]:
+        linears = [m for m in net.mlp if hasattr(m, "member_linear")]
+        assert len(linears) == 3
+        for e in range(3):
+            for i, layer in enumerate(linears):
+                lin = layer.member_linear(e)
+                w = lin.weight.detach()  # [out, in]
+                gram = w.T @ w if w.shape[0] >= w.shape[1] else w @ w.T  # gain^2 I for an orthogonal init
+                gain2 = 2.0 if i < 2 else out_gain ** 2
+                torch.testing.assert_close(gram, gain2 * torch.eye(gram.shape[0]), rtol=0, atol=1e-5 * max(gain2, 1))
+                assert torch.equal(lin.bias.detach(), torch.zeros_like(lin.bias))

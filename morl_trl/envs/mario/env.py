@@ -121,11 +121,11 @@ class MOSuperMarioBrosEnv(ContextualMOEnv):
     As in the reference, x, coins, clock and score are taken as 0 before the first frame,
     so the first step earns the start position (x = 40, +1.2 scaled) as progress.
 
-    Death, as the authors ran it: the episode ends on the frame Mario starts dying, with no
-    death penalty in the vector reward. The authors' MO wrapper adds -25 when "the lives
-    counter dropped", but their single-stage environment ends the episode on the frame
-    Mario starts dying, ~180 frames before the counter drops, so that -25 of SPEC §1.4
-    never fires. ``death_penalty_on_dying=True`` (ours, off by default) adds the -25 to
+    Death: the episode ends on the frame Mario starts dying, with no death penalty in the
+    vector reward. SPEC §1.4 records the authors' MO wrapper's -25 when "the lives counter
+    dropped"; our emulator ends the episode on the frame Mario starts dying, ~180 frames
+    before the counter drops (our reading of gym-super-mario-bros' single-stage env, not a
+    recorded fact), so that -25 never fires. ``death_penalty_on_dying=True`` (ours, off by default) adds the -25 to
     every objective on that last frame instead (-0.75 scaled).
 
     Args:

@@ -31,7 +31,8 @@ class MOHopperEnv(MujocoContextEnv):
     ``damping_thigh, damping_leg, damping_foot`` -> ``dof_damping[3:6]``; ``friction`` ->
     ``pair_friction[0, :2]`` of the explicit foot-floor contact pair (default 1.0;
     Gymnasium's hopper has 2.0). The pair's other fields take MuJoCo's defaults (solimp
-    ``0.9 0.95 0.001``, margin 0) as the authors' model does; Gymnasium's dynamic foot
+    ``0.9 0.95 0.001``, margin 0; SPEC §1.2 records only the pair's friction, so these are
+    our reading of the authors' XML, not a recorded fact); Gymnasium's dynamic foot
     contact has the geoms' solimp ``.8 .8 .01`` and margin 0.002, so no friction makes this
     model Gymnasium's (``assets/hopper.xml``).
 
