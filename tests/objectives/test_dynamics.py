@@ -45,3 +45,25 @@ def test_uncertainty_grows_off_the_data():
     far[:, :3] *= 20
     _, away = model.step(far, deterministic=True)
     assert away.mean() > 3 * near.mean()
+
+
+def test_each_fit_builds_a_fresh_adam_with_weight_decay_rising_by_layer(monkeypatch):
+    # SPEC §6 GPI-PD model-based part: "a fresh Adam each fit, weight decay 2.5e-5 to 1e-4 by layer"
+    built = []
+
+    class RecordingAdam(torch.optim.Adam):
+        def __init__(self, params, **kwargs):
+            super().__init__(params, **kwargs)
+            built.append(self)
+
+    monkeypatch.setattr(torch.optim, "Adam", RecordingAdam)
+    g = torch.Generator().manual_seed(0)
+    model = ProbabilisticEnsemble(3 + 3, 2 + 3, ensemble_size=2, hidden=(8, 8, 8, 8), num_elites=1)
+    loss = DynamicsLoss(model, num_actions=3)
+    x, y = loss.inputs_targets(_linear_system(64, g))
+    fit_dynamics(loss, x, y, max_epochs=2, generator=g)
+    fit_dynamics(loss, x, y, max_epochs=2, generator=g)
+    assert len(built) == 2 and built[0] is not built[1]
+    decays = [group["weight_decay"] for group in built[1].param_groups[:-1]]  # the last group: the logvar bounds
+    assert decays == [2.5e-5, 5e-5, 7.5e-5, 7.5e-5, 1e-4]  # one per layer: 4 hidden + the output
+    assert built[1].param_groups[-1]["weight_decay"] == 0

@@ -235,3 +235,17 @@ def test_cli_trains_and_evaluates_morld_psa(tmp_path):
     assert len(rows) == 3  # header + frames 0 and 600, one context
     state = load_checkpoint(run / "checkpoints" / "frames_000000000600")
     assert state["agent"]["morld"]["exchanges"] == 2
+
+
+def test_member_weights_are_the_energy_weights_of_the_run_seed_as_the_authors():
+    # SPEC §6 MORL/D: population weights = equally_spaced_weights(d, pop, seed=run seed) (morld.py:143-144);
+    # hyperparameters.toml morld.hopper.derived population_weights_script_seed (seed 5): the 0.5 grid
+    from morl_trl.preferences import energy_weights
+
+    record_hopper = [[0.0, 0.0, 1.0], [0.0, 0.5, 0.5], [0.0, 1.0, 0.0], [0.5, 0.0, 0.5], [0.5, 0.5, 0.0], [1.0, 0.0, 0.0]]
+    torch.testing.assert_close(energy_weights(3, 6, seed=5), torch.tensor(record_hopper, dtype=torch.float64),
+                               rtol=0, atol=1e-4)
+    cfg, env, agent = _bandit_agent()  # 2 objectives, 3 members
+    assert torch.equal(agent.loss.weights, energy_weights(2, 3, seed=cfg.seed, dtype=torch.float32))
+    # SPEC §6: 2-D evenly spaced, extremes included (pymoo's energy directions: 0.5012 / 0.4988 inside)
+    torch.testing.assert_close(agent.loss.weights, torch.tensor([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]]), rtol=0, atol=5e-3)

@@ -167,3 +167,24 @@ def test_pcn_network_takes_images_through_the_nature_cnn():
 def test_optimizer_follows_fused_optimizer(fused):
     _, _, agent = _agent(fused_optimizer=fused)
     assert [g["fused"] for g in agent.optimizers["policy"].param_groups] == [fused]
+
+
+def test_every_episode_starts_on_the_same_command_until_it_is_changed():
+    # SPEC §6 PCN (pcn.py:505-544): one command, then num_step_episodes (10) episodes with it
+    from torchrl.envs import TransformedEnv
+
+    from morl_trl.envs.toy import ToyContextEnv
+    from morl_trl.transforms.command import DesiredReturnConditioning
+
+    t = DesiredReturnConditioning(2, max_return=[5.0, 5.0])
+    t.set_command(torch.tensor([3.0, 1.0]), 4.0)
+    env = TransformedEnv(ToyContextEnv(num_envs=2), t)
+    policy = lambda td: td.set("action", torch.tensor([1, 1]))  # noqa: E731
+    for _ in range(3):  # each episode moves the command (rewards [1, -1] a step), the next starts on it again
+        steps = env.rollout(3, policy)
+        assert steps["desired_return"][:, -1].tolist() == [[1.0, 3.0]] * 2
+        td = env.reset()
+        assert td["desired_return"].tolist() == [[3.0, 1.0]] * 2 and td["desired_horizon"].tolist() == [[4.0]] * 2
+    t.set_command(torch.tensor([0.0, 2.0]), 7.0)
+    td = env.reset()
+    assert td["desired_return"].tolist() == [[0.0, 2.0]] * 2 and td["desired_horizon"].tolist() == [[7.0]] * 2
