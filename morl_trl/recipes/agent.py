@@ -22,7 +22,7 @@ from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 from morl_trl.recipes.state_upgrade import upgrade_agent_state
 
-__all__ = ["Agent", "NonFiniteLossError", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
+__all__ = ["Agent", "NonFiniteLossError", "apply_updates", "updates_due", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "orthogonal_critic_copies_", "eval_exploration", "epsilon",
            "epsilon_greedy"]
 
@@ -87,8 +87,7 @@ class Agent:
         self.store(buffer, batch)
         if frames < self.cfg.init_random_frames:
             return None, 0
-        every = self.cfg.update_frequency  # one update per `every` frames (the authors' discrete SAC: 4)
-        n = self.cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
+        n = updates_due(self.cfg, frames, batch.numel())
         return self.run_updates(buffer, n), n
 
     @property
@@ -120,16 +119,8 @@ class Agent:
         return self.cfg.frames - frames_done
 
     def run_updates(self, buffer, n: int) -> TensorDictBase | None:
-        """``n`` :meth:`update` calls; returns the last losses (``None`` for ``n = 0``). A
-        :class:`NonFiniteLossError` carries ``updates_done``: the updates applied before it."""
-        losses = None
-        for i in range(n):
-            try:
-                losses = self.update(buffer)
-            except NonFiniteLossError as err:
-                err.updates_done = i  # the loop counts the updates applied before it
-                raise
-        return losses
+        """``n`` :meth:`update` calls (:func:`apply_updates`)."""
+        return apply_updates(lambda: self.update(buffer), n)
 
     def update(self, buffer) -> TensorDictBase:
         """One gradient step on a sampled batch; a non-finite loss is never applied.
@@ -300,6 +291,38 @@ class Agent:
 
 
 # ---------------------------------------------------------------------- shared by the builders
+def updates_due(cfg, frames: int, batch_frames: int) -> int:
+    """The updates an off-policy batch of ``batch_frames`` frames ending at ``frames`` earns:
+    ``cfg.updates_per_batch``, or (0) one per ``cfg.update_frequency`` frames crossed (the authors'
+    discrete SAC: every 4th).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> updates_due(SimpleNamespace(updates_per_batch=0, update_frequency=4), 70, 32)
+        8
+    """
+    every = cfg.update_frequency
+    return cfg.updates_per_batch or frames // every - (frames - batch_frames) // every
+
+
+def apply_updates(update, n: int):
+    """``n`` calls of ``update()``; returns the last one's losses (``None`` for ``n = 0``). A
+    :class:`NonFiniteLossError` carries ``updates_done``: the updates applied before it (the run counts them).
+
+    Example:
+        >>> apply_updates(lambda: 1.0, 3), apply_updates(lambda: 1.0, 0)
+        (1.0, None)
+    """
+    losses = None
+    for i in range(n):
+        try:
+            losses = update()
+        except NonFiniteLossError as err:
+            err.updates_done = i
+            raise
+    return losses
+
+
 def epsilon(cfg, frames: int) -> float:
     """The ε of ε-greedy exploration after ``frames`` frames: linear from ``cfg.eps_start`` to
     ``cfg.eps_end`` over ``cfg.eps_frames`` frames, then constant (the one ε schedule).

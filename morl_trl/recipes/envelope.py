@@ -51,6 +51,7 @@ from morl_trl._torchrl_compat import collector_state
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
 from morl_trl.recipes.agent import (
     Agent,
+    apply_updates,
     action_spec,
     adam,
     epsilon,
@@ -61,9 +62,10 @@ from morl_trl.recipes.agent import (
     num_objectives,
     obs_shape,
     target_updater,
+    updates_due,
 )
 from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
+from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
     check_buffer_memory,
     load_reference,
@@ -161,14 +163,8 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
             agent.store(buffer, batch)  # the entries the loss reads
             losses, updates = None, 0
             if frames >= cfg.init_random_frames:
-                every = cfg.update_frequency  # one update per `every` frames, or updates_per_batch per batch
-                updates = cfg.updates_per_batch or frames // every - (frames - batch.numel()) // every
-                for i in range(updates):
-                    try:
-                        losses = update()
-                    except NonFiniteLossError as err:
-                        err.updates_done = i  # (the run counts the updates applied before it)
-                        raise
+                updates = updates_due(cfg, frames, batch.numel())  # one per update_frequency frames, or per batch
+                losses = apply_updates(update, updates)  # (a non-finite loss raises, counting those applied)
             schedules(agent, frames)
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)

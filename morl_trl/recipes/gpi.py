@@ -74,9 +74,10 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import Agent, action_spec, epsilon, epsilon_greedy, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete, num_objectives,
+                                    obs_shape)
 from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import NonFiniteLossError, adam, check_finite, fused_choice, optimizer_step
+from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
     check_buffer_memory,
     evaluation_contexts,
@@ -514,12 +515,7 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
                 # discrete gating; continuous: always), or updates_per_batch per batch
                 gated = not continuous and frames < cfg.gpi_dynamics_rollout_starts
                 updates = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
-                for i in range(updates):
-                    try:
-                        losses = update()
-                    except NonFiniteLossError as err:
-                        err.updates_done = i  # (the run counts the updates applied before it)
-                        raise
+                losses = apply_updates(update, updates)  # (a non-finite loss raises, counting those applied)
                 if not continuous and due(cfg.target_update_period):
                     agent.target_updater.step()  # the authors' hard copy every target_update_period frames
             if frames >= agent.iteration_end:  # the end of an iteration (every gpi_iteration_frames frames)

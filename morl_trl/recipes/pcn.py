@@ -61,7 +61,7 @@ from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
-from morl_trl.recipes.agent import Agent, action_spec, is_discrete, num_objectives, obs_shape
+from morl_trl.recipes.agent import Agent, action_spec, apply_updates, is_discrete, num_objectives, obs_shape
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
 from morl_trl.recipes.parts import load_reference, make_collector, make_evaluator, run_discount, run_domain, start_notes
@@ -252,13 +252,7 @@ class PCNAgent(Agent):
 
     def _round(self):
         """``pcn_model_updates`` updates, then a new command for the next episodes."""
-        losses = None
-        for i in range(self.cfg.pcn_model_updates):
-            try:
-                losses = self.update(None)
-            except NonFiniteLossError as err:
-                err.updates_done = i
-                raise
+        losses = apply_updates(lambda: self.update(None), self.cfg.pcn_model_updates)
         desired, horizon = self.replay.choose_command(self.cfg.pcn_er_episodes, generator=self.generator)
         self.command.set_command(desired, horizon)
         self.explore_policy.random_actions = False

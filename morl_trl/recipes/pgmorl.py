@@ -549,7 +549,7 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # [P * E, T]
-            frames = run.collected(batch, agent.frames_of(batch))  # one member's frames (E x T), as the authors
+            run.collected(batch, agent.frames_of(batch))  # one member's frames (E x T), as the authors
             # [P, E, T]: each member's evaluation from its episodes that ended (agent.performance), the rewards
             # normalised (VecNorm) and clipped into ("next", "reward_norm")
             b = agent.prepare_batch(batch)
