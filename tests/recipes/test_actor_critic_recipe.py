@@ -3,19 +3,12 @@ and sac) trains exactly as the generic Agent loop (off_policy.train_agent with A
 before it: same networks, optimizers, temperature, targets, counters, env, RNG, evaluations and logs, from the
 same seed."""
 
-import csv
-
-import numpy as np
 import pytest
-import torch
-from tensordict import TensorDictBase
 
 from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.config import valid_keys
-from morl_trl.runs import latest_checkpoint, load_checkpoint
-from morl_trl.runs.interrupt import RunInterrupted
-from morl_trl.runs.run import Run
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 
 # 128 frames in batches of 32, updates from 64 frames on (3 batches), checkpoints at 64 and 128, evaluations at
 # 0 and 128. 3 updates per batch: with policy_freq 2 the actor turns (2 actor + 2 temperature steps each) fall
@@ -41,23 +34,6 @@ CASES = {  # id: (algo, env id, config changes, updates (= critic steps), actor 
 }
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, np.ndarray):
-        return isinstance(b, np.ndarray) and np.array_equal(a, b)
-    if isinstance(a, TensorDictBase):
-        return _equal(a.to_dict(), b.to_dict())
-    if torch.is_tensor(a):
-        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
-    if isinstance(a, dict):
-        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    return a == b
-
-
-def _rows(path) -> list[dict]:
-    with path.open() as fh:  # (the frame rate is the machine's)
-        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -91,18 +67,15 @@ def test_the_actor_critic_recipe_trains_exactly_as_the_agent_loop(tmp_path, monk
     assert (recipe_calls["learn"], recipe_calls["update"]) == (0, 0)
     assert (agent_calls["learn"], agent_calls["update"]) == (4, updates)
 
-    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(recipe[key], agent[key]), key
+    recipe, agent = last_checkpoints(tmp_path / "recipe", tmp_path / "agent")
+    assert_checkpoints_equal(recipe, agent)
     assert (recipe["frames"], recipe["updates"], recipe["agent"]["critic_steps"]) == (128, updates, updates)
     # the critics' Adam stepped once per update, the actor's policy_freq times per actor turn
     steps = {name: int(opt["state"][0]["step"]) for name, opt in recipe["agent"]["optimizers"].items()}
     assert (steps["qvalue"], steps["actor"]) == (updates, actor_steps)
     if "alpha" in steps:  # (a learned temperature: one step after each actor step)
         assert steps["alpha"] == actor_steps
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        rows = _rows(tmp_path / "recipe" / rel)
-        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+    assert_logs_equal(tmp_path / "recipe", tmp_path / "agent")
 
 
 def test_a_mosac_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_path, monkeypatch):
@@ -114,22 +87,9 @@ def test_a_mosac_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_p
     cfg = {k: v for k, v in {**TINY, **HOPPER}.items() if k in valid_keys("mosac")}
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     train(resolve_config("mosac", "MOHopperDR-v5", run_dir=str(whole), **cfg))
-    step = Run.step
-
-    def ctrl_c_at_96(run, *args, **kw):
-        if run.frames == 96:
-            run._session["interrupt"].requested = True  # (what the first Ctrl-C's handler does)
-        return step(run, *args, **kw)
-
-    monkeypatch.setattr(Run, "step", ctrl_c_at_96)
-    with pytest.raises(RunInterrupted, match="interrupted at 96 frames"):
-        train(resolve_config("mosac", "MOHopperDR-v5", run_dir=str(resumed), **cfg))
-    monkeypatch.setattr(Run, "step", step)
-    train(resume=resumed)
+    interrupt_then_resume(monkeypatch, resolve_config("mosac", "MOHopperDR-v5", run_dir=str(resumed), **cfg), at=96)
     assert "resumed from frames_000000000096 at 96 frames" in (resumed / "log.txt").read_text()
-    a, b = (load_checkpoint(latest_checkpoint(run)) for run in (whole, resumed))
+    a, b = last_checkpoints(whole, resumed)
     assert (a["frames"], a["updates"], a["agent"]["critic_steps"]) == (128, 9, 9)
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(a[key], b[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        assert _rows(whole / rel) == _rows(resumed / rel), rel
+    assert_checkpoints_equal(a, b)
+    assert_logs_equal(whole, resumed)

@@ -2,19 +2,12 @@
 (off_policy.train_agent with GPIAgent.learn) did before it: same networks, optimizers, linear support,
 weight, support, iteration, dynamics model, counters, env, RNG, evaluations and logs, from the same seed."""
 
-import csv
-
-import numpy as np
 import pytest
-import torch
-from tensordict import TensorDictBase
 
 from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.config import valid_keys
 from morl_trl.recipes.gpi import GPIAgent
-from morl_trl.runs import latest_checkpoint, load_checkpoint
-from morl_trl.runs.interrupt import RunInterrupted
-from morl_trl.runs.run import Run
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 
 # 192 frames in batches of 32: iterations end at 64, 128 and 192 (the CCS grows, w and M change), updates from
 # 64 frames; GPI-PD fits its model at 128 and rolls it out every 32 frames from 64 (the updates then mix in
@@ -27,23 +20,6 @@ TINY = dict(frames=192, num_envs=4, frames_per_batch=32, init_random_frames=64, 
             eval_contexts=("MOLavaGridRoom-v0",), progress=False, eval_random_baseline=False)
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, np.ndarray):
-        return isinstance(b, np.ndarray) and np.array_equal(a, b)
-    if isinstance(a, TensorDictBase):
-        return _equal(a.to_dict(), b.to_dict())
-    if torch.is_tensor(a):
-        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
-    if isinstance(a, dict):
-        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    return a == b
-
-
-def _rows(path) -> list[dict]:
-    with path.open() as fh:  # (the frame rate is the machine's)
-        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
 
 
 def _both(tmp_path, monkeypatch, algo, env_id, **kw):
@@ -74,12 +50,9 @@ def _both(tmp_path, monkeypatch, algo, env_id, **kw):
     batches = cfg["frames"] // cfg["frames_per_batch"]
     assert (recipe_calls.pop("learn"), agent_calls.pop("learn")) == (0, batches)  # (two different loops ran)
     assert agent_calls == recipe_calls  # the same Dyna in both
-    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(recipe[key], agent[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        rows = _rows(tmp_path / "recipe" / rel)
-        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+    recipe, agent = last_checkpoints(tmp_path / "recipe", tmp_path / "agent")
+    assert_checkpoints_equal(recipe, agent)
+    assert_logs_equal(tmp_path / "recipe", tmp_path / "agent")
     return recipe, recipe_calls
 
 
@@ -117,23 +90,10 @@ def test_a_gpi_ls_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_
     cfg = {k: v for k, v in TINY.items() if k in valid_keys("gpi_ls")} | dict(frames=128, eval_interval=128)
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     train(resolve_config("gpi_ls", "MOLavaGridDR-v0", run_dir=str(whole), **cfg))
-    step = Run.step
-
-    def ctrl_c_at_64(run, *args, **kw):
-        if run.frames == 64:
-            run._session["interrupt"].requested = True  # (what the first Ctrl-C's handler does)
-        return step(run, *args, **kw)
-
-    monkeypatch.setattr(Run, "step", ctrl_c_at_64)
-    with pytest.raises(RunInterrupted, match="interrupted at 64 frames"):
-        train(resolve_config("gpi_ls", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg))
-    monkeypatch.setattr(Run, "step", step)
-    train(resume=resumed)
+    interrupt_then_resume(monkeypatch, resolve_config("gpi_ls", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg), at=64)
     log = (resumed / "log.txt").read_text()
     assert "resumed from frames_000000000064 at 64 frames" in log and "fresh episodes" not in log
-    a, b = (load_checkpoint(latest_checkpoint(run)) for run in (whole, resumed))
+    a, b = last_checkpoints(whole, resumed)
     assert (a["frames"], a["updates"], a["agent"]["iteration"]) == (128, 6, 3)
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(a[key], b[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        assert _rows(whole / rel) == _rows(resumed / rel), rel
+    assert_checkpoints_equal(a, b)
+    assert_logs_equal(whole, resumed)

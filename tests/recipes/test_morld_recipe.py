@@ -3,7 +3,6 @@
 evaluations and logs, from the same seed, on both schedules (round robin with its catch-up updates and env
 resets at the exchanges, PSA's weight adaptation, concurrent)."""
 
-import csv
 import importlib.util
 
 import pytest
@@ -12,8 +11,7 @@ import torch
 from morl_trl.preferences import energy_weights
 from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.morld import MORLDAgent
-from morl_trl.runs import latest_checkpoint, load_checkpoint
-from tests.recipes.test_envelope_recipe import _equal, _rows
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, last_checkpoints
 
 # round robin: 3 members, turns of 20 frames (2 batches), 60 frames = 3 turns (one per member)
 ROUND_ROBIN = dict(pop_size=3, num_envs=1, frames_per_batch=10, exchange_every=20, init_random_frames=10,
@@ -34,11 +32,9 @@ def _both(tmp_path, monkeypatch, algo, env_id, **kw):
     monkeypatch.delitem(off_policy.RECIPES, algo)  # the loop of every Agent
     train(resolve_config(algo, env_id, run_dir=str(tmp_path / "agent"), **kw))
     assert calls  # (the Agent loop's)
-    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(recipe[key], agent[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        assert _rows(tmp_path / "recipe" / rel) == _rows(tmp_path / "agent" / rel), rel
+    recipe, agent = last_checkpoints(tmp_path / "recipe", tmp_path / "agent")
+    assert_checkpoints_equal(recipe, agent)
+    assert_logs_equal(tmp_path / "recipe", tmp_path / "agent")
     return recipe
 
 

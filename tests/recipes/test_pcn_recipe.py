@@ -2,17 +2,12 @@
 with PCNAgent.learn) did before it: same network, optimizer, episode replay, unfinished episodes, command, counters,
 env, RNG, evaluations and logs, from the same seed."""
 
-import csv
-
-import numpy as np
 import pytest
-import torch
-from tensordict import TensorDictBase
 
 from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.config import valid_keys
 from morl_trl.recipes.pcn import PCNAgent
-from morl_trl.runs import latest_checkpoint, load_checkpoint
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 
 # batches of 64 frames from 4 sub-envs; the warm-up is the first 2 finished episodes, then a round of 3 updates
 # (and a new command) after every 2 more; checkpoints every 128 frames, evaluations at 0 and at the end
@@ -21,23 +16,6 @@ TINY = dict(num_envs=4, frames_per_batch=64, pcn_er_episodes=2, pcn_step_episode
             eval_random_baseline=False)
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, np.ndarray):
-        return isinstance(b, np.ndarray) and np.array_equal(a, b)
-    if isinstance(a, TensorDictBase):
-        return _equal(a.to_dict(), b.to_dict())
-    if torch.is_tensor(a):
-        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
-    if isinstance(a, dict):
-        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    return a == b
-
-
-def _rows(path) -> list[dict]:
-    with path.open() as fh:  # (the frame rate is the machine's)
-        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
 
 
 def _both(tmp_path, monkeypatch, env_id, **kw):
@@ -59,12 +37,9 @@ def _both(tmp_path, monkeypatch, env_id, **kw):
     monkeypatch.delitem(off_policy.RECIPES, "pcn")  # the loop of every Agent, with PCNAgent.learn
     train(resolve_config("pcn", env_id, run_dir=str(tmp_path / "agent"), **cfg))
     assert calls["learn"] == cfg["frames"] // cfg["frames_per_batch"]
-    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(recipe[key], agent[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        rows = _rows(tmp_path / "recipe" / rel)
-        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+    recipe, agent = last_checkpoints(tmp_path / "recipe", tmp_path / "agent")
+    assert_checkpoints_equal(recipe, agent)
+    assert_logs_equal(tmp_path / "recipe", tmp_path / "agent")
     return recipe
 
 
@@ -99,8 +74,8 @@ def test_a_pcn_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_pat
     """Ctrl-C after the batch at 512 frames (the warm-up's episodes and the first round: a checkpoint,
     RunInterrupted), then ``--resume``: MO-LavaGrid snapshots its simulator, so the run continues exactly (the
     replay, the unfinished episodes, the command and the generator come back from the checkpoint)."""
-    from morl_trl.runs.interrupt import RunInterrupted
-    from morl_trl.runs.run import Run
+
+
 
     monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
     cfg = {k: v for k, v in TINY.items() if k in valid_keys("pcn")} | dict(
@@ -108,23 +83,10 @@ def test_a_pcn_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_pat
         eval_contexts=("MOLavaGridRoom-v0",))
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"
     train(resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(whole), **cfg))
-    step = Run.step
-
-    def ctrl_c_at_512(run, *args, **kw):
-        if run.frames == 512:
-            run._session["interrupt"].requested = True  # (what the first Ctrl-C's handler does)
-        return step(run, *args, **kw)
-
-    monkeypatch.setattr(Run, "step", ctrl_c_at_512)
-    with pytest.raises(RunInterrupted, match="interrupted at 512 frames"):
-        train(resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg))
-    monkeypatch.setattr(Run, "step", step)
-    train(resume=resumed)
+    interrupt_then_resume(monkeypatch, resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg), at=512)
     log = (resumed / "log.txt").read_text()
     assert "resumed from frames_000000000512 at 512 frames" in log and "fresh episodes" not in log
-    a, b = (load_checkpoint(latest_checkpoint(run)) for run in (whole, resumed))
+    a, b = last_checkpoints(whole, resumed)
     assert (a["frames"], a["updates"], a["agent"]["rounds"]) == (1024, 6, 2)
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(a[key], b[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        assert _rows(whole / rel) == _rows(resumed / rel), rel
+    assert_checkpoints_equal(a, b)
+    assert_logs_equal(whole, resumed)

@@ -3,16 +3,11 @@
 buffer, Pareto archive, prediction model, VecNorm statistics, member seeds, counters, env, RNG, evaluations and
 logs, from the same seed."""
 
-import csv
-
-import numpy as np
 import pytest
-import torch
-from tensordict import TensorDictBase
 
 from morl_trl.recipes import off_policy, resolve_config, train
 from morl_trl.recipes.pgmorl import PGMORLAgent
-from morl_trl.runs import latest_checkpoint, load_checkpoint
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, csv_rows, last_checkpoints
 
 # 2 members x 2 sub-envs x 32 steps: 128 frames collected, 64 counted (one member's) per iteration; budget 192 ->
 # 3 iterations. Warm-up 1 iteration, then generations of 1: the members are evaluated after iterations 1-3 (2
@@ -25,23 +20,6 @@ TINY = dict(frames=192, pgmorl_pop=2, pgmorl_envs_per_member=2, num_envs=4, fram
             eval_random_baseline=False)
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, np.ndarray):
-        return isinstance(b, np.ndarray) and np.array_equal(a, b)
-    if isinstance(a, TensorDictBase):
-        return _equal(a.to_dict(), b.to_dict())
-    if torch.is_tensor(a):
-        return torch.is_tensor(b) and a.shape == b.shape and torch.equal(a, b)
-    if isinstance(a, dict):
-        return isinstance(b, dict) and a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    return a == b
-
-
-def _rows(path) -> list[dict]:
-    with path.open() as fh:  # (the frame rate is the machine's)
-        return [{k: v for k, v in row.items() if k != "frames_per_second"} for row in csv.DictReader(fh)]
 
 
 def test_the_pgmorl_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatch):
@@ -66,12 +44,9 @@ def test_the_pgmorl_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatc
     monkeypatch.delitem(off_policy.RECIPES, "pgmorl")  # the loop of every Agent, with PGMORLAgent.learn
     train(resolve_config("pgmorl", "MOHopperDR-v5", run_dir=str(tmp_path / "agent"), **TINY))
     agent_calls = {k: v - recipe_calls[k] for k, v in calls.items()}
-    recipe, agent = (load_checkpoint(latest_checkpoint(tmp_path / name)) for name in ("recipe", "agent"))
-    for key in ("agent", "env", "carrier", "rng", "frames", "updates", "next_eval", "next_ckpt", "last_eval"):
-        assert _equal(recipe[key], agent[key]), key
-    for rel in ("eval/metrics.csv", "train/losses.csv"):
-        rows = _rows(tmp_path / "recipe" / rel)
-        assert rows and rows == _rows(tmp_path / "agent" / rel), rel
+    recipe, agent = last_checkpoints(tmp_path / "recipe", tmp_path / "agent")
+    assert_checkpoints_equal(recipe, agent)
+    assert_logs_equal(tmp_path / "recipe", tmp_path / "agent")
     # two different loops ran, each with a task selection at the end of the warm-up and of every generation
     assert recipe_calls == {"learn": 0, "select_tasks": 3} and agent_calls == {"learn": 3, "select_tasks": 3}
     # one member's frames counted (3 iterations x 2 sub-envs x 32 steps), 4 PPO updates per iteration
@@ -84,4 +59,4 @@ def test_the_pgmorl_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatc
     assert state["member_seeds"] == [42, 42]  # both slots are copies the task selection made
     assert 1 <= len(state["archive"]) == len(state["archive_members"]) <= 10
     assert [len(r) for r in state["population"]["bins"]] and state["population"]
-    assert [int(r["frames"]) for r in _rows(tmp_path / "recipe" / "eval/metrics.csv")] == [0, 192]
+    assert [int(r["frames"]) for r in csv_rows(tmp_path / "recipe" / "eval/metrics.csv")] == [0, 192]
