@@ -22,7 +22,8 @@ from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 from morl_trl.recipes.state_upgrade import upgrade_agent_state
 
-__all__ = ["Agent", "NonFiniteLossError", "apply_updates", "updates_due", "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
+__all__ = ["Agent", "NonFiniteLossError", "apply_updates", "updates_due",
+           "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "orthogonal_critic_copies_", "eval_exploration", "epsilon",
            "epsilon_greedy"]
 

@@ -74,8 +74,8 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete, num_objectives,
-                                    obs_shape)
+from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
+                                    num_objectives, obs_shape)
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
