@@ -694,6 +694,22 @@ def matmul_rate(calls, device, seconds=0.5) -> float:
 
 
 LIMITS = []  # rows of the "know the limit" table: (name, GFLOP per update, updates/s, matmul GFLOP/s)
+RATIOS: dict[str, float] = {}  # eager ours / peer per update, for the target line under the table
+#: issue 31's target: every method's eager update at least this many times MORL-Baselines' updates/s
+TARGET = 1.5
+
+
+def target_line(ratios: dict[str, float], target: float = TARGET) -> str:
+    """The line under the updates/s table: which updates reach ``target`` x the peer's rate.
+
+    Example:
+        >>> target_line({"Envelope": 3.2, "CAPQL": 1.07, "PCN": 1.5})
+        'target 1.5x MORL-Baselines: met by Envelope 3.20x, PCN 1.50x; not met: CAPQL 1.07x'
+    """
+    met = [f"{name} {r:.2f}x" for name, r in ratios.items() if r >= target]
+    missed = [f"{name} {r:.2f}x" for name, r in ratios.items() if not r >= target]  # (NaN: not met)
+    return (f"target {target:g}x MORL-Baselines: met by {', '.join(met) or 'none'}; "
+            f"not met: {', '.join(missed) or 'none'}")
 
 
 # ------------------------------------------------------------------------------- harness
@@ -759,6 +775,8 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_
         print(f"{name:<10} {label:<11} {a:>10.1f} {vs_peer} {a / eager:>9.2f}x", flush=True)
         _table("losses", name, device, label, "updates/s", f"{a:.1f}", f"{b:.1f}" if peer is not None else "",
                f"{a / b:.2f}x" if peer is not None else "", f"{a / eager:.2f}x vs eager")
+    if peer is not None and "eager" in rates:
+        RATIOS[name] = eager / b
     if FLOPS and "eager" in variants:
         calls = matmuls_of(variants["eager"], flop_calls)
         peer_gf = (matmul_flops(matmuls_of(peer, flop_calls)) / 1e9 / per_call / flop_calls if peer is not None
@@ -903,6 +921,8 @@ def main(argv=None) -> int:
         print(f"({', '.join(cpu_only)}: timed on the CPU only)")
     elif cpu_only:
         time_recipe_agents(cpu_only, peer, args, warmup, updates, rounds, buffer_size, filled)
+    if RATIOS:
+        print(target_line(RATIOS))
     if LIMITS:
         print("\nknow the limit (ours, eager): matmul FLOPs of one update (forward + backward of every network it "
               "touches, counted at the dispatcher) x updates/s, beside torch running the same products back to back")

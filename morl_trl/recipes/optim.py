@@ -229,6 +229,7 @@ class MemberAdam(torch.optim.Optimizer):
                     raise ValueError(f"a parameter of shape {tuple(p.shape)} has no population dimension {d} of "
                                      f"size {self.population} (member_dim={d}, population={self.population})")
         self._member_dims = [group["member_dim"] for group in self.param_groups]
+        self._floor_key, self._floors, self._floor_flat = None, None, None  # (_sqrt_floors' scratch)
         self.register_load_state_dict_post_hook(MemberAdam._per_member_steps)
 
     @staticmethod
@@ -262,11 +263,38 @@ class MemberAdam(torch.optim.Optimizer):
                     st["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
             for m in active:  # torch's own Adam (its foreach arithmetic) on member m's slices, its own step count
                 sts = [self.state[p] for p in params]
+                sqs = [st["exp_avg_sq"].select(d, m) for st in sts]
+                floors = self._sqrt_floors(sqs, group["eps"], beta2)
                 adam_fn([p.select(d, m) for p in params], [p.grad.select(d, m) for p in params],
-                        [st["exp_avg"].select(d, m) for st in sts], [st["exp_avg_sq"].select(d, m) for st in sts],
-                        [], [st["step"][m:m + 1] for st in sts], foreach=True, amsgrad=False, beta1=beta1,
+                        [st["exp_avg"].select(d, m) for st in sts], sqs, floors or [],
+                        [st["step"][m:m + 1] for st in sts], foreach=True, amsgrad=floors is not None, beta1=beta1,
                         beta2=beta2, lr=group["lr"], weight_decay=0.0, eps=group["eps"], maximize=False)
         return None
+
+    def _sqrt_floors(self, sqs: list[torch.Tensor], eps: float, beta2: float) -> list[torch.Tensor] | None:
+        """Scratch tensors shaped as ``sqs`` (a member's second moments), filled with the dtype's smallest
+        normal number, for Adam's ``amsgrad`` slot: torch's foreach Adam then takes the square root of
+        ``max(v, tiny)`` (its ``_foreach_maximum_`` into the scratch) instead of ``v``, and leaves ``v``,
+        the state, as plain Adam does.
+
+        Why: a second moment that decays towards zero (a gradient that stays zero: a dead unit, an input
+        feature that never varies) passes through subnormal numbers, and this CPU's square root of a
+        subnormal is ~50x slower than of a normal number (``_foreach_sqrt`` was 21% of a MORL/D
+        population update, ``docs/speed.md``). The result is bit for bit plain Adam's: wherever
+        ``v < tiny``, both ``sqrt(v) / sqrt(1 - beta2^t)`` and ``sqrt(tiny) / sqrt(1 - beta2^t)`` are
+        below half a unit in the last place of ``eps``, so adding ``eps`` gives ``eps`` either way
+        (``tests/recipes/test_member_adam.py``). ``None`` (plain Adam) where that bound does not hold
+        (an ``eps`` too small for the dtype, or ``beta2 >= 1``)."""
+        info = torch.finfo(sqs[0].dtype)
+        if not (beta2 < 1.0 and math.sqrt(info.tiny) / math.sqrt(1.0 - beta2) < eps * info.eps / 4):
+            return None
+        key = tuple((t.shape, t.dtype, t.device) for t in sqs)
+        if self._floor_key != key:
+            flat = torch.empty(sum(t.numel() for t in sqs), dtype=sqs[0].dtype, device=sqs[0].device)
+            self._floors = [chunk.view(t.shape) for chunk, t in zip(flat.split([t.numel() for t in sqs]), sqs)]
+            self._floor_flat, self._floor_key = flat, key
+        self._floor_flat.fill_(info.tiny)  # (the previous step's maxima overwritten)
+        return self._floors
 
 
 def fused_choice(cfg) -> bool | None:

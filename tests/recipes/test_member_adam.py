@@ -104,3 +104,50 @@ def test_member_adam_goes_through_the_non_finite_guard_and_refuses_a_parameter_w
     assert found.item() == 1.0 and torch.equal(actor, before)
     with pytest.raises(ValueError, match=r"shape \(2, 4, 1, 3\) has no population dimension 0 of size 3"):
         MemberAdam([critic], lr=1e-3, population=3)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_subnormal_second_moments_give_plain_adams_values_bit_for_bit(dtype):
+    """MemberAdam takes Adam's square root of max(v, tiny) (subnormal square roots are ~50x slower on a
+    CPU core); parameters, moments and counts stay torch's foreach Adam's bit for bit."""
+    tiny = torch.finfo(dtype).tiny
+    g = torch.Generator().manual_seed(3)
+    w = torch.nn.Parameter(torch.randn(2, 6, dtype=dtype, generator=g))  # 2 members
+    ref = torch.nn.Parameter(w.detach().clone())
+    opt = MemberAdam([w], lr=1e-3, population=2)
+    plain = torch.optim.Adam([ref], lr=1e-3, foreach=True)
+    # member 0: second moments at zero, subnormal, just under and at the smallest normal, and normal;
+    # member 1: ordinary; every member's first step count 10
+    v = torch.tensor([0.0, tiny / 8, tiny / 1024, tiny * 0.999, tiny, 1e-6], dtype=dtype)
+    for o, p in ((opt, w), (plain, ref)):
+        o.state[p]["step"] = torch.full((2,), 10.0) if o is opt else torch.tensor(10.0)
+        o.state[p]["exp_avg"] = torch.full((2, 6), 1e-3, dtype=dtype)
+        o.state[p]["exp_avg_sq"] = torch.stack([v, torch.full((6,), 1e-4, dtype=dtype)])
+    assert (o.state[p]["exp_avg_sq"][0, 1:4] < tiny).all()
+    grads = [torch.zeros(2, 6, dtype=dtype), torch.randn(2, 6, dtype=dtype, generator=g) * 1e-21,
+             torch.randn(2, 6, dtype=dtype, generator=g)]
+    for grad in grads:  # zero gradients keep v subnormal (and push it down), tiny ones too, then ordinary ones
+        w.grad, ref.grad = grad.clone(), grad.clone()
+        opt.step()
+        plain.step()
+        assert torch.equal(w.detach(), ref.detach())
+        for k in ("exp_avg", "exp_avg_sq"):
+            assert torch.equal(opt.state[w][k], plain.state[ref][k])
+    assert opt.state[w]["step"].tolist() == [13.0, 13.0]
+    assert opt._floors is not None  # (the floored square root did run)
+
+
+def test_an_eps_too_small_for_the_floor_falls_back_to_plain_adam():
+    w = torch.nn.Parameter(torch.ones(2, 3))
+    opt = MemberAdam([w], lr=1e-3, population=2, eps=1e-30)
+    assert opt._sqrt_floors([torch.zeros(3)], 1e-30, 0.999) is None
+    assert opt._sqrt_floors([torch.zeros(3)], 1e-8, 1.0) is None
+    floors = opt._sqrt_floors([torch.zeros(3), torch.zeros(2, 2)], 1e-8, 0.999)
+    assert [f.shape for f in floors] == [torch.Size([3]), torch.Size([2, 2])]
+    assert all((f == torch.finfo(torch.float32).tiny).all() for f in floors)
+    w.grad = torch.ones(2, 3)
+    ref = torch.nn.Parameter(torch.ones(2, 3))
+    ref.grad = torch.ones(2, 3)
+    opt.step()
+    torch.optim.Adam([ref], lr=1e-3, eps=1e-30, foreach=True).step()
+    assert torch.equal(w.detach(), ref.detach())

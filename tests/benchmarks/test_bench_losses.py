@@ -1,0 +1,42 @@
+"""benchmarks/bench_losses.py: the line that says which updates reach issue 31's 1.5x target."""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _module():
+    spec = importlib.util.spec_from_file_location("bench_losses_under_test", ROOT / "benchmarks" / "bench_losses.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_target_line_splits_met_and_missed():
+    line = _module().target_line({"Envelope": 3.15, "CAPQL": 1.07, "GPI-LS": 1.4999, "PCN": 1.5, "X": float("nan")})
+    assert line == ("target 1.5x MORL-Baselines: met by Envelope 3.15x, PCN 1.50x; "
+                    "not met: CAPQL 1.07x, GPI-LS 1.50x, X nanx")
+
+
+def test_target_line_with_nothing_met_or_missed():
+    m = _module()
+    assert m.target_line({"A": 2.0}) == "target 1.5x MORL-Baselines: met by A 2.00x; not met: none"
+    assert m.target_line({"A": 1.2}, target=2.0) == "target 2x MORL-Baselines: met by none; not met: A 1.20x"
+
+
+def test_compare_records_the_eager_ratio_for_the_target_line(capsys):
+    m = _module()
+    m.FLOPS = False
+    ticks = itertools.count()
+    m.CLOCK = lambda: float(next(ticks))  # each clock read one second later: rate = n / 1 s
+    ours = lambda: None  # noqa: E731
+    peer = lambda: None  # noqa: E731
+    m.compare("Fake", {"eager": ours}, peer, warmup=0, updates=3, rounds=1)
+    assert m.RATIOS == {"Fake": 1.0}
+    assert "Fake       eager              3.0        3.0     1.00x" in capsys.readouterr().out
+    m.compare("NoPeer", {"eager": ours}, None, warmup=0, updates=3, rounds=1)
+    assert "NoPeer" not in m.RATIOS
