@@ -65,7 +65,8 @@ def clip_grad_norm(params: Iterable[torch.Tensor], max_norm: float, *, populatio
         torch.nn.utils.clip_grad_norm_(params, max_norm)
         return
     params = [p for p in params if p.grad is not None]
-    sq = sum(p.grad.pow(2).reshape(population, -1).sum(-1) for p in params)
+    # (g * g: the same values as g.pow(2), which this CPU runs ~5x slower)
+    sq = sum((p.grad * p.grad).reshape(population, -1).sum(-1) for p in params)
     scale = (max_norm / (sq.sqrt() + 1e-6)).clamp(max=1.0)
     for p in params:
         p.grad.mul_(scale.reshape(population, *([1] * (p.ndim - 1))))

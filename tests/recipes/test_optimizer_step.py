@@ -188,3 +188,31 @@ def test_recipe_updates_take_the_direct_adam_step_and_match_torchs(case, monkeyp
     monkeypatch.setattr(optim, "fused_adam_step", lambda opt: False)
     assert fingerprint(case) == fast
     assert fast[0] == pytest.approx(EXPECTED[case][0], rel=1e-9, abs=1e-9)
+
+
+def test_population_clip_scales_each_member_to_its_own_norm():
+    from morl_trl.recipes.optim import clip_grad_norm
+
+    a = torch.nn.Parameter(torch.zeros(2, 2))
+    b = torch.nn.Parameter(torch.zeros(2, 1))
+    a.grad = torch.tensor([[3.0, 0.0], [0.3, 0.0]])  # member 0: norm 5 with b; member 1: norm 0.5
+    b.grad = torch.tensor([[4.0], [0.4]])
+    clip_grad_norm([a, b], 1.0, population=2)
+    scale = 1.0 / (5.0 + 1e-6)  # torch's max / (norm + 1e-6); member 1 under the bound: untouched
+    torch.testing.assert_close(a.grad, torch.tensor([[3.0 * scale, 0.0], [0.3, 0.0]]), rtol=0, atol=0)
+    torch.testing.assert_close(b.grad, torch.tensor([[4.0 * scale], [0.4]]), rtol=0, atol=0)
+
+
+def test_population_clip_is_bit_for_bit_the_squares_summed_with_pow():
+    from morl_trl.recipes.optim import clip_grad_norm
+
+    g = torch.Generator().manual_seed(0)
+    params = [torch.nn.Parameter(torch.zeros(6, 64, 64)), torch.nn.Parameter(torch.zeros(6, 1, 64))]
+    grads = [torch.randn(6, 64, 64, generator=g) * 3, torch.randn(6, 1, 64, generator=g) * 1e-20]
+    for p, gr in zip(params, grads):
+        p.grad = gr.clone()
+    clip_grad_norm(params, 0.5, population=6)
+    sq = sum(gr.pow(2).reshape(6, -1).sum(-1) for gr in grads)
+    scale = (0.5 / (sq.sqrt() + 1e-6)).clamp(max=1.0)
+    for p, gr in zip(params, grads):
+        assert torch.equal(p.grad, gr * scale.reshape(6, *([1] * (gr.ndim - 1))))
