@@ -50,7 +50,6 @@ from morl_trl.objectives import (
     make_vector_q_network,
 )
 from morl_trl.objectives.networks import orthogonal_init_
-from morl_trl._torchrl_compat import collector_state
 from morl_trl.recipes.agent import (
     Agent,
     apply_updates,
@@ -67,6 +66,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
     make_collector,
@@ -78,7 +78,6 @@ from morl_trl.recipes.parts import (
     start_notes,
 )
 from morl_trl.recipes.sac import make_sac_agent
-from morl_trl.runs.env_state import env_state
 from morl_trl.runs.run import Run
 
 __all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic"]
@@ -239,8 +238,7 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
             buffer.update_tensordict_priority(batch)
         return out.detach()
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it, update, then (run.step) evaluate and checkpoint
     # when due. A checkpoint is the state at the end of a batch, so the batch after it is the same whether

@@ -47,7 +47,6 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 
-from morl_trl._torchrl_compat import collector_state
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
 from morl_trl.recipes.agent import (
     Agent,
@@ -67,6 +66,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
     make_collector,
@@ -77,7 +77,6 @@ from morl_trl.recipes.parts import (
     run_domain,
     start_notes,
 )
-from morl_trl.runs.env_state import env_state
 from morl_trl.runs.run import Run
 
 __all__ = ["make_envelope_agent", "train_envelope"]
@@ -150,8 +149,7 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
             buffer.update_tensordict_priority(batch)
         return out.detach()
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it, update, the schedules, then (run.step) evaluate
     # and checkpoint when due. A checkpoint is the state at the end of a batch, so the batch after it

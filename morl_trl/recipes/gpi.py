@@ -66,7 +66,6 @@ from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.objectives import HardUpdate
 
-from morl_trl._torchrl_compat import collector_state
 from morl_trl.envs import domain_of
 from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
@@ -79,6 +78,7 @@ from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, 
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
     check_buffer_memory,
     evaluation_contexts,
     load_reference,
@@ -91,7 +91,7 @@ from morl_trl.recipes.parts import (
     run_domain,
     start_notes,
 )
-from morl_trl.runs.env_state import env_state, transforms_of
+from morl_trl.runs.env_state import transforms_of
 from morl_trl.runs.run import Run
 from morl_trl.transforms import PreferenceConditioning
 
@@ -488,8 +488,7 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
             buffer.update_tensordict_priority(real)
         return out.detach()
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it; GPI-PD's model fit and rollouts when due; the updates;
     # the target copy; at the end of an iteration, the CCS and the next w and M; the ε schedule; then

@@ -76,7 +76,7 @@ from tensordict import TensorDictBase
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from morl_trl._torchrl_compat import collector_state, reset_collector
+from morl_trl._torchrl_compat import reset_collector
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives import PolyakUpdate
@@ -107,6 +107,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import MemberAdam
 from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
     make_collector,
@@ -116,7 +117,6 @@ from morl_trl.recipes.parts import (
     run_domain,
     start_notes,
 )
-from morl_trl.runs.env_state import env_state
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
@@ -835,8 +835,7 @@ def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: record the finished episodes' returns, store the batch, the
     # updates, the exchange when due, then (run.step) evaluate and checkpoint when due. A checkpoint is the

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import collector_state, reset_collector
+from morl_trl._torchrl_compat import reset_collector
 from morl_trl.envs import make_env
 from morl_trl.recipes.actor_critic import train_actor_critic
 from morl_trl.recipes.agent import Agent
@@ -40,6 +40,7 @@ from morl_trl.recipes.morld import train_morld
 from morl_trl.recipes.pcn import train_pcn
 from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
     make_collector,
@@ -52,7 +53,6 @@ from morl_trl.recipes.parts import (
 )
 from morl_trl.preferences import check_simplex
 from morl_trl.runs.checkpoint import checkpoint_format, checkpoint_frames, find_checkpoint, load_checkpoint
-from morl_trl.runs.env_state import env_state
 from morl_trl.runs.lock import RunLock
 from morl_trl.runs.run import Run
 from morl_trl.runs.run_dir import check_writable
@@ -172,8 +172,7 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
     if agent.before_batch():
         reset_collector(collector)
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 2. the loop. One iteration = one batch: collect, store, update, then (run.step) evaluate and
     # checkpoint the policy trained on `run.frames` frames. A checkpoint is the state at the end of a

@@ -17,15 +17,17 @@ from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType
 
+from morl_trl._torchrl_compat import collector_state
 from morl_trl.data import RunningMaxPrioritizedSampler, prioritized_sampler
 from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
+from morl_trl.runs.env_state import env_state
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
 __all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
            "RecipeCollector",
            "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note", "start_notes",
-           "check_buffer_memory"]
+           "check_buffer_memory", "checkpoint_snapshot"]
 
 
 def run_domain(cfg) -> DomainSpec:
@@ -220,3 +222,21 @@ def _available_memory(device: torch.device) -> float | None:
     except OSError:
         return None
     return None
+
+
+def checkpoint_snapshot(agent, env, collector, device: torch.device):
+    """The ``snapshot`` a recipe hands to :meth:`Run.session <morl_trl.runs.run.Run.session>`: a
+    callable returning what a checkpoint holds besides the run's own counters (the agent's state, the
+    env's, the collector's, the device), read when the checkpoint is written.
+
+    Example:
+        >>> from morl_trl.recipes import build_agent, resolve_config
+        >>> cfg, cpu = resolve_config("envelope", "MOLavaGridDR-v0", num_envs=2), torch.device("cpu")
+        >>> env = make_training_env(cfg, cpu)
+        >>> agent = build_agent(cfg, env, gamma=0.99, device=cpu)
+        >>> snapshot = checkpoint_snapshot(agent, env, make_collector(cfg, env, agent.explore_policy, cpu), cpu)
+        >>> sorted(snapshot())
+        ['agent', 'carrier', 'device', 'env', 'traj_pool']
+    """
+    return lambda: dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector),
+                        device=str(device))

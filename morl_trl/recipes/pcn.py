@@ -56,7 +56,6 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import ClipTransform
 
-from morl_trl._torchrl_compat import collector_state
 from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
@@ -64,8 +63,15 @@ from morl_trl.preferences import energy_weights
 from morl_trl.recipes.agent import Agent, action_spec, apply_updates, is_discrete, num_objectives, obs_shape
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
-from morl_trl.recipes.parts import load_reference, make_collector, make_evaluator, run_discount, run_domain, start_notes
-from morl_trl.runs.env_state import env_state
+from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    run_discount,
+    run_domain,
+    start_notes,
+)
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 from morl_trl.transforms.command import DesiredReturnConditioning
@@ -375,8 +381,7 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
         optimizer_step(out["loss_pcn"], [optimizer], losses={"loss_pcn": out["loss_pcn"]})
         return out.detach()
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store its finished episodes; once the warm-up's pcn_er_episodes
     # episodes are in, and after every further pcn_step_episodes, a round (the updates, then a new command);

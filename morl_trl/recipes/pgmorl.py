@@ -76,7 +76,7 @@ from torchrl.envs import ClipTransform
 from torchrl.envs.utils import ExplorationType, exploration_type
 from torchrl.objectives import ClipPPOLoss
 
-from morl_trl._torchrl_compat import VecNormNonNegativeVar, collector_state, transform_step
+from morl_trl._torchrl_compat import VecNormNonNegativeVar, transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
 from morl_trl.objectives.pgmorl import (
@@ -95,8 +95,15 @@ from morl_trl.recipes.pgmorl_evolution import (
     nondominated,
     select_tasks,
 )
-from morl_trl.recipes.parts import load_reference, make_collector, make_evaluator, run_discount, run_domain, start_notes
-from morl_trl.runs.env_state import env_state
+from morl_trl.recipes.parts import (
+    checkpoint_snapshot,
+    load_reference,
+    make_collector,
+    make_evaluator,
+    run_discount,
+    run_domain,
+    start_notes,
+)
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
@@ -538,8 +545,7 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
                        losses={k: out[k] for k in ("loss_objective", "loss_critic")})
         return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
 
-    def snapshot() -> dict:  # what a checkpoint holds besides the run's own counters
-        return dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector), device=str(device))
+    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch (every sub-env reset at its start: pgmorl_reset_each_iteration):
     # GAE; pgmorl_epochs epochs of pgmorl_minibatches PPO updates per member; at the end of the warm-up and of
