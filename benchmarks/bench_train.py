@@ -38,7 +38,7 @@ after the other in this run. Ours is timed from its first collected batch to the
 bookkeeping, logs and periodic checkpoints included); MB's ``train()`` minus the shared
 evaluations hooked into it (as the parity benchmark does). No MB python: its column says so.
 
-    python benchmarks/bench_train.py --one-env                       # the four default cases, 2,000 frames
+    python benchmarks/bench_train.py --one-env                       # one case per method, 2,000 frames each
     python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 500
     python benchmarks/bench_train.py --one-env --clock cpu       # each library's process CPU time: steadier when shared
     python benchmarks/bench_train.py --one-env envelope-dst --one-env-frames 30 --peer none   # a dry run ``--table FILE`` appends each row, tab-separated, to
@@ -67,7 +67,10 @@ from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_disco
 warnings.filterwarnings("ignore")
 
 PAIRS = ("envelope:MOLunarLanderDR-v0", "envelope:MOLavaGridDR-v0", "capql:MOHopperDR-v5")
-ONE_ENV_CASES = ("envelope-dst", "gpi_ls-dst", "pcn-fruit-tree", "capql-mountaincar")
+#: one parity case per method (``--one-env`` without names): the paper's eight MORL methods but GPI-PD's
+#: continuous variant, each on the smallest MO-Gymnasium env its parity case uses
+ONE_ENV_CASES = ("envelope-dst", "gpi_ls-dst", "gpi_pd-dst", "pcn-fruit-tree", "capql-mountaincar",
+                 "morld-mountaincar", "pgmorl-hopper")
 PARITY = ROOT / "benchmarks" / "parity"
 #: MORL-Baselines' virtual environment: the benchmark machine's, else run_parity.py's default
 MB_PYTHONS = (Path("/tmp/mbvenv/bin/python"), Path.home() / ".cache" / "morl_trl" / "mb-1.3.0" / "bin" / "python")
@@ -172,7 +175,12 @@ def _parity_case(case: str, frames: int) -> dict:
 
 
 def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
-    """``morl_trl.train`` on the parity case: frames/s from the first collected batch to the end of the last."""
+    """``morl_trl.train`` on the parity case: frames/s from the first collected batch to the end of the last.
+
+    ``frames`` and the result count env steps as MB's ``global_step`` does: for PGMORL (the case's
+    ``ours_frame_scale``, its population size) every member's steps, where ours counts one member's (the
+    authors' count, ``benchmarks/parity/run_parity.py``'s ``ours_budget``): ours trains ``frames / scale``
+    of its frames, and its frames/s is multiplied back."""
     import contextlib
     import io
     import tempfile
@@ -184,6 +192,7 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
     from morl_trl.runs.run import Run
 
     c = _parity_case(case, frames)
+    scale = c.get("ours_frame_scale", 1)
     marks: dict = {"eval": 0.0}
     iterator, evaluate, finish = Collector.iterator, MultiContextEvaluator.evaluate, Run.finish
 
@@ -208,13 +217,13 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
     quiet = io.StringIO()  # (the run's own lines: start, evaluations, report)
     try:
         with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):
-            morl_trl.train(c["algo"], env=c["env"], seed=seed, frames=frames, eval_interval=10**9,
+            morl_trl.train(c["algo"], env=c["env"], seed=seed, frames=max(frames // scale, 1), eval_interval=10**9,
                            eval_weights=16, eval_episodes=1, gamma=c["gamma"], eval_random_baseline=False,
                            progress=False, run_dir=f"{tmp}/run", **c["ours"])
     finally:
         Collector.iterator, MultiContextEvaluator.evaluate, Run.finish = iterator, evaluate, finish
     wall = marks["end"] - marks["start"] - marks["loop_eval"]
-    return {"fps": marks["frames"] / wall, "frames": marks["frames"], "env": c["env"], "algo": c["algo"]}
+    return {"fps": marks["frames"] * scale / wall, "frames": marks["frames"] * scale, "env": c["env"], "algo": c["algo"]}
 
 
 def mb_python(choice: str | None) -> Path | None:

@@ -32,7 +32,7 @@ from morl_trl.objectives.batched import (
     hidden_block,
     linear_dropout_norm_relu,
 )
-from morl_trl.objectives.common import MultiObjectiveLossModule
+from morl_trl.objectives.common import MultiObjectiveLossModule, argmin_along
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN, orthogonal_init_
 from morl_trl.objectives.value import vector_td0_return_estimate
@@ -355,7 +355,7 @@ class GPILoss(MultiObjectiveLossModule):
     def _min_member(self, q: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
         """``[E, *B, A, k]`` -> ``[*B, A, k]``: per action the member with the lowest ``w . Q``."""
         scal = torch.einsum("e...ak,...k->e...a", q, w)
-        idx = scal.argmin(0, keepdim=True).unsqueeze(-1).expand(1, *q.shape[1:])
+        idx = argmin_along(scal, 0, keepdim=True).unsqueeze(-1).expand(1, *q.shape[1:])
         return q.gather(0, idx).squeeze(0)
 
     @torch.no_grad()
@@ -381,7 +381,7 @@ class GPILoss(MultiObjectiveLossModule):
         else:
             q = self._q(self.target_value_network_params, obs, W)  # [E, B, P, A, k]
         scal = torch.einsum("ebpak,bk->ebpa", q, w)
-        idx = scal.argmin(0, keepdim=True).unsqueeze(-1).expand(1, *q.shape[1:])
+        idx = argmin_along(scal, 0, keepdim=True).unsqueeze(-1).expand(1, *q.shape[1:])
         q = q.gather(0, idx).squeeze(0)  # [B, P, A, k]
         action, policy = gpi_action(q, w)
         k = q.shape[-1]
@@ -681,7 +681,7 @@ class GPIContinuousLoss(MultiObjectiveLossModule):
         with torch.no_grad():
             next_a = self._actor(self.target_actor_network_params, next_obs, w, self.policy_noise)
             qt = self._critic(self.target_qvalue_network_params, next_obs, next_a, w)  # [E, 2B, k]
-            idx = torch.einsum("ebk,bk->eb", qt, w).argmin(0).view(1, -1, 1).expand(1, *qt.shape[1:])
+            idx = argmin_along(torch.einsum("ebk,bk->eb", qt, w), 0).view(1, -1, 1).expand(1, *qt.shape[1:])
             target = vector_td0_return_estimate(self.value_estimator.gamma, qt.gather(0, idx)[0], reward, terminated)
         q = self._critic(self.qvalue_network_params, obs, action, w)
         loss_q = torch.stack([F.mse_loss(q[e], target) for e in range(q.shape[0])]).mean()

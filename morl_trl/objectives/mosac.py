@@ -27,7 +27,7 @@ from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import distance_loss
 
 from morl_trl._torchrl_compat import cache_values, clear_weakrefs, priority_weight, reduce_loss, vmap_func
-from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference, module_output
+from morl_trl.objectives.common import MultiObjectiveLossModule, argmin_along, check_preference, module_output
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 
@@ -300,7 +300,7 @@ class _MOSACBase(MultiObjectiveLossModule):
         if self.critic_min == "elementwise":
             return q.min(0).values
         w = w.reshape(w.shape[0], *([1] * (q.ndim - 3)), w.shape[-1])
-        worst = (q * w).sum(-1).argmin(0, keepdim=True)
+        worst = argmin_along((q * w).sum(-1), 0, keepdim=True)
         return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
 
     def _critic_objective(self, q: Tensor, target: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:

@@ -50,7 +50,7 @@ from torchrl.objectives.sac import compute_rsample_log_prob, rsample_and_log_pro
 
 from morl_trl._torchrl_compat import cache_values, clear_weakrefs
 from morl_trl.objectives.batched import BatchedMLP
-from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
+from morl_trl.objectives.common import MultiObjectiveLossModule, argmin_along, check_preference
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
 from morl_trl.objectives.networks import (
@@ -406,7 +406,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
 
     def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
         """The vector of the critic with the lowest ``w . Q`` (``q``: ``[n, P, B, ..., k]``)."""
-        worst = (q * w).sum(-1).argmin(0, keepdim=True)
+        worst = argmin_along((q * w).sum(-1), 0, keepdim=True)
         return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
 
     def _actor(self, data: TensorDictBase):

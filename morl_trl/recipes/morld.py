@@ -105,7 +105,7 @@ from morl_trl.recipes.agent import (
     target_updater,
 )
 from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import MemberAdam
+from morl_trl.recipes.optim import MemberAdam, fused_choice
 from morl_trl.recipes.parts import (
     checkpoint_snapshot,
     check_buffer_memory,
@@ -255,17 +255,19 @@ class MemberTargetUpdate:
 
 def member_optimizers(cfg, loss: PopulationMOSACLoss) -> dict:
     """:func:`~morl_trl.recipes.agent.actor_critic_optimizers` as :class:`~morl_trl.recipes.optim.MemberAdam`
-    (the same learning rates and ``adam_eps``): actor ``[P, ...]``, critics ``[n, P, ...]``, temperatures ``[P]``."""
-    eps = {} if cfg.adam_eps is None else {"eps": cfg.adam_eps}
+    (the same learning rates, ``adam_eps`` and ``fused_optimizer``): actor ``[P, ...]``, critics ``[n, P, ...]``, temperatures ``[P]``."""
+    kw = {"fused": fused_choice(cfg)}  # (torch's fused kernel where it has one, as the other recipes' adam())
+    if cfg.adam_eps is not None:
+        kw["eps"] = cfg.adam_eps
     q_lr = cfg.lr if cfg.q_lr is None else cfg.q_lr
     p = loss.population
     opts = {
-        "actor": MemberAdam(loss.actor_network_params.values(True, True), cfg.lr, population=p, **eps),
-        "qvalue": MemberAdam(loss.qvalue_network_params.values(True, True), q_lr, population=p, member_dim=1, **eps),
+        "actor": MemberAdam(loss.actor_network_params.values(True, True), cfg.lr, population=p, **kw),
+        "qvalue": MemberAdam(loss.qvalue_network_params.values(True, True), q_lr, population=p, member_dim=1, **kw),
     }
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
         alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
-        opts["alpha"] = MemberAdam([loss.log_alpha], alpha_lr, population=p, **eps)
+        opts["alpha"] = MemberAdam([loss.log_alpha], alpha_lr, population=p, **kw)
     return opts
 
 

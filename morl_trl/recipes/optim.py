@@ -193,6 +193,15 @@ class MemberAdam(torch.optim.Optimizer):
     one step of the active ones. With every member active it is ``P`` independent Adams, as
     ``torch.optim.Adam`` over the stacked tensors.
 
+    ``fused`` (default ``None``: where torch has the kernel, as :func:`adam`) steps every active
+    member of a group in one call of torch's fused Adam kernel, each member's slices with its own
+    count: bit for bit ``torch.optim.Adam(fused=True)`` on that member's networks alone (a critic
+    ensemble ``[n, P, ...]``: each critic's tensors), the implementation :func:`adam` gives the
+    other recipes (``tests/recipes/test_member_adam.py``). ``fused=False`` runs torch's
+    foreach Adam on one member's slices at a time, its square roots floored as :meth:`_sqrt_floors`
+    explains. The two agree to float rounding; on a MORL/D population update at the paper's Hopper
+    settings the fused step costs a fifth of the foreach one (``docs/speed.md``).
+
     The state is Adam's (``step``, ``exp_avg``, ``exp_avg_sq`` per parameter) with ``step`` a
     ``[P]`` float tensor; a ``torch.optim.Adam`` state (one scalar ``step`` per parameter, all
     members stepped together) loads with that count for every member. ``found_inf`` (set by
@@ -214,11 +223,16 @@ class MemberAdam(torch.optim.Optimizer):
     """
 
     def __init__(self, params, lr: float = 1e-3, *, population: int, betas: tuple[float, float] = (0.9, 0.999),
-                 eps: float = 1e-8, member_dim: int = 0) -> None:
+                 eps: float = 1e-8, member_dim: int = 0, fused: bool | None = None) -> None:
         if population < 1:
             raise ValueError(f"population must be at least 1, got {population}")
         super().__init__(params, dict(lr=lr, betas=betas, eps=eps, member_dim=member_dim))
         self.population = int(population)
+        everything = [p for group in self.param_groups for p in group["params"]]
+        if fused is None:
+            fused = all(p.is_floating_point() and p.device.type in ("cpu", "cuda") for p in everything)
+        #: one fused Adam kernel per group and step (see the class docstring); ``False``: foreach, per member
+        self.fused = bool(fused)
         device = self.param_groups[0]["params"][0].device
         #: ``[P]`` bool: the members the next :meth:`step` updates (all of them by default)
         self.members = torch.ones(self.population, dtype=torch.bool, device=device)
@@ -262,6 +276,8 @@ class MemberAdam(torch.optim.Optimizer):
                     st["step"] = torch.zeros(self.population, dtype=torch.float32, device=p.device)
                     st["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
                     st["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
+            if self.fused and (not params or not active or self._fused_step(group, params, active)):
+                continue
             for m in active:  # torch's own Adam (its foreach arithmetic) on member m's slices, its own step count
                 sts = [self.state[p] for p in params]
                 sqs = [st["exp_avg_sq"].select(d, m) for st in sts]
@@ -271,6 +287,34 @@ class MemberAdam(torch.optim.Optimizer):
                         [st["step"][m:m + 1] for st in sts], foreach=True, amsgrad=floors is not None, beta1=beta1,
                         beta2=beta2, lr=group["lr"], weight_decay=0.0, eps=group["eps"], maximize=False)
         return None
+
+    def _fused_step(self, group: dict, params: list[torch.Tensor], active: list[int]) -> bool:
+        """One ``_fused_adam_`` call over the ``active`` members' slices of ``params``, each with its member's
+        count. A slice goes as its contiguous blocks (member ``m`` of ``[*lead, P, *rest]``: ``[i..., m]``
+        for every ``lead`` index; a critic ensemble's ``[n, P, ...]``: each critic's own tensors), which is
+        how a member's networks hold them on their own. ``False`` (nothing done) where a tensor is not
+        contiguous: the kernel walks its memory flat."""
+        sts = [self.state[p] for p in params]
+        grads, avgs, sqs = [p.grad for p in params], [st["exp_avg"] for st in sts], [st["exp_avg_sq"] for st in sts]
+        if not all(t.is_contiguous() for ts in (params, grads, avgs, sqs) for t in ts):
+            return False
+        d = group["member_dim"]
+        members = [st["step"].unbind(0) for st in sts]  # (unbind: one call for every member's view)
+        torch._foreach_add_([steps[m] for steps in members for m in active], 1)
+
+        def blocks(tensors):  # parameter-major, then member, then lead index
+            out = []
+            for t in tensors:
+                lead = [block.unbind(0) for block in t.reshape(-1, *t.shape[d:]).unbind(0)] if d else [t.unbind(0)]
+                out.extend(block[m] for m in active for block in lead)
+            return out
+
+        counts = [steps[m] for p, steps in zip(params, members) for m in active for _ in range(math.prod(p.shape[:d]))]
+        beta1, beta2 = group["betas"]
+        torch._fused_adam_(blocks(params), blocks(grads), blocks(avgs), blocks(sqs), [], counts, amsgrad=False,
+                           lr=group["lr"], beta1=beta1, beta2=beta2, weight_decay=0.0, eps=group["eps"],
+                           maximize=False, grad_scale=None, found_inf=None)
+        return True
 
     def _sqrt_floors(self, sqs: list[torch.Tensor], eps: float, beta2: float) -> list[torch.Tensor] | None:
         """Scratch tensors shaped as ``sqs`` (a member's second moments), filled with the dtype's smallest

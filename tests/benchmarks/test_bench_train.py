@@ -35,3 +35,32 @@ def test_ours_counts_the_frames_of_the_loop_only(single_thread):
     bt = _module()
     r = bt.ours_one_env("gpi_ls-dst", 8)
     assert (r["frames"], r["algo"], r["env"]) == (8, "gpi_ls", "deep-sea-treasure-v0") and r["fps"] > 0
+
+
+def test_ours_counts_frames_as_mb_does_where_the_case_scales_them(single_thread, monkeypatch):
+    """A case with ``ours_frame_scale`` (PGMORL: ours counts one member's steps, MB every member's):
+    ours trains ``frames / scale`` of its own frames and reports them, and its rate, in MB's count."""
+    bt = _module()
+    case = bt._parity_case
+
+    def scaled(name, frames):
+        c = case(name, frames)
+        c["ours_frame_scale"] = 2
+        return c
+
+    monkeypatch.setattr(bt, "_parity_case", scaled)
+    r = bt.ours_one_env("gpi_ls-dst", 8)
+    assert (r["frames"], r["algo"]) == (8, "gpi_ls") and r["fps"] > 0
+    monkeypatch.setattr(bt, "_parity_case", case)
+    assert bt.ours_one_env("gpi_ls-dst", 4)["frames"] == 4  # (the same 4 frames of ours, unscaled)
+
+
+def test_the_default_one_env_cases_cover_every_method():
+    bt = _module()
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks" / "parity"))
+    from common import CASES
+
+    algos = [CASES[c]["algo"] for c in bt.ONE_ENV_CASES]
+    assert sorted(algos) == ["capql", "envelope", "gpi_ls", "gpi_pd", "morld", "pcn", "pgmorl"]

@@ -277,3 +277,17 @@ def test_gpi_target_of_the_first_rows_is_the_whole_ones_first_rows():
     assert torch.equal(torch.rand(3), after_whole)
     loss.value_network.module.eval()  # without dropout too
     assert torch.equal(loss.gpi_target_value(next_obs, w, sampled, rows=7), loss.gpi_target_value(next_obs, w, sampled)[:7])
+
+
+def test_argmin_along_is_argmin_on_ties_and_nans():
+    """argmin_along (the critic / member with the lowest w . Q) reads torch.min's indices: argmin's index
+    exactly, the first of tied minima and a NaN's position, over a leading or a trailing dim."""
+    from morl_trl.objectives.common import argmin_along
+
+    g = torch.Generator().manual_seed(0)
+    x = torch.randint(0, 3, (3, 64, 4), generator=g).float()  # many ties
+    x.view(-1)[::17] = float("nan")
+    for dim in (0, 1, -1):
+        for keepdim in (False, True):
+            assert torch.equal(argmin_along(x, dim, keepdim), x.argmin(dim, keepdim=keepdim))
+    assert argmin_along(torch.tensor([[2.0, 1.0], [1.0, 1.0]]), 0).tolist() == [1, 0]

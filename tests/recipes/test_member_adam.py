@@ -114,7 +114,7 @@ def test_subnormal_second_moments_give_plain_adams_values_bit_for_bit(dtype):
     g = torch.Generator().manual_seed(3)
     w = torch.nn.Parameter(torch.randn(2, 6, dtype=dtype, generator=g))  # 2 members
     ref = torch.nn.Parameter(w.detach().clone())
-    opt = MemberAdam([w], lr=1e-3, population=2)
+    opt = MemberAdam([w], lr=1e-3, population=2, fused=False)  # (the foreach path: the fused kernel takes v as it is)
     plain = torch.optim.Adam([ref], lr=1e-3, foreach=True)
     # member 0: second moments at zero, subnormal, just under and at the smallest normal, and normal;
     # member 1: ordinary; every member's first step count 10
@@ -139,7 +139,7 @@ def test_subnormal_second_moments_give_plain_adams_values_bit_for_bit(dtype):
 
 def test_an_eps_too_small_for_the_floor_falls_back_to_plain_adam():
     w = torch.nn.Parameter(torch.ones(2, 3))
-    opt = MemberAdam([w], lr=1e-3, population=2, eps=1e-30)
+    opt = MemberAdam([w], lr=1e-3, population=2, eps=1e-30, fused=False)
     assert opt._sqrt_floors([torch.zeros(3)], 1e-30, 0.999) is None
     assert opt._sqrt_floors([torch.zeros(3)], 1e-8, 1.0) is None
     floors = opt._sqrt_floors([torch.zeros(3), torch.zeros(2, 2)], 1e-8, 0.999)
@@ -150,4 +150,74 @@ def test_an_eps_too_small_for_the_floor_falls_back_to_plain_adam():
     ref.grad = torch.ones(2, 3)
     opt.step()
     torch.optim.Adam([ref], lr=1e-3, eps=1e-30, foreach=True).step()
+    assert torch.equal(w.detach(), ref.detach())
+
+
+def _standalone_fused(actor, critic, m):
+    """Member ``m``'s networks on their own, each parameter a tensor of its own (the ensemble's two critics too),
+    with ``torch.optim.Adam(fused=True)``."""
+    a = torch.nn.Parameter(actor.detach()[m].clone())
+    cs = [torch.nn.Parameter(critic.detach()[i, m].clone()) for i in range(critic.shape[0])]
+    return a, cs, torch.optim.Adam([a, *cs], lr=1e-2, eps=1e-4, fused=True)
+
+
+@pytest.mark.parametrize("schedule", [[[0, 1, 2, 3]] * 4 + [[2], [1, 3], [0, 1, 2, 3], [3]],  # all, then subsets
+                                      [[1], [0, 2, 3], [1]]])
+def test_fused_member_adam_is_each_members_fused_torch_adam_bit_for_bit(schedule):
+    """The default (fused) step: every active member's slices in one kernel call, each with its own count,
+    equal to a standalone torch.optim.Adam(fused=True) on that member's own tensors, bit for bit."""
+    actor, critic = _params()
+    opt = MemberAdam([{"params": [actor], "member_dim": 0}, {"params": [critic], "member_dim": 1}],
+                     lr=1e-2, population=P, eps=1e-4)
+    assert opt.fused
+    refs = [_standalone_fused(actor, critic, m) for m in range(P)]
+    g = torch.Generator().manual_seed(5)
+    for active in schedule:
+        x = torch.randn(P, 7, 5, generator=g)
+        opt.members = torch.tensor([i in active for i in range(P)])
+        optimizer_step(_loss(actor, critic, x), [opt])
+        for m in active:
+            a, cs, ref = refs[m]
+            ref.zero_grad()
+            (torch.tanh(x[m] @ a).pow(2).sum() + (torch.stack(cs) * x.mean()).sin().sum()).backward()
+            ref.step()
+    for m, (a, cs, ref) in enumerate(refs):
+        assert torch.equal(actor.detach()[m], a.detach())
+        for i, c in enumerate(cs):
+            assert torch.equal(critic.detach()[i, m], c.detach())
+            for k in ("exp_avg", "exp_avg_sq"):
+                assert torch.equal(opt.state[critic][k][i, m], ref.state[c][k])
+        assert opt.state[actor]["step"][m] == ref.state[a]["step"]
+    counts = [float(sum(m in active for active in schedule)) for m in range(P)]
+    assert opt.state[actor]["step"].tolist() == opt.state[critic]["step"].tolist() == counts
+
+
+def test_fused_and_foreach_member_adam_agree_to_float_rounding_and_a_loaded_state_keeps_its_counts():
+    a1, c1 = _params()
+    a2, c2 = (torch.nn.Parameter(t.detach().clone()) for t in (a1, c1))
+    fused = MemberAdam([{"params": [a1]}, {"params": [c1], "member_dim": 1}], lr=3e-3, population=P)
+    plain = MemberAdam([{"params": [a2]}, {"params": [c2], "member_dim": 1}], lr=3e-3, population=P, fused=False)
+    g = torch.Generator().manual_seed(7)
+    for active in ([0, 1, 2, 3], [1], [0, 1, 2, 3]):
+        x = torch.randn(P, 7, 5, generator=g)
+        for opt, (a, c) in ((fused, (a1, c1)), (plain, (a2, c2))):
+            opt.members = torch.tensor([i in active for i in range(P)])
+            optimizer_step(_loss(a, c, x), [opt])
+    torch.testing.assert_close(a1, a2, rtol=1e-6, atol=1e-7)
+    torch.testing.assert_close(c1, c2, rtol=1e-6, atol=1e-7)
+    again = MemberAdam([{"params": [a1]}, {"params": [c1], "member_dim": 1}], lr=3e-3, population=P)
+    again.load_state_dict(copy.deepcopy(fused.state_dict()))
+    assert again.fused and again.state[a1]["step"].tolist() == [2.0, 3.0, 2.0, 2.0]
+
+
+def test_fused_member_adam_falls_back_to_the_per_member_step_on_a_non_contiguous_gradient():
+    w = torch.nn.Parameter(torch.randn(P, 3, 2))
+    ref = torch.nn.Parameter(w.detach().clone())
+    opt = MemberAdam([w], lr=1e-2, population=P)
+    plain = MemberAdam([ref], lr=1e-2, population=P, fused=False)
+    grad = torch.randn(P, 2, 3).transpose(1, 2)  # (a transposed view: the kernel would read it flat)
+    assert not grad.is_contiguous()
+    w.grad, ref.grad = grad, grad.contiguous()
+    opt.step()
+    plain.step()
     assert torch.equal(w.detach(), ref.detach())

@@ -249,3 +249,15 @@ def test_member_weights_are_the_energy_weights_of_the_run_seed_as_the_authors():
     assert torch.equal(agent.loss.weights, energy_weights(2, 3, seed=cfg.seed, dtype=torch.float32))
     # SPEC §6: 2-D evenly spaced, extremes included (pymoo's energy directions: 0.5012 / 0.4988 inside)
     torch.testing.assert_close(agent.loss.weights, torch.tensor([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]]), rtol=0, atol=5e-3)
+
+
+@pytest.mark.parametrize("fused_optimizer", [True, False])
+def test_member_optimizers_follow_fused_optimizer(fused_optimizer):
+    """The population's per-member Adams run torch's fused kernel unless fused_optimizer=false (as adam() for the
+    other recipes), with the run's learning rates and Adam eps either way."""
+    cfg = resolve_config("morld", "MOLavaGridDR-v0", pop_size=3, num_envs=1, hidden=(16,), seed=0,
+                         morld_schedule="round_robin", fused_optimizer=fused_optimizer, adam_eps=1e-4)
+    agent = make_morld_agent(cfg, TransformedEnv(Bandit(1), DiscountedVectorReturn(0.9)), gamma=0.9, device=CPU)
+    opts = agent.optimizers
+    assert {name: opt.fused for name, opt in opts.items()} == {name: fused_optimizer for name in opts}
+    assert {opt.param_groups[0]["eps"] for opt in opts.values()} == {1e-4}
