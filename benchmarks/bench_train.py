@@ -67,8 +67,8 @@ from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_disco
 warnings.filterwarnings("ignore")
 
 PAIRS = ("envelope:MOLunarLanderDR-v0", "envelope:MOLavaGridDR-v0", "capql:MOHopperDR-v5")
-#: one parity case per method (``--one-env`` without names): the paper's eight MORL methods but GPI-PD's
-#: continuous variant, each on the smallest MO-Gymnasium env its parity case uses
+#: one parity case per learner (``--one-env`` without names): Envelope, GPI-LS, GPI-PD, PCN, CAPQL, MORL/D
+#: (SB; SB+PSA learns the same way) and PGMORL, each on the smallest MO-Gymnasium env its parity cases use
 ONE_ENV_CASES = ("envelope-dst", "gpi_ls-dst", "gpi_pd-dst", "pcn-fruit-tree", "capql-mountaincar",
                  "morld-mountaincar", "pgmorl-hopper")
 PARITY = ROOT / "benchmarks" / "parity"
