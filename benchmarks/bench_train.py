@@ -179,8 +179,8 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
 
     ``frames`` and the result count env steps as MB's ``global_step`` does: for PGMORL (the case's
     ``ours_frame_scale``, its population size) every member's steps, where ours counts one member's (the
-    authors' count, ``benchmarks/parity/run_parity.py``'s ``ours_budget``): ours trains ``frames / scale``
-    of its frames, and its frames/s is multiplied back."""
+    authors' count): ours trains ``frames / scale`` of its frames (``run_parity.ours_budget``), and its
+    frames/s is multiplied back."""
     import contextlib
     import io
     import tempfile
@@ -192,7 +192,9 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
     from morl_trl.runs.run import Run
 
     c = _parity_case(case, frames)
-    scale = c.get("ours_frame_scale", 1)
+    from run_parity import ours_budget  # (benchmarks/parity: on the path once _parity_case ran)
+
+    ours_frames, _, scale = ours_budget(c)
     marks: dict = {"eval": 0.0}
     iterator, evaluate, finish = Collector.iterator, MultiContextEvaluator.evaluate, Run.finish
 
@@ -217,7 +219,7 @@ def ours_one_env(case: str, frames: int, seed: int = 0) -> dict:
     quiet = io.StringIO()  # (the run's own lines: start, evaluations, report)
     try:
         with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):
-            morl_trl.train(c["algo"], env=c["env"], seed=seed, frames=max(frames // scale, 1), eval_interval=10**9,
+            morl_trl.train(c["algo"], env=c["env"], seed=seed, frames=max(ours_frames, 1), eval_interval=10**9,
                            eval_weights=16, eval_episodes=1, gamma=c["gamma"], eval_random_baseline=False,
                            progress=False, run_dir=f"{tmp}/run", **c["ours"])
     finally:

@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.benchmarks._helpers import load_benchmark
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("bench_losses_under_test", ROOT / "benchmarks" / "bench_losses.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_losses", "bench_losses_under_test")
 
 
 def test_target_line_splits_met_and_missed():

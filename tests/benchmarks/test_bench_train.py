@@ -3,17 +3,11 @@ runnable on the CPU with a tiny budget and without MB (its column says so)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.benchmarks._helpers import ROOT, load_benchmark
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("bench_train", ROOT / "benchmarks" / "bench_train.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_train")
 
 
 def test_one_env_row_without_mb_says_so(capsys, tmp_path, single_thread):

@@ -3,19 +3,14 @@ and the driver runs it in each checkout and prints one row per pair."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+from tests.benchmarks._helpers import ROOT, load_benchmark
 
-ROOT = Path(__file__).resolve().parents[2]
 TINY = {"frames_per_batch": 8, "init_random_frames": 8, "buffer_size": 1024, "num_envs": 4, "batch_size": 8,
         "hidden": [16, 16]}
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("compare_commits", ROOT / "benchmarks" / "compare_commits.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("compare_commits")
 
 
 def test_worker_times_whole_batches_after_learning_starts():

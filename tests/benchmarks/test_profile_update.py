@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import re
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.benchmarks._helpers import load_benchmark
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("profile_update", ROOT / "benchmarks" / "profile_update.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("profile_update")
 
 
 def test_breakdown_of_a_capql_update(capsys):
