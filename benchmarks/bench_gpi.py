@@ -15,10 +15,10 @@ and ``seaborn`` at module level for its linear support and plots; ``update`` use
 them, so this script puts empty stand-ins for those three modules in ``sys.modules`` before
 importing it (the old pycddlib does not build here). Install it as for bench_losses.py:
 
-    python -m venv --system-site-packages /tmp/mb_venv
-    /tmp/mb_venv/bin/pip install --no-deps morl-baselines
-    /tmp/mb_venv/bin/pip install -c <(echo "torch==$(python -c 'import torch; print(torch.__version__)')") wandb
-    OMP_NUM_THREADS=1 /tmp/mb_venv/bin/python benchmarks/bench_gpi.py --threads 1 --clock cpu [--quick]
+    python -m venv --system-site-packages /tmp/mbvenv
+    /tmp/mbvenv/bin/pip install --no-deps morl-baselines
+    /tmp/mbvenv/bin/pip install -c <(echo "torch==$(python -c 'import torch; print(torch.__version__)')") wandb
+    OMP_NUM_THREADS=1 /tmp/mbvenv/bin/python benchmarks/bench_gpi.py --threads 1 --clock cpu [--quick]
 
 Ours and the peer alternate in rounds (median over rounds).
 """

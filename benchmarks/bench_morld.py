@@ -19,9 +19,9 @@ temperature, one shared replay buffer (MORL/D SB).
   work on average). Install it in a scratch environment that reuses our torch, as
   ``benchmarks/bench_losses.py`` explains::
 
-      python -m venv --system-site-packages /tmp/mb_venv
-      /tmp/mb_venv/bin/pip install --no-deps morl-baselines
-      /tmp/mb_venv/bin/python benchmarks/bench_morld.py [--quick]
+      python -m venv --system-site-packages /tmp/mbvenv
+      /tmp/mbvenv/bin/pip install --no-deps morl-baselines
+      /tmp/mbvenv/bin/python benchmarks/bench_morld.py [--quick]
 
   Without it (``--peer recreation``, or ``auto`` when the import fails) the third column is
   skipped and the output says so (the sequential column is then the closest peer).

@@ -18,11 +18,11 @@ Each figure is the learning work of a training loop on filled data, environment 
   Frames/s = 6 x 4 x 2048 / seconds.
 
 The peer needs ``morl_baselines`` importable (see bench_losses.py for a scratch venv that reuses
-our torch: ``python -m venv --system-site-packages /tmp/mb_venv; /tmp/mb_venv/bin/pip install
+our torch: ``python -m venv --system-site-packages /tmp/mbvenv; /tmp/mbvenv/bin/pip install
 --no-deps morl-baselines`` + its light deps); run this script with that interpreter. Ours and
 the peer alternate in rounds; the median over rounds is reported, and the ratio ours / peer.
 
-    /tmp/mb_venv/bin/python benchmarks/bench_pcn_pgmorl.py [--quick] [--threads 1]
+    /tmp/mbvenv/bin/python benchmarks/bench_pcn_pgmorl.py [--quick] [--threads 1]
 """
 
 from __future__ import annotations

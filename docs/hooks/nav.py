@@ -19,6 +19,7 @@ LAYOUT: list[tuple[str | None, list[tuple[str | None, str]]]] = [
         (None, "concepts/preferences.md"),
         (None, "concepts/evaluation.md"),
         (None, "concepts/nhgr-and-floors.md"),
+        (None, "concepts/architecture.md"),
     ]),
     ("Domains", [
         ("Overview", "domains/index.md"),

@@ -35,3 +35,13 @@ def test_compare_records_the_eager_ratio_for_the_target_line(capsys):
     assert "Fake       eager              3.0        3.0     1.00x" in capsys.readouterr().out
     m.compare("NoPeer", {"eager": ours}, None, warmup=0, updates=3, rounds=1)
     assert "NoPeer" not in m.RATIOS
+
+
+def test_matmul_rate_is_the_best_window():
+    """The limit is the machine's best rate: a window slowed by a busy moment does not lower it."""
+    m = _module()
+    calls = [("mm", (2, 3), (3, 4), __import__("torch").float32)]  # 2 * 2 * 3 * 4 = 48 FLOP a pass
+    # window 1: one pass in 4 s; window 2: one pass in 1 s; window 3: one pass in 2 s
+    reads = iter([0.0, 4.0, 4.0, 4.0, 5.0, 5.0, 5.0, 7.0, 7.0])
+    m.CLOCK = lambda: next(reads)
+    assert m.matmul_rate(calls, "cpu", seconds=0.5, windows=3) == 48 / 1.0 / 1e9
