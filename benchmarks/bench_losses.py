@@ -56,6 +56,7 @@ settings: ``--malloc tuned`` (default) sets glibc's thresholds as a trainer does
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import sys
 import time
@@ -738,6 +739,8 @@ def rate(step, n):
 METHODS = ("envelope", "capql", "gpi_ls", "gpi_pd", "pcn", "morld", "pgmorl")
 CAPTURE_MODES = ("compile", "cudagraphs", "both", "whole", "whole+compile")
 FLOPS = True  # --no-flops: skip the "know the limit" table
+#: --min-round-seconds: each round runs at least this long (more calls than --updates where an update is fast)
+MIN_ROUND_SECONDS = 0.0
 TABLE = None  # --table FILE: each row appended, tab-separated (benchmarks/gpu/check.sh collects them)
 
 
@@ -745,6 +748,17 @@ def _table(*fields) -> None:
     if TABLE:
         with open(TABLE, "a") as f:
             f.write("\t".join(str(x) for x in fields) + "\n")
+
+
+def round_calls(steps, updates: int) -> int:
+    """Calls of each step a round runs: ``updates``, or more where the fastest step would finish a
+    round in under :data:`MIN_ROUND_SECONDS` (the same count for ours and the peer). A round of 20
+    four-millisecond PCN updates is 0.08 s, and such rounds swung PCN's ratio from 1.18x to 1.51x in
+    back-to-back runs; 1 s rounds gave 1.16-1.33x."""
+    if MIN_ROUND_SECONDS <= 0 or not steps:
+        return updates
+    fastest = min(1.0 / rate(step, 1) for step in steps)  # one timed call each (after the warm-up)
+    return max(updates, math.ceil(MIN_ROUND_SECONDS / max(fastest, 1e-9)))
 
 
 def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_call=1, flop_calls=1):
@@ -767,13 +781,16 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_
     if peer is not None:
         for _ in range(warmup):
             peer()
+    calls = round_calls([*variants.values(), *([peer] if peer is not None else [])], updates)
+    if calls > updates:
+        print(f"({name}: {calls} calls a round, each round >= {MIN_ROUND_SECONDS:g} s)", flush=True)
     rates = {label: [] for label in variants}
     r_peer = []
     for _ in range(rounds):
         for label, step in variants.items():
-            rates[label].append(rate(step, updates) * per_call)
+            rates[label].append(rate(step, calls) * per_call)
         if peer is not None:
-            r_peer.append(rate(peer, updates) * per_call)
+            r_peer.append(rate(peer, calls) * per_call)
     b = statistics.median(r_peer) if peer is not None else float("nan")
     eager = statistics.median(rates["eager"]) if "eager" in rates else float("nan")
     for label in variants:
@@ -833,6 +850,9 @@ def main(argv=None) -> int:
                         "whole: sampling + update + priority writes as one CUDA graph (Envelope only)")
     p.add_argument("--updates", type=int, default=40, help="updates per round")
     p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--min-round-seconds", type=float, default=0.5,
+                   help="each round runs at least this long: more calls than --updates for a fast update, the "
+                        "same count for ours and the peer (default 0.5; 0: exactly --updates; --tiny/--quick: 0)")
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
     p.add_argument(
         "--clock",
@@ -845,7 +865,7 @@ def main(argv=None) -> int:
                         "(morl_trl.recipes.allocator.tune_malloc); default: glibc's own. One process: "
                         "the peer runs under the same setting")
     args = p.parse_args(argv)
-    global CLOCK, SYNC, TABLE, FLOPS
+    global CLOCK, SYNC, TABLE, FLOPS, MIN_ROUND_SECONDS
     if args.malloc == "default":
         import os
 
@@ -858,6 +878,7 @@ def main(argv=None) -> int:
                         else "unchanged (not glibc, or MORL_TRL_MALLOC / MALLOC_*_ set)")
     TABLE = args.table
     FLOPS = not (args.no_flops or args.tiny)
+    MIN_ROUND_SECONDS = 0.0 if (args.tiny or args.quick) else args.min_round_seconds
     CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
     device = torch.device(args.device)
     if device.type == "cuda":
@@ -894,7 +915,9 @@ def main(argv=None) -> int:
     torch.manual_seed(0)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.clock} clock, device {device}; "
           f"peer: {peer_label}")
-    print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each, alternating; median updates/s")
+    at_least = f" (more where a round would be under {MIN_ROUND_SECONDS:g} s)" if MIN_ROUND_SECONDS > 0 else ""
+    print(f"{warmup} warm-up updates, then {rounds} round(s) of {updates} updates each{at_least}, alternating; "
+          "median updates/s")
     print(f"allocator: {malloc_label}, for ours and the peer alike (one process)")
     methods = args.methods if device.type == "cpu" else [m for m in args.methods if not m.startswith("gpi")]
     env_tr = random_transitions(filled, ENVELOPE["obs"], ENVELOPE["k"], num_actions=ENVELOPE["actions"])

@@ -45,3 +45,19 @@ def test_matmul_rate_is_the_best_window():
     reads = iter([0.0, 4.0, 4.0, 4.0, 5.0, 5.0, 5.0, 7.0, 7.0])
     m.CLOCK = lambda: next(reads)
     assert m.matmul_rate(calls, "cpu", seconds=0.5, windows=3) == 48 / 1.0 / 1e9
+
+
+def test_round_calls_stretch_a_fast_update_to_the_minimum_round():
+    """A round runs at least MIN_ROUND_SECONDS, counted from the fastest step, the same for ours and the peer."""
+    m = _module()
+    reads = iter([0.0, 0.004, 1.0, 1.01])  # ours: 4 ms a call, the peer: 10 ms
+    m.CLOCK = lambda: next(reads)
+    m.MIN_ROUND_SECONDS = 0.5
+    assert m.round_calls([lambda: None, lambda: None], updates=20) == 125  # 0.5 s / 4 ms
+    m.CLOCK = lambda: (_ for _ in ()).throw(AssertionError("no timing needed"))
+    m.MIN_ROUND_SECONDS = 0.0
+    assert m.round_calls([lambda: None], updates=20) == 20
+    m.MIN_ROUND_SECONDS = 0.5
+    slow = iter([0.0, 2.0])  # one call longer than the minimum round: --updates stands
+    m.CLOCK = lambda: next(slow)
+    assert m.round_calls([lambda: None], updates=20) == 20
