@@ -13,11 +13,9 @@ The peer is MORL-Baselines' own ``GPIPD.update(weight)`` (``gpi_pd=False/True``,
 driven on a filled buffer. MORL-Baselines imports ``pycddlib==2.1.6`` (``cdd``), ``cvxpy``
 and ``seaborn`` at module level for its linear support and plots; ``update`` uses none of
 them, so this script puts empty stand-ins for those three modules in ``sys.modules`` before
-importing it (the old pycddlib does not build here). Install it as for bench_losses.py:
+importing it (so it runs where the old pycddlib does not build). Install it as for bench_losses.py:
 
-    python -m venv --system-site-packages /tmp/mbvenv
-    /tmp/mbvenv/bin/pip install --no-deps morl-baselines
-    /tmp/mbvenv/bin/pip install -c <(echo "torch==$(python -c 'import torch; print(torch.__version__)')") wandb
+    python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only
     OMP_NUM_THREADS=1 /tmp/mbvenv/bin/python benchmarks/bench_gpi.py --threads 1 --clock cpu [--quick]
 
 Ours and the peer alternate in rounds (median over rounds).

@@ -29,9 +29,7 @@ paper's domain) and time on the CPU only. The peer is MORL-Baselines' ``Envelope
 ``CAPQL.update()`` / ... on the same settings, driven directly on a filled buffer. Install it in a scratch environment that
 reuses our torch (``morl-baselines`` itself pulls an unpinned torch):
 
-    python -m venv --system-site-packages /tmp/mbvenv
-    /tmp/mbvenv/bin/pip install --no-deps morl-baselines
-    /tmp/mbvenv/bin/pip install -c <(echo "torch==$(python -c 'import torch; print(torch.__version__)')") wandb
+    python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only   # the one place it is made (ensure_mb_venv)
     /tmp/mbvenv/bin/python benchmarks/bench_losses.py [--quick]
 
 Without it (``--peer recreation``, or ``auto`` when the import fails) the peer is our
@@ -750,15 +748,24 @@ def _table(*fields) -> None:
             f.write("\t".join(str(x) for x in fields) + "\n")
 
 
-def round_calls(steps, updates: int) -> int:
-    """Calls of each step a round runs: ``updates``, or more where the fastest step would finish a
-    round in under :data:`MIN_ROUND_SECONDS` (the same count for ours and the peer). A round of 20
-    four-millisecond PCN updates is 0.08 s, and such rounds swung PCN's ratio from 1.18x to 1.51x in
-    back-to-back runs; 1 s rounds gave 1.16-1.33x."""
-    if MIN_ROUND_SECONDS <= 0 or not steps:
+def round_calls(call_seconds, updates: int) -> int:
+    """Calls of each step a round runs: ``updates``, or more where the fastest step (``call_seconds``: each
+    step's last warm-up call, ``None`` where it had none) would finish a round in under
+    :data:`MIN_ROUND_SECONDS`; the same count for ours and the peer. A round of 20 four-millisecond PCN
+    updates is 0.08 s, and such rounds swung PCN's ratio from 1.18x to 1.51x in back-to-back runs; 1 s
+    rounds gave 1.16-1.33x."""
+    timed = [t for t in call_seconds if t is not None]
+    if MIN_ROUND_SECONDS <= 0 or not timed:
         return updates
-    fastest = min(1.0 / rate(step, 1) for step in steps)  # one timed call each (after the warm-up)
-    return max(updates, math.ceil(MIN_ROUND_SECONDS / max(fastest, 1e-9)))
+    return max(updates, math.ceil(MIN_ROUND_SECONDS / max(min(timed), 1e-9)))
+
+
+def warm_up(step, n: int) -> float | None:
+    """``n`` calls of ``step``; the seconds the last one took (``None`` for ``n = 0``)."""
+    seconds = None
+    for _ in range(n):
+        seconds = 1.0 / rate(step, 1)
+    return seconds
 
 
 def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_call=1, flop_calls=1):
@@ -768,20 +775,18 @@ def compare(name, variants, peer, *, warmup, updates, rounds, device="cpu", per_
     minibatch updates); ``updates`` counts calls; ``flop_calls``: calls the FLOP count averages
     over (MORL/D: 2, MORL-Baselines' MOSAC updates its actor twice every other call). A variant that fails (e.g. a capture mode on a
     new device) is reported and skipped."""
-    failed = {}
+    failed, call_seconds = {}, []
     for label, step in list(variants.items()):
         try:
-            for _ in range(warmup):
-                step()
+            call_seconds.append(warm_up(step, warmup))
         except Exception as err:
             failed[label] = f"{type(err).__name__}: {str(err).splitlines()[0][:300] if str(err) else ''}"
             del variants[label]
             print(f"{name:<10} {label:<11} failed: {failed[label]}", flush=True)
             _table("losses", name, device, label, "updates/s", "FAILED", "", "", failed[label])
     if peer is not None:
-        for _ in range(warmup):
-            peer()
-    calls = round_calls([*variants.values(), *([peer] if peer is not None else [])], updates)
+        call_seconds.append(warm_up(peer, warmup))
+    calls = round_calls(call_seconds, updates)
     if calls > updates:
         print(f"({name}: {calls} calls a round, each round >= {MIN_ROUND_SECONDS:g} s)", flush=True)
     rates = {label: [] for label in variants}

@@ -19,8 +19,7 @@ temperature, one shared replay buffer (MORL/D SB).
   work on average). Install it in a scratch environment that reuses our torch, as
   ``benchmarks/bench_losses.py`` explains::
 
-      python -m venv --system-site-packages /tmp/mbvenv
-      /tmp/mbvenv/bin/pip install --no-deps morl-baselines
+      python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only
       /tmp/mbvenv/bin/python benchmarks/bench_morld.py [--quick]
 
   Without it (``--peer recreation``, or ``auto`` when the import fails) the third column is

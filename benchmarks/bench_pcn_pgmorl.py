@@ -17,9 +17,8 @@ Each figure is the learning work of a training loop on filled data, environment 
   MORL-Baselines' ``MOPPO`` advantage computation and ``update()`` on its own filled batch.
   Frames/s = 6 x 4 x 2048 / seconds.
 
-The peer needs ``morl_baselines`` importable (see bench_losses.py for a scratch venv that reuses
-our torch: ``python -m venv --system-site-packages /tmp/mbvenv; /tmp/mbvenv/bin/pip install
---no-deps morl-baselines`` + its light deps); run this script with that interpreter. Ours and
+The peer needs ``morl_baselines`` importable: run this script with the python of the scratch venv
+that reuses our torch (``python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only``). Ours and
 the peer alternate in rounds; the median over rounds is reported, and the ratio ours / peer.
 
     /tmp/mbvenv/bin/python benchmarks/bench_pcn_pgmorl.py [--quick] [--threads 1]

@@ -4,10 +4,11 @@ frame budget and evaluation; learning curves, final IQM with bootstrap CIs, fram
     python benchmarks/parity/run_parity.py                       # every runnable case, seeds 0-4
     python benchmarks/parity/run_parity.py --cases gpi_ls-dst --seeds 0-4 --libs ours,mb
     python benchmarks/parity/run_parity.py --report-only         # RESULTS.md + PNGs from what is done
+    python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only   # MB's venv only (the speed benchmarks' peer)
 
 MB runs in its own virtual environment (``--mb-venv``, default ``~/.cache/morl_trl/mb-1.3.0``),
-created here with ``--system-site-packages`` (it reuses our torch) and ``morl-baselines==1.3.0``
-when absent; it is never a dependency of morl_trl. Each (case, library, seed) is one process
+created here with ``--system-site-packages`` (it reuses our torch), ``morl-baselines==1.3.0`` and
+the packages its modules import (``MB_DEPS``) when absent or incomplete; it is never a dependency of morl_trl. Each (case, library, seed) is one process
 and one JSON file under ``--out`` (written atomically): a rerun skips the finished ones, so the
 benchmark resumes where it stopped. Run it in the background with ``nice``; it takes minutes
 to hours per seed on a 2-core CPU.
@@ -32,6 +33,8 @@ sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folde
 from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
+#: what MB's modules import of MB_DEPS, by import name (its GPI-LS / GPI-PD: cdd, cvxpy, seaborn at module level)
+MB_IMPORTS = ["morl_baselines", "wandb", "cvxpy", "cdd", "sortedcontainers", "fire", "seaborn", "moviepy"]
 # per-case findings written under the case's table (what learned, why the libraries differ)
 NOTES: dict[str, str] = {}
 METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"))
@@ -39,14 +42,26 @@ METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_
 
 # ---------------------------------------------------------------------- MB's venv
 def ensure_mb_venv(venv: Path) -> Path:
+    """MORL-Baselines' python in ``venv``: created (``--system-site-packages``: it reuses our torch) with
+    MB itself when absent, and :data:`MB_DEPS` installed when any of :data:`MB_IMPORTS` does not import
+    (a venv made by hand with MB alone, say), our torch pinned so that nothing replaces it. The one place
+    the benchmarks' MB venv is made (``run_parity.py --mb-venv DIR --mb-venv-only``)."""
     python = venv / "bin" / "python"
-    if python.exists() and subprocess.run([str(python), "-c", "import morl_baselines"], capture_output=True).returncode == 0:
-        return python
-    print(f"creating MORL-Baselines {MB_VERSION}'s venv in {venv}", flush=True)
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
-    # --no-deps for MB itself: its pins must not replace our torch / gymnasium in the shared site-packages
-    subprocess.run([str(python), "-m", "pip", "install", "--no-deps", f"morl-baselines=={MB_VERSION}"], check=True)
-    subprocess.run([str(python), "-m", "pip", "install", *MB_DEPS], check=True)
+    if not python.exists():
+        print(f"creating MORL-Baselines {MB_VERSION}'s venv in {venv}", flush=True)
+        subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    if subprocess.run([str(python), "-c", "import morl_baselines"], capture_output=True).returncode != 0:
+        # --no-deps for MB itself: its pins must not replace our torch / gymnasium in the shared site-packages
+        subprocess.run([str(python), "-m", "pip", "install", "--no-deps", f"morl-baselines=={MB_VERSION}"], check=True)
+    if subprocess.run([str(python), "-c", "import " + ", ".join(MB_IMPORTS)], capture_output=True).returncode != 0:
+        import tempfile
+
+        import torch
+
+        with tempfile.NamedTemporaryFile("w", suffix=".txt") as pin:
+            pin.write(f"torch=={torch.__version__}\n")
+            pin.flush()
+            subprocess.run([str(python), "-m", "pip", "install", "-c", pin.name, *MB_DEPS], check=True)
     return python
 
 
@@ -268,6 +283,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=HERE / "results")
     p.add_argument("--mb-venv", type=Path, default=Path.home() / ".cache" / "morl_trl" / f"mb-{MB_VERSION}")
     p.add_argument("--report-only", action="store_true")
+    p.add_argument("--mb-venv-only", action="store_true",
+                   help="make (or complete) MB's venv in --mb-venv and exit: what bench_losses / bench_train use")
     p.add_argument("--round-seeds", type=int, default=2, help="seeds per round (see main)")
     p.add_argument("--nice", type=int, default=15, help="niceness of each run (0: none)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
@@ -278,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
             path = result_path(Path(out), case, lib, seed)
             if not path.exists():
                 run_ours(case, seed, path)
+        return 0
+    if args.mb_venv_only:
+        print(ensure_mb_venv(args.mb_venv))
         return 0
     seeds, cases = _seeds(args.seeds), args.cases.split(",")
     unknown = [c for c in cases if c not in CASES]

@@ -48,16 +48,18 @@ def test_matmul_rate_is_the_best_window():
 
 
 def test_round_calls_stretch_a_fast_update_to_the_minimum_round():
-    """A round runs at least MIN_ROUND_SECONDS, counted from the fastest step, the same for ours and the peer."""
+    """A round runs at least MIN_ROUND_SECONDS, counted from the fastest step's last warm-up call, the same
+    for ours and the peer; the warm-up itself is what is timed (no extra call)."""
     m = _module()
-    reads = iter([0.0, 0.004, 1.0, 1.01])  # ours: 4 ms a call, the peer: 10 ms
+    reads = iter([0.0, 1.0, 1.0, 1.004, 2.0, 2.01])  # ours: two warm-up calls, the last 4 ms; the peer: 10 ms
     m.CLOCK = lambda: next(reads)
+    calls = []
+    seconds = [m.warm_up(lambda: calls.append("ours"), 2), m.warm_up(lambda: calls.append("peer"), 1)]
+    assert calls == ["ours", "ours", "peer"]
     m.MIN_ROUND_SECONDS = 0.5
-    assert m.round_calls([lambda: None, lambda: None], updates=20) == 125  # 0.5 s / 4 ms
-    m.CLOCK = lambda: (_ for _ in ()).throw(AssertionError("no timing needed"))
+    assert m.round_calls(seconds, updates=20) == 125  # 0.5 s / 4 ms
     m.MIN_ROUND_SECONDS = 0.0
-    assert m.round_calls([lambda: None], updates=20) == 20
+    assert m.round_calls(seconds, updates=20) == 20
     m.MIN_ROUND_SECONDS = 0.5
-    slow = iter([0.0, 2.0])  # one call longer than the minimum round: --updates stands
-    m.CLOCK = lambda: next(slow)
-    assert m.round_calls([lambda: None], updates=20) == 20
+    assert m.round_calls([2.0], updates=20) == 20  # one call longer than the minimum round: --updates stands
+    assert m.round_calls([m.warm_up(lambda: None, 0)], updates=20) == 20  # no warm-up, nothing timed

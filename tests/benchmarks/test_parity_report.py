@@ -140,3 +140,38 @@ def test_smoke_run_of_our_side_writes_a_curve(tmp_path):
     assert data["frames"] == data["curve"][-1]["frames"] >= 200
     assert data["train_fps"] > 0 and data["curve"][-1]["hypervolume"] >= 0.0
     assert "pcn-dst" in (tmp_path / "RESULTS.md").read_text()
+
+
+def test_mb_venv_is_completed_where_a_dependency_is_missing(parity, tmp_path, monkeypatch):
+    """A venv with MB but not its GPI cases' imports (made by hand) gets MB_DEPS, our torch pinned; a
+    complete one is left alone; a missing one is created with MB itself first."""
+    import torch
+
+    calls, failing = [], set()
+
+    def run(cmd, *args, **kwargs):
+        calls.append(cmd)
+        if cmd[1:3] == ["-m", "venv"]:
+            (tmp_path / "v" / "bin").mkdir(parents=True)
+            (tmp_path / "v" / "bin" / "python").touch()
+        if cmd[1] == "-m" and cmd[2] == "pip" and "-c" in cmd:
+            assert open(cmd[cmd.index("-c") + 1]).read() == f"torch=={torch.__version__}\n"
+        return type("Done", (), {"returncode": 1 if (cmd[1] == "-c" and cmd[2] in failing) else 0})()
+
+    monkeypatch.setattr(parity.subprocess, "run", run)
+    venv = tmp_path / "v"
+    imports = "import " + ", ".join(parity.MB_IMPORTS)
+    failing.update({"import morl_baselines", imports})  # absent: create, install MB, then its dependencies
+    assert parity.ensure_mb_venv(venv) == venv / "bin" / "python"
+    assert [c[1:3] for c in calls] == [["-m", "venv"], ["-c", "import morl_baselines"], ["-m", "pip"],
+                                       ["-c", imports], ["-m", "pip"]]
+    assert calls[2][-2:] == ["--no-deps", "morl-baselines==1.3.0"] and calls[4][-len(parity.MB_DEPS):] == parity.MB_DEPS
+    calls.clear()
+    failing.clear()
+    failing.add(imports)  # MB there, seaborn & co. not: only the dependencies
+    parity.ensure_mb_venv(venv)
+    assert [c[1:3] for c in calls] == [["-c", "import morl_baselines"], ["-c", imports], ["-m", "pip"]]
+    calls.clear()
+    failing.clear()  # complete: nothing installed
+    parity.ensure_mb_venv(venv)
+    assert [c[1:3] for c in calls] == [["-c", "import morl_baselines"], ["-c", imports]]
