@@ -91,6 +91,18 @@ GAMMA = 0.99
 ENVELOPE = dict(obs=26, actions=4, k=4, batch=128, n_w=8, lam=0.95, per_alpha=0.6, target_every=1000)
 CAPQL = dict(obs=39, act=3, k=3, batch=256, alpha=0.2, tau=0.005)
 GPI = dict(obs=26, actions=4, k=4, batch=128, per_alpha=0.6)
+#: overrides of the recipes' configs (PCN, MORL/D, PGMORL); ``--tiny`` fills it
+RECIPE_OVERRIDES: dict = {}
+
+
+def make_tiny() -> None:
+    """``--tiny``: every network 2 x 16 and every batch 16 (PGMORL: one epoch of two minibatches),
+    so that the dry run's cost is a few seconds of work on any CPU: it checks that every row runs,
+    not how fast (the settings above are the paper's, for measuring)."""
+    NET[:] = [16, 16]
+    for c in (ENVELOPE, CAPQL, GPI):
+        c["batch"] = 16
+    RECIPE_OVERRIDES.update(hidden=(16, 16), batch_size=16, pgmorl_epochs=1, pgmorl_minibatches=2)
 
 
 def random_transitions(n, obs, k, *, num_actions=None, act_dim=None, seed=0):
@@ -242,8 +254,10 @@ def pcn_episodes(n, obs, actions, k, seed=2):
 def _recipe_agent(algo, env_id, **overrides):
     from morl_trl.envs import domain_of
     from morl_trl.recipes import build_agent, build_training_env, resolve_config
+    from morl_trl.recipes.config.train_config import valid_keys
     from morl_trl.recipes.parts import run_discount
 
+    overrides = {**{k: v for k, v in RECIPE_OVERRIDES.items() if k in valid_keys(algo)}, **overrides}
     cfg = resolve_config(algo, env_id, device="cpu", logger="none", progress=False, **overrides)
     env = build_training_env(cfg, torch.device("cpu"))
     agent = build_agent(cfg, env, gamma=run_discount(cfg, domain_of(env_id)), device=torch.device("cpu"))
@@ -819,7 +833,7 @@ def time_recipe_agents(methods, peer, args, warmup, updates, rounds, buffer_size
     mb = peer == "morl-baselines"
     if "pcn" in methods:
         # the replay PCN learns from: 1000 episodes (obs 26 = 8 x 3 + 2, 4 actions, 4 objectives)
-        eps = pcn_episodes(64 if args.tiny else 1000, ENVELOPE["obs"], ENVELOPE["actions"], ENVELOPE["k"])
+        eps = pcn_episodes(16 if args.tiny else 1000, ENVELOPE["obs"], ENVELOPE["actions"], ENVELOPE["k"])
         compare("PCN", {"eager": ours_pcn(eps)}, mb_pcn(eps, ENVELOPE["obs"], ENVELOPE["actions"], ENVELOPE["k"])
                 if mb else None, warmup=warmup, updates=updates, rounds=rounds)
     if "morld" in methods:
@@ -832,7 +846,7 @@ def time_recipe_agents(methods, peer, args, warmup, updates, rounds, buffer_size
         compare("MORL/D", {"eager": step}, mb_morld(td, buffer_size, w) if mb else None, warmup=max(1, warmup // 2),
                 updates=max(1, updates // 4), rounds=rounds, flop_calls=2)
     if "pgmorl" in methods:
-        steps = args.pgmorl_steps or (64 if args.tiny else 256 if args.quick else 2048)
+        steps = args.pgmorl_steps or (16 if args.tiny else 256 if args.quick else 2048)
         step, per_call, obs, act, k = ours_pgmorl(steps)
         compare("PGMORL", {"eager": step}, mb_pgmorl(steps, obs, act, k) if mb else None, warmup=1, updates=1,
                 rounds=rounds, per_call=per_call)
@@ -842,7 +856,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a short sanity run (1 round of 8 updates)")
     p.add_argument("--tiny", action="store_true",
-                   help="a seconds-long dry run (small buffer, 2 updates): every row runs, nothing is measured")
+                   help="a seconds-long dry run on any CPU (2 x 16 networks, batches of 16, 2 updates, one thread unless "
+                        "--threads): every row runs, nothing is measured")
     p.add_argument("--table", default=None, help="append each row, tab-separated, to this file")
     p.add_argument("--no-flops", action="store_true", help="skip the FLOP count / dense-matmul limit table")
     p.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="which updates to time")
@@ -892,10 +907,14 @@ def main(argv=None) -> int:
         SYNC = torch.cuda.synchronize
     if args.threads:
         torch.set_num_threads(args.threads)
+    elif args.tiny:  # a dry run on a busy CPU: OpenMP's threads would wait on descheduled siblings at every op
+        torch.set_num_threads(1)
     capture = args.capture if args.capture is not None else (list(CAPTURE_MODES) if device.type == "cuda" else [])
     warmup, updates, rounds = (1, 2, 1) if args.tiny else (2, 8, 1) if args.quick else (5, args.updates, args.rounds)
     warmup = max(warmup, 8) if capture else warmup  # compile and graph capture happen in the warm-up
-    buffer_size, filled = (1_024, 1_024) if args.tiny else (4_096, 4_096) if args.quick else (100_000, 20_000)
+    if args.tiny:
+        make_tiny()
+    buffer_size, filled = (256, 256) if args.tiny else (4_096, 4_096) if args.quick else (100_000, 20_000)
 
     peer = args.peer
     if peer in ("auto", "morl-baselines"):

@@ -25,8 +25,8 @@ for the scratch venv); without it the table says so.
     python benchmarks/bench_train.py --pairs capql:MOHopperDR-v5 --frames 2048
     python benchmarks/bench_train.py --tiny --peer none    # a seconds-long dry run (benchmarks/gpu/check.sh)
 
-``--tiny`` shrinks the run (16 timed frames, 8 frames per batch, learning from the first batch) to
-check that every row runs, not to measure.
+``--tiny`` shrinks the run (16 timed frames, 8 frames per batch, learning from the first batch, 2 x 16
+networks, batches of 16) to check that every row runs, not to measure.
 
 **One env, end to end** (``--one-env``): the small MO-Gymnasium cases of the parity benchmark
 (``benchmarks/parity/common.py``: the same env, hyperparameters and networks for both libraries,
@@ -77,7 +77,7 @@ MB_PYTHONS = (Path("/tmp/mbvenv/bin/python"), Path.home() / ".cache" / "morl_trl
 PEER_ENVS = {"MOLunarLanderDR-v0": "mo-lunar-lander-v3", "MOHopperDR-v5": "mo-hopper-v5"}
 
 
-TINY = dict(frames_per_batch=8, init_random_frames=8, buffer_size=1_024)
+TINY = dict(frames_per_batch=8, init_random_frames=8, buffer_size=1_024, hidden=(16, 16), batch_size=16)
 
 
 def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:

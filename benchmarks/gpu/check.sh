@@ -45,7 +45,9 @@ fi
 
 # Time limits (seconds) per stage; the sum stays under 8 minutes with the wheel install.
 if [ "$TINY" = 1 ]; then
-  T_TESTS=300 T_LOSSES=300 T_TRAIN=300      # generous: a loaded shared CPU; ~30 s in all on a free one
+  # hang guards, not speed limits: each stage is a few CPU-seconds of work (2 x 16 networks, batches
+  # of 16, one thread) plus imports, ~30 s in all on a free CPU and ~2 min on a loaded 2-core one
+  T_TESTS=600 T_LOSSES=600 T_TRAIN=600
   TEST_SELECT=(-k "cpu-envelope")            # one learner and one capture case prove the stage runs
   LOSS_ARGS=(--tiny --peer none)
   TRAIN_ARGS=(--tiny --peer none)

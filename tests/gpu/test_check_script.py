@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_the_gpu_check_runs_every_stage_on_the_cpu(tmp_path):
     env = {**os.environ, "OUT": str(tmp_path), "PYTHON": os.environ.get("PYTHON", "python")}
     done = subprocess.run(["bash", str(ROOT / "benchmarks/gpu/check.sh"), "--device", "cpu", "--tiny"], cwd=ROOT,
-                          env=env, capture_output=True, text=True, timeout=1200)
+                          env=env, capture_output=True, text=True, timeout=2400)  # (a hang guard: its stages' own)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
     rows = [line.split("\t") for line in (tmp_path / "table.tsv").read_text().splitlines()]
     stages = {r[1]: r[5] for r in rows if r[0] == "stage"}

@@ -40,9 +40,8 @@ def test_member_adam_steps_each_active_member_as_a_standalone_adam_on_that_membe
         before = (actor.detach().clone(), critic.detach().clone(),
                   {k: v.clone() for k, v in opt.state[actor].items()} if opt.state[actor] else None)
         optimizer_step(_loss(actor, critic, x), [opt])
-        if 2 in active:
-            ref.zero_grad()
-            (torch.tanh(x[2] @ ref_a).pow(2).sum() + (ref_c * x.mean()).sin().sum()).backward()
+        if 2 in active:  # member 2's gradient from the population's backward: only the two Adams differ
+            ref_a.grad, ref_c.grad = actor.grad[2].clone(), critic.grad[:, 2].clone()
             ref.step()
         for p in range(P):
             if p not in active:  # untouched, bit for bit: parameters, moments, step count
@@ -163,9 +162,14 @@ def _standalone_fused(actor, critic, m):
 
 @pytest.mark.parametrize("schedule", [[[0, 1, 2, 3]] * 4 + [[2], [1, 3], [0, 1, 2, 3], [3]],  # all, then subsets
                                       [[1], [0, 2, 3], [1]]])
-def test_fused_member_adam_is_each_members_fused_torch_adam_bit_for_bit(schedule):
+def test_fused_member_adam_is_each_members_fused_torch_adam(schedule):
     """The default (fused) step: every active member's slices in one kernel call, each with its own count,
-    equal to a standalone torch.optim.Adam(fused=True) on that member's own tensors, bit for bit."""
+    equal to a standalone torch.optim.Adam(fused=True) on that member's own tensors given the same gradients.
+
+    To float rounding, not bit for bit: the one kernel runs over the members' blocks at other offsets than over
+    each member's own tensor, and a CPU may round an element of a vector lane and one of the scalar tail
+    differently (an FMA in one, a multiply and an add in the other). A skipped step (lr 1e-2) or a wrong count
+    (bias correction) is 1e-3 or more; the tolerance is 1e-6."""
     actor, critic = _params()
     opt = MemberAdam([{"params": [actor], "member_dim": 0}, {"params": [critic], "member_dim": 1}],
                      lr=1e-2, population=P, eps=1e-4)
@@ -176,17 +180,19 @@ def test_fused_member_adam_is_each_members_fused_torch_adam_bit_for_bit(schedule
         x = torch.randn(P, 7, 5, generator=g)
         opt.members = torch.tensor([i in active for i in range(P)])
         optimizer_step(_loss(actor, critic, x), [opt])
-        for m in active:
+        for m in active:  # the population's gradient of member m, so that only the two Adams are compared
             a, cs, ref = refs[m]
-            ref.zero_grad()
-            (torch.tanh(x[m] @ a).pow(2).sum() + (torch.stack(cs) * x.mean()).sin().sum()).backward()
+            a.grad = actor.grad[m].clone()
+            for i, c in enumerate(cs):
+                c.grad = critic.grad[i, m].clone()
             ref.step()
+    close = dict(rtol=1e-6, atol=1e-6)
     for m, (a, cs, ref) in enumerate(refs):
-        assert torch.equal(actor.detach()[m], a.detach())
+        torch.testing.assert_close(actor.detach()[m], a.detach(), **close)
         for i, c in enumerate(cs):
-            assert torch.equal(critic.detach()[i, m], c.detach())
+            torch.testing.assert_close(critic.detach()[i, m], c.detach(), **close)
             for k in ("exp_avg", "exp_avg_sq"):
-                assert torch.equal(opt.state[critic][k][i, m], ref.state[c][k])
+                torch.testing.assert_close(opt.state[critic][k][i, m], ref.state[c][k], **close)
         assert opt.state[actor]["step"][m] == ref.state[a]["step"]
     counts = [float(sum(m in active for active in schedule)) for m in range(P)]
     assert opt.state[actor]["step"].tolist() == opt.state[critic]["step"].tolist() == counts

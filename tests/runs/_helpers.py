@@ -38,12 +38,12 @@ def env() -> dict:
 CWD = "/"
 
 
-def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+def cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "morl_trl.cli", *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, env=env(), cwd=CWD)
 
 
-def run_and_kill(args: list[str], ready, deadline_s: float = 120) -> None:
+def run_and_kill(args: list[str], ready, deadline_s: float = 600) -> None:
     """Start ``morl-trl <args>``, wait until ``ready()`` is true, then SIGKILL its process group."""
     proc = subprocess.Popen([sys.executable, "-m", "morl_trl.cli", *map(str, args)], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True, env=env(), cwd=CWD)
