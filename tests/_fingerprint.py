@@ -7,17 +7,20 @@ few updates carry that into the parameters. Such a test compares with :data:`REO
 of :func:`fingerprint`'s ``scale``, never bit for bit; two code paths that must agree are run in
 the same process and compared there instead.
 
-How the tolerance was chosen (``tests/recipes/test_optimizer_step.py`` checks both sides of it
-in one process, so the choice fails loudly if it stops separating them):
+How the tolerance was chosen (``tests/recipes/test_optimizer_step.py`` checks both sides of it,
+so the choice fails loudly if it stops separating them):
 
-* *rounding*: every initial parameter multiplied by ``1 + 1.2e-7 * N(0, 1)`` (one float32
-  rounding, as another CPU's kernels give) moved the fingerprint of the 11 recipe cases by 2e-10
-  to 7e-9 of its scale (the Intel host of issue 43 against ours: 4e-10 for Envelope);
+* *another CPU*: the 11 recipe cases run with ATen's scalar kernels (``ATEN_CPU_CAPABILITY=default``,
+  as a CPU without AVX2 runs them) differ from the AVX-512 run by 2e-9 to 2.4e-8 of their scale,
+  PGMORL by 1.2e-6 (its stochastic MuJoCo rollouts carry a rounding of an action into the data);
+  with the AVX2 kernels by 0 to 1e-12; the Intel host of issue 43 against ours: 4e-10 (Envelope);
 * *a changed update*: one optimizer step of the run skipped (the second, or the last of 3 to 8)
-  moved it by 6e-6 (continuous GPI-PD's second) to 3e-4 of its scale.
+  moves it by 6e-6 (continuous GPI-PD's second) to 3e-4 of its scale, PGMORL's by 5e-5 or more.
 
-``1e-6`` sits over 100x above the first and 6x below the smallest of the second (measured on an
-AMD EPYC with AVX-512, torch 2.13.0 CPU, 2026-12-01).
+:data:`REORDER_TOLERANCE` (``1e-6``) sits 40x above the first and 6x below the second;
+:data:`CHAOTIC_TOLERANCE` (``1e-5``), for runs whose rollouts amplify a rounding (PGMORL), 8x above
+PGMORL's spread and 5x below its smallest change (measured on an AMD EPYC with AVX-512, torch
+2.13.0 CPU).
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ import torch
 
 #: |fingerprint - recorded| allowed, as a fraction of the fingerprint's scale (see the module docstring)
 REORDER_TOLERANCE = 1e-6
+#: the same for a run whose rollouts amplify a rounding (stochastic actions in a chaotic simulator)
+CHAOTIC_TOLERANCE = 1e-5
 
 
 def fingerprint(tensors: Iterable[torch.Tensor]) -> tuple[float, float]:
@@ -49,9 +54,9 @@ def fingerprint(tensors: Iterable[torch.Tensor]) -> tuple[float, float]:
     return total, scale
 
 
-def assert_same_fingerprint(value: float, scale: float, recorded: float) -> None:
-    """``value`` equals ``recorded`` to float32 reordering: within :data:`REORDER_TOLERANCE` of ``scale``."""
+def assert_same_fingerprint(value: float, scale: float, recorded: float, tolerance: float = REORDER_TOLERANCE) -> None:
+    """``value`` equals ``recorded`` to float32 reordering: within ``tolerance`` of ``scale``."""
     diff = abs(value - recorded)
-    assert diff <= REORDER_TOLERANCE * scale, (
+    assert diff <= tolerance * scale, (
         f"fingerprint {value!r} differs from the recorded {recorded!r} by {diff:.3g}, "
-        f"{diff / scale:.2g} of its scale {scale:.6g} (allowed: {REORDER_TOLERANCE:g}, float32 reordering)")
+        f"{diff / scale:.2g} of its scale {scale:.6g} (allowed: {tolerance:g}, float32 reordering)")
