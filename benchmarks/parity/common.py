@@ -156,8 +156,25 @@ def result_path(out: Path, case: str, lib: str, seed: int) -> Path:
     return Path(out) / case / f"{lib}_s{seed}.json"
 
 
+def current_commit() -> str:
+    """The checkout's commit (``+dirty`` with uncommitted changes to tracked files), or ``"unknown"``."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True,
+                             timeout=30).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+                               capture_output=True, text=True, timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (sha + ("+dirty" if dirty else "")) if sha else "unknown"
+
+
 def write_result(path: Path, data: dict) -> None:
-    """Atomically: a crash never leaves a half-written result that a rerun would skip."""
+    """Atomically: a crash never leaves a half-written result that a rerun would skip. The result records
+    the commit that made it (``commit``), unless it already says."""
+    data = {**data, "commit": data.get("commit") or current_commit()}
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as fh:

@@ -31,6 +31,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
 from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
+from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
 #: what MB's modules import of MB_DEPS, by import name (its GPI-LS / GPI-PD: cdd, cvxpy, seaborn at module level)
@@ -193,14 +194,23 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
              f"Versions: Python {platform.python_version()}, torch {torch.__version__}, morl-baselines {MB_VERSION}; "
              f"machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (timings are noisy).", ""]
     summary = ["## Summary", "",
-               "Final hypervolume (IQM over seeds, 95 % CI), whether the CIs overlap, and training frames/s "
+               "Final hypervolume (IQM over seeds, 95 % CI), the case's verdict (`benchmarks/parity/verdict.py`: "
+               f"each library learns when a one-sided paired t-test of final - frame 0 over its seeds gives p < {ALPHA}; "
+               "both at parity when Welch's two one-sided tests put the difference of final means within "
+               f"{MARGIN_OF_GAIN:g} of MB's mean gain, p < {ALPHA}; better / worse when Welch's t-test gives p < "
+               f"{ALPHA}), and training frames/s "
                "(mean over seeds; ours / MB is issue 31's end-to-end comparison: both libraries' own training "
                "loops on the same env and budget).", "",
-               "| case | seeds ours / MB | final HV ours | final HV MB | CIs | frames/s ours | frames/s MB | ours / MB |",
+               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | frames/s ours | frames/s MB | ours / MB |",
                "|---|---|---|---|---|---|---|---|"]
+    per_method: dict[str, list[tuple[str, str]]] = {}
+    commits: dict[str, int] = {}
     body = []
     for case in CASES:
         runs = _load(out, case)
+        for rs in runs.values():
+            for r in rs:
+                commits[r.get("commit", "not recorded")] = commits.get(r.get("commit", "not recorded"), 0) + 1
         spec = CASES[case]
         body += [f"## {case}", "",
                  f"`{spec['algo']}` on `{spec['env']}`, {spec['frames']:,} frames, evaluated every "
@@ -244,18 +254,25 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
         if case in NOTES:
             body += [NOTES[case], ""]
         hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
-        if "ours" in ci and "mb" in ci and min(len(done["ours"]), len(done["mb"])) < len(seeds):
-            verdict = f"(< {len(seeds)} seeds)"
-        elif "ours" in ci and "mb" in ci:
-            (_, olo, ohi), (_, mlo, mhi) = ci["ours"], ci["mb"]
-            verdict = "overlap" if olo <= mhi and mlo <= ohi else ("ours higher" if olo > mhi else "**MB higher**")
-        else:
-            verdict = "-"
+        said = case_verdict(runs) if "ours" in runs and "mb" in runs else "-"
+        if said != "-" and min(len(done["ours"]), len(done["mb"])) < len(seeds):
+            said += f" (< {len(seeds)} seeds)"
+        per_method.setdefault(spec["algo"], []).append((case, said))
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
         summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get('mb', '-')} | {verdict} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
+                       f"| {hv.get('mb', '-')} | {said} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
                        f"| {ratio} |")
-    lines += summary + [""] + body
+    methods = ["## Verdicts per method", "",
+               "A case counts as evidence of learning only where at least one library learns at its budget.", "",
+               "| method | informative cases | every case |", "|---|---|---|"]
+    for algo, cases in per_method.items():
+        good = [f"{c}: {v}" for c, v in cases if v.split(" (<")[0] in INFORMATIVE]
+        methods.append(f"| {algo} | {'; '.join(good) or 'none'} | " + "; ".join(f"{c}: {v}" for c, v in cases) + " |")
+    made = ", ".join(f"`{c}` ({n} files)" for c, n in sorted(commits.items(), key=lambda kv: (-kv[1], kv[0])))
+    lines += [f"Results made by: {made or 'none yet'}"
+              + (" -- **more than one commit: regenerate from one commit's runs before quoting**"
+                 if len(commits) > 1 else ""), ""]
+    lines += methods + [""] + summary + [""] + body
     notes = out.parent / "NOTES.md"  # hand-written findings (kept across regenerations)
     if notes.exists():
         lines += [notes.read_text()]
@@ -265,6 +282,19 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
+    """:func:`verdict.verdict` of ours against MB on ``metric``, each seed's frame-0 and final values paired
+    (a library without a frame-0 evaluation in every run: "no frame-0 evaluation")."""
+    def values(rs):
+        rs = sorted(rs, key=lambda r: r["seed"])
+        final = [r["curve"][-1][metric] for r in rs]
+        start = [r["curve"][0][metric] for r in rs if r["curve"] and r["curve"][0]["frames"] == 0]
+        return (start if len(start) == len(rs) else None), final
+
+    (o0, o1), (m0, m1) = values(runs["ours"]), values(runs["mb"])
+    return verdict(o0, o1, m0, m1, higher_is_better=metric != "igd")
 
 
 # ---------------------------------------------------------------------- main
