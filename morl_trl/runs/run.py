@@ -60,13 +60,29 @@ from morl_trl.runs.run_dir import NewRunDir, check_new_run_dir
 from morl_trl.runs.run_log import RunLog, check_logger
 from morl_trl.runs.session import restore_fresh_episodes, session
 
-__all__ = ["Run", "default_run_dir", "eval_line", "start_line"]
+__all__ = ["Run", "RUN_DIR_PATTERN", "default_run_dir", "eval_line", "start_line"]
+
+
+#: the pattern of :func:`default_run_dir` (what docs/getting-started.md shows; tests/docs checks both)
+RUN_DIR_PATTERN = "runs/<algo>_<env id>_s<seed>_<YYYYmmdd-HHMMSS>"
 
 
 def default_run_dir(cfg) -> Path:
-    """``runs/<algo>_<env id>_s<seed>_<date-time>``."""
+    """``runs/<algo>_<env id>_s<seed>_<YYYYmmdd-HHMMSS>`` (:data:`RUN_DIR_PATTERN`), a fresh one: a
+    second run started within the same second gets ``-2`` (``-3``, ...) after the time.
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> default_run_dir(SimpleNamespace(algo="envelope", env_id="MOLavaGridDR-v0", seed=0)).parent
+        PosixPath('runs')
+    """
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+    base = Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    return path
 
 
 def eval_line(summary: dict) -> str:
@@ -160,6 +176,7 @@ class Run:
         self._eval_seconds: list[float] = []
         self._eta = None
         self.trust_pickle = False
+        self.echo_report = True  # False: the report prints its one-line summary, not its tables
         self.lock: RunLock | None = None
         self._starting: NewRunDir | None = None
         self.restored: tuple | None = None  # (state, env, device) of restore(env=...), for the session
@@ -272,6 +289,7 @@ class Run:
                 cfg.run_dir = str(self.dir)
                 cfg.save(self.dir / "config.json")
             self.log = RunLog(self.dir, cfg, spec)
+            self.log.echo_report = self.echo_report
         except BaseException:
             if self._starting is not None:
                 self._starting.abort()

@@ -123,6 +123,9 @@ class RunLog:
 
     #: the longest training episodes wait in memory before they are appended to ``train/episodes.csv``
     FLUSH_SECONDS = 2.0
+    #: what :meth:`report` prints: its tables (``morl-trl train``, ``evaluate``) or, ``False``,
+    #: its one-line summary (``morl_trl.train``)
+    echo_report = True
 
     def __init__(self, run_dir, cfg, spec, tag: str = "train") -> None:
         self.run_dir = Path(run_dir)
