@@ -238,6 +238,8 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         log.reference = reference
         try:
             summary = log.evaluation(frames, result)
+            if cfg.eval_random_baseline:  # (the training report's random-policy column, here too)
+                log.random_result = evaluator.evaluate("random")
             log.report(summary, fps=None)
         finally:
             log.close()
