@@ -9,7 +9,10 @@ A run's time is three kinds of work, measured apart:
 * evaluations: those still due (every ``eval_interval`` frames and the last one), each as long
   as the last evaluation of a trained policy (the untrained policy's, at frame 0, ends its
   episodes sooner: it is used only until there is another);
-* the end: the random policy's evaluation and the report (:data:`END_SECONDS` more).
+* the end: the random policy's evaluation, the floors at the run's weights (a few trivial
+  policies' evaluations) and the report's plots, as long as :data:`END_EVALUATIONS`
+  evaluations (all of it slows down with the machine as evaluations do) and
+  :data:`END_SECONDS` (the final checkpoint).
 
 The first estimate comes once 15 s of learning are measured (``log.txt``); it is then renewed
 after every evaluation (``log.txt``) and at every batch (the progress bar).
@@ -26,8 +29,8 @@ Example:
     >>> eta.evaluated(11_264, 3.0); clock[0] += 3.0  # a trained policy's evaluation: 3 s
     >>> eta.rate()                                  # 9,216 frames in 18 s of learning
     (512.0, 9216)
-    >>> round(eta.seconds_left(11_264, 20_000), 1)  # 48,736 frames at 512/s + 5 evaluations of 3 s + 8 s
-    118.2
+    >>> round(eta.seconds_left(11_264, 20_000), 1)  # 48,736 frames at 512/s + 5 evaluations of 3 s + the end
+    135.2
 """
 
 from __future__ import annotations
@@ -35,11 +38,11 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-__all__ = ["DurationEstimate", "END_SECONDS", "hms"]
+__all__ = ["DurationEstimate", "END_EVALUATIONS", "END_SECONDS", "hms"]
 
-#: the end of a run besides its last evaluation: the random policy's evaluation, the floors at the
-#: run's weights and the report's plots (measured on the main job: ~5-10 s on a 2-core CPU)
-END_SECONDS = 8.0
+#: the end of a run besides its last evaluation, in evaluations' time and seconds: measured on the
+#: main job (2-core CPU at load ~8, 2026-12-01) as ~25 s after evaluations of ~3 s
+END_EVALUATIONS, END_SECONDS = 7.0, 4.0
 
 #: seconds of learning measured before the first estimate, and the window of the learning rate
 FIRST_AFTER, WINDOW = 15.0, 60.0
@@ -121,7 +124,11 @@ class DurationEstimate:
             return None
         left = max(self.total - frames, 0)
         per_eval = self.eval_seconds or 0.0
-        return left / max(measured[0], 1e-9) + self.evaluations_left(frames, next_eval) * per_eval + END_SECONDS
+        return left / max(measured[0], 1e-9) + self.evaluations_left(frames, next_eval) * per_eval + self.end_seconds()
+
+    def end_seconds(self) -> float:
+        """The end of the run after its last evaluation (see the module docstring)."""
+        return END_EVALUATIONS * (self.eval_seconds or 0.0) + END_SECONDS
 
     def line(self, frames: int, next_eval: int) -> str | None:
         """``"estimated duration: ... more (...)"``: how it is made, for ``log.txt``; ``None``
@@ -135,7 +142,7 @@ class DurationEstimate:
         which = "" if self.trained_eval else ", an untrained policy's"
         return (f"estimated duration: {hms(seconds)} more ({max(self.total - frames, 0):,} frames at {rate:,.0f} "
                 f"frames/s learning, measured over the last {over:,} frames, + {_plural(evals, 'evaluation')} of "
-                f"~{per_eval:.0f} s{which}, + ~{END_SECONDS:.0f} s for the end)")
+                f"~{per_eval:.0f} s{which}, + ~{self.end_seconds():.0f} s for the end)")
 
     def first_line(self, frames: int, next_eval: int) -> str | None:
         """:meth:`line` once, as soon as the learning rate is measured (then ``None``)."""

@@ -104,6 +104,10 @@ def start_line(cfg, frames: int, resumed: bool) -> str:
             f"learning speed is measured")
 
 
+#: the progress bar: tqdm's without its frame-rate ETA (the postfix holds the run's own estimate)
+BAR_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, {rate_fmt}{postfix}]"
+
+
 class Run:
     """One training run: its directory, config, logs, schedules, checkpoints, progress and report.
 
@@ -271,7 +275,7 @@ class Run:
                               f"keeps it): the run continues with an empty replay buffer")
         # (the time left is the run's own estimate, evaluations included, not tqdm's frame-rate one)
         self._bar = tqdm(total=cfg.frames, initial=self.frames, unit="frame", disable=not cfg.progress,
-                         dynamic_ncols=True, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, {rate_fmt}{postfix}]")
+                         dynamic_ncols=True, bar_format=BAR_FORMAT)
         self._clock = (time.perf_counter(), self.frames)
         self._eta = DurationEstimate(cfg, self.frames)
         self._show_progress()

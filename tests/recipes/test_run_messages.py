@@ -4,7 +4,7 @@ renewed after each evaluation, with the evaluations counted in it."""
 from types import SimpleNamespace
 
 from morl_trl.runs import run as run_module  # the start line lives with the Run object (runs/run.py)
-from morl_trl.runs.estimate import END_SECONDS, DurationEstimate, hms
+from morl_trl.runs.estimate import END_EVALUATIONS, END_SECONDS, DurationEstimate, hms
 
 
 def _cfg(**kw):
@@ -37,10 +37,10 @@ def test_duration_estimate_is_measured_after_the_warm_up_and_counts_evaluations(
     clock[0] += 10.0
     eta.batch(11_240)                                      # 1,000 frames in 20 s: 50 frames/s
     line = eta.first_line(11_240, 20_000)
-    # 48,760 frames at 50 frames/s = 975.2 s, + 3 evaluations (20k, 40k, 60k) of 2 s, + the end
-    assert END_SECONDS == 8.0
-    assert line == ("estimated duration: 16 min 29 s more (48,760 frames at 50 frames/s learning, measured over the "
-                    "last 1,000 frames, + 3 evaluations of ~2 s, an untrained policy's, + ~8 s for the end)")
+    # 48,760 frames at 50 frames/s = 975.2 s, + 3 evaluations (20k, 40k, 60k) of 2 s, + the end (7 x 2 + 4 s)
+    assert (END_EVALUATIONS, END_SECONDS) == (7.0, 4.0)
+    assert line == ("estimated duration: 16 min 39 s more (48,760 frames at 50 frames/s learning, measured over the "
+                    "last 1,000 frames, + 3 evaluations of ~2 s, an untrained policy's, + ~18 s for the end)")
     assert eta.first_line(11_300, 20_000) is None          # said once; renewed after evaluations (line)
     # an evaluation of the trained policy (30 s) is left out of the learning rate and sets the evaluations' length
     clock[0] += 30.0
@@ -48,8 +48,8 @@ def test_duration_estimate_is_measured_after_the_warm_up_and_counts_evaluations(
     clock[0] += 20.0
     eta.batch(12_240)                                      # 1,000 frames in 20 s of learning: still 50/s
     assert eta.rate() == (50.0, 2_000)                     # (2,000 frames in 40 s, the 30 s evaluation left out)
-    assert eta.seconds_left(12_240, 40_000) == 47_760 / 50 + 2 * 30.0 + 8.0
-    assert eta.seconds_left(60_000, 80_000) == 8.0 and eta.evaluations_left(60_000, 80_000) == 0
+    assert eta.seconds_left(12_240, 40_000) == 47_760 / 50 + 2 * 30.0 + 7 * 30.0 + 4.0
+    assert eta.seconds_left(60_000, 80_000) == 7 * 30.0 + 4.0 and eta.evaluations_left(60_000, 80_000) == 0
 
 
 def test_the_learning_rate_is_the_last_minutes():

@@ -36,7 +36,8 @@ def test_headline_is_one_line_with_the_floor():
     cfg = SimpleNamespace(algo="envelope", env_id="MOLavaGridDR-v0")
     line = headline(cfg, {"frames": 4_032, "nhgr_mean": 0.5, "aggregate": {}},
                     ("floor: noop (8 weights)", {"A": 0.1, "B": 0.3}), Path("r/report.md"))
-    assert line == "envelope on MOLavaGridDR-v0: 4,032 frames, mean NHGR 0.500 (floor: noop (8 weights) 0.200); report: r/report.md"
+    assert line == ("envelope on MOLavaGridDR-v0: 4,032 frames, mean NHGR 0.500 (floor: noop (8 weights) 0.200); "
+                    "report: r/report.md")
     line = headline(cfg, {"frames": 64, "nhgr_mean": float("nan"), "aggregate": {"hypervolume": 12.5, "eum": -1.0}},
                     None, Path("r/report.md"))
     assert line == "envelope on MOLavaGridDR-v0: 64 frames, mean hypervolume 12.5, mean eum -1; report: r/report.md"

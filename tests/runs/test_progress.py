@@ -31,7 +31,8 @@ def test_the_bar_ends_on_the_last_evaluation_and_log_txt_has_every_one(tmp_path,
     bars = [part for part in capsys.readouterr().err.replace("\r", "\n").splitlines() if "|" in part]
     assert bars[-1].strip().startswith("100%") and "96/96" in bars[-1]
     assert bars[-1].rstrip().endswith(f"finishing, NHGR {nhgr:.3f} @ 96]")
-    assert any(bar.rstrip().endswith("left: measuring, NHGR 0.000 @ 64]") for bar in bars)  # (at once, not a batch later)
+    # the evaluation at 64 frames at once, not a batch later
+    assert any(bar.rstrip().endswith("left: measuring, NHGR 0.000 @ 64]") for bar in bars)
     log = (tmp_path / "run" / "log.txt").read_text().splitlines()
     evals = [line[20:].split(" (")[0] for line in log if "[eval @ " in line]
     assert evals == ["[eval @ 0 frames", "[eval @ 64 frames", "[eval @ 96 frames"]
