@@ -512,8 +512,8 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append("")
         if floor is not None:
             lines.append(f"`{floor[0]}`: the NHGR of the best trivial policy (a constant action or random) "
-                         f"at this run's {weights} evaluation weights ({floor_where}); a score "
-                         "near it is no evidence of learning. Dashed on the plot.")
+                         f"at this run's {weights} evaluation weights; a score near it is no evidence of learning. "
+                         f"Dashed on the plot. Source: {floor_where}.")
             lines.append("")
         elif floor_where:
             lines.append(f"No floor: {floor_where}.")
