@@ -3,7 +3,8 @@
 Layout of a run directory::
 
     config.json                  resolved configuration
-    log.txt                      notes (start, resume, stop reasons)
+    log.txt                      notes: the start, every evaluation (its frame, duration and mean metrics),
+                                 the estimates of the time left, resume and stop reasons
     logs/<tag>/...               TorchRL logger output (CSV by default; TensorBoard / W&B on request)
     eval/metrics.csv             one row per (evaluation, context): every metric
     eval/episodes.csv            one row per (evaluation, context, weight, episode): returns by objective
