@@ -98,10 +98,11 @@ def test_getting_started_runs(outside_repo):
     pytest.importorskip("mujoco")
     ns = _run_page("getting-started.md", outside_repo)
     assert ns["td"]["next", "reward"].shape == (16, 100, 4)
-    assert ns["policy"].frames == 2048 and ns["trained"].summary["frames"] == 2048
+    assert ns["policy"].frames == 3008 and ns["trained"].summary["frames"] == 3008
     assert ns["episodes"]["next", "reward"].shape[:2] == (4, 256)
     run = outside_repo / "runs" / "lava-quick"
-    assert "start: envelope on MOLavaGridDR-v0, seed 0, cpu: frame budget 2,000" in (run / "log.txt").read_text()
+    assert ("start: envelope on MOLavaGridDR-v0, seed 0, cpu: frame budget 3,000 (3,000 to go, 500 of them random"
+            in (run / "log.txt").read_text())
     report = (run / "report.md").read_text()
     # a quick run evaluates 8 weights: its floor is at 8 weights (the shipped floors are at 100)
     assert "| floor: forward (8 weights) |" in report and "at this run's 8 evaluation weights" in report

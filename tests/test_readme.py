@@ -29,13 +29,25 @@ def test_readme_links_exist():
         assert (ROOT / target).exists(), target
 
 
-def test_readme_example_runs_verbatim(tmp_path, monkeypatch):
+def test_readme_example_runs_verbatim_twice_in_a_row(tmp_path, monkeypatch, capsys):
     pytest.importorskip("Box2D")
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("MORL_TRL_REFERENCE", raising=False)
     (block,) = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
     assert len(block.strip().splitlines()) <= 10
-    ns: dict = {}
-    exec(compile(block, str(README), "exec"), ns)  # noqa: S102 - the README's own code
-    assert ns["td"]["next", "reward"].shape == (16, 100, 4)
-    assert ns["policy"].frames == 2048 and ns["returns"].shape == (4, 2)
+    runs = []
+    for _ in range(2):  # a fresh run directory each time: the second run is not refused
+        ns: dict = {}
+        exec(compile(block, str(README), "exec"), ns)  # noqa: S102 - the README's own code
+        assert ns["td"]["next", "reward"].shape == (16, 100, 4)
+        assert ns["policy"].frames == 3008 and ns["returns"].shape == (4, 2)
+        runs.append(ns["trained"].run_dir)
+        # it trains past its warm-up: 500 random frames, then updates (their losses)
+        assert "(3,000 to go, 500 of them random before learning)" in (runs[-1] / "log.txt").read_text()
+        assert len((runs[-1] / "train" / "losses.csv").read_text().splitlines()) > 1
+        assert ns["trained"].report == runs[-1] / "report.md"
+        out = capsys.readouterr().out
+        # the report's one-line summary, not its tables
+        assert f"envelope on MOLavaGridDR-v0: 3,008 frames, mean NHGR " in out and "## NHGR" not in out
+        assert "| context |" not in out
+    assert runs[0] != runs[1] and runs[0].parent == runs[1].parent == Path("runs")

@@ -64,7 +64,7 @@ LAYOUT: list[tuple[str | None, list[tuple[str | None, str]]]] = [
         (None, "tutorials/ray-grid.md"),
     ]),
     ("API reference", [("Overview", "reference/index.md")]),  # + every reference/*.md
-    ("Project", [(None, "project.md")]),
+    ("Project", [(None, "project.md"), (None, "contributing.md")]),
 ]
 
 # pages other work writes; linked from ours, possibly absent at build time

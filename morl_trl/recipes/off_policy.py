@@ -118,25 +118,28 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
 
 
 def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = None,
-                 overwrite: bool = False, trust_pickle: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
+                 overwrite: bool = False, trust_pickle: bool = False,
+                 echo_report: bool = True) -> tuple[dict, Agent | None, Path, TrainConfig]:
     """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
-    and the config it ran with."""
+    and the config it ran with. ``echo_report=False``: the end of the run prints the report's
+    one-line summary instead of its tables (what ``morl_trl.train`` does)."""
     if resume is not None and (Path(resume) / "config.json").is_file():
         check_writable(Path(resume))
         lock = RunLock(resume, "training").acquire()  # one writer: a second one is refused, naming this process
     else:
         lock = None
     try:
-        return _run_training(cfg, resume, overwrite, trust_pickle, lock)
+        return _run_training(cfg, resume, overwrite, trust_pickle, lock, echo_report)
     finally:
         if lock is not None:
             lock.release()
 
 
-def _run_training(cfg, resume, overwrite, trust_pickle, lock):
+def _run_training(cfg, resume, overwrite, trust_pickle, lock, echo_report=True):
     run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load, resume_config=resume_config)
     run.trust_pickle = trust_pickle
+    run.echo_report = echo_report
     cfg = run.cfg
     if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
         load_checkpoint(run.resume_from)  # refused (naming convert-run and --trust-pickle) before anything is built
@@ -235,6 +238,8 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         log.reference = reference
         try:
             summary = log.evaluation(frames, result)
+            if cfg.eval_random_baseline:  # (the training report's random-policy column, here too)
+                log.random_result = evaluator.evaluate("random")
             log.report(summary, fps=None)
         finally:
             log.close()

@@ -270,6 +270,7 @@ class TrainResult:
     Attributes:
         run_dir: where the run was written.
         summary: the last evaluation summary (as :func:`morl_trl.recipes.train` returns it).
+        report: the run's ``report.md`` (a property).
         policy: the trained policy, loaded from the run's final checkpoint (:func:`load_policy`).
         config: the config the run ran with.
         agent: the trained :class:`~morl_trl.recipes.Agent` in memory (loss, policies,
@@ -282,11 +283,22 @@ class TrainResult:
     config: TrainConfig
     agent: Any = None
 
+    @property
+    def report(self) -> Path | None:
+        """The run's ``report.md`` (``None`` when the run wrote none, e.g. a resume with nothing to do)."""
+        path = self.run_dir / "report.md"
+        return path if path.is_file() else None
+
 
 def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
                  config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
                  trust_pickle: bool = False, env=None, env_name: str | None = None, **overrides: Any) -> TrainResult:
     """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
+
+    The run writes its directory and ``report.md`` as ``morl-trl train`` does and prints its
+    progress and, at the end, the report's one-line summary (not its tables). Without
+    ``run_dir`` each call gets a fresh directory (:func:`morl_trl.runs.default_run_dir`), so
+    the same call runs twice; a given ``run_dir`` that holds a run needs ``overwrite=True``.
 
     ``train_policy("envelope", "MOLavaGridDR-v0", quick=True, frames=4_000, run_dir="runs/a")``
     resolves the config as :func:`~morl_trl.recipes.resolve_config` does (``algo`` may also be
@@ -323,6 +335,7 @@ def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = Non
         if env_id is None:
             raise ValueError("train_policy(algo, env_id, ...): env_id is missing")
         cfg = resolve_config(algo, env_id, quick=quick, config_file=config_file, **overrides)
-    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)
+    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle,
+                                                echo_report=False)  # (one line: the report is in the run dir)
     policy = load_policy(run_dir, device=cfg.device)
     return TrainResult(run_dir=Path(run_dir), summary=summary, policy=policy, config=cfg, agent=agent)

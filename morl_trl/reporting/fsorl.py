@@ -50,6 +50,11 @@ __all__ = [
     "sorl_curves",
 ]
 
+#: why a context's discounted f_SORL max can exceed its undiscounted one (the run report says it under the table)
+DISCOUNTED_NOTE = ("The discounted row can be the larger: γ^t shrinks late rewards, and where an episode ends in "
+                   "penalties (a crash's -100, fuel, time) the discounted sum loses less of them; each row also "
+                   "takes its own max over the weights (docs/fsorl.md).")
+
 #: the algorithm that is the single-objective baseline (it ignores the weight)
 BASELINE = "sac"
 
@@ -187,7 +192,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     curves = sorl_curves(run_dir)
     best = result.sorl_best()
     baseline = ignores_weights(algo)
-    lines += [_formula(spec) + ".", ""]
+    lines += [_formula(spec).rstrip(".") + ".", ""]
     how = (f"the best of its {W} evaluation episodes per context (SAC ignores the weight)" if baseline else
            f"the max over the {W} evaluation weights' episodes per context")
     each = "episode" if baseline else "weight"
@@ -204,6 +209,7 @@ def run_section(result, run_dir: str | Path, algo: str, spec=None, env_id: str =
     lines.append("| f_SORL max | " + " | ".join(_fmt(best[c]["return_max"]) for c in contexts) + " |")
     lines.append("| discounted | " + " | ".join(_fmt(best[c]["discounted_return_max"]) for c in contexts) + " |")
     lines.append("")
+    lines += [DISCOUNTED_NOTE, ""]
     if baseline:
         return lines + ["No table of best weights: SAC does not read the weight.", ""]
     lines += [f"The weight that gave each context's f_SORL max{at} (the paper's Fig. 4 table; the largest "

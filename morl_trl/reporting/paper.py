@@ -8,7 +8,7 @@ Example:
 
 from __future__ import annotations
 
-__all__ = ["PAPER_ORDER", "PAPER_NHGR", "domain_name"]
+__all__ = ["PAPER_ORDER", "PAPER_NHGR", "PAPER_BUDGET", "paper_budget", "domain_name"]
 
 # the paper's order of the domains (their names come from the registry's DomainSpec)
 PAPER_ORDER = (
@@ -46,6 +46,28 @@ PAPER_NHGR: dict[str, dict[str, tuple[float, float]]] = {
         "Envelope": (0.08, 0.08), "GPI-LS": (0.12, 0.14), "PCN": (0.04, 0.06), "SAC": (0.06, 0.07),
     },
 }
+
+
+# SPEC §5 "Common" and §2 "Running": the training frames of every published run per domain, and
+# its evaluation weights (100 energy weights; Mario 32): (frames, weights)
+PAPER_BUDGET: dict[str, tuple[int, int]] = {
+    "MOLunarLanderDR-v0": (3_000_000, 100),
+    "MOHopperDR-v5": (3_000_000, 100),
+    "MOHalfCheetahDR-v5": (5_000_000, 100),
+    "MOHumanoidDR-v5": (10_000_000, 100),
+    "MOSuperMarioBrosZeroShot-v2": (3_000_000, 32),
+    "MOLavaGridDR-v0": (5_000_000, 100),
+}
+
+
+def paper_budget(domain: str) -> tuple[int, int] | None:
+    """``(frames, evaluation weights)`` of the paper's runs on ``domain`` (``None``: not in the paper).
+
+    Example:
+        >>> paper_budget("MOLunarLanderDR-v0"), paper_budget("MOSuperMarioBrosZeroShot-v2")
+        ((3000000, 100), (3000000, 32))
+    """
+    return PAPER_BUDGET.get(domain)
 
 
 def domain_name(domain: str) -> str:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from morl_trl.reporting.budget import count_label
 from morl_trl.reporting.fsorl import run_section
 
 __all__ = ["write_report", "published_baselines", "floor_column", "learning_curves", "training_curves"]
@@ -68,9 +69,11 @@ def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str
     return f"floor: {best.policy}", dict(best.nhgr)
 
 
-def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> Path | None:
-    """Two objectives: one scatter per context. Three or more: one row per context, one column
-    per pair of objectives (every pairwise projection)."""
+def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...], contexts=None) -> Path | None:
+    """Pareto fronts, ours on top of the specialist's, one legend for the figure. Two objectives:
+    one scatter per context (``contexts``, default all). Three or more: one panel per pair of
+    objectives (every pairwise projection) of each context (:func:`_plot_fronts_per_context`
+    calls it once per context: a page each)."""
     import itertools
 
     import matplotlib
@@ -78,39 +81,57 @@ def _plot_fronts(result, reference, path: Path, objectives: tuple[str, ...]) -> 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = list(result.context_names)
+    names = list(result.context_names if contexts is None else contexts)
     pairs = list(itertools.combinations(range(len(objectives)), 2))
-    if len(pairs) == 1:
-        cols = min(4, len(names))
-        rows = math.ceil(len(names) / cols)
-        cells = [(name, pairs[0]) for name in names]
-    else:
-        cols, rows = len(pairs), len(names)
-        cells = [(name, pair) for name in names for pair in pairs]
-    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 3.0 * rows), squeeze=False)
+    cells = [(name, pair) for name in names for pair in pairs]
+    cols = min(4, len(cells)) if len(pairs) == 1 else min(3, len(pairs))
+    rows = math.ceil(len(cells) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 3.0 * rows + 0.4), squeeze=False)
     for ax, (name, (i, j)) in zip(axes.flat, cells):
         front = result.front(name)
         shown = [front[:, [i, j]]]
         if reference is not None and name in reference.specialist_fronts:
             spec = reference.specialist_fronts[name]
-            ax.scatter(spec[:, i], spec[:, j], s=10, c="0.6", label="specialist")
+            ax.scatter(spec[:, i], spec[:, j], s=10, c="0.6", label="specialist front", zorder=2)
             shown.append(spec[:, [i, j]])
         if reference is not None and name in reference.bounds:  # the normalization box: a fixed frame
             b = reference.bounds[name]
             shown.append(np.array([[b.lower[i], b.lower[j]], [b.upper[i], b.upper[j]]]))
-        ax.scatter(front[:, i], front[:, j], s=22, c="C3", edgecolors="k", linewidths=0.4, label="ours", zorder=3)
+        ax.scatter(front[:, i], front[:, j], s=30, c="C3", edgecolors="k", linewidths=0.5, label="ours", zorder=4)
         _frame(ax, np.concatenate(shown))
-        ax.set_title(_short(name), fontsize=9)
+        ax.set_title(_short(name) if len(pairs) == 1 or len(names) > 1 else f"{objectives[i]} / {objectives[j]}",
+                     fontsize=9)
         ax.set_xlabel(objectives[i], fontsize=8)
         ax.set_ylabel(objectives[j], fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(cells):]:
         ax.axis("off")
-    axes.flat[0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=80 if len(pairs) > 1 else 110)
+    _figure_legend(fig, axes.flat[0], title=None if len(pairs) == 1 or len(names) > 1 else _short(names[0]))
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def _plot_fronts_per_context(result, reference, run_dir: Path, objectives: tuple[str, ...]) -> list[tuple[str, Path]]:
+    """Every pairwise projection of each context's front, one figure per context
+    (``report_fronts_<context>.png``, a page at most); returns ``[(context, path), ...]``."""
+    return [(c, _plot_fronts(result, reference, run_dir / f"report_fronts_{_short(c)}.png", objectives, [c]))
+            for c in result.context_names]
+
+
+def _figure_legend(fig, ax, title: str | None = None) -> None:
+    """One legend for the whole figure, above its panels (from ``ax``'s labelled artists)."""
+    handles, labels = ax.get_legend_handles_labels()
+    # fixed margins in inches, not tight_layout (a second draw of every panel: half the plotting time
+    # of a report, which is most of the end of a run)
+    w, h = fig.get_size_inches()
+    room = 0.45 + (0.25 if title else 0.0)  # above the panels, for the legend
+    grid = fig.axes[0].get_gridspec()
+    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.6 / h, top=1 - (room + 0.3) / h,
+                        wspace=0.9 / (w / grid.ncols), hspace=1.0 / (h / grid.nrows))
+    if handles:
+        fig.legend(handles, labels, loc="upper center", ncol=len(labels), fontsize=8, frameon=False,
+                   title=title, title_fontsize=9)
 
 
 def _short(name: str) -> str:
@@ -145,10 +166,10 @@ def _plot_parallel(result, reference, path: Path, objectives: tuple[str, ...]) -
             lo, hi = pts.min(0), pts.max(0)
         span = np.where(hi > lo, hi - lo, 1.0)
         if spec is not None:
-            for row in (spec - lo) / span:
-                ax.plot(x, row, color="0.6", lw=0.6, alpha=0.6)
-        for row in (front - lo) / span:
-            ax.plot(x, row, color="C3", lw=1.2, marker="o", ms=3)
+            for n, row in enumerate((spec - lo) / span):
+                ax.plot(x, row, color="0.6", lw=0.6, alpha=0.6, zorder=2, label="specialist front" if n == 0 else None)
+        for n, row in enumerate((front - lo) / span):
+            ax.plot(x, row, color="C3", lw=1.2, marker="o", ms=3, zorder=4, label="ours" if n == 0 else None)
         ax.set_xticks(x, list(objectives), fontsize=7, rotation=20)
         ax.set_ylabel("scaled to bounds" if reference is not None else "scaled", fontsize=7)
         ax.set_title(_short(name), fontsize=9)
@@ -157,7 +178,7 @@ def _plot_parallel(result, reference, path: Path, objectives: tuple[str, ...]) -
             ax.axvline(xi, color="k", lw=0.5)
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
-    fig.tight_layout()
+    _figure_legend(fig, axes.flat[0])
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
@@ -258,6 +279,24 @@ def training_curves(run_dir: str | Path) -> dict[str, list[tuple[int, float]]]:
     return out
 
 
+def split_constant(curves: dict[str, list[tuple[int, float]]]) -> tuple[dict, dict[str, float]]:
+    """``(varying, constant)``: the training series that change over the run (plotted) and the
+    value of each that does not (e.g. Envelope's ``homotopy_lambda`` 0.95: said, not plotted).
+
+    Example:
+        >>> split_constant({"loss": [(1, 2.0), (2, 1.0)], "homotopy_lambda": [(1, 0.95), (2, 0.95)]})
+        ({'loss': [(1, 2.0), (2, 1.0)]}, {'homotopy_lambda': 0.95})
+    """
+    varying, constant = {}, {}
+    for name, pts in curves.items():
+        values = {v for _, v in pts}
+        if len(pts) > 1 and len(values) == 1 and not name.startswith("return "):
+            constant[name] = pts[0][1]
+        else:
+            varying[name] = pts
+    return varying, constant
+
+
 def _plot_training(curves: dict[str, list[tuple[int, float]]], path: Path) -> Path:
     """One panel per loss / schedule / throughput series, and one panel of the training returns
     per objective (a running mean over episodes), against frames."""
@@ -321,9 +360,10 @@ def _plot_nhgr(table: dict[str, dict[str, float]], contexts: list[str], path: Pa
                   rotation=30, ha="right", fontsize=8)
     ax.set_ylabel("NHGR")
     ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=7, ncol=min(4, len(series)))
+    # (right of the axes: the labels name their budgets and would cover the bars)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -348,21 +388,71 @@ def _run_floor(log, result, reference, contexts, random_result):
     return (f"floor: {best.policy} ({weights} weights)", dict(best.nhgr)), where
 
 
+def _nhgr_table(title: str, cols: dict[str, dict[str, float]], contexts: list[str]) -> list[str]:
+    """A Markdown table of NHGR per context (and the mean) with one column per entry of ``cols``."""
+    lines = [title, "", "| context | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
+    for c in contexts:
+        lines.append(f"| {c} | " + " | ".join(_fmt(col.get(c)) for col in cols.values()) + " |")
+    means = [np.mean([col[c] for c in contexts if c in col]) if col else float("nan") for col in cols.values()]
+    lines.append("| **mean** | " + " | ".join(_fmt(float(m)) for m in means) + " |")
+    return lines + [""]
+
+
+def _paper_columns(baselines: dict[str, dict[str, float]], domain: str) -> dict[str, dict[str, float]]:
+    """The paper's NHGR columns, each named with the budget it was measured at."""
+    from morl_trl.reporting.budget import budget_label
+    from morl_trl.reporting.paper import paper_budget
+
+    frames, weights = paper_budget(domain) or (None, None)
+    return {budget_label(k, "paper", frames=frames, weights=weights): v for k, v in baselines.items()}
+
+
+def headline(cfg, summary: dict, floor: tuple[str, dict[str, float]] | None, path: Path) -> str:
+    """The report in one line (what ``morl_trl.train`` prints instead of its tables).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> cfg = SimpleNamespace(algo="envelope", env_id="MOLavaGridDR-v0")
+        >>> print(headline(cfg, {"frames": 4_032, "nhgr_mean": 0.41, "aggregate": {}},
+        ...                ("floor: noop (8 weights)", {"A": 0.2, "B": 0.3}), Path("runs/x/report.md")))
+        envelope on MOLavaGridDR-v0: 4,032 frames, mean NHGR 0.410 (floor: noop (8 weights) 0.250); report: runs/x/report.md
+    """
+    what = f"{cfg.algo} on {cfg.env_id}: {summary.get('frames', 0):,} frames"
+    nhgr = summary.get("nhgr_mean", float("nan"))
+    if nhgr == nhgr:
+        what += f", mean NHGR {nhgr:.3f}"
+        if floor is not None and floor[1]:
+            what += f" ({floor[0]} {float(np.mean(list(floor[1].values()))):.3f})"
+    else:
+        agg = summary.get("aggregate", {})
+        shown = [f"mean {m} {agg[m]:.4g}" for m in ("hypervolume", "eum") if agg.get(m) is not None]
+        what += (", " + ", ".join(shown)) if shown else ""
+    return f"{what}; report: {path}"
+
+
 def write_report(log, summary: dict, fps: float | None) -> Path:
-    """Write ``report.md`` (+ PNGs) into the run directory and print its table."""
+    """Write ``report.md`` (+ PNGs) into the run directory and print its table (or, when
+    ``log.echo_report`` is false, its one-line :func:`headline`)."""
+    from morl_trl.reporting.budget import budget_label, same_budget
+    from morl_trl.reporting.paper import paper_budget
+
     result = log.last_result
     cfg, spec, run_dir = log.cfg, log.spec, log.out_dir
     contexts = list(result.context_names)
     reference = getattr(log, "reference", None)
+    weights = int(result.weights.shape[0])
+    frames = int(summary.get("frames") or 0)
     nhgr_cols: dict[str, dict[str, float]] = {}
     ours = result.metric("nhgr")
     if any(v is not None for v in ours.values()):
-        nhgr_cols[f"{cfg.algo} (ours)"] = {c: v for c, v in ours.items() if v is not None}
+        nhgr_cols[budget_label(cfg.algo, "ours", weights=weights, frames=frames)] = {
+            c: v for c, v in ours.items() if v is not None}
     random_result = getattr(log, "random_result", None)
     if random_result is not None:
         rn = random_result.metric("nhgr")
         if any(v is not None for v in rn.values()):
-            nhgr_cols["random policy"] = {c: v for c, v in rn.items() if v is not None}
+            nhgr_cols[f"random policy ({weights} weights)"] = {
+                c: v for c, v in rn.items() if v is not None}
     baselines = {}
     baseline_note = None
     if reference is None and "reference" in log.__dict__:  # no data for the domain: said below, once
@@ -381,10 +471,13 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         floor, floor_where = _run_floor(log, result, reference, contexts, random_result)
     if floor is not None:
         nhgr_cols[floor[0]] = floor[1]
-    nhgr_cols.update({f"{k} (paper)": v for k, v in baselines.items()})
+    paper_cols = _paper_columns(baselines, spec.train_id)
+    # (a domain outside the paper has no budget to compare with: its columns stay in one table)
+    comparable = same_budget(spec.train_id, frames=frames, weights=weights) or paper_budget(spec.train_id) is None
 
     lines = [f"# {cfg.algo} on {cfg.env_id} (seed {cfg.seed})", ""]
-    lines.append(f"Frames: {summary.get('frames')}" + (f" · frames/s: {fps:,.0f}" if fps else ""))
+    lines.append(f"Frames: {summary.get('frames')}" + (f" · frames/s: {fps:,.0f}" if fps else "")
+                 + f" · evaluation weights: {weights}")
     lines.append("")
     metric_names = ["nhgr", "normalized_hypervolume", "hypervolume", "hv_ratio", "eum", "eugr", "igd", "cardinality",
                     "sparsity"]
@@ -407,15 +500,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
                      f"hypervolume and EUM only, beside a uniformly random policy's.")
         lines.append("")
     if nhgr_cols:
-        lines.append("## NHGR per context")
-        lines.append("")
-        lines.append("| context | " + " | ".join(nhgr_cols) + " |")
-        lines.append("|---|" + "---|" * len(nhgr_cols))
-        for c in contexts:
-            lines.append(f"| {c} | " + " | ".join(_fmt(col.get(c)) for col in nhgr_cols.values()) + " |")
-        means = [np.mean([col[c] for c in contexts if c in col]) if col else float("nan") for col in nhgr_cols.values()]
-        lines.append("| **mean** | " + " | ".join(_fmt(float(m)) for m in means) + " |")
-        lines.append("")
+        if comparable:  # the paper's budget: one table, one chart
+            nhgr_cols.update(paper_cols)
+        lines += _nhgr_table("## NHGR per context", nhgr_cols, contexts)
         bars = {k: v for k, v in nhgr_cols.items() if floor is None or k != floor[0]}
         if baseline_note is not None:
             lines.append(baseline_note)
@@ -425,31 +512,46 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append("")
         if floor is not None:
             lines.append(f"`{floor[0]}`: the NHGR of the best trivial policy (a constant action or random) "
-                         f"at this run's {result.weights.shape[0]} evaluation weights, from {floor_where}; a score "
-                         "near it is no evidence of learning. Dashed on the plot.")
+                         f"at this run's {weights} evaluation weights; a score near it is no evidence of learning. "
+                         f"Dashed on the plot. Source: {floor_where}.")
             lines.append("")
         elif floor_where:
             lines.append(f"No floor: {floor_where}.")
             lines.append("")
+        if paper_cols and not comparable and paper_budget(spec.train_id) is not None:
+            lines += _nhgr_table(f"## The paper's generalists (not this run's budget)", paper_cols, contexts)
+            paper_frames, paper_weights = paper_budget(spec.train_id)
+            lines.append(f"The paper's runs: {paper_weights} weights, {count_label(paper_frames)} frames each, "
+                         f"mean over 5 seeds; this run: {weights} weights, {count_label(frames)} frames. NHGR grows "
+                         f"with training and depends on the number of evaluation weights, so these columns are "
+                         f"not a comparison with this run (and are not on its chart); `morl-trl train "
+                         f"{cfg.algo} {cfg.env_id}` without `--quick` runs at the paper's budget.")
+            lines.append("")
     curves = learning_curves(run_dir / "eval" / "metrics.csv")
     if curves:
         png = _plot_learning(curves, contexts, run_dir / "report_learning.png", floor)
+        evals = len({f for per in curves.values() for pts in per.values() for f, _ in pts})
         lines.append("## Learning curves")
         lines.append("")
         lines.append(f"![NHGR, normalized HV and EUM per context against frames]({png.name})")
         lines.append("")
-        lines.append("Every evaluation of the run, frame 0 (the untrained policy) included"
-                     + ("; dashed: the floor's NHGR per context." if floor is not None else "."))
+        lines.append(f"Every evaluation of the run ({evals}, every {cfg.eval_interval:,} frames), frame 0 "
+                     "(the untrained policy) included" + ("; dashed: the floor's NHGR per context." if floor is not None
+                                                           else "."))
         lines.append("")
     train_curves = training_curves(run_dir)
     if train_curves:
-        png = _plot_training(train_curves, run_dir / "report_training.png")
+        varying, constant = split_constant(train_curves)
         lines.append("## Training curves")
         lines.append("")
-        lines.append(f"![Losses, exploration, frames per second and training returns against frames]({png.name})")
-        lines.append("")
+        if varying:
+            png = _plot_training(varying, run_dir / "report_training.png")
+            lines.append(f"![Losses, exploration, frames per second and training returns against frames]({png.name})")
+            lines.append("")
         lines.append("From `train/losses.csv` (losses, ε or α, frames per second) and `train/episodes.csv` "
-                     "(undiscounted return per objective of every training episode, under its training preference).")
+                     "(undiscounted return per objective of every training episode, under its training preference)."
+                     + (" Constant over the run, so not plotted: "
+                        + ", ".join(f"`{k}` {_fmt(v)}" for k, v in constant.items()) + "." if constant else ""))
         lines.append("")
     objectives = tuple(spec.objective_names)
     lines.append("## Pareto fronts")
@@ -459,12 +561,14 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
         lines.append(f"![Pareto fronts per context, parallel coordinates]({png.name})")
         lines.append("")
         lines.append(f"Parallel coordinates: one line per point of the front over all {len(objectives)} objectives "
-                     "(ours red, the specialist's grey), each objective scaled to the context's normalization bounds. "
-                     "Below, every pairwise projection (the fronts are non-dominated in all objectives, not in "
-                     "each projection; fronts/*.csv hold the points).")
+                     "(ours red, on top; the specialist's grey), each objective scaled to the context's normalization "
+                     "bounds. Every pairwise projection, one figure per context (the fronts are non-dominated in all "
+                     "objectives, not in each projection; fronts/*.csv hold the points): "
+                     + ", ".join(f"[{_short(c)}]({p.name})" for c, p in _plot_fronts_per_context(
+                         result, reference, run_dir, objectives)) + ".")
         lines.append("")
-    png = _plot_fronts(result, reference, run_dir / "report_fronts.png", objectives)
-    if png is not None:
+    else:
+        png = _plot_fronts(result, reference, run_dir / "report_fronts.png", objectives)
         lines.append(f"![Pareto fronts per context]({png.name})")
         lines.append("")
     lines += run_section(result, run_dir, cfg.algo, spec, cfg.env_id)  # f_SORL (reporting/fsorl.py)
@@ -472,6 +576,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     path.write_text("\n".join(lines) + "\n")
     from tqdm.auto import tqdm  # (above a training run's progress bar, never through it)
 
+    if not getattr(log, "echo_report", True):
+        tqdm.write(headline(cfg, summary, floor, path))
+        return path
     tqdm.write("\n".join(lines[: lines.index("") + 1 + len(contexts) + 4]))
     if nhgr_cols:
         start = lines.index("## NHGR per context")

@@ -24,11 +24,11 @@ from morl_trl.runs.checkpoint import (
 from morl_trl.runs.env_state import env_state, load_env_state
 from morl_trl.runs.lock import RunLock, RunLockedError
 from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain
-from morl_trl.runs.run import Run
+from morl_trl.runs.run import RUN_DIR_PATTERN, Run, default_run_dir
 from morl_trl.runs.run_log import RunLog, check_logger
 
-__all__ = ["DiskFullError", "Run", "RunLock", "RunLockedError", "RunLog", "UnsafeFileError", "UntrustedCheckpointError",
-           "atomic_write_bytes", "atomic_write_text", "check_logger", "checkpoint_buffer", "checkpoint_format",
-           "checkpoint_frames", "convert_checkpoint", "env_state", "find_checkpoint", "latest_checkpoint",
-           "load_checkpoint", "load_env_state", "load_plain", "rng_state", "save_checkpoint", "save_plain",
-           "set_rng_state", "verify_checkpoint"]
+__all__ = ["DiskFullError", "RUN_DIR_PATTERN", "Run", "RunLock", "RunLockedError", "RunLog", "UnsafeFileError",
+           "UntrustedCheckpointError", "atomic_write_bytes", "atomic_write_text", "check_logger", "checkpoint_buffer",
+           "checkpoint_format", "checkpoint_frames", "convert_checkpoint", "default_run_dir", "env_state",
+           "find_checkpoint", "latest_checkpoint", "load_checkpoint", "load_env_state", "load_plain", "rng_state",
+           "save_checkpoint", "save_plain", "set_rng_state", "verify_checkpoint"]

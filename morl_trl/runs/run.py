@@ -43,9 +43,9 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 from tqdm.auto import tqdm
 
+from morl_trl.runs.estimate import DurationEstimate, hms
 from morl_trl.runs.checkpoint import (
     checkpoint_buffer,
     checkpoint_frames,
@@ -60,70 +60,52 @@ from morl_trl.runs.run_dir import NewRunDir, check_new_run_dir
 from morl_trl.runs.run_log import RunLog, check_logger
 from morl_trl.runs.session import restore_fresh_episodes, session
 
-__all__ = ["Run", "default_run_dir", "eval_line", "start_line"]
+__all__ = ["Run", "RUN_DIR_PATTERN", "default_run_dir", "eval_line", "start_line"]
+
+
+#: the pattern of :func:`default_run_dir` (what docs/getting-started.md shows; tests/docs checks both)
+RUN_DIR_PATTERN = "runs/<algo>_<env id>_s<seed>_<YYYYmmdd-HHMMSS>"
 
 
 def default_run_dir(cfg) -> Path:
-    """``runs/<algo>_<env id>_s<seed>_<date-time>``."""
+    """``runs/<algo>_<env id>_s<seed>_<YYYYmmdd-HHMMSS>`` (:data:`RUN_DIR_PATTERN`), a fresh one: a
+    second run started within the same second gets ``-2`` (``-3``, ...) after the time.
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> default_run_dir(SimpleNamespace(algo="envelope", env_id="MOLavaGridDR-v0", seed=0)).parent
+        PosixPath('runs')
+    """
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+    base = Path("runs") / f"{cfg.algo}_{cfg.env_id}_s{cfg.seed}_{stamp}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    return path
 
 
-def eval_line(summary: dict) -> str:
-    """The one line an evaluation prints."""
+def eval_line(summary: dict, seconds: float | None = None) -> str:
+    """The one line an evaluation prints and writes to ``log.txt`` (with how long it took)."""
     agg = summary["aggregate"]
     parts = [f"{m} {agg[m]:.4g}" for m in ("nhgr", "normalized_hypervolume", "hypervolume", "eum") if m in agg]
-    return f"[eval @ {summary['frames']:,} frames] mean over contexts: " + ", ".join(parts)
+    took = "" if seconds is None else f" ({seconds:.1f} s)"
+    return f"[eval @ {summary['frames']:,} frames{took}] mean over contexts: " + ", ".join(parts)
 
 
 def start_line(cfg, frames: int, resumed: bool) -> str:
     """The first line of a run in log.txt: what it will do and how much (the duration follows once measured)."""
     evals = max(0, (cfg.frames - frames) // max(cfg.eval_interval, 1)) + 1
     what = "resume" if resumed else "start"
+    count = "1 evaluation" if evals == 1 else f"about {evals} evaluations"
     return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
-            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), about "
-            f"{evals} evaluations of {cfg.eval_weights} weights; the estimated duration follows once the "
+            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), "
+            f"{count} of {cfg.eval_weights} weights; the estimated duration follows once the "
             f"learning speed is measured")
 
 
-class _DurationEstimate:
-    """Measures the learning speed over the first batches after the random warm-up and says once,
-    in ``log.txt``, how long the rest of the run should take (tqdm's bar keeps an ETA after it)."""
-
-    def __init__(self, cfg, frames: int) -> None:
-        self.cfg = cfg
-        self.start: tuple[int, float] | None = None
-        self.done = frames >= cfg.frames
-
-    def update(self, frames: int, eval_seconds: list[float], next_eval: int) -> str | None:
-        if self.done:
-            return None
-        now = time.perf_counter()
-        if self.start is None:
-            if frames > self.cfg.init_random_frames:
-                self.start = (frames, now)
-            return None
-        seen, dt = frames - self.start[0], now - self.start[1]
-        if frames >= self.cfg.frames:  # finished before a stable measurement: nothing to predict
-            self.done = True
-            return None
-        if dt < 15.0 or seen <= 0:  # some seconds of learning: a stable rate
-            return None
-        self.done = True
-        rate = seen / max(dt, 1e-9)
-        left = max(self.cfg.frames - frames, 0)
-        evals = (max(self.cfg.frames - next_eval, 0) // max(self.cfg.eval_interval, 1) + 1) if left else 0
-        per_eval = float(np.mean(eval_seconds)) if eval_seconds else 0.0
-        seconds = left / max(rate, 1e-9) + evals * per_eval
-        return (f"estimated duration: {_hms(seconds)} more ({left:,} frames at {rate:,.0f} frames/s learning, "
-                f"measured over {seen:,} frames, + {evals} evaluations of ~{per_eval:.0f} s)")
-
-
-def _hms(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rem = divmod(seconds, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
+#: the progress bar: tqdm's without its frame-rate ETA (the postfix holds the run's own estimate)
+BAR_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, {rate_fmt}{postfix}]"
 
 
 class Run:
@@ -160,6 +142,7 @@ class Run:
         self._eval_seconds: list[float] = []
         self._eta = None
         self.trust_pickle = False
+        self.echo_report = True  # False: the report prints its one-line summary, not its tables
         self.lock: RunLock | None = None
         self._starting: NewRunDir | None = None
         self.restored: tuple | None = None  # (state, env, device) of restore(env=...), for the session
@@ -272,6 +255,7 @@ class Run:
                 cfg.run_dir = str(self.dir)
                 cfg.save(self.dir / "config.json")
             self.log = RunLog(self.dir, cfg, spec)
+            self.log.echo_report = self.echo_report
         except BaseException:
             if self._starting is not None:
                 self._starting.abort()
@@ -289,10 +273,12 @@ class Run:
             if checkpoint_buffer(self.resume_from) == "pruned":
                 self.log.note(f"warning: {self.resume_from.name} holds no replay buffer (only the newest checkpoint "
                               f"keeps it): the run continues with an empty replay buffer")
+        # (the time left is the run's own estimate, evaluations included, not tqdm's frame-rate one)
         self._bar = tqdm(total=cfg.frames, initial=self.frames, unit="frame", disable=not cfg.progress,
-                         dynamic_ncols=True)
+                         dynamic_ncols=True, bar_format=BAR_FORMAT)
         self._clock = (time.perf_counter(), self.frames)
-        self._eta = _DurationEstimate(cfg, self.frames)
+        self._eta = DurationEstimate(cfg, self.frames)
+        self._show_progress()
         return self
 
     def note(self, message: str) -> None:
@@ -338,12 +324,27 @@ class Run:
         self.updates += updates
         if losses is not None and (self.updates % 50 == 0 or updates > 1):
             self.log.losses(self.frames, losses, frames_per_second=self.fps(), epsilon=epsilon)
+        if self.frames > self._bar.total:  # (a last batch past the budget: the bar stays a bar)
+            self._bar.total = self.frames
         self._bar.update(frames)
-        line = self._eta.update(self.frames, self._eval_seconds, self.next_eval)
+        self._eta.batch(self.frames)
+        line = self._eta.first_line(self.frames, self.next_eval)
         if line is not None:
             self.log.note(line)
-        nhgr = self.summary.get("nhgr_mean", float("nan"))  # (the frame rate is tqdm's own: frame/s)
-        self._bar.set_postfix(nhgr=f"{nhgr:.3f}" if nhgr == nhgr else "-")
+        self._show_progress()
+
+    def _show_progress(self, refresh: bool = False) -> None:
+        """The bar's postfix: the estimated time left (once measured) and the latest evaluation's NHGR."""
+        if self.frames >= self.cfg.frames:
+            parts = ["finishing"]  # (the last evaluation, the report)
+        else:
+            left = self._eta.seconds_left(self.frames, self.next_eval)
+            parts = ["left: measuring" if left is None else f"~{hms(left)} left"]
+        nhgr = self.summary.get("nhgr_mean", float("nan"))
+        if self.summary:
+            parts.append(f"NHGR {nhgr:.3f} @ {self.summary['frames']:,}" if nhgr == nhgr
+                         else f"evaluated @ {self.summary['frames']:,}")
+        self._bar.set_postfix_str(", ".join(parts), refresh=refresh)
 
     def collected(self, batch, frames: int | None = None, *, log: bool = True) -> int:
         """A collected ``batch`` (inside :meth:`session`): count its ``frames`` (default
@@ -384,11 +385,20 @@ class Run:
         """Evaluate now (``evaluator.evaluate(*args)``), log it and move the schedule on."""
         t0 = time.perf_counter()
         self.summary = self.log.evaluation(self.frames, evaluator.evaluate(*args))
-        self._eval_seconds.append(time.perf_counter() - t0)
+        seconds = time.perf_counter() - t0
+        self._eval_seconds.append(seconds)
         self.last_eval = self.frames
         while self.next_eval <= self.frames:
             self.next_eval += self.cfg.eval_interval
-        tqdm.write(eval_line(self.summary))
+        self.log.note(eval_line(self.summary, seconds))  # (log.txt holds every evaluation)
+        if self._eta is not None:
+            self._eta.evaluated(self.frames, seconds)
+            if 0 < self.frames < self.cfg.frames and self._eta.said:  # (renewed after each evaluation)
+                line = self._eta.line(self.frames, self.next_eval)
+                if line is not None:
+                    self.log.note(line)
+        if self._bar is not None:
+            self._show_progress(refresh=True)  # (the latest evaluation at once, the last one included)
         return self.summary
 
     def checkpoint(self, snapshot: dict, buffer=None, **flags) -> Path:

@@ -3,7 +3,8 @@
 Layout of a run directory::
 
     config.json                  resolved configuration
-    log.txt                      notes (start, resume, stop reasons)
+    log.txt                      notes: the start, every evaluation (its frame, duration and mean metrics),
+                                 the estimates of the time left, resume and stop reasons
     logs/<tag>/...               TorchRL logger output (CSV by default; TensorBoard / W&B on request)
     eval/metrics.csv             one row per (evaluation, context): every metric
     eval/episodes.csv            one row per (evaluation, context, weight, episode): returns by objective
@@ -123,6 +124,9 @@ class RunLog:
 
     #: the longest training episodes wait in memory before they are appended to ``train/episodes.csv``
     FLUSH_SECONDS = 2.0
+    #: what :meth:`report` prints: its tables (``morl-trl train``, ``evaluate``) or, ``False``,
+    #: its one-line summary (``morl_trl.train``)
+    echo_report = True
 
     def __init__(self, run_dir, cfg, spec, tag: str = "train") -> None:
         self.run_dir = Path(run_dir)

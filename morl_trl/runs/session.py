@@ -44,15 +44,17 @@ files go to a temporary folder):
     ...         frames = run.collected(batch)
     ...         run.step()  # (no losses, no updates)  # doctest: +ELLIPSIS
     start: random on MOLavaGridDR-v0, seed 0, cpu: frame budget 96 (96 to go, ...
-    [eval @ 0 frames] mean over contexts: hypervolume 0, eum -1091
-    [eval @ 64 frames] mean over contexts: hypervolume 0, eum -1091
-    [eval @ 96 frames] mean over contexts: hypervolume 0, eum -1091
+    [eval @ 0 frames (... s)] mean over contexts: hypervolume 0, eum -1091
+    [eval @ 64 frames (... s)] mean over contexts: hypervolume 0, eum -1091
+    [eval @ 96 frames (... s)] mean over contexts: hypervolume 0, eum -1091
     # random on MOLavaGridDR-v0 (seed 0)
     ...
     >>> run.frames, sorted(p.name for p in (run.dir / "checkpoints").iterdir())
     (96, ['frames_000000000000', 'frames_000000000096', 'latest'])
     >>> [line.split(",")[0] for line in (run.dir / "eval" / "metrics.csv").read_text().splitlines()]
     ['frames', '0', '64', '96']
+    >>> [line[20:].split(" (")[0] for line in (run.dir / "log.txt").read_text().splitlines()][1:]  # every evaluation
+    ['[eval @ 0 frames', '[eval @ 64 frames', '[eval @ 96 frames']
 """
 
 from __future__ import annotations

@@ -87,7 +87,7 @@ def test_short_run_writes_everything(tmp_path, reference_dir):
     assert {"context_lava_x2_y2", "preference_lava", "return_lava", "discounted_return_time"} <= set(train_eps[0])
     assert latest_checkpoint(run).name == "frames_000000000512"
     report = (run / "report.md").read_text()
-    assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper)" in report
+    assert "MOLavaGridRoom-v0" in report and "MORL/D SB (paper, 100 weights, 5M frames)" in report
     assert "| floor: " in report  # the best trivial policy's NHGR (shipped floors.json), a column and a plot line
     assert (run / "report_fronts.png").stat().st_size > 1000
     assert "## Learning curves" in report and (run / "report_learning.png").stat().st_size > 1000
