@@ -48,13 +48,23 @@ def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
     return lines + [""]
 
 
-def foreign_nhgr_note(spec) -> str:
-    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead."""
+def foreign_nhgr_note(spec, ref_point=None) -> str:
+    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead,
+    with the hypervolume's reference point (``ref_point``, the run's, else the env's) and its source."""
     extra = ", IGD and the ratio of its hypervolume to the true front's" if spec.true_front is not None else ""
     return (f"NHGR: unavailable. {spec.train_id} is one environment without contexts: NHGR and EUGR measure "
             f"generalization across contexts against specialists trained per context, which has no meaning here; "
-            f"this report gives hypervolume (reference point {list(spec.hv_ref_point or [])}), EUM{extra}, beside "
-            f"a uniformly random policy's (the floor).")
+            f"this report gives hypervolume (reference point {reference_point_text(spec, ref_point)}), EUM{extra}, "
+            f"beside a uniformly random policy's (the floor).")
+
+
+def reference_point_text(spec, ref_point=None) -> str:
+    """``[0.0, -25.0] (MORL-Baselines examples/pql_dst.py)``: the run's hypervolume reference point
+    (``ref_point`` when the user gave one, else the env's) and where it comes from."""
+    if ref_point is not None:
+        return f"{[float(v) for v in ref_point]} (given with --ref-point / ref_point=)"
+    source = getattr(spec, "hv_ref_point_source", None)
+    return f"{list(spec.hv_ref_point or [])}" + (f" ({source})" if source else "")
 
 
 def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
@@ -398,7 +408,7 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     if random_result is not None and not nhgr_cols:  # no NHGR: the random policy beside ours
         lines.extend(_random_rows(result, random_result, contexts))
     if getattr(spec, "foreign", False) and "nhgr" not in present:
-        lines.append(foreign_nhgr_note(spec))
+        lines.append(foreign_nhgr_note(spec, cfg.ref_point))
         lines.append("")
     elif reference is None and "nhgr" not in present:
         lines.append(f"NHGR: unavailable. NHGR and EUGR need, per evaluation context, the normalization bounds and "
