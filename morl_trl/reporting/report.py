@@ -58,6 +58,20 @@ def foreign_nhgr_note(spec, ref_point=None) -> str:
             f"beside a uniformly random policy's (the floor).")
 
 
+def hv_ratio_note(results, episodes: int) -> str | None:
+    """Why an ``hv_ratio`` above 1 can happen (``None`` when none of ``results`` has one): the true
+    front is one of expected returns, each evaluated point the mean of ``episodes`` episodes."""
+    above = sorted({round(float(v), 3) for r in results if r is not None
+                    for v in r.metric("hv_ratio").values() if v is not None and v > 1})
+    if not above:
+        return None
+    return (f"hv_ratio above 1 ({', '.join(f'{v:.3f}' for v in above)}): the true front (MO-Gymnasium's "
+            f"pareto_front) holds the expected returns of the best policies, while each evaluated point is the mean "
+            f"return of {episodes} episode{'s' if episodes != 1 else ''} per weight. In an env with random outcomes "
+            f"(resource-gathering's enemies, minecart's ore) a lucky episode lies beyond the expected front; more "
+            f"eval_episodes bring the points to their expectations.")
+
+
 def reference_point_text(spec, ref_point=None) -> str:
     """``[0.0, -25.0] (MORL-Baselines examples/pql_dst.py)``: the run's hypervolume reference point
     (``ref_point`` when the user gave one, else the env's) and where it comes from."""
@@ -410,6 +424,9 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     if getattr(spec, "foreign", False) and "nhgr" not in present:
         lines.append(foreign_nhgr_note(spec, cfg.ref_point))
         lines.append("")
+        above = hv_ratio_note([result, random_result], cfg.eval_episodes)
+        if above:
+            lines.extend([above, ""])
     elif reference is None and "nhgr" not in present:
         lines.append(f"NHGR: unavailable. NHGR and EUGR need, per evaluation context, the normalization bounds and "
                      f"the specialist front of agents trained on that context alone; the authors published none for "
