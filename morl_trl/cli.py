@@ -120,7 +120,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--ref-point", metavar="X1,X2,...",
                    help="hypervolume reference point, one number per objective, e.g. --ref-point -1,-1,-1 (default: "
-                        "the env's; a MO-Gymnasium id's by the rule in docs/gymnasium.md)")
+                        "the env's; a MO-Gymnasium id's by the rule in docs/tutorials/mo-gymnasium.md)")
     p.add_argument("--domain-module", action="append", default=[], metavar="PKG.MODULE",
                    help="import this module first: it registers your own domains (its SPECS); repeatable")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
@@ -691,7 +691,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"morl-trl {version()}")
         return 0
     if argv[0] not in COMMANDS:
-        parser.error(f"unknown command {argv[0]!r}; valid: {sorted(COMMANDS)}")
+        from morl_trl._suggest import did_you_mean
+
+        parser.error(f"unknown command {argv[0]!r}{did_you_mean(argv[0], COMMANDS, cutoff=0.6)}; valid: "
+                     f"{sorted(COMMANDS)}")
     try:
         return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
     except (ValueError, *_lock_errors()) as err:  # bad input: say what is wrong and what is valid, no traceback

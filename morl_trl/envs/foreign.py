@@ -15,8 +15,9 @@ context parameters (one "context": the env itself), so that everything built for
 :class:`ForeignMOEnv`, a :class:`~morl_trl.envs.ContextualMOEnv` over the batched TorchRL env.
 
 What the specs say is read from them: discrete (``Categorical``/``OneHot``) or continuous
-(``Bounded``) actions, flat or image (``[H, W, C]``, given to the policy as ``[C, H, W]``)
-observations, and the number of objectives ``k``. Such envs have no original scalar reward
+(``Bounded``) actions, flat or image (``[H, W, C]``, given to the policy as ``[C, H, W]``;
+a side above :data:`MAX_IMAGE_SIDE` pixels area-averaged to :data:`IMAGE_SIZE`) observations,
+and the number of objectives ``k``. Such envs have no original scalar reward
 (no ``"original_reward"`` entry: there is no f_SORL for them).
 
 The hypervolume reference point of a MO-Gymnasium env is the one the user gives
@@ -74,6 +75,12 @@ MO_GYMNASIUM_OBJECTIVES: dict[str, tuple[str, ...]] = {
 
 # the truncation horizon of an env that declares none (a safety cap: its episodes end themselves)
 _NO_LIMIT = 100_000
+
+#: images with a side above MAX_IMAGE_SIDE pixels are area-averaged to IMAGE_SIZE x IMAGE_SIZE
+#: (DQN's Atari size): minecart-rgb-v0's [480, 480] frames would give the Nature CNN a
+#: 100-million-weight head, about 1 frame/s on a CPU
+MAX_IMAGE_SIDE = 128
+IMAGE_SIZE = 84
 
 
 def is_gym_id(env_id: str) -> bool:
@@ -265,6 +272,13 @@ class ForeignMOEnv(ContextualMOEnv):
         else:
             raise ValueError(f"the env's {key!r} has shape {shape}; morl_trl's networks take flat [n] or image "
                              f"[H, W, C] / [C, H, W] observations (flatten it, e.g. with TorchRL's FlattenObservation)")
+        d["_resize"] = None
+        img = tuple(d["_obs_spec"].shape)
+        if len(img) == 3 and max(img[1:]) > MAX_IMAGE_SIDE:  # (a [480, 480] frame: a 100M-weight CNN head)
+            d["_resize"] = (IMAGE_SIZE, IMAGE_SIZE)
+            small = (img[0], IMAGE_SIZE, IMAGE_SIZE)
+            d["_obs_spec"] = Bounded(0, 255, shape=small, dtype=torch.uint8) if d["_obs_dtype"] == torch.uint8 \
+                else Unbounded(shape=small, dtype=torch.float32)
         d["_action_key"] = env.action_key
         act = env.full_action_spec[env.action_key]
         d["_one_hot"] = isinstance(act, OneHot)
@@ -308,6 +322,13 @@ class ForeignMOEnv(ContextualMOEnv):
         obs = td.get(self._obs_key)
         if self._to_chw:
             obs = obs.movedim(-1, -3)
+        if self._resize is not None:  # area-average down to IMAGE_SIZE x IMAGE_SIZE
+            lead = obs.shape[:-3]
+            small = torch.nn.functional.interpolate(obs.reshape(-1, *obs.shape[-3:]).float(), size=self._resize,
+                                                    mode="area")
+            obs = small.reshape(*lead, *small.shape[-3:])
+            if self._obs_dtype == torch.uint8:
+                obs = obs.round()
         return {"observation": obs.to(self.device, self._obs_dtype)}
 
     def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
