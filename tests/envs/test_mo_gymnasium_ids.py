@@ -154,3 +154,27 @@ def test_a_hypervolume_ratio_above_one_is_explained():
                            "1 episode per weight.")
     below = SimpleNamespace(metric=lambda name: {"resource-gathering-v0": 0.5})
     assert hv_ratio_note([below], episodes=5) is None
+
+
+def test_dependency_noise_is_dropped_in_our_env_builds_only():
+    """gym's "unmaintained" banner (printed when TorchRL's MOGymEnv imports gym) and gymnasium's Box
+    precision warnings are dropped while morl_trl builds a MO-Gymnasium env (make_gym_env and the
+    TorchRL wrapper run inside quiet_gym); the user's own gymnasium.make warns as it always did.
+    (A fresh process without torch: the banner prints once per process.)"""
+    import subprocess
+    import sys
+
+    code = ("import sys, warnings\nwarnings.simplefilter('always')\n"
+            "from morl_trl._quiet import quiet_gym\nimport mo_gymnasium\n"
+            "with quiet_gym():\n    mo_gymnasium.make('resource-gathering-v0').close()\n"
+            "print('--- the user builds one ---', file=sys.stderr, flush=True)\n"
+            "mo_gymnasium.make('resource-gathering-v0').close()\n"
+            "print('gym' in sys.modules, 'torch' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "True False"  # quiet_gym imported gym (its banner dropped), not torch
+    ours, user = out.stderr.split("--- the user builds one ---")
+    assert "unmaintained" not in ours and "precision lowered" not in ours
+    assert "Box low's precision lowered by casting" in user
+    plain = subprocess.run([sys.executable, "-c", "import gym"], capture_output=True, text=True, timeout=300)
+    assert "Gym has been unmaintained since 2022" in plain.stderr  # (what quiet_gym dropped above)
