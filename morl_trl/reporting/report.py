@@ -68,8 +68,9 @@ def hv_ratio_note(results, episodes: int) -> str | None:
     return (f"hv_ratio above 1 ({', '.join(f'{v:.3f}' for v in above)}): the true front (MO-Gymnasium's "
             f"pareto_front) holds the expected returns of the best policies, while each evaluated point is the mean "
             f"return of {episodes} episode{'s' if episodes != 1 else ''} per weight. In an env with random outcomes "
-            f"(resource-gathering's enemies, minecart's ore) a lucky episode lies beyond the expected front; more "
-            f"eval_episodes bring the points to their expectations.")
+            f"(resource-gathering's enemies, minecart's ore) a lucky episode lies beyond the expected front, and "
+            f"minecart's front is itself an approximation (MO-Gymnasium's word); more eval_episodes bring the points "
+            f"to their expectations.")
 
 
 def reference_point_text(spec, ref_point=None) -> str:
