@@ -40,7 +40,7 @@ def test_a_key_the_algorithm_does_not_have_is_an_error_naming_where_the_valid_ke
     with pytest.raises(ValueError, match=r"config key 'eps_start' is not a setting of pcn; morl-trl config pcn ENV_ID "
                                          r"prints every key of pcn"):
         resolve_config("pcn", "MOLavaGridDR-v0", eps_start=0.5)
-    with pytest.raises(ValueError, match=r"unknown config key\(s\) \['learning_rate'\]"):
+    with pytest.raises(ValueError, match=r"unknown config key 'learning_rate' \(did you mean 'lr'\?\)"):
         resolve_config("envelope", "MOLavaGridDR-v0", learning_rate=1e-3)
 
 

@@ -307,7 +307,8 @@ def unknown_keys_message(unknown, valid, source: str = "", algo: str | None = No
     from morl_trl._suggest import did_you_mean
 
     unknown = sorted(unknown)
-    named = ", ".join(f"{k!r}{did_you_mean(k, valid, KEY_ALIASES)}" for k in unknown)
+    # (a key of another algorithm is no misspelling: no suggestion for it)
+    named = ", ".join(f"{k!r}{'' if k in KEYS else did_you_mean(k, valid, KEY_ALIASES)}" for k in unknown)
     plural = len(unknown) > 1
     if algo and all(k in KEYS for k in unknown):
         what = f"config key{'s' if plural else ''} {named} {'are not settings' if plural else 'is not a setting'} of {algo}"
