@@ -79,20 +79,24 @@ def _default_reference() -> str | None:
 
 # ---------------------------------------------------------------------- train / evaluate
 def train_main(argv: list[str]) -> int:
-    from morl_trl.recipes.config import ALGORITHMS
+    from morl_trl.cli_args import check_algorithm, frame_count, join_negative_values, split_positionals
+    from morl_trl.recipes.config import ALGORITHMS  # (the config package imports no torch: --help answers at once)
 
     p = _Parser(
         prog="morl-trl train",
         description="Train a generalist under domain randomization, evaluate it on the evaluation suite, report.",
     )
-    p.add_argument("algo", choices=ALGORITHMS, help="algorithm")
-    p.add_argument("env_id", help="training env id, e.g. MOLunarLanderDR-v0 (morl-trl envs lists them)")
+    p.add_argument("algo", nargs="?", metavar="ALGO",
+                   help=f"algorithm: {', '.join(ALGORITHMS)} (with --resume: the run's, may be left out)")
+    p.add_argument("env_id", nargs="?", metavar="ENV_ID",
+                   help="training env id, e.g. MOLunarLanderDR-v0 (morl-trl envs lists them) or any MO-Gymnasium id "
+                        "(with --resume: the run's, may be left out)")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
                    help="config overrides, e.g. lr=1e-3 hidden=[64,64] prioritized=false (TOML values; they win "
                         "over --config, and the flags below win over them)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="set_",
                    help="a config override, as KEY=VALUE after the env id (repeatable)")
-    p.add_argument("--frames", type=int, help="environment frames to train for")
+    p.add_argument("--frames", type=frame_count, help="environment frames to train for: 300000, 3e5, 300k, 3M")
     p.add_argument("--seed", type=int, help="one seed for contexts, preferences, networks and evaluation")
     p.add_argument("--device", help="cpu, cuda, ...")
     p.add_argument("--config", help="a .toml/.json file of config overrides")
@@ -103,8 +107,9 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--logger", choices=("csv", "tensorboard", "wandb", "none"))
     p.add_argument("--resume", metavar="RUN_DIR",
                    help="continue a run from its newest intact checkpoint (damaged ones are skipped with a "
-                   "warning); logs are first cut back to that checkpoint. algo, env id, --seed, --config and "
-                   "--quick values must match the run's config.json (a difference is an error); --frames "
+                   "warning); logs are first cut back to that checkpoint. ALGO and ENV_ID may be left out (the "
+                   "run's config.json names them); given, they and --seed, --config and --quick values must match "
+                   "the run's config.json (a difference is an error); --frames "
                    "(total frames: extend the run), --device, --logger and --no-progress may change. A run that "
                    "already reached its frames is left as it is")
     p.add_argument("--overwrite", action="store_true",
@@ -114,32 +119,53 @@ def train_main(argv: list[str]) -> int:
                    "stored in it; only for a run you trust). `morl-trl convert-run RUN` converts it once instead")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--ref-point", metavar="X1,X2,...",
-                   help="hypervolume reference point, one number per objective (default: the env's; required for an "
-                        "env without a documented one)")
+                   help="hypervolume reference point, one number per objective, e.g. --ref-point -1,-1,-1 (default: "
+                        "the env's; a MO-Gymnasium id's by the rule in docs/tutorials/mo-gymnasium.md)")
     p.add_argument("--domain-module", action="append", default=[], metavar="PKG.MODULE",
                    help="import this module first: it registers your own domains (its SPECS); repeatable")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
-    args = p.parse_intermixed_args(argv)
-    args.overrides = parse_overrides([*args.overrides, *args.set_])
-    _check_config_env_id(args)
-    from morl_trl.recipes import resolve_config, train
-
+    args = p.parse_intermixed_args(join_negative_values(argv, ("--ref-point",)))
+    names, moved = split_positionals([args.algo, args.env_id])
+    args.algo, args.env_id = (names + [None, None])[:2]
+    if not args.resume and args.env_id is None:
+        p.error("the following arguments are required: ALGO, ENV_ID (or --resume RUN_DIR alone)")
+    if args.algo is not None:
+        check_algorithm(args.algo, ALGORITHMS)
+    args.overrides = parse_overrides([*moved, *args.overrides, *args.set_])
+    ref_point = _ref_point(args.ref_point)
     if args.resume:
         cfg = _resume_config(args)
         if args.print_config:
             print(cfg.to_toml())
             return 0
+        from morl_trl.recipes import train
+
         return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle))
+    _check_config_env_id(args)
+    _check_keys(args.overrides, args.algo)
+    from morl_trl.recipes import resolve_config, train
+
     reference = args.reference or _default_reference()
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
                  logger=args.logger, progress=False if args.no_progress else None,
-                 ref_point=_ref_point(args.ref_point), domain_modules=tuple(args.domain_module) or None)
+                 ref_point=ref_point, domain_modules=tuple(args.domain_module) or None)
     overrides = {**args.overrides, **{k: v for k, v in flags.items() if v is not None}}  # flags win
     cfg = resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
     if args.print_config:
         print(cfg.to_toml())
         return 0
     return _run_training(lambda: train(cfg, overwrite=args.overwrite))
+
+
+def _check_keys(overrides: dict, algo: str) -> None:
+    """The command line's KEY=VALUE keys are config keys (a "did you mean" error otherwise), checked
+    before the heavy stack is imported (a key of another algorithm is refused when resolving)."""
+    from morl_trl.recipes.config import KEYS, RENAMED, valid_keys
+    from morl_trl.recipes.config.keys import unknown_keys_message
+
+    unknown = sorted(set(overrides) - set(KEYS) - set(RENAMED))
+    if unknown:
+        raise ValueError(unknown_keys_message(unknown, valid_keys(algo), "overrides", algo))
 
 
 def _ref_point(text: str | None) -> tuple[float, ...] | None:
@@ -177,7 +203,8 @@ def _resume_config(args):
         raise ValueError(f"cannot resume: {str(run_dir)!r} has no config.json (not a run directory)")
     cfg = TrainConfig.load(run_dir / "config.json")
     from_file = load_config_file(args.config) if args.config else {}
-    cfg = resume_config(cfg, {"algo": args.algo, "env_id": args.env_id}, "the command line")
+    named = {k: v for k, v in {"algo": args.algo, "env_id": args.env_id}.items() if v is not None}
+    cfg = resume_config(cfg, named, "the command line")  # (left out: the run's)
     if args.quick:  # (what the file or --set gives wins over the preset, as when the run was started)
         given = {*from_file, *args.overrides, "frames"}
         cfg = resume_config(cfg, {k: v for k, v in quick_preset(cfg.algo).items() if k not in given},
@@ -187,7 +214,8 @@ def _resume_config(args):
     if args.overrides:
         cfg = resume_config(cfg, args.overrides, "the command line's overrides")
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, logger=args.logger,
-                 reference_dir=args.reference, progress=False if args.no_progress else None)
+                 reference_dir=args.reference, progress=False if args.no_progress else None,
+                 ref_point=_ref_point(args.ref_point))
     return resume_config(cfg, {k: v for k, v in flags.items() if v is not None}, "the command line")
 
 
@@ -448,6 +476,8 @@ def grid_main(argv: list[str]) -> int:
         return grid_report_main(argv[1:])
     if argv and argv[0] == "status":
         return grid_status_main(argv[1:])
+    from morl_trl.cli_args import frame_count
+
     p = _Parser(
         prog="morl-trl grid",
         description="Run the cartesian product of algorithms, domains and seeds on Ray (Tune), each cell a "
@@ -464,7 +494,7 @@ def grid_main(argv: list[str]) -> int:
     p.add_argument("--seeds", help="comma-separated seeds, or a range 0-4")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="set_",
                    help="a config override for every cell (repeatable)")
-    p.add_argument("--frames", type=int, help="frames of every cell")
+    p.add_argument("--frames", type=frame_count, help="frames of every cell: 300000, 3e5, 300k, 3M")
     p.add_argument("--dir", help="the grid directory (default grids/<spec name>)")
     p.add_argument("--address", help="an existing Ray cluster (e.g. auto, ray://host:10001); default: an embedded "
                    "Ray on this machine")
@@ -642,6 +672,13 @@ def cli_wording(message: str) -> str:
     return message
 
 
+def _lock_errors() -> tuple[type[Exception], ...]:
+    """``RunLockedError`` where the run code was imported (evaluated only when an error is matched:
+    ``--help`` and argument errors answer without importing it, nor torch)."""
+    lock = sys.modules.get("morl_trl.runs.lock")
+    return (lock.RunLockedError,) if lock is not None else ()
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="morl-trl", description=__doc__.splitlines()[0])
@@ -654,12 +691,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"morl-trl {version()}")
         return 0
     if argv[0] not in COMMANDS:
-        parser.error(f"unknown command {argv[0]!r}; valid: {sorted(COMMANDS)}")
-    from morl_trl.runs.lock import RunLockedError
+        from morl_trl._suggest import did_you_mean
 
+        parser.error(f"unknown command {argv[0]!r}{did_you_mean(argv[0], COMMANDS, cutoff=0.6)}; valid: "
+                     f"{sorted(COMMANDS)}")
     try:
         return int(COMMANDS[argv[0]][0](argv[1:]) or 0)
-    except (ValueError, RunLockedError) as err:  # bad input: say what is wrong and what is valid, no traceback
+    except (ValueError, *_lock_errors()) as err:  # bad input: say what is wrong and what is valid, no traceback
         print(f"morl-trl {argv[0]}: error: {cli_wording(str(err))}", file=sys.stderr)
         return 2
     except OSError as err:  # the machine's (a full disk, a read-only folder): what could not be done, no traceback

@@ -15,13 +15,15 @@ context parameters (one "context": the env itself), so that everything built for
 :class:`ForeignMOEnv`, a :class:`~morl_trl.envs.ContextualMOEnv` over the batched TorchRL env.
 
 What the specs say is read from them: discrete (``Categorical``/``OneHot``) or continuous
-(``Bounded``) actions, flat or image (``[H, W, C]``, given to the policy as ``[C, H, W]``)
-observations, and the number of objectives ``k``. Such envs have no original scalar reward
+(``Bounded``) actions, flat or image (``[H, W, C]``, given to the policy as ``[C, H, W]``;
+a side above :data:`MAX_IMAGE_SIDE` pixels area-averaged to :data:`IMAGE_SIZE`) observations,
+and the number of objectives ``k``. Such envs have no original scalar reward
 (no ``"original_reward"`` entry: there is no f_SORL for them).
 
-The hypervolume reference point of a MO-Gymnasium env is the one in
-:data:`MO_GYMNASIUM_REF_POINTS` (with its source), else the one the user gives
-(``ref_point=``, ``--ref-point``); where MO-Gymnasium knows the true Pareto front
+The hypervolume reference point of a MO-Gymnasium env is the one the user gives
+(``ref_point=``, ``--ref-point``), else the one :mod:`morl_trl.envs.ref_point`'s rule gives
+(MORL-Baselines' point, else the reward bounds times the horizon, else a random rollout; the
+spec says which in ``hv_ref_point_source``); where MO-Gymnasium knows the true Pareto front
 (``env.unwrapped.pareto_front(gamma)``), the spec carries it for IGD and the hypervolume ratio.
 """
 
@@ -39,8 +41,11 @@ from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, OneHot, Unbounded
 from torchrl.envs import EnvBase, SerialEnv
 
+from morl_trl._quiet import quiet_gym
 from morl_trl.envs.base import ContextualMOEnv
+from morl_trl.envs.gym_make import make_gym_env
 from morl_trl.envs.context import ContextSpace
+from morl_trl.envs.ref_point import MO_GYMNASIUM_REF_POINTS, reference_point
 from morl_trl.envs.spec import DomainSpec
 
 __all__ = [
@@ -54,21 +59,6 @@ __all__ = [
 
 #: the context space of an env without context parameters
 NO_CONTEXT = ContextSpace((), (), (), ())
-
-#: MO-Gymnasium id -> (hypervolume reference point, where it comes from). MO-Gymnasium itself
-#: documents none; these are the points MORL-Baselines (LucasAlegre/morl-baselines) evaluates
-#: these envs with. Other ids need ``ref_point=`` / ``--ref-point``.
-MO_GYMNASIUM_REF_POINTS: dict[str, tuple[tuple[float, ...], str]] = {
-    "deep-sea-treasure-v0": ((0.0, -25.0), "MORL-Baselines examples/pql_dst.py and tests/test_algos.py (mp_mo_q_learning)"),
-    "deep-sea-treasure-concave-v0": ((0.0, -25.0), "MORL-Baselines examples/pql_dst.py (the concave map)"),
-    "minecart-v0": ((0.0, 0.0, -200.0), "MORL-Baselines examples/envelope_minecart.py and tests/test_algos.py"),
-    "minecart-deterministic-v0": ((0.0, 0.0, -200.0), "MORL-Baselines tests/test_algos.py (test_pcn)"),
-    "mo-hopper-v4": ((-100.0, -100.0, -100.0), "MORL-Baselines examples/capql_hopper.py"),
-    "mo-hopper-v5": ((-100.0, -100.0, -100.0), "MORL-Baselines examples/capql_hopper.py (mo-hopper-v4; v5 has the same rewards)"),
-    "mo-mountaincarcontinuous-v0": ((-1000.0, -1000.0), "MORL-Baselines examples/morld_continuous_mountain_car.py"),
-    # every fruit value is >= 0 (reward_space low = 0), so every return dominates the origin
-    "fruit-tree-v0": ((0.0,) * 6, "derived: MO-Gymnasium's reward_space of fruit-tree-v0 is [0, 10]^6"),
-}
 
 #: MO-Gymnasium id -> objective names, from MO-Gymnasium's environment pages
 MO_GYMNASIUM_OBJECTIVES: dict[str, tuple[str, ...]] = {
@@ -86,6 +76,12 @@ MO_GYMNASIUM_OBJECTIVES: dict[str, tuple[str, ...]] = {
 # the truncation horizon of an env that declares none (a safety cap: its episodes end themselves)
 _NO_LIMIT = 100_000
 
+#: images with a side above MAX_IMAGE_SIDE pixels are area-averaged to IMAGE_SIZE x IMAGE_SIZE
+#: (DQN's Atari size): minecart-rgb-v0's [480, 480] frames would give the Nature CNN a
+#: 100-million-weight head, about 1 frame/s on a CPU
+MAX_IMAGE_SIDE = 128
+IMAGE_SIZE = 84
+
 
 def is_gym_id(env_id: str) -> bool:
     """Whether ``env_id`` is registered with Gymnasium (MO-Gymnasium's ids included)."""
@@ -101,9 +97,10 @@ def is_gym_id(env_id: str) -> bool:
 
 
 def _gym_factory(env_id: str, **kwargs) -> EnvBase:
-    from torchrl.envs import MOGymEnv
+    from torchrl.envs import MOGymWrapper
 
-    return MOGymEnv(env_id, categorical_action_encoding=True, **kwargs)
+    with quiet_gym():
+        return MOGymWrapper(make_gym_env(env_id, kwargs), categorical_action_encoding=True)
 
 
 class _TorchRLBatch:
@@ -149,10 +146,8 @@ class _GymBatch:
     20x a Deep Sea Treasure step)."""
 
     def __init__(self, env_id: str, num_envs: int, env_kwargs: dict) -> None:
-        import mo_gymnasium
-
         self.spec_env = _gym_factory(env_id, **env_kwargs)  # TorchRL's spec conversion of the spaces
-        self.envs = [mo_gymnasium.make(env_id, **env_kwargs) for _ in range(num_envs)]
+        self.envs = [make_gym_env(env_id, env_kwargs) for _ in range(num_envs)]
         self.num_envs = num_envs
         self.obs_key = "observation"
         self.seeds: list[int | None] = [None] * num_envs
@@ -277,6 +272,13 @@ class ForeignMOEnv(ContextualMOEnv):
         else:
             raise ValueError(f"the env's {key!r} has shape {shape}; morl_trl's networks take flat [n] or image "
                              f"[H, W, C] / [C, H, W] observations (flatten it, e.g. with TorchRL's FlattenObservation)")
+        d["_resize"] = None
+        img = tuple(d["_obs_spec"].shape)
+        if len(img) == 3 and max(img[1:]) > MAX_IMAGE_SIDE:  # (a [480, 480] frame: a 100M-weight CNN head)
+            d["_resize"] = (IMAGE_SIZE, IMAGE_SIZE)
+            small = (img[0], IMAGE_SIZE, IMAGE_SIZE)
+            d["_obs_spec"] = Bounded(0, 255, shape=small, dtype=torch.uint8) if d["_obs_dtype"] == torch.uint8 \
+                else Unbounded(shape=small, dtype=torch.float32)
         d["_action_key"] = env.action_key
         act = env.full_action_spec[env.action_key]
         d["_one_hot"] = isinstance(act, OneHot)
@@ -286,6 +288,13 @@ class ForeignMOEnv(ContextualMOEnv):
         if isinstance(act, (OneHot, Categorical)):
             d["_act_spec"] = Categorical(int(act.space.n), shape=(), dtype=torch.long)
         elif isinstance(act, Bounded) and act.dtype.is_floating_point:
+            low, high = act.space.low.float(), act.space.high.float()
+            if not (torch.isfinite(low).all() and torch.isfinite(high).all()):
+                raise ValueError(f"the env's continuous actions have infinite bounds (low {low.tolist()}, high "
+                                 f"{high.tolist()}); morl_trl's continuous methods squash actions into finite bounds: "
+                                 f"wrap the env so that its action Box has finite bounds (a gymnasium.ActionWrapper "
+                                 f"mapping [-1, 1] to the range you mean) and register it with "
+                                 f"morl_trl.envs.register_env")
             d["_act_spec"] = Bounded(act.space.low.float(), act.space.high.float(), shape=act.shape, dtype=torch.float32)
         else:
             raise ValueError(f"the env's action spec is {type(act).__name__} ({act.dtype}); morl_trl's methods take "
@@ -313,6 +322,13 @@ class ForeignMOEnv(ContextualMOEnv):
         obs = td.get(self._obs_key)
         if self._to_chw:
             obs = obs.movedim(-1, -3)
+        if self._resize is not None:  # area-average down to IMAGE_SIZE x IMAGE_SIZE
+            lead = obs.shape[:-3]
+            small = torch.nn.functional.interpolate(obs.reshape(-1, *obs.shape[-3:]).float(), size=self._resize,
+                                                    mode="area")
+            obs = small.reshape(*lead, *small.shape[-3:])
+            if self._obs_dtype == torch.uint8:
+                obs = obs.round()
         return {"observation": obs.to(self.device, self._obs_dtype)}
 
     def _reset_subenvs(self, idx: torch.Tensor, context: torch.Tensor) -> None:
@@ -388,9 +404,7 @@ def _gym_facts(env_id: str, env_kwargs: dict) -> dict[str, Any]:
 
     spec = gymnasium.spec(env_id)
     facts: dict[str, Any] = {"max_episode_steps": env_kwargs.get("max_episode_steps", spec.max_episode_steps)}
-    import mo_gymnasium
-
-    env = mo_gymnasium.make(env_id, **env_kwargs)
+    env = make_gym_env(env_id, env_kwargs)
     try:
         facts["has_front"] = callable(getattr(env.unwrapped, "pareto_front", None))
     finally:
@@ -400,9 +414,7 @@ def _gym_facts(env_id: str, env_kwargs: dict) -> dict[str, Any]:
 
 @functools.lru_cache(maxsize=None)
 def _true_front(env_id: str, kwargs_items: tuple, gamma: float) -> np.ndarray:
-    import mo_gymnasium
-
-    env = mo_gymnasium.make(env_id, **dict(kwargs_items))
+    env = make_gym_env(env_id, dict(kwargs_items))
     try:
         return np.asarray(env.unwrapped.pareto_front(gamma=gamma), dtype=np.float64)
     finally:
@@ -415,8 +427,8 @@ def foreign_domain(source, *, name: str | None = None, ref_point: Sequence[float
     """The :class:`~morl_trl.envs.DomainSpec` of a foreign env (see the module docstring).
 
     ``name`` is its id (default: the Gymnasium id; required for a callable or an instance).
-    ``ref_point`` overrides :data:`MO_GYMNASIUM_REF_POINTS`. The spec has one context, the id
-    itself, which is also its evaluation suite.
+    ``ref_point`` replaces :func:`~morl_trl.envs.ref_point.reference_point`'s rule. The spec
+    has one context, the id itself, which is also its evaluation suite.
 
     Example:
         >>> spec = foreign_domain("deep-sea-treasure-v0")
@@ -427,14 +439,15 @@ def foreign_domain(source, *, name: str | None = None, ref_point: Sequence[float
     """
     env_kwargs = dict(env_kwargs or {})
     true_front = None
+    ref_source = "given (ref_point=)" if ref_point is not None else None
     if isinstance(source, str):
         if not is_gym_id(source):
             raise ValueError(f"{source!r} is not a Gymnasium / MO-Gymnasium id")
         name = name or source
         facts = _gym_facts(source, env_kwargs)
         max_episode_steps = max_episode_steps or facts["max_episode_steps"]
-        if ref_point is None and source in MO_GYMNASIUM_REF_POINTS:
-            ref_point = MO_GYMNASIUM_REF_POINTS[source][0]
+        if ref_point is None:
+            ref_point, ref_source = reference_point(source, env_kwargs, max_episode_steps)
         objective_names = objective_names or MO_GYMNASIUM_OBJECTIVES.get(source)
         if facts["has_front"]:
             true_front = functools.partial(_true_front, source, tuple(sorted(env_kwargs.items())))
@@ -458,6 +471,7 @@ def foreign_domain(source, *, name: str | None = None, ref_point: Sequence[float
     return DomainSpec(
         name=name, train_id=name, env_class="morl_trl.envs.foreign:ForeignMOEnv", context_space=NO_CONTEXT,
         contexts={name: {}}, evaluation_ids=(name,), objective_names=tuple(objective_names), env_kwargs=kwargs,
-        hv_ref_point=ref_point, max_episode_steps=int(max_episode_steps or _NO_LIMIT), true_front=true_front,
+        hv_ref_point=ref_point, hv_ref_point_source=ref_source, max_episode_steps=int(max_episode_steps or _NO_LIMIT),
+        true_front=true_front,
         foreign=True,
     )

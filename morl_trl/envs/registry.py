@@ -10,7 +10,6 @@ user domains. No simulator is imported until an env is built.
 
 from __future__ import annotations
 
-import difflib
 import importlib
 import inspect
 from typing import Any
@@ -116,6 +115,16 @@ def load_domain_modules(modules) -> list[str]:
     return added
 
 
+def _mo_gymnasium_ids() -> list[str]:
+    """MO-Gymnasium's registered ids (for "did you mean"; none without the gym extra)."""
+    try:
+        import gymnasium
+        import mo_gymnasium  # noqa: F401  (registers its ids)
+    except ImportError:
+        return []
+    return [k for k, v in gymnasium.registry.items() if str(v.entry_point).startswith("mo_gymnasium")]
+
+
 def _lookup(env_id: str) -> DomainSpec:
     _ensure_loaded()
     try:
@@ -130,11 +139,12 @@ def _lookup(env_id: str) -> DomainSpec:
         raise ValueError(f"an env id is a str; got {type(env_id).__name__} (register a callable or an EnvBase "
                          f"first with morl_trl.envs.register_env(env, name=...))")
     else:
-        close = difflib.get_close_matches(str(env_id), list(_IDS), n=5, cutoff=0.5)
-        hint = f"; did you mean {close}?" if close else ""
+        from morl_trl._suggest import did_you_mean
+
+        hint = did_you_mean(env_id, [*_IDS, *_mo_gymnasium_ids()], cutoff=0.7)
         raise ValueError(
-            f"unknown env id {env_id!r}{hint} (morl_trl.envs.list_envs() lists all {len(_IDS)} ids; any "
-            f"Gymnasium / MO-Gymnasium id with a vector reward works too)"
+            f"unknown env id {env_id!r}{hint}; morl_trl.envs.list_envs() (morl-trl envs) lists our {len(_IDS)} ids, "
+            f"and any Gymnasium / MO-Gymnasium id with a vector reward works too"
         )
 
 

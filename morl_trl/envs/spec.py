@@ -80,6 +80,8 @@ class DomainSpec:
         env_kwargs: extra constructor arguments (e.g. ``continuous=True``).
         gamma: the discount the paper evaluates with.
         hv_ref_point: the paper's unnormalized hypervolume reference point.
+        hv_ref_point_source: where ``hv_ref_point`` comes from, when it is not the paper's (a
+            foreign env's: :mod:`morl_trl.envs.ref_point`).
         objective_names: names of the reward entries, in order.
         max_episode_steps: the truncation horizon.
         history_len: the paper's state-action history length (``StateActionHistory``; 0: none).
@@ -111,6 +113,7 @@ class DomainSpec:
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     gamma: float = 0.99
     hv_ref_point: tuple[float, ...] | None = None
+    hv_ref_point_source: str | None = None
     max_episode_steps: int = 1000
     # the paper's training and evaluation protocol (SPEC §2, §4)
     history_len: int = 0

@@ -35,13 +35,27 @@ Example:
 
 from __future__ import annotations
 
-from morl_trl.recipes.agent import Agent
-from morl_trl.recipes.algorithms import AGENT_BUILDERS, TRAINING_ENV_BUILDERS, build_agent, build_training_env
-from morl_trl.recipes.config import ALGORITHMS, TrainConfig, resolve_config
-from morl_trl.recipes.off_policy import evaluate_run, run_training, train
-from morl_trl.recipes.optim import NonFiniteLossError
-from morl_trl.recipes.parts import make_training_env
-from morl_trl.recipes.policy import TrainedPolicy, TrainResult, load_policy, train_policy
+# The names below are imported at first use (PEP 562): ``import morl_trl.recipes.config`` (what
+# ``morl-trl train --help`` and its argument checks read) stays free of torch and torchrl.
+_LAZY = {
+    "Agent": "morl_trl.recipes.agent",
+    "AGENT_BUILDERS": "morl_trl.recipes.algorithms",
+    "TRAINING_ENV_BUILDERS": "morl_trl.recipes.algorithms",
+    "build_agent": "morl_trl.recipes.algorithms",
+    "build_training_env": "morl_trl.recipes.algorithms",
+    "ALGORITHMS": "morl_trl.recipes.config",
+    "TrainConfig": "morl_trl.recipes.config",
+    "resolve_config": "morl_trl.recipes.config",
+    "evaluate_run": "morl_trl.recipes.off_policy",
+    "run_training": "morl_trl.recipes.off_policy",
+    "train": "morl_trl.recipes.off_policy",
+    "NonFiniteLossError": "morl_trl.recipes.optim",
+    "make_training_env": "morl_trl.recipes.parts",
+    "TrainedPolicy": "morl_trl.recipes.policy",
+    "TrainResult": "morl_trl.recipes.policy",
+    "load_policy": "morl_trl.recipes.policy",
+    "train_policy": "morl_trl.recipes.policy",
+}
 
 __all__ = [
     "AGENT_BUILDERS",
@@ -61,3 +75,19 @@ __all__ = [
     "train",
     "train_policy",
 ]
+
+
+def __getattr__(name: str):
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'morl_trl.recipes' has no attribute {name!r}") from None
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted([*globals(), *_LAZY])

@@ -173,19 +173,20 @@ def load_reference(cfg, spec: DomainSpec):
     return load_domain_reference(root, spec.train_id)
 
 
-def no_reference_note(spec: DomainSpec) -> str:
-    """What a run of a domain without reference data says about NHGR."""
+def no_reference_note(spec: DomainSpec, ref_point=None) -> str:
+    """What a run of a domain without reference data says about NHGR (a foreign env's: with its
+    reference point ``ref_point``, else the env's, and where it comes from)."""
     if spec.foreign:
         from morl_trl.reporting.report import foreign_nhgr_note
 
-        return foreign_nhgr_note(spec)
+        return foreign_nhgr_note(spec, ref_point)
     return (f"NHGR unavailable for {spec.train_id}: no reference data (per-context bounds and specialist fronts) "
             f"exists for this domain, so the evaluation reports hypervolume and EUM only")
 
 
 def start_notes(cfg, run, spec: DomainSpec, reference) -> list[str]:
     """What a run says in log.txt as it starts: NHGR without reference data, a budget that never learns."""
-    notes = [] if reference is not None else [no_reference_note(spec)]
+    notes = [] if reference is not None else [no_reference_note(spec, cfg.ref_point)]
     if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
         notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): the "
                      f"run takes uniformly random actions only and never learns; raise frames or lower init_random_frames")

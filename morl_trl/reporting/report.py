@@ -49,13 +49,38 @@ def _random_rows(result, random_result, contexts: list[str]) -> list[str]:
     return lines + [""]
 
 
-def foreign_nhgr_note(spec) -> str:
-    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead."""
+def foreign_nhgr_note(spec, ref_point=None) -> str:
+    """Why a run on a foreign env (one env, no contexts) reports no NHGR, and what it reports instead,
+    with the hypervolume's reference point (``ref_point``, the run's, else the env's) and its source."""
     extra = ", IGD and the ratio of its hypervolume to the true front's" if spec.true_front is not None else ""
     return (f"NHGR: unavailable. {spec.train_id} is one environment without contexts: NHGR and EUGR measure "
             f"generalization across contexts against specialists trained per context, which has no meaning here; "
-            f"this report gives hypervolume (reference point {list(spec.hv_ref_point or [])}), EUM{extra}, beside "
-            f"a uniformly random policy's (the floor).")
+            f"this report gives hypervolume (reference point {reference_point_text(spec, ref_point)}), EUM{extra}, "
+            f"beside a uniformly random policy's (the floor).")
+
+
+def hv_ratio_note(results, episodes: int) -> str | None:
+    """Why an ``hv_ratio`` above 1 can happen (``None`` when none of ``results`` has one): the true
+    front is one of expected returns, each evaluated point the mean of ``episodes`` episodes."""
+    above = sorted({round(float(v), 3) for r in results if r is not None
+                    for v in r.metric("hv_ratio").values() if v is not None and v > 1})
+    if not above:
+        return None
+    return (f"hv_ratio above 1 ({', '.join(f'{v:.3f}' for v in above)}): the true front (MO-Gymnasium's "
+            f"pareto_front) holds the expected returns of the best policies, while each evaluated point is the mean "
+            f"return of {episodes} episode{'s' if episodes != 1 else ''} per weight. In an env with random outcomes "
+            f"(resource-gathering's enemies, minecart's ore) a lucky episode lies beyond the expected front, and "
+            f"minecart's front is itself an approximation (MO-Gymnasium's word); more eval_episodes bring the points "
+            f"to their expectations.")
+
+
+def reference_point_text(spec, ref_point=None) -> str:
+    """``[0.0, -25.0] (MORL-Baselines examples/pql_dst.py)``: the run's hypervolume reference point
+    (``ref_point`` when the user gave one, else the env's) and where it comes from."""
+    if ref_point is not None:
+        return f"{[float(v) for v in ref_point]} (given with --ref-point / ref_point=)"
+    source = getattr(spec, "hv_ref_point_source", None)
+    return f"{list(spec.hv_ref_point or [])}" + (f" ({source})" if source else "")
 
 
 def floor_column(domain: str, floors: dict | None = None) -> tuple[str, dict[str, float]] | None:
@@ -491,8 +516,11 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
     if random_result is not None and not nhgr_cols:  # no NHGR: the random policy beside ours
         lines.extend(_random_rows(result, random_result, contexts))
     if getattr(spec, "foreign", False) and "nhgr" not in present:
-        lines.append(foreign_nhgr_note(spec))
+        lines.append(foreign_nhgr_note(spec, cfg.ref_point))
         lines.append("")
+        above = hv_ratio_note([result, random_result], cfg.eval_episodes)
+        if above:
+            lines.extend([above, ""])
     elif reference is None and "nhgr" not in present:
         lines.append(f"NHGR: unavailable. NHGR and EUGR need, per evaluation context, the normalization bounds and "
                      f"the specialist front of agents trained on that context alone; the authors published none for "

@@ -112,3 +112,16 @@ def test_same_seed_same_start_and_sub_envs_seeded_apart():
     first = start(3)
     assert first[0, 0] != first[1, 0]  # sub-env i is seeded with seed + i
     assert torch.equal(start(4)[0], first[1])
+
+
+def test_the_report_names_a_users_reference_point_and_where_an_envs_comes_from():
+    from torchrl.envs import MOGymEnv
+
+    from morl_trl.reporting.report import foreign_nhgr_note
+
+    spec = foreign_domain("deep-sea-treasure-v0")
+    assert "reference point [0.0, -25.0] (MORL-Baselines examples/pql_dst.py and tests/test_algos.py " \
+           "(mp_mo_q_learning))" in foreign_nhgr_note(spec)
+    mine = foreign_domain(lambda: MOGymEnv("deep-sea-treasure-v0"), name="test-dst-no-point")
+    assert mine.hv_ref_point is None  # (a callable's: none unless given)
+    assert "reference point [-1.0, -30.0] (given with --ref-point / ref_point=)" in foreign_nhgr_note(mine, (-1, -30))

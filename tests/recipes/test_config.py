@@ -36,11 +36,11 @@ def test_each_algorithm_has_only_its_keys():
     assert len(TrainConfig(algo="envelope").keys()) == 55 and len(TrainConfig(algo="pcn").keys()) == 40  # of 119
 
 
-def test_a_key_the_algorithm_does_not_have_is_an_error_naming_the_valid_keys():
-    with pytest.raises(ValueError, match=r"config key\(s\) \['eps_start'\] are not settings of pcn; valid keys for "
-                                         r"pcn: \[.*'pcn_er_episodes'"):
+def test_a_key_the_algorithm_does_not_have_is_an_error_naming_where_the_valid_keys_are():
+    with pytest.raises(ValueError, match=r"config key 'eps_start' is not a setting of pcn; morl-trl config pcn ENV_ID "
+                                         r"prints every key of pcn"):
         resolve_config("pcn", "MOLavaGridDR-v0", eps_start=0.5)
-    with pytest.raises(ValueError, match=r"unknown config key\(s\) \['learning_rate'\]"):
+    with pytest.raises(ValueError, match=r"unknown config key 'learning_rate' \(did you mean 'lr'\?\)"):
         resolve_config("envelope", "MOLavaGridDR-v0", learning_rate=1e-3)
 
 
@@ -90,7 +90,7 @@ def test_an_old_complete_config_file_still_works_and_a_foreign_value_is_refused(
         cfg = resolve_config("pcn", "MOLavaGridDR-v0", config_file=path)
     assert cfg.pcn_er_episodes == 20 and cfg.hidden == (64, 64)  # the file's values (pcn_hidden 64)
     path.write_text(json.dumps({"eps_start": 0.3}))
-    with pytest.raises(ValueError, match=r"\['eps_start'\] are not settings of pcn"):
+    with pytest.raises(ValueError, match=r"'eps_start' is not a setting of pcn"):
         resolve_config("pcn", "MOLavaGridDR-v0", config_file=path)
 
 
@@ -113,7 +113,7 @@ def test_cli_config_refuses_a_foreign_key(capsys):
     from morl_trl.cli import main
 
     assert main(["config", "pcn", "MOLavaGridDR-v0", "eps_frames=10"]) == 2
-    assert "['eps_frames'] are not settings of pcn; valid keys for pcn" in capsys.readouterr().err
+    assert "config key 'eps_frames' is not a setting of pcn; morl-trl config pcn ENV_ID" in capsys.readouterr().err
 
 
 def test_discrete_sac_updates_once_every_four_frames_with_the_authors_optimizers():

@@ -42,9 +42,9 @@ def test_methods_that_cannot_run_an_env_refuse_before_anything_is_built():
         resolve_config("pgmorl", "deep-sea-treasure-v0")
     with pytest.raises(ValueError, match="sac trains on the env's original scalar reward"):
         resolve_config("sac", "deep-sea-treasure-v0")
-    # resource-gathering-v0 has no documented reference point: the error says how to give one
-    with pytest.raises(ValueError, match=r"no documented hypervolume reference point: pass one with ref_point=\[\.\.\.\]"):
-        resolve_config("envelope", "resource-gathering-v0")
+    # resource-gathering-v0 has no MORL-Baselines point: the rule's bounds x horizon (100 steps) - 1
+    assert domain_of("resource-gathering-v0").hv_ref_point == (-101.0, -1.0, -1.0)
+    assert resolve_config("envelope", "resource-gathering-v0").ref_point is None  # (the env's)
     assert resolve_config("envelope", "resource-gathering-v0", ref_point=[-1, -1, -1]).ref_point == (-1.0, -1.0, -1.0)
     with pytest.raises(ValueError, match=r"ref_point \[0.0\] has 1 numbers; deep-sea-treasure-v0 has 2 objectives"):
         resolve_config("envelope", "deep-sea-treasure-v0", ref_point=[0.0])

@@ -19,7 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["coerce_values", "ALGORITHMS", "Key", "KEYS", "NOT_SET", "LOGGERS", "SHARED_SECTIONS"]
+__all__ = ["coerce_values", "ALGORITHMS", "Key", "KEYS", "KEY_ALIASES", "NOT_SET", "LOGGERS", "SHARED_SECTIONS",
+           "unknown_keys_message"]
 
 ALGORITHMS = ("envelope", "capql", "mosac", "mosac_discrete", "morld", "morld_psa", "sac", "pcn", "pgmorl",
               "gpi_ls", "gpi_pd")
@@ -280,13 +281,50 @@ _FLOAT_KEYS = frozenset(k for k, key in KEYS.items() if key.type.split(" |")[0] 
 #: keys of earlier versions that are renamed (what they map to: ``train_config.RENAMED``)
 RENAMED_KEYS = frozenset({"pcn_hidden"})
 
+#: other names for our keys (MORL-Baselines' and common ones), for "did you mean" on an unknown key
+KEY_ALIASES = {
+    "learning_rate": "lr", "net_arch": "hidden", "hidden_dim": "hidden", "hidden_sizes": "hidden",
+    "total_timesteps": "frames", "timesteps": "frames", "steps": "frames", "num_frames": "frames",
+    "learning_starts": "init_random_frames", "initial_epsilon": "eps_start", "final_epsilon": "eps_end",
+    "epsilon_decay_steps": "eps_frames", "target_net_update_freq": "target_update_period",
+    "target_net_freq": "target_update_period", "per": "prioritized", "gradient_updates": "gpi_gradient_updates",
+    "num_eval_weights_for_front": "eval_weights", "num_eval_episodes_for_front": "eval_episodes",
+    "eval_freq": "eval_interval", "eval_mo_freq": "eval_interval", "discount": "gamma",
+    "clip_grad_norm": "max_grad_norm", "max_grad_norm_clip": "max_grad_norm", "scaling_factor": "pcn_scaling_factor",
+    "num_sample_w": "num_sampled_prefs", "initial_homotopy_lambda": "homotopy_lambda0", "envs": "num_envs",
+}
+
+
+def unknown_keys_message(unknown, valid, source: str = "", algo: str | None = None) -> str:
+    """``overrides: unknown config key 'learning_rate' (did you mean 'lr'?); ...``: each unknown key
+    with the valid keys it most likely meant (:data:`KEY_ALIASES`, close spellings), and where to
+    see all of them, instead of the whole list.
+
+    Example:
+        >>> unknown_keys_message(["learning_rate"], ["lr", "gamma"], "overrides", "envelope")
+        "overrides: unknown config key 'learning_rate' (did you mean 'lr'?); morl-trl config envelope ENV_ID prints every key of envelope"
+    """
+    from morl_trl._suggest import did_you_mean
+
+    unknown = sorted(unknown)
+    # (a key of another algorithm is no misspelling: no suggestion for it)
+    named = ", ".join(f"{k!r}{'' if k in KEYS else did_you_mean(k, valid, KEY_ALIASES)}" for k in unknown)
+    plural = len(unknown) > 1
+    if algo and all(k in KEYS for k in unknown):
+        what = f"config key{'s' if plural else ''} {named} {'are not settings' if plural else 'is not a setting'} of {algo}"
+    else:
+        what = f"unknown config key{'s' if plural else ''} {named}"
+    where = f"morl-trl config {algo} ENV_ID prints every key of {algo}" if algo else \
+        "morl-trl config ALGO ENV_ID prints every key of ALGO"
+    return f"{source + ': ' if source else ''}{what}; {where}"
+
 
 def coerce_values(values: dict[str, Any]) -> dict[str, Any]:
     """TOML/JSON values as the config holds them: ``"null"`` -> None, lists -> tuples, ints -> floats
     for float keys. Unknown keys are an error listing the known ones."""
     unknown = sorted(set(values) - set(KEYS) - set(RENAMED_KEYS))
     if unknown:
-        raise ValueError(f"unknown config key(s) {unknown}; valid keys: {sorted(KEYS)}")
+        raise ValueError(unknown_keys_message(unknown, KEYS))
     out = {}
     for k, v in values.items():
         if v == "null":  # TOML has no null: a file or a key=value flag writes the string

@@ -129,7 +129,7 @@ def resolve_config(
         >>> resolve_config("pcn", "MOLavaGridDR-v0", eps_start=0.5)
         Traceback (most recent call last):
         ...
-        ValueError: overrides: config key(s) ['eps_start'] are not settings of pcn; valid keys for pcn: [...]
+        ValueError: overrides: config key 'eps_start' is not a setting of pcn; morl-trl config pcn ENV_ID prints every key of pcn
     """
     if algo not in ALGORITHM_SPECS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {list(ALGORITHM_SPECS)}")

@@ -14,7 +14,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import KEYS, NOT_SET, RENAMED_KEYS, coerce_values
+from morl_trl.recipes.config.keys import KEYS, NOT_SET, RENAMED_KEYS, coerce_values, unknown_keys_message
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.sections import SHARED, RunSection
 
@@ -72,7 +72,7 @@ def upgrade_keys(values: dict[str, Any], algo: str, source: str, *, saved: bool 
         return out
     unknown = sorted(set(out) - set(KEYS))
     if unknown:
-        raise ValueError(f"{source}: unknown config key(s) {unknown}; valid keys for {algo}: {sorted(valid)}")
+        raise ValueError(unknown_keys_message(unknown, valid, source, algo))
     ignored = sorted(k for k in set(out) - set(valid) if k in _V1_DEFAULTS and out[k] == _V1_DEFAULTS[k])
     if ignored:  # what an old complete dump holds: those keys did nothing for this algorithm then either
         warnings.warn(f"{source}: config key(s) {ignored} are not settings of {algo} and are ignored (they hold the "
@@ -81,8 +81,7 @@ def upgrade_keys(values: dict[str, Any], algo: str, source: str, *, saved: bool 
         out = {k: v for k, v in out.items() if k not in ignored}
     foreign = sorted(set(out) - set(valid))
     if foreign:
-        raise ValueError(f"{source}: config key(s) {foreign} are not settings of {algo}; valid keys for {algo}: "
-                         f"{sorted(valid)}")
+        raise ValueError(unknown_keys_message(foreign, valid, source, algo))
     return out
 
 
@@ -113,8 +112,7 @@ class TrainConfig:
         spec = ALGORITHM_SPECS[algo]
         unknown = sorted(set(values) - set(valid_keys(algo)))
         if unknown:
-            raise ValueError(f"config key(s) {unknown} are not settings of {algo}; valid keys for {algo}: "
-                             f"{sorted(valid_keys(algo))}")
+            raise ValueError(unknown_keys_message(unknown, valid_keys(algo), "", algo))
         sections = {}
         for name, cls in (*SHARED.items(), (algo, spec.config)):
             sections[name] = cls(**{f.name: values[f.name] for f in dataclasses.fields(cls) if f.name in values})
