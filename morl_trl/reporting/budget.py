@@ -43,6 +43,6 @@ def budget_label(name: str, who: str, *, frames: int | None = None, weights: int
 
 def same_budget(domain: str, *, frames: int, weights: int) -> bool:
     """Whether a run of ``frames`` frames evaluated at ``weights`` weights on ``domain`` was
-    measured as the paper's runs were (its weights, and at least 99 % of its frames)."""
+    measured at the paper's budget (its number of weights, and at least 99 % of its frames)."""
     budget = paper_budget(domain)
     return budget is not None and weights == budget[1] and frames >= 0.99 * budget[0]
