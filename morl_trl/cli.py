@@ -78,6 +78,13 @@ def _default_reference() -> str | None:
 
 
 # ---------------------------------------------------------------------- train / evaluate
+def _add_trust_code(p) -> None:
+    p.add_argument("--trust-code", action="append", default=[], metavar="PKG.MODULE",
+                   help="import this domain module named by the run's config (it runs that module's code: only for "
+                        "a run you trust); repeatable. Without it, only modules already imported or registered by an "
+                        "installed package's entry point are")
+
+
 def train_main(argv: list[str]) -> int:
     from morl_trl.recipes.config import ALGORITHMS
 
@@ -112,6 +119,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--trust-pickle", action="store_true",
                    help="with --resume: accept a checkpoint of the old pickled format (loading it can run code "
                    "stored in it; only for a run you trust). `morl-trl convert-run RUN` converts it once instead")
+    _add_trust_code(p)
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--ref-point", metavar="X1,X2,...",
                    help="hypervolume reference point, one number per objective (default: the env's; required for an "
@@ -129,7 +137,8 @@ def train_main(argv: list[str]) -> int:
         if args.print_config:
             print(cfg.to_toml())
             return 0
-        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle))
+        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle,
+                                           trust_code=args.trust_code))
     reference = args.reference or _default_reference()
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
                  logger=args.logger, progress=False if args.no_progress else None,
@@ -219,6 +228,7 @@ def evaluate_main(argv: list[str]) -> int:
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept a checkpoint of the old pickled format (loading it can run code stored in it; only "
                    "for a run you trust). `morl-trl convert-run RUN` converts it once instead")
+    _add_trust_code(p)
     args = p.parse_args(argv)
     from morl_trl.recipes import evaluate_run
 
@@ -229,7 +239,8 @@ def evaluate_main(argv: list[str]) -> int:
         except ValueError:
             raise ValueError(f"--video-weight {args.video_weight!r}: give comma-separated numbers, e.g. 0.5,0.5") from None
     evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights,
-                 video=args.video, video_weight=weight, video_format=args.video_format, trust_pickle=args.trust_pickle)
+                 video=args.video, video_weight=weight, video_format=args.video_format, trust_pickle=args.trust_pickle,
+                 trust_code=args.trust_code)
     return 0
 
 
@@ -243,11 +254,12 @@ def export_main(argv: list[str]) -> int:
     p.add_argument("--checkpoint", help="a checkpoint's frame count or name (default: the newest intact one)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept a checkpoint of the old pickled format (only for a run you trust)")
+    _add_trust_code(p)
     args = p.parse_args(argv)
     from morl_trl.recipes.policy import export_policy
 
     checkpoint = int(args.checkpoint) if args.checkpoint and args.checkpoint.isdigit() else args.checkpoint
-    out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle)
+    out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle, trust_code=args.trust_code)
     print(f"wrote {out} ({out.stat().st_size / 2**20:.2f} MiB)")
     return 0
 

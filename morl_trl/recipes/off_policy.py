@@ -30,6 +30,7 @@ import torch
 
 from morl_trl._torchrl_compat import reset_collector
 from morl_trl.envs import make_env
+from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.actor_critic import train_actor_critic
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
@@ -94,7 +95,7 @@ def _seed_everything(seed: int) -> None:
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False,
-          trust_pickle: bool = False) -> dict:
+          trust_pickle: bool = False, trust_code: bool | list[str] = False) -> dict:
     """Run (or resume) a training run; returns the last evaluation summary
     (:func:`morl_trl.train` returns the run directory, summary, config and the trained policy).
 
@@ -114,11 +115,12 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
-    return run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)[0]
+    return run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle, trust_code=trust_code)[0]
 
 
 def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = None,
-                 overwrite: bool = False, trust_pickle: bool = False) -> tuple[dict, Agent | None, Path, TrainConfig]:
+                 overwrite: bool = False, trust_pickle: bool = False, trust_code: bool | list[str] = False,
+                 ) -> tuple[dict, Agent | None, Path, TrainConfig]:
     """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
     and the config it ran with."""
@@ -128,14 +130,16 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     else:
         lock = None
     try:
-        return _run_training(cfg, resume, overwrite, trust_pickle, lock)
+        return _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code)
     finally:
         if lock is not None:
             lock.release()
 
 
-def _run_training(cfg, resume, overwrite, trust_pickle, lock):
+def _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code=False):
     run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load, resume_config=resume_config)
+    if resume is not None:
+        check_trusted(run.cfg.domain_modules, trust_code, source=repr(str(Path(resume) / "config.json")))
     run.trust_pickle = trust_pickle
     cfg = run.cfg
     if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
@@ -191,7 +195,8 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,
-                 video: bool = False, video_weight=None, video_format: str = "auto", trust_pickle: bool = False) -> dict:
+                 video: bool = False, video_weight=None, video_format: str = "auto", trust_pickle: bool = False,
+                 trust_code: bool | list[str] = False) -> dict:
     """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite.
 
     With ``video``, also record one episode per evaluation context with ``video_weight``
@@ -203,6 +208,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
     cfg = TrainConfig.load(run_dir / "config.json")
+    check_trusted(cfg.domain_modules, trust_code, source=repr(str(run_dir / "config.json")))
     if reference_dir is not None:
         cfg.reference_dir = reference_dir
     if weights is not None:

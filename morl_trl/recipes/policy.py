@@ -31,6 +31,7 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
+from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.config import TrainConfig, resolve_config
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.off_policy import run_training
@@ -190,7 +191,7 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
     return path
 
 
-def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
+def _load_export(path: Path, device: torch.device, trust_code=False) -> TrainedPolicy:
     data = load_plain(path, map_location=device)
     if not isinstance(data, dict) or data.get(EXPORT_FORMAT) != 1:
         raise ValueError(f"{str(path)!r} is not a policy export (written by TrainedPolicy.save / morl-trl export)")
@@ -199,6 +200,7 @@ def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
     with tempfile.TemporaryDirectory() as tmp:  # (TrainConfig.load: the one reader of saved configs)
         (Path(tmp) / "config.json").write_text(data["config"])
         cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
+    check_trusted(cfg.domain_modules, trust_code, source=f"the policy export {str(path)!r}")
     agent = _build_agent(cfg, device)
     state = data["agent"]
     state["optimizers"] = {k: o.state_dict() for k, o in agent.optimizers.items()}
@@ -218,18 +220,19 @@ def _build_agent(cfg: TrainConfig, device: torch.device):
 
 
 def export_policy(run_dir: str | Path, out: str | Path, checkpoint: str | Path | int | None = None, *,
-                  trust_pickle: bool = False) -> Path:
+                  trust_pickle: bool = False, trust_code: bool | list[str] = False) -> Path:
     """``morl-trl export RUN --out FILE``: :func:`load_policy` then :meth:`TrainedPolicy.save`.
     Reads the newest complete checkpoint (also while the run trains) and writes only ``out``."""
     out = Path(out)
     if out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a folder; give a file name, e.g. {str(out / 'policy.pt')!r}")
     check_writable(out.parent, "the export's folder")
-    return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle).save(out)
+    return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle, trust_code=trust_code).save(out)
 
 
 def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
-                device: str | torch.device = "cpu", *, trust_pickle: bool = False) -> TrainedPolicy:
+                device: str | torch.device = "cpu", *, trust_pickle: bool = False,
+                trust_code: bool | list[str] = False) -> TrainedPolicy:
     """The trained eval policy of a run directory, or of a policy export (see the module docstring).
 
     Args:
@@ -240,18 +243,23 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
         device: where the policy's parameters go.
         trust_pickle: load a checkpoint of the old pickled format (it can run code stored in
             it: only for a run you trust; ``morl-trl convert-run`` converts it once instead).
+        trust_code: import the domain modules the run's config names (``True``: all; a list:
+            these); without it only modules already imported or registered by an installed
+            package's entry point are (:mod:`morl_trl.envs.trust`).
 
     Raises:
         ValueError: ``run_dir`` is not a run directory, or has no intact checkpoint (naming it).
+        UntrustedCodeError: the config names a domain module not trusted (nothing imported).
     """
     run_dir = Path(run_dir)
     if run_dir.is_file():
         if checkpoint is not None:
             raise ValueError(f"{str(run_dir)!r} is a policy export: it holds one policy, no checkpoints to choose")
-        return _load_export(run_dir, torch.device(device))
+        return _load_export(run_dir, torch.device(device), trust_code)
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json) nor a policy export")
     cfg = TrainConfig.load(run_dir / "config.json")
+    check_trusted(cfg.domain_modules, trust_code, source=repr(str(run_dir / "config.json")))
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = cfg.replace(device=str(device))
@@ -285,7 +293,8 @@ class TrainResult:
 
 def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
                  config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
-                 trust_pickle: bool = False, env=None, env_name: str | None = None, **overrides: Any) -> TrainResult:
+                 trust_pickle: bool = False, trust_code: bool | list[str] = False, env=None, env_name: str | None = None,
+                 **overrides: Any) -> TrainResult:
     """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
 
     ``train_policy("envelope", "MOLavaGridDR-v0", quick=True, frames=4_000, run_dir="runs/a")``
@@ -323,6 +332,7 @@ def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = Non
         if env_id is None:
             raise ValueError("train_policy(algo, env_id, ...): env_id is missing")
         cfg = resolve_config(algo, env_id, quick=quick, config_file=config_file, **overrides)
-    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)
-    policy = load_policy(run_dir, device=cfg.device)
+    summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle,
+                                                trust_code=trust_code)
+    policy = load_policy(run_dir, device=cfg.device, trust_code=trust_code)
     return TrainResult(run_dir=Path(run_dir), summary=summary, policy=policy, config=cfg, agent=agent)
