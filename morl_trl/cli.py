@@ -259,7 +259,14 @@ def export_main(argv: list[str]) -> int:
     from morl_trl.recipes.policy import export_policy
 
     checkpoint = int(args.checkpoint) if args.checkpoint and args.checkpoint.isdigit() else args.checkpoint
-    out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle, trust_code=args.trust_code)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as said:  # (a skipped damaged checkpoint: one line each)
+        warnings.simplefilter("always")
+        out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle,
+                            trust_code=args.trust_code)
+    for w in said:
+        print(f"warning: {w.message}", file=sys.stderr)
     print(f"wrote {out} ({out.stat().st_size / 2**20:.2f} MiB)")
     return 0
 
@@ -677,11 +684,14 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # the machine's (a full disk, a read-only folder): what could not be done, no traceback
         print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:  # Ctrl-C: one line (a run says where it checkpointed and how to resume)
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP: one line (a run says where it checkpointed, how to resume)
         print(f"morl-trl {argv[0]}: {err or 'interrupted'}", file=sys.stderr)
-        # exiting already: another Ctrl-C (e.g. during a library's exit hook) ends the process at once, quietly
-        signal.signal(signal.SIGINT, lambda *_: os._exit(130))
-        return 130
+        code = getattr(err, "exit_code", 130)  # 130 (SIGINT), 143 (SIGTERM), 129 (SIGHUP)
+        # exiting already: another signal (e.g. during a library's exit hook) ends the process at once, quietly
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            if hasattr(signal, name):
+                signal.signal(getattr(signal, name), lambda *_: os._exit(code))
+        return code
 
 
 if __name__ == "__main__":

@@ -41,6 +41,7 @@ from morl_trl.recipes.morld import train_morld
 from morl_trl.recipes.pcn import train_pcn
 from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
@@ -169,7 +170,7 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)  # (a resumed run: its checkpoint)
     if state is not None:
-        agent.load_state_dict(state["agent"])
+        load_agent_state(agent, state, run.resume_from, cfg.algo)
         agent.on_frames(run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
@@ -219,14 +220,15 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         print(f"warning: skipped damaged checkpoint {path.name}: {why}", flush=True)
     if ckpt is None:
         raise ValueError(f"{str(run_dir)!r} has no intact checkpoint to evaluate")
-    state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle)  # (refused before any write)
+    state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle,  # (refused before any write)
+                            keys={"agent": dict})
     check_writable(run_dir)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
     _, agent, reference, evaluator = build(cfg, device)
-    agent.load_state_dict(state["agent"])
+    load_agent_state(agent, state, ckpt, cfg.algo)
     frames = checkpoint_frames(ckpt)
     if video and video_weight is not None:  # (checked before anything is written)
         k = len(spec.objective_names)

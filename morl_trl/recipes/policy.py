@@ -20,6 +20,7 @@ Example:
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,10 +36,10 @@ from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.config import TrainConfig, resolve_config
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.off_policy import run_training
-from morl_trl.recipes.parts import run_discount, run_domain
+from morl_trl.recipes.parts import load_agent_state, run_discount, run_domain
 from morl_trl.runs.atomic import atomic_write
-from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
-from morl_trl.runs.plain import load_plain, save_plain
+from morl_trl.runs.checkpoint import DamagedCheckpointError, checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
+from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain
 from morl_trl.runs.run_dir import check_writable
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -176,6 +177,9 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
         if ckpt is None:
             what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
             raise ValueError(f"{str(run_dir)!r} has no intact checkpoint ({what})")
+        for path, why in skipped:  # (said, as evaluate and resume say it)
+            warnings.warn(f"skipped damaged checkpoint {path.name} of {str(run_dir)!r}: {why}; using {ckpt.name}",
+                          stacklevel=3)
         return ckpt
     if isinstance(checkpoint, int) and not isinstance(checkpoint, bool):
         path = run_dir / "checkpoints" / f"frames_{checkpoint:012d}"
@@ -192,19 +196,36 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
 
 
 def _load_export(path: Path, device: torch.device, trust_code=False) -> TrainedPolicy:
-    data = load_plain(path, map_location=device)
+    try:
+        data = load_plain(path, map_location=device)
+    except UnsafeFileError as err:
+        raise type(err)(f"{err}; export the policy again (morl-trl export RUN --out FILE)") from None
     if not isinstance(data, dict) or data.get(EXPORT_FORMAT) != 1:
         raise ValueError(f"{str(path)!r} is not a policy export (written by TrainedPolicy.save / morl-trl export)")
+    if not isinstance(data.get("config"), str):
+        raise DamagedCheckpointError(f"{str(path)!r} holds no config (the policy export was changed): export the "
+                                     f"policy again")
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:  # (TrainConfig.load: the one reader of saved configs)
         (Path(tmp) / "config.json").write_text(data["config"])
-        cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
+        try:
+            cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
+        except ValueError as err:
+            raise ValueError(str(err).replace(repr(str(Path(tmp) / "config.json")), f"the config in {str(path)!r}")
+                             ) from None
     check_trusted(cfg.domain_modules, trust_code, source=f"the policy export {str(path)!r}")
     agent = _build_agent(cfg, device)
-    state = data["agent"]
+    state = data.get("agent")
+    if not isinstance(state, dict):
+        raise DamagedCheckpointError(f"{str(path)!r} holds no agent state (the policy export was changed): export "
+                                     f"the policy again")
     state["optimizers"] = {k: o.state_dict() for k, o in agent.optimizers.items()}
-    agent.load_state_dict(state)
+    load_agent_state(agent, {"agent": state}, path, cfg.algo)
+    if data.get("exploration_type") not in ExplorationType.__members__:
+        raise DamagedCheckpointError(f"{str(path)!r}: exploration_type is {data.get('exploration_type')!r}; valid: one "
+                                     f"of {list(ExplorationType.__members__)} (the policy export was changed): export "
+                                     f"the policy again")
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=path, device=device, agent=agent,
                            exploration_type=ExplorationType[data["exploration_type"]], frames=data["frames"])
     return policy.eval()
@@ -263,9 +284,10 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = cfg.replace(device=str(device))
-    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)  # (refused before any build)
+    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle,  # (refused before any build)
+                            keys={"agent": dict})
     agent = _build_agent(cfg, device)
-    agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
+    load_agent_state(agent, state, ckpt, cfg.algo)  # (the whole agent: some keep more than the loss, e.g. weights)
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
                            device=device, agent=agent)
     return policy.eval()

@@ -20,13 +20,14 @@ Example:
 from __future__ import annotations
 
 import collections
+import os
 from typing import Any
 
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 
-__all__ = ["to_plain", "from_plain", "save_plain", "load_plain", "UnsafeFileError"]
+__all__ = ["to_plain", "from_plain", "save_plain", "load_plain", "UnsafeFileError", "first_line"]
 
 _MARK = "__morl_trl_plain__"
 _ATOMS = (type(None), bool, int, float, complex, str, bytes, torch.Size, torch.dtype, torch.device)
@@ -95,13 +96,29 @@ def save_plain(obj: Any, file) -> None:
     torch.save(to_plain(obj), file)
 
 
+def first_line(err: BaseException, limit: int = 200) -> str:
+    """The first line of an error's message (its type's name for an empty one), at most ``limit`` characters:
+    what an error about a file shows of torch's (a TensorDict's repr can run to hundreds of lines)."""
+    lines = str(err).strip().splitlines()
+    text = f"{type(err).__name__}: {lines[0]}" if lines else type(err).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def load_plain(file, map_location=None) -> Any:
     """Read a file written by :func:`save_plain` with ``torch.load(weights_only=True)``;
-    :class:`UnsafeFileError` if it holds anything else (nothing in it is executed)."""
+    :class:`UnsafeFileError` if it holds anything else (nothing in it is executed), or if it is
+    empty or damaged (the error names the file and what is wrong)."""
+    name = file if isinstance(file, (str, os.PathLike)) else getattr(file, "name", file)  # (the path, not its last part)
+    if isinstance(file, (str, os.PathLike)) and os.path.isfile(file) and os.path.getsize(file) == 0:
+        raise UnsafeFileError(f"{str(name)!r} is empty (0 bytes): it was cut short or emptied, so it holds nothing "
+                              f"to load")
     try:
         data = torch.load(file, weights_only=True, map_location=map_location)
     except Exception as err:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, ... for foreign files
-        name = getattr(file, "name", file)
         raise UnsafeFileError(f"{str(name)!r} is not a file of tensors and plain data (refused, nothing in it was "
-                              f"run): {str(err).splitlines()[0]}") from None
-    return from_plain(data)
+                              f"run): {first_line(err)}") from None
+    try:
+        return from_plain(data)
+    except Exception as err:  # noqa: BLE001 - a marked dict of the wrong layout
+        raise UnsafeFileError(f"{str(name)!r} holds tensors and plain data in a layout morl_trl did not write "
+                              f"({first_line(err)})") from None
