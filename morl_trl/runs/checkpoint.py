@@ -52,6 +52,7 @@ import numpy as np
 import torch
 
 from morl_trl.runs.atomic import atomic_write_text, disk_error, fsync_dir, fsync_tree
+from morl_trl.runs.nofollow import check_no_links, open_nofollow
 from morl_trl.runs.plain import UnsafeFileError, first_line, load_plain, save_plain
 
 __all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "find_checkpoint", "verify_checkpoint",
@@ -145,7 +146,7 @@ def _prune_buffer(ckpt: Path) -> None:
 
 
 def _save_pt(obj: Any, path: Path) -> None:
-    with path.open("wb") as fh:
+    with open_nofollow(path, "x", binary=True) as fh:  # (a new file, in a folder this process just made)
         save_plain(obj, fh)
 
 
@@ -158,13 +159,16 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
     leaves the previous checkpoints as they were and names the checkpoint it could not write."""
     if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
         raise ValueError(f"keep must be an int >= 1, got {keep!r}")
-    root = Path(run_dir) / "checkpoints"
+    run_dir = Path(run_dir)
+    root = run_dir / "checkpoints"
     final = root / f"frames_{frames:012d}"
     tmp = root / f".tmp_frames_{frames:012d}"
+    for path in (final, root / "latest"):  # (checkpoints/, the checkpoint itself, latest: never a symlink)
+        check_no_links(path, run_dir)
     try:
         root.mkdir(parents=True, exist_ok=True)
-        for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
-            shutil.rmtree(stale, ignore_errors=True)
+        for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process (a planted link: only it goes)
+            stale.unlink() if stale.is_symlink() else shutil.rmtree(stale, ignore_errors=True)
         tmp.mkdir()
         _save_pt(state, tmp / "state.pt")
         if replay_buffer is not None:
@@ -181,7 +185,7 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
         shutil.rmtree(final, ignore_errors=True)
         os.replace(tmp, final)
         fsync_dir(root)
-        atomic_write_text(root / "latest", final.name)
+        atomic_write_text(root / "latest", final.name, root=run_dir)
     except OSError as err:
         shutil.rmtree(tmp, ignore_errors=True)
         raise disk_error(err, f"checkpoint {final}") from err
