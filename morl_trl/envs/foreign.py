@@ -39,6 +39,7 @@ from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, OneHot, Unbounded
 from torchrl.envs import EnvBase, SerialEnv
 
+from morl_trl._torchrl_compat import drop_step_hook, hook_first_steps
 from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.spec import DomainSpec
@@ -130,22 +131,14 @@ def check_reward_shape(env: EnvBase, name: str, steps: int = REWARD_CHECK_STEPS)
     ``SerialEnv`` calls) for those steps only and then removes itself."""
     key = env.reward_key
     want = tuple(env.full_reward_spec[key].shape)
-    inner = env._step
-    count = [0]
 
-    def _step(tensordict):
-        out = inner(tensordict)
-        count[0] += 1
+    def check(out, step: int) -> None:
         reward = out.get(key, None)
         got = None if reward is None else tuple(torch.as_tensor(reward).shape)
         if got != want:
-            raise _reward_error(name, got, want, count[0])
-        if count[0] >= steps:
-            del env._step  # (the env's own again)
-        return out
+            raise _reward_error(name, got, want, step)
 
-    env._step = _step
-    return env
+    return hook_first_steps(env, check, steps)
 
 
 class _TorchRLBatch:
@@ -429,9 +422,7 @@ def _one_env_factory(source) -> Callable[[], EnvBase]:
             if next(copies) == 0:
                 return source
             try:
-                env = copy.deepcopy(source)
-                env.__dict__.pop("_step", None)  # (the first sub-env's first-steps check: not the copy's)
-                return env
+                return drop_step_hook(copy.deepcopy(source))  # (the first sub-env's first-steps check: not the copy's)
             except Exception as err:  # (simulators holding handles)
                 raise ValueError(f"the env instance {type(source).__name__} cannot be copied for a further "
                                  f"sub-env ({err}); pass a function that builds one env instead") from None
