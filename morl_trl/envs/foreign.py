@@ -114,7 +114,13 @@ REWARD_CHECK_STEPS = 8
 
 
 class RewardShapeError(ValueError):
-    """A foreign env returned a reward of another shape than its reward spec declares."""
+    """A foreign env returned a reward of another shape than its reward spec declares
+    (raised by :func:`check_reward_shape` on the env's first steps).
+
+    Example:
+        >>> print(str(_reward_error("my-env", (), (2,), 1)).split(": ")[0])
+        the env 'my-env' returned a reward of shape () at step 1, but its reward spec declares shape (2,) (one value per objective)
+    """
 
 
 def _reward_error(name: str, got, want: tuple, step: int) -> RewardShapeError:

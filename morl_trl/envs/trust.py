@@ -18,11 +18,11 @@ Anything else is refused, before any import, with :class:`UntrustedCodeError` na
 module and the flag.
 
 Example:
-    >>> check_trusted(["morl_trl.envs.lava_grid.spec"], False, source="config.json")  # imported already
+    >>> check_trusted(["morl_trl.envs"], False, source="config.json")  # imported already: importing runs nothing
     >>> try:
     ...     check_trusted(["shared_run.evil"], False, source="run/config.json")
     ... except UntrustedCodeError as err:
-    ...     print(str(err)[:72])
+    ...     print(str(err)[:71])
     run/config.json names the domain module 'shared_run.evil': importing it
 """
 
