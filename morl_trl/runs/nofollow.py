@@ -57,17 +57,15 @@ def _refuse(link: Path) -> SymlinkRefusedError:
 
 def check_no_links(path: str | Path, root: str | Path | None = None) -> None:
     """:class:`SymlinkRefusedError` if ``path`` or a folder between ``root`` and it is a symlink
-    (``root`` itself may be one; without ``root``, only ``path`` and its parent are checked)."""
+    (``root`` itself may be one; without ``root``, or for a path outside it, only ``path`` is checked)."""
     path = Path(path)
-    if root is None:
-        parts = [path.parent, path]
-    else:
-        root = Path(root)
+    rel = None
+    if root is not None:
         try:
             rel = path.relative_to(root)
         except ValueError:
-            rel = None
-        parts = [root.joinpath(*rel.parts[: i + 1]) for i in range(len(rel.parts))] if rel else [path.parent, path]
+            pass
+    parts = [Path(root).joinpath(*rel.parts[: i + 1]) for i in range(len(rel.parts))] if rel else [path]
     for p in parts:
         if p.is_symlink():
             raise _refuse(p)

@@ -160,3 +160,10 @@ def test_export_refuses_a_link_at_its_output(run, victim, tmp_path):
     with pytest.raises(SymlinkRefusedError, match=f"symbolic link: {str(out)!r}"):
         load_policy(run).save(out)
     assert (victim / "victim.txt").read_text() == "precious"
+
+
+def test_the_run_directory_itself_may_be_a_link(run, tmp_path):
+    link = tmp_path / "scratch_link"
+    os.symlink(run, link)  # (e.g. runs/ on a scratch disk: the user's own choice, outside the run)
+    assert evaluate_run(link)["frames"] == 512
+    assert (run / "reevaluation" / "report.md").is_file()
