@@ -267,6 +267,10 @@ def load_agent_state(agent, state: dict, source: Path, algo: str, *, todo: str |
         raise DamagedCheckpointError(
             f"{str(where)!r} says algo {algo!r}, but {str(source)!r} was written by a {written!r} run: the config was "
             f"changed; set algo back to {written!r}")
+    if not isinstance(state.get("agent"), dict):
+        what = "no agent" if "agent" not in state else f"an agent that is a {type(state['agent']).__name__}"
+        raise DamagedCheckpointError(f"{str(source)!r} holds {what}, not the state of a {algo} agent: it was changed "
+                                     f"or belongs to another run; {todo}")
     try:
         agent.load_state_dict(state["agent"])
     except LAYOUT_ERRORS as err:

@@ -331,9 +331,8 @@ def damaged(path: Path, problem: str) -> DamagedCheckpointError:
         f"checkpoint, or start the run again")
 
 
-#: what every checkpoint's state.pt holds besides the recipe's own state, and of which type
-RUN_STATE = {"frames": int, "updates": int, "next_eval": int, "next_ckpt": int, "last_eval": int, "rng": dict,
-             "agent": dict}
+#: what :class:`~morl_trl.runs.Run` adds to every checkpoint's state.pt (besides the recipe's own state), and its type
+RUN_STATE = {"frames": int, "updates": int, "next_eval": int, "next_ckpt": int, "last_eval": int, "rng": dict}
 
 
 def check_state(path: Path, state: Any, keys: dict[str, type] = RUN_STATE) -> dict[str, Any]:

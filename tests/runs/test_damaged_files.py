@@ -104,8 +104,12 @@ def _wrong_shape(state):
 
 WRONG_LAYOUTS = {
     "not a dict": (lambda s: [1, 2], "state.pt holds a list, not the dict of a checkpoint"),
-    "no agent": (lambda s: {k: v for k, v in s.items() if k != "agent"}, "state.pt has no ['agent']"),
-    "agent not a dict": (lambda s: {**s, "agent": torch.zeros(2)}, "agent is a Tensor, not a dict"),
+    "no agent": (lambda s: {k: v for k, v in s.items() if k != "agent"},
+                 {"load_policy": "state.pt has no ['agent']", "resume": "holds no agent, not the state of a envelope "
+                                                                        "agent"}),
+    "agent not a dict": (lambda s: {**s, "agent": torch.zeros(2)},
+                         {"load_policy": "agent is a Tensor, not a dict", "resume": "holds an agent that is a Tensor, "
+                                                                                    "not the state of a envelope agent"}),
     "agent empty": (lambda s: {**s, "agent": {}}, "does not hold a envelope agent of this run's config (KeyError"),
     "loss not a state": (lambda s: {**s, "agent": {**s["agent"], "loss": 3}}, "does not hold a envelope agent"),
     "a weight of another shape": (_wrong_shape, "does not hold a envelope agent of this run's config ("),
@@ -117,6 +121,7 @@ WRONG_LAYOUTS = {
 @pytest.mark.parametrize("loader", ["load_policy", "resume"])
 def test_a_state_pt_of_another_layout_is_one_line(run, loader, layout):
     edit, problem = WRONG_LAYOUTS[layout]
+    problem = problem[loader] if isinstance(problem, dict) else problem
     ckpt = _plant_state(run, edit)
     with pytest.raises(ValueError) as err:
         LOADERS[loader](run)
