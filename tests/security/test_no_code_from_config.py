@@ -21,7 +21,6 @@ from morl_trl.envs.trust import UntrustedCodeError, check_trusted
 from morl_trl.recipes import evaluate_run, load_policy, train
 from morl_trl.recipes.convert import convert_run
 from morl_trl.recipes.policy import export_policy
-from tests.runs._helpers import cli
 
 
 @pytest.fixture(scope="module")
@@ -105,21 +104,25 @@ def test_a_module_named_by_an_export_is_not_imported(finished, tmp_path, monkeyp
     assert "the policy export" in str(err.value)
 
 
-def test_the_console_script_does_not_import_an_installed_module_the_config_names(shared, tmp_path):
+def test_the_console_script_does_not_import_an_installed_module_the_config_names(shared, tmp_path, capsys,
+                                                                                  monkeypatch):
+    from morl_trl.cli import main
+
     run, _, _ = shared
     cfg = json.loads((run / "config.json").read_text())
-    cfg["domain_modules"] = ["this"]
+    cfg["domain_modules"] = ["this"]  # (the Zen of Python: printed when imported)
     (run / "config.json").write_text(json.dumps(cfg))
-    out = cli("export", run, "--out", tmp_path / "p.pt")
-    assert out.returncode == 2
-    assert "Beautiful is better than ugly" not in out.stdout + out.stderr
-    assert out.stderr.strip() == (
+    monkeypatch.delitem(sys.modules, "this", raising=False)
+    assert main(["export", str(run), "--out", str(tmp_path / "p.pt")]) == 2
+    out = capsys.readouterr()
+    assert "Beautiful is better than ugly" not in out.out + out.err and "this" not in sys.modules
+    assert out.err.strip() == (
         f"morl-trl export: error: {str(run / 'config.json')!r} names the domain module 'this': importing it would run "
         f"its code, so it was not imported. If you trust where this run comes from, pass --trust-code this "
         f"(trust_code=True in Python), or install the package that registers its domains (entry point "
         f"'morl_trl.domains')")
-    ok = cli("export", run, "--out", tmp_path / "p.pt", "--trust-code", "this")
-    assert ok.returncode == 0 and "Beautiful is better than ugly" in ok.stdout
+    assert main(["export", str(run), "--out", str(tmp_path / "p.pt"), "--trust-code", "this"]) == 0
+    assert "Beautiful is better than ugly" in capsys.readouterr().out  # (the opt-in imports it)
 
 
 def test_modules_already_imported_or_trusted_pass():
