@@ -30,7 +30,8 @@ __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNor
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
            "module_kwargs", "SUBCLASS_INTERNALS", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
-           "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params"]
+           "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params", "hook_first_steps",
+           "drop_step_hook"]
 
 #: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
 cache_values = _cache_values
@@ -177,3 +178,29 @@ def sac_vmap_qvalue(loss):
 def sac_detached_qvalue_params(loss) -> TensorDictBase:
     """``loss._cached_detached_qvalue_params``: the critics' parameters, detached (cached per call)."""
     return loss._cached_detached_qvalue_params
+
+
+def hook_first_steps(env: EnvBase, check, steps: int) -> EnvBase:
+    """Run ``check(out, step)`` on what unbatched ``env`` returns from its first ``steps`` steps:
+    ``env._step`` (what ``EnvBase.step`` and TorchRL's ``SerialEnv`` call for each sub-env) is
+    replaced on the instance for those steps, then the class's own is used again (no per-step
+    cost after them)."""
+    inner = env._step
+    count = [0]
+
+    def _step(tensordict):
+        out = inner(tensordict)
+        count[0] += 1
+        check(out, count[0])
+        if count[0] >= steps:
+            del env._step
+        return out
+
+    env._step = _step
+    return env
+
+
+def drop_step_hook(env: EnvBase) -> EnvBase:
+    """``env`` (a deep copy of a hooked env) without the hook of :func:`hook_first_steps`."""
+    env.__dict__.pop("_step", None)
+    return env

@@ -78,6 +78,13 @@ def _default_reference() -> str | None:
 
 
 # ---------------------------------------------------------------------- train / evaluate
+def _add_trust_code(p) -> None:
+    p.add_argument("--trust-code", action="append", default=[], metavar="PKG.MODULE",
+                   help="import this domain module named by the run's config (it runs that module's code: only for "
+                        "a run you trust); repeatable. Without it, only modules already imported or registered by an "
+                        "installed package's entry point are")
+
+
 def train_main(argv: list[str]) -> int:
     from morl_trl.cli_args import check_algorithm, frame_count, join_negative_values, split_positionals
     from morl_trl.recipes.config import ALGORITHMS  # (the config package imports no torch: --help answers at once)
@@ -117,6 +124,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--trust-pickle", action="store_true",
                    help="with --resume: accept a checkpoint of the old pickled format (loading it can run code "
                    "stored in it; only for a run you trust). `morl-trl convert-run RUN` converts it once instead")
+    _add_trust_code(p)
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--ref-point", metavar="X1,X2,...",
                    help="hypervolume reference point, one number per objective, e.g. --ref-point -1,-1,-1 (default: "
@@ -140,7 +148,8 @@ def train_main(argv: list[str]) -> int:
             return 0
         from morl_trl.recipes import train
 
-        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle))
+        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle,
+                                           trust_code=args.trust_code))
     _check_config_env_id(args)
     _check_keys(args.overrides, args.algo)
     from morl_trl.recipes import resolve_config, train
@@ -247,6 +256,7 @@ def evaluate_main(argv: list[str]) -> int:
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept a checkpoint of the old pickled format (loading it can run code stored in it; only "
                    "for a run you trust). `morl-trl convert-run RUN` converts it once instead")
+    _add_trust_code(p)
     args = p.parse_args(argv)
     from morl_trl.recipes import evaluate_run
 
@@ -257,7 +267,8 @@ def evaluate_main(argv: list[str]) -> int:
         except ValueError:
             raise ValueError(f"--video-weight {args.video_weight!r}: give comma-separated numbers, e.g. 0.5,0.5") from None
     evaluate_run(args.run_dir, reference_dir=args.reference or _default_reference(), weights=args.weights,
-                 video=args.video, video_weight=weight, video_format=args.video_format, trust_pickle=args.trust_pickle)
+                 video=args.video, video_weight=weight, video_format=args.video_format, trust_pickle=args.trust_pickle,
+                 trust_code=args.trust_code)
     return 0
 
 
@@ -271,11 +282,19 @@ def export_main(argv: list[str]) -> int:
     p.add_argument("--checkpoint", help="a checkpoint's frame count or name (default: the newest intact one)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="accept a checkpoint of the old pickled format (only for a run you trust)")
+    _add_trust_code(p)
     args = p.parse_args(argv)
     from morl_trl.recipes.policy import export_policy
 
     checkpoint = int(args.checkpoint) if args.checkpoint and args.checkpoint.isdigit() else args.checkpoint
-    out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as said:  # (a skipped damaged checkpoint: one line each)
+        warnings.simplefilter("always")
+        out = export_policy(args.run_dir, args.out, checkpoint, trust_pickle=args.trust_pickle,
+                            trust_code=args.trust_code)
+    for w in said:
+        print(f"warning: {w.message}", file=sys.stderr)
     print(f"wrote {out} ({out.stat().st_size / 2**20:.2f} MiB)")
     return 0
 
@@ -703,11 +722,14 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # the machine's (a full disk, a read-only folder): what could not be done, no traceback
         print(f"morl-trl {argv[0]}: error: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:  # Ctrl-C: one line (a run says where it checkpointed and how to resume)
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP: one line (a run says where it checkpointed, how to resume)
         print(f"morl-trl {argv[0]}: {err or 'interrupted'}", file=sys.stderr)
-        # exiting already: another Ctrl-C (e.g. during a library's exit hook) ends the process at once, quietly
-        signal.signal(signal.SIGINT, lambda *_: os._exit(130))
-        return 130
+        code = getattr(err, "exit_code", 130)  # 130 (SIGINT), 143 (SIGTERM), 129 (SIGHUP)
+        # exiting already: another signal (e.g. during a library's exit hook) ends the process at once, quietly
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            if hasattr(signal, name):
+                signal.signal(getattr(signal, name), lambda *_: os._exit(code))
+        return code
 
 
 if __name__ == "__main__":

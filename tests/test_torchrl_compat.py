@@ -242,3 +242,21 @@ def test_sac_vmap_qvalue_runs_every_critic_on_the_detached_parameters():
     assert q.shape == (2, 3, 1), "TorchRL's SACLoss._vmap_qnetworkN0 no longer stacks the critics first"
     with params[0].to_module(loss.qvalue_network):
         assert torch.allclose(q[0], loss.qvalue_network(td.clone())["state_action_value"])
+
+
+def test_hook_first_steps_sees_every_sub_env_step_of_a_serial_env_then_removes_itself():
+    from torchrl.envs import SerialEnv
+    from torchrl.testing.mocking_classes import ContinuousActionVecMockEnv
+
+    from morl_trl._torchrl_compat import drop_step_hook, hook_first_steps
+
+    seen = []
+
+    def make():
+        return hook_first_steps(ContinuousActionVecMockEnv(), lambda out, step: seen.append(step), steps=2)
+
+    env = SerialEnv(2, make)
+    env.rollout(4)
+    assert sorted(seen) == [1, 1, 2, 2]  # (each sub-env's first two steps, through SerialEnv's _step calls)
+    hooked = make()
+    assert "_step" in hooked.__dict__ and "_step" not in drop_step_hook(hooked).__dict__

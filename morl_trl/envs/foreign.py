@@ -42,6 +42,7 @@ from torchrl.data import Bounded, Categorical, OneHot, Unbounded
 from torchrl.envs import EnvBase, SerialEnv
 
 from morl_trl._quiet import quiet_gym
+from morl_trl._torchrl_compat import drop_step_hook, hook_first_steps
 from morl_trl.envs.base import ContextualMOEnv
 from morl_trl.envs.gym_make import make_gym_env
 from morl_trl.envs.context import ContextSpace
@@ -50,6 +51,8 @@ from morl_trl.envs.spec import DomainSpec
 
 __all__ = [
     "ForeignMOEnv",
+    "RewardShapeError",
+    "check_reward_shape",
     "MO_GYMNASIUM_REF_POINTS",
     "MO_GYMNASIUM_OBJECTIVES",
     "foreign_domain",
@@ -103,10 +106,53 @@ def _gym_factory(env_id: str, **kwargs) -> EnvBase:
         return MOGymWrapper(make_gym_env(env_id, kwargs), categorical_action_encoding=True)
 
 
-class _TorchRLBatch:
-    """``num_envs`` unbatched TorchRL envs stepped as one (TorchRL's ``SerialEnv``)."""
+#: the first steps of every sub-env whose reward is checked against its spec (after them, no check: no per-step cost)
+REWARD_CHECK_STEPS = 8
 
-    def __init__(self, make_one: Callable[[], EnvBase], num_envs: int) -> None:
+
+class RewardShapeError(ValueError):
+    """A foreign env returned a reward of another shape than its reward spec declares
+    (raised by :func:`check_reward_shape` on the env's first steps).
+
+    Example:
+        >>> print(str(_reward_error("my-env", (), (2,), 1)).split(": ")[0])
+        the env 'my-env' returned a reward of shape () at step 1, but its reward spec declares shape (2,) (one value per objective)
+    """
+
+
+def _reward_error(name: str, got, want: tuple, step: int) -> RewardShapeError:
+    return RewardShapeError(
+        f"the env {name!r} returned a reward of shape {got} at step {step}, but its reward spec declares shape "
+        f"{want} (one value per objective): return a reward of shape {want} (a scalar or a vector of another width "
+        f"is never broadcast to the objectives)")
+
+
+def check_reward_shape(env: EnvBase, name: str, steps: int = REWARD_CHECK_STEPS) -> EnvBase:
+    """``env`` (an unbatched TorchRL env), its rewards checked against ``env.full_reward_spec``
+    on its first ``steps`` steps (:class:`RewardShapeError` naming ``name``, the declared and the
+    returned shape), then never again: the check replaces ``env._step`` (what TorchRL's
+    ``SerialEnv`` calls) for those steps only and then removes itself."""
+    key = env.reward_key
+    want = tuple(env.full_reward_spec[key].shape)
+
+    def check(out, step: int) -> None:
+        reward = out.get(key, None)
+        got = None if reward is None else tuple(torch.as_tensor(reward).shape)
+        if got != want:
+            raise _reward_error(name, got, want, step)
+
+    return hook_first_steps(env, check, steps)
+
+
+class _TorchRLBatch:
+    """``num_envs`` unbatched TorchRL envs stepped as one (TorchRL's ``SerialEnv``), each sub-env's
+    reward checked against its spec on its first steps (:func:`check_reward_shape`)."""
+
+    def __init__(self, make_env: Callable[[], EnvBase], num_envs: int, name: str = "env") -> None:
+        def make_one() -> EnvBase:
+            env = make_env()
+            return check_reward_shape(env, name) if isinstance(env, EnvBase) else env
+
         probe = make_one()
         if not isinstance(probe, EnvBase):
             raise ValueError(f"the env factory returned {type(probe).__name__}; it must return a TorchRL EnvBase")
@@ -146,6 +192,8 @@ class _GymBatch:
     20x a Deep Sea Treasure step)."""
 
     def __init__(self, env_id: str, num_envs: int, env_kwargs: dict) -> None:
+        self.env_id = env_id
+        self.steps = 0
         self.spec_env = _gym_factory(env_id, **env_kwargs)  # TorchRL's spec conversion of the spaces
         self.envs = [make_gym_env(env_id, env_kwargs) for _ in range(num_envs)]
         self.num_envs = num_envs
@@ -178,6 +226,12 @@ class _GymBatch:
             rew.append(r)
             term.append(te)
             trunc.append(tr)
+        if self.steps < REWARD_CHECK_STEPS:  # (the first steps only: no per-step cost after them)
+            self.steps += 1
+            want = tuple(self.spec_env.full_reward_spec[self.spec_env.reward_key].shape)
+            for r in rew:
+                if np.shape(r) != want:
+                    raise _reward_error(self.env_id, tuple(np.shape(r)), want, self.steps)
         self.obs = self._stack(obs)
         return {self.obs_key: self.obs, "reward": torch.as_tensor(np.stack(rew), dtype=torch.float32),
                 "terminated": torch.as_tensor(term), "truncated": torch.as_tensor(trunc)}
@@ -210,6 +264,8 @@ class ForeignMOEnv(ContextualMOEnv):
             a safety cap of 100,000 steps); the env's own truncations count as well.
         objective_names: names of the reward entries (default ``objective_0``, ...).
         env_kwargs: keyword arguments of ``mo_gymnasium.make`` for an id.
+        name: the env's id, named by an error (e.g. a reward of another shape than its spec's,
+            checked on the first :data:`REWARD_CHECK_STEPS` steps of every sub-env).
 
     Example:
         >>> from morl_trl.envs import make_env
@@ -223,7 +279,7 @@ class ForeignMOEnv(ContextualMOEnv):
 
     def __init__(self, num_envs: int = 1, context=None, device="cpu", seed=None, context_sampler=None, *,
                  source, max_episode_steps: int | None = None, objective_names: Sequence[str] | None = None,
-                 env_kwargs: dict | None = None, allow_extrapolation: bool = False):
+                 env_kwargs: dict | None = None, allow_extrapolation: bool = False, name: str | None = None):
         from morl_trl.envs.base import check_num_envs
 
         num_envs = check_num_envs(num_envs)
@@ -232,7 +288,8 @@ class ForeignMOEnv(ContextualMOEnv):
                 raise ValueError(f"{source!r} is not a Gymnasium / MO-Gymnasium id")
             batch = _GymBatch(source, num_envs, dict(env_kwargs or {}))
         else:
-            batch = _TorchRLBatch(_one_env_factory(source), num_envs)
+            batch = _TorchRLBatch(_one_env_factory(source), num_envs,
+                                  name or getattr(source, "__name__", None) or type(source).__name__)
         self.__dict__["_batch"] = batch  # (before EnvBase's init builds the specs from it)
         self._read_specs(batch.spec_env, objective_names)
         batch.obs_key = self._obs_key
@@ -386,7 +443,7 @@ def _one_env_factory(source) -> Callable[[], EnvBase]:
             if next(copies) == 0:
                 return source
             try:
-                return copy.deepcopy(source)
+                return drop_step_hook(copy.deepcopy(source))  # (the first sub-env's first-steps check: not the copy's)
             except Exception as err:  # (simulators holding handles)
                 raise ValueError(f"the env instance {type(source).__name__} cannot be copied for a further "
                                  f"sub-env ({err}); pass a function that builds one env instead") from None
@@ -463,7 +520,7 @@ def foreign_domain(source, *, name: str | None = None, ref_point: Sequence[float
         if len(ref_point) != len(objective_names) or not all(np.isfinite(ref_point)):
             raise ValueError(f"ref_point {list(ref_point)} must be {len(objective_names)} finite numbers "
                              f"(one per objective of {name}: {list(objective_names)})")
-    kwargs = {"source": source, "objective_names": tuple(objective_names)}
+    kwargs = {"source": source, "objective_names": tuple(objective_names), "name": name}
     if env_kwargs:
         kwargs["env_kwargs"] = env_kwargs
     if max_episode_steps:

@@ -44,7 +44,7 @@ def run_cell(cell: Cell, run_dir: Path) -> dict:
 
     cfg = cell.config(run_dir)
     if (run_dir / "config.json").is_file() and find_checkpoint(run_dir)[0] is not None:
-        return train(cfg, resume=run_dir)
+        return train(cfg, resume=run_dir, trust_code=list(cfg.domain_modules))  # (the grid file names them)
     return train(cfg, overwrite=True)
 
 

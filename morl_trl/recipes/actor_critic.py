@@ -66,6 +66,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
@@ -189,7 +190,7 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:
-        agent.load_state_dict(state["agent"])  # networks, optimizers, the target updater, critic_steps
+        load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the target updater, critic_steps
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
     clip = dict(max_grad_norm=cfg.max_grad_norm)
     alpha_optimizer = optimizers.get("alpha")  # (a learned temperature)

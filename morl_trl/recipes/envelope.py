@@ -66,6 +66,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
@@ -131,7 +132,7 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:
-        agent.load_state_dict(state["agent"])
+        load_agent_state(agent, state, run.resume_from, cfg.algo)
         schedules(agent, run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
 

@@ -78,6 +78,7 @@ from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, 
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     evaluation_contexts,
@@ -463,7 +464,7 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:  # (the model buffer is not checkpointed: GPI-PD refills it at its next rollout)
-        agent.load_state_dict(state["agent"])  # networks, optimizers, the linear support, w, M, the iteration
+        load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the linear support, w, M, the iteration
         schedules(agent, run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
 

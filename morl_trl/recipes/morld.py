@@ -107,6 +107,7 @@ from morl_trl.recipes.agent import (
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import MemberAdam, fused_choice
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
@@ -833,7 +834,7 @@ def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:
-        agent.load_state_dict(state["agent"])  # population, optimizers, archive, the turn and the counters
+        load_agent_state(agent, state, run.resume_from, cfg.algo)  # population, optimizers, archive, the turn and the counters
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
 

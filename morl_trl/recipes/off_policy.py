@@ -30,6 +30,7 @@ import torch
 
 from morl_trl._torchrl_compat import reset_collector
 from morl_trl.envs import make_env
+from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.actor_critic import train_actor_critic
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.algorithms import build_agent, build_training_env
@@ -40,6 +41,7 @@ from morl_trl.recipes.morld import train_morld
 from morl_trl.recipes.pcn import train_pcn
 from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
     load_reference,
@@ -94,7 +96,7 @@ def _seed_everything(seed: int) -> None:
 
 
 def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False,
-          trust_pickle: bool = False) -> dict:
+          trust_pickle: bool = False, trust_code: bool | list[str] = False) -> dict:
     """Run (or resume) a training run; returns the last evaluation summary
     (:func:`morl_trl.train` returns the run directory, summary, config and the trained policy).
 
@@ -114,11 +116,11 @@ def train(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, o
         >>> cfg = resolve_config("envelope", "MOLavaGridDR-v0", quick=True, frames=2_000)  # doctest: +SKIP
         >>> summary = train(cfg)                                                            # doctest: +SKIP
     """
-    return run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle)[0]
+    return run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle, trust_code=trust_code)[0]
 
 
 def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = None,
-                 overwrite: bool = False, trust_pickle: bool = False,
+                 overwrite: bool = False, trust_pickle: bool = False, trust_code: bool | list[str] = False,
                  echo_report: bool = True) -> tuple[dict, Agent | None, Path, TrainConfig]:
     """:func:`train`, returning ``(summary, agent, run_dir, config)``: the trained :class:`Agent`
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
@@ -130,14 +132,16 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     else:
         lock = None
     try:
-        return _run_training(cfg, resume, overwrite, trust_pickle, lock, echo_report)
+        return _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code, echo_report)
     finally:
         if lock is not None:
             lock.release()
 
 
-def _run_training(cfg, resume, overwrite, trust_pickle, lock, echo_report=True):
+def _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code=False, echo_report=True):
     run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load, resume_config=resume_config)
+    if resume is not None:
+        check_trusted(run.cfg.domain_modules, trust_code, source=repr(str(Path(resume) / "config.json")))
     run.trust_pickle = trust_pickle
     run.echo_report = echo_report
     cfg = run.cfg
@@ -168,7 +172,7 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
     buffer = make_replay_buffer(cfg, device)
     state = run.restore(buffer, map_location=device, env=env)  # (a resumed run: its checkpoint)
     if state is not None:
-        agent.load_state_dict(state["agent"])
+        load_agent_state(agent, state, run.resume_from, cfg.algo)
         agent.on_frames(run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
@@ -194,7 +198,8 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,
-                 video: bool = False, video_weight=None, video_format: str = "auto", trust_pickle: bool = False) -> dict:
+                 video: bool = False, video_weight=None, video_format: str = "auto", trust_pickle: bool = False,
+                 trust_code: bool | list[str] = False) -> dict:
     """Re-evaluate the latest checkpoint of a run on its domain's evaluation suite.
 
     With ``video``, also record one episode per evaluation context with ``video_weight``
@@ -206,6 +211,7 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json)")
     cfg = TrainConfig.load(run_dir / "config.json")
+    check_trusted(cfg.domain_modules, trust_code, source=repr(str(run_dir / "config.json")))
     if reference_dir is not None:
         cfg.reference_dir = reference_dir
     if weights is not None:
@@ -216,14 +222,15 @@ def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weigh
         print(f"warning: skipped damaged checkpoint {path.name}: {why}", flush=True)
     if ckpt is None:
         raise ValueError(f"{str(run_dir)!r} has no intact checkpoint to evaluate")
-    state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle)  # (refused before any write)
+    state = load_checkpoint(ckpt, map_location=cfg.device, trust_pickle=trust_pickle,  # (refused before any write)
+                            keys={"agent": dict})
     check_writable(run_dir)
     _set_threads(cfg)
     _seed_everything(cfg.seed)
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
     _, agent, reference, evaluator = build(cfg, device)
-    agent.load_state_dict(state["agent"])
+    load_agent_state(agent, state, ckpt, cfg.algo)
     frames = checkpoint_frames(ckpt)
     if video and video_weight is not None:  # (checked before anything is written)
         k = len(spec.objective_names)

@@ -12,6 +12,8 @@ Example:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import torch
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
@@ -19,12 +21,14 @@ from torchrl.envs.utils import ExplorationType
 
 from morl_trl._torchrl_compat import collector_state
 from morl_trl.data import RunningMaxPrioritizedSampler, prioritized_sampler
+from morl_trl.runs.checkpoint import DamagedCheckpointError
+from morl_trl.runs.plain import first_line
 from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
 from morl_trl.evaluation import MultiContextEvaluator
 from morl_trl.runs.env_state import env_state
 from morl_trl.transforms import compose_policy_env, compose_training_env
 
-__all__ = ["run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
+__all__ = ["load_agent_state", "run_domain", "run_discount", "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator",
            "RecipeCollector",
            "evaluation_contexts", "policy_env_factory", "load_reference", "no_reference_note", "start_notes",
            "check_buffer_memory", "checkpoint_snapshot"]
@@ -241,3 +245,35 @@ def checkpoint_snapshot(agent, env, collector, device: torch.device):
     """
     return lambda: dict(agent=agent.state_dict(), env=env_state(env), **collector_state(collector),
                         device=str(device))
+
+
+#: the errors ``load_state_dict`` raises for a state of another layout (keys, types, shapes, batch sizes)
+LAYOUT_ERRORS = (KeyError, TypeError, AttributeError, RuntimeError, IndexError, ValueError)
+
+
+def load_agent_state(agent, state: dict, source: Path, algo: str, *, todo: str | None = None) -> None:
+    """``agent.load_state_dict(state["agent"])``, or one line naming ``source`` (a checkpoint or an
+    export) and what is wrong when ``state`` is not a ``algo`` agent of this config: a config whose
+    ``algo`` was changed (the state records the config it was written with), or a state of
+    another layout (:class:`~morl_trl.runs.checkpoint.DamagedCheckpointError`, never a traceback
+    or a TensorDict's repr)."""
+    source = Path(source)
+    if todo is None:
+        todo = (f"move {source.name} out of {str(source.parent)!r} to use the previous checkpoint" if source.is_dir()
+                else "export the policy again")
+    written = state.get("config") if isinstance(state, dict) else None
+    written = written.get("algo") if isinstance(written, dict) else None
+    if isinstance(written, str) and written != algo:
+        where = source.parent.parent / "config.json" if source.is_dir() else source
+        raise DamagedCheckpointError(
+            f"{str(where)!r} says algo {algo!r}, but {str(source)!r} was written by a {written!r} run: the config was "
+            f"changed; set algo back to {written!r}")
+    if not isinstance(state.get("agent"), dict):
+        what = "no agent" if "agent" not in state else f"an agent that is a {type(state['agent']).__name__}"
+        raise DamagedCheckpointError(f"{str(source)!r} holds {what}, not the state of a {algo} agent: it was changed "
+                                     f"or belongs to another run; {todo}")
+    try:
+        agent.load_state_dict(state["agent"])
+    except LAYOUT_ERRORS as err:
+        raise DamagedCheckpointError(f"{str(source)!r} does not hold a {algo} agent of this run's config "
+                                     f"({first_line(err)}): it was changed or belongs to another run; {todo}") from None

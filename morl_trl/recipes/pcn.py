@@ -64,6 +64,7 @@ from morl_trl.recipes.agent import Agent, action_spec, apply_updates, is_discret
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     load_reference,
     make_collector,
@@ -364,7 +365,7 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
     # PCN has no transition buffer), the collector
     state = run.restore(None, map_location=device, env=env)
     if state is not None:
-        agent.load_state_dict(state["agent"])
+        load_agent_state(agent, state, run.resume_from, cfg.algo)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
 
     def update() -> TensorDictBase:

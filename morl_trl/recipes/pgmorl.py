@@ -96,6 +96,7 @@ from morl_trl.recipes.pgmorl_evolution import (
     select_tasks,
 )
 from morl_trl.recipes.parts import (
+    load_agent_state,
     checkpoint_snapshot,
     load_reference,
     make_collector,
@@ -532,7 +533,7 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     # every member collects, one member's frames are counted)
     state = run.restore(None, map_location=device, env=env)
     if state is not None:
-        agent.load_state_dict(state["agent"])
+        load_agent_state(agent, state, run.resume_from, cfg.algo)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=agent.frames_to_collect(run.frames))
     agent.before_batch()  # each member's sub-envs re-seeded for the first iteration's reset (the authors' seed)

@@ -20,6 +20,7 @@ Example:
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,13 +32,14 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.envs import domain_of, make_env as _make_env
+from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.config import TrainConfig, resolve_config
 from morl_trl.recipes.algorithms import build_agent, build_training_env
 from morl_trl.recipes.off_policy import run_training
-from morl_trl.recipes.parts import run_discount, run_domain
+from morl_trl.recipes.parts import load_agent_state, run_discount, run_domain
 from morl_trl.runs.atomic import atomic_write
-from morl_trl.runs.checkpoint import checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
-from morl_trl.runs.plain import load_plain, save_plain
+from morl_trl.runs.checkpoint import DamagedCheckpointError, checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
+from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain
 from morl_trl.runs.run_dir import check_writable
 from morl_trl.transforms import PreferenceConditioning, compose_policy_env
 
@@ -175,6 +177,9 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
         if ckpt is None:
             what = "; ".join(f"{p.name}: {why}" for p, why in skipped) or "there is none"
             raise ValueError(f"{str(run_dir)!r} has no intact checkpoint ({what})")
+        for path, why in skipped:  # (said, as evaluate and resume say it)
+            warnings.warn(f"skipped damaged checkpoint {path.name} of {str(run_dir)!r}: {why}; using {ckpt.name}",
+                          stacklevel=3)
         return ckpt
     if isinstance(checkpoint, int) and not isinstance(checkpoint, bool):
         path = run_dir / "checkpoints" / f"frames_{checkpoint:012d}"
@@ -190,19 +195,37 @@ def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
     return path
 
 
-def _load_export(path: Path, device: torch.device) -> TrainedPolicy:
-    data = load_plain(path, map_location=device)
+def _load_export(path: Path, device: torch.device, trust_code=False) -> TrainedPolicy:
+    try:
+        data = load_plain(path, map_location=device)
+    except UnsafeFileError as err:
+        raise type(err)(f"{err}; export the policy again (morl-trl export RUN --out FILE)") from None
     if not isinstance(data, dict) or data.get(EXPORT_FORMAT) != 1:
         raise ValueError(f"{str(path)!r} is not a policy export (written by TrainedPolicy.save / morl-trl export)")
+    if not isinstance(data.get("config"), str):
+        raise DamagedCheckpointError(f"{str(path)!r} holds no config (the policy export was changed): export the "
+                                     f"policy again")
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:  # (TrainConfig.load: the one reader of saved configs)
         (Path(tmp) / "config.json").write_text(data["config"])
-        cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
+        try:
+            cfg = TrainConfig.load(Path(tmp) / "config.json").replace(device=str(device))
+        except ValueError as err:
+            raise ValueError(str(err).replace(repr(str(Path(tmp) / "config.json")), f"the config in {str(path)!r}")
+                             ) from None
+    check_trusted(cfg.domain_modules, trust_code, source=f"the policy export {str(path)!r}")
     agent = _build_agent(cfg, device)
-    state = data["agent"]
+    state = data.get("agent")
+    if not isinstance(state, dict):
+        raise DamagedCheckpointError(f"{str(path)!r} holds no agent state (the policy export was changed): export "
+                                     f"the policy again")
     state["optimizers"] = {k: o.state_dict() for k, o in agent.optimizers.items()}
-    agent.load_state_dict(state)
+    load_agent_state(agent, {"agent": state}, path, cfg.algo)
+    if data.get("exploration_type") not in ExplorationType.__members__:
+        raise DamagedCheckpointError(f"{str(path)!r}: exploration_type is {data.get('exploration_type')!r}; valid: one "
+                                     f"of {list(ExplorationType.__members__)} (the policy export was changed): export "
+                                     f"the policy again")
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=path, device=device, agent=agent,
                            exploration_type=ExplorationType[data["exploration_type"]], frames=data["frames"])
     return policy.eval()
@@ -218,18 +241,19 @@ def _build_agent(cfg: TrainConfig, device: torch.device):
 
 
 def export_policy(run_dir: str | Path, out: str | Path, checkpoint: str | Path | int | None = None, *,
-                  trust_pickle: bool = False) -> Path:
+                  trust_pickle: bool = False, trust_code: bool | list[str] = False) -> Path:
     """``morl-trl export RUN --out FILE``: :func:`load_policy` then :meth:`TrainedPolicy.save`.
     Reads the newest complete checkpoint (also while the run trains) and writes only ``out``."""
     out = Path(out)
     if out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a folder; give a file name, e.g. {str(out / 'policy.pt')!r}")
     check_writable(out.parent, "the export's folder")
-    return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle).save(out)
+    return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle, trust_code=trust_code).save(out)
 
 
 def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
-                device: str | torch.device = "cpu", *, trust_pickle: bool = False) -> TrainedPolicy:
+                device: str | torch.device = "cpu", *, trust_pickle: bool = False,
+                trust_code: bool | list[str] = False) -> TrainedPolicy:
     """The trained eval policy of a run directory, or of a policy export (see the module docstring).
 
     Args:
@@ -240,24 +264,30 @@ def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
         device: where the policy's parameters go.
         trust_pickle: load a checkpoint of the old pickled format (it can run code stored in
             it: only for a run you trust; ``morl-trl convert-run`` converts it once instead).
+        trust_code: import the domain modules the run's config names (``True``: all; a list:
+            these); without it only modules already imported or registered by an installed
+            package's entry point are (:mod:`morl_trl.envs.trust`).
 
     Raises:
         ValueError: ``run_dir`` is not a run directory, or has no intact checkpoint (naming it).
+        UntrustedCodeError: the config names a domain module not trusted (nothing imported).
     """
     run_dir = Path(run_dir)
     if run_dir.is_file():
         if checkpoint is not None:
             raise ValueError(f"{str(run_dir)!r} is a policy export: it holds one policy, no checkpoints to choose")
-        return _load_export(run_dir, torch.device(device))
+        return _load_export(run_dir, torch.device(device), trust_code)
     if not (run_dir / "config.json").is_file():
         raise ValueError(f"{str(run_dir)!r} is not a run directory (no config.json) nor a policy export")
     cfg = TrainConfig.load(run_dir / "config.json")
+    check_trusted(cfg.domain_modules, trust_code, source=repr(str(run_dir / "config.json")))
     ckpt = _checkpoint_path(run_dir, checkpoint)
     device = torch.device(device)
     cfg = cfg.replace(device=str(device))
-    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle)  # (refused before any build)
+    state = load_checkpoint(ckpt, map_location=device, trust_pickle=trust_pickle,  # (refused before any build)
+                            keys={"agent": dict})
     agent = _build_agent(cfg, device)
-    agent.load_state_dict(state["agent"])  # (the whole agent: some keep more than the loss, e.g. weights)
+    load_agent_state(agent, state, ckpt, cfg.algo)  # (the whole agent: some keep more than the loss, e.g. weights)
     policy = TrainedPolicy(agent.eval_policy, config=cfg, checkpoint=ckpt, exploration_type=agent.eval_exploration,
                            device=device, agent=agent)
     return policy.eval()
@@ -292,7 +322,8 @@ class TrainResult:
 
 def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = None, *, quick: bool = False,
                  config_file: str | Path | None = None, resume: str | Path | None = None, overwrite: bool = False,
-                 trust_pickle: bool = False, env=None, env_name: str | None = None, **overrides: Any) -> TrainResult:
+                 trust_pickle: bool = False, trust_code: bool | list[str] = False, env=None, env_name: str | None = None,
+                 **overrides: Any) -> TrainResult:
     """Train (the run ``morl-trl train`` makes) and return a :class:`TrainResult`.
 
     The run writes its directory and ``report.md`` as ``morl-trl train`` does and prints its
@@ -336,6 +367,7 @@ def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = Non
             raise ValueError("train_policy(algo, env_id, ...): env_id is missing")
         cfg = resolve_config(algo, env_id, quick=quick, config_file=config_file, **overrides)
     summary, agent, run_dir, cfg = run_training(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle,
+                                                trust_code=trust_code,
                                                 echo_report=False)  # (one line: the report is in the run dir)
-    policy = load_policy(run_dir, device=cfg.device)
+    policy = load_policy(run_dir, device=cfg.device, trust_code=trust_code)
     return TrainResult(run_dir=Path(run_dir), summary=summary, policy=policy, config=cfg, agent=agent)

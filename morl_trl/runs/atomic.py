@@ -19,6 +19,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
+from morl_trl.runs.nofollow import check_no_links, open_nofollow
+
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write", "fsync_dir", "fsync_tree", "DiskFullError",
            "disk_error"]
 
@@ -61,13 +63,18 @@ def fsync_tree(root: str | Path) -> None:
     fsync_dir(root)
 
 
-def atomic_write(path: str | Path, write: Callable[[Any], None], *, mode: str = "wb", **open_kwargs: Any) -> None:
+def atomic_write(path: str | Path, write: Callable[[Any], None], *, mode: str = "wb", root: str | Path | None = None,
+                 **open_kwargs: Any) -> None:
     """Write ``path`` whole or not at all: ``write(fh)`` fills a temporary file beside it, which
-    is fsynced and renamed over ``path``, then the directory is fsynced."""
+    is fsynced and renamed over ``path``, then the directory is fsynced. A symlink at ``path``, at
+    the temporary file or between ``root`` and ``path`` is refused (:mod:`morl_trl.runs.nofollow`)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    check_no_links(path, root)
+    if os.path.lexists(tmp):  # (a stale one, or a planted link: the link goes, its target stays)
+        os.unlink(tmp)
     try:
-        with tmp.open(mode, **open_kwargs) as fh:
+        with open_nofollow(tmp, "x", binary="b" in mode, **open_kwargs) as fh:
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
@@ -81,11 +88,11 @@ def atomic_write(path: str | Path, write: Callable[[Any], None], *, mode: str = 
     fsync_dir(path.parent)
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+def atomic_write_bytes(path: str | Path, data: bytes, *, root: str | Path | None = None) -> None:
     """``path.write_bytes(data)``, atomically (see :func:`atomic_write`)."""
-    atomic_write(path, lambda fh: fh.write(data))
+    atomic_write(path, lambda fh: fh.write(data), root=root)
 
 
-def atomic_write_text(path: str | Path, text: str) -> None:
+def atomic_write_text(path: str | Path, text: str, *, root: str | Path | None = None) -> None:
     """``path.write_text(text)``, atomically (see :func:`atomic_write`)."""
-    atomic_write_bytes(path, text.encode())
+    atomic_write_bytes(path, text.encode(), root=root)

@@ -52,15 +52,21 @@ import numpy as np
 import torch
 
 from morl_trl.runs.atomic import atomic_write_text, disk_error, fsync_dir, fsync_tree
-from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain
+from morl_trl.runs.nofollow import check_no_links, open_nofollow
+from morl_trl.runs.plain import UnsafeFileError, first_line, load_plain, save_plain
 
 __all__ = ["save_checkpoint", "load_checkpoint", "latest_checkpoint", "find_checkpoint", "verify_checkpoint",
            "checkpoint_frames", "checkpoint_buffer", "checkpoint_format", "convert_checkpoint", "rng_state",
-           "set_rng_state", "MANIFEST", "FORMAT", "UntrustedCheckpointError"]
+           "set_rng_state", "check_rng_state", "MANIFEST", "FORMAT", "UntrustedCheckpointError", "DamagedCheckpointError", "check_state",
+           "damaged"]
 
 MANIFEST = "manifest.json"
 #: the checkpoint format written now (2: tensors and plain data only; 1: pickled, before 2026-11-26)
 FORMAT = 2
+
+
+class DamagedCheckpointError(ValueError):
+    """A checkpoint whose files match their manifest but do not hold what morl_trl writes (edited, or another run's)."""
 
 
 class UntrustedCheckpointError(UnsafeFileError):
@@ -73,6 +79,19 @@ def rng_state() -> dict[str, Any]:
     if torch.cuda.is_available():
         state["cuda"] = torch.cuda.get_rng_state_all()
     return state
+
+
+def check_rng_state(path: Path, state: Any) -> None:
+    """:class:`DamagedCheckpointError` unless ``state`` (of checkpoint ``path``) is one :func:`set_rng_state`
+    takes; the generators are left as they were."""
+    now = rng_state()
+    try:
+        set_rng_state(state)
+    except (KeyError, TypeError, AttributeError, RuntimeError, IndexError, ValueError) as err:
+        raise damaged(Path(path), f"its random generator states are not what morl_trl writes ({first_line(err)})"
+                      ) from None
+    finally:
+        set_rng_state(now)
 
 
 def set_rng_state(state: dict[str, Any]) -> None:
@@ -127,7 +146,7 @@ def _prune_buffer(ckpt: Path) -> None:
 
 
 def _save_pt(obj: Any, path: Path) -> None:
-    with path.open("wb") as fh:
+    with open_nofollow(path, "x", binary=True) as fh:  # (a new file, in a folder this process just made)
         save_plain(obj, fh)
 
 
@@ -140,13 +159,16 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
     leaves the previous checkpoints as they were and names the checkpoint it could not write."""
     if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
         raise ValueError(f"keep must be an int >= 1, got {keep!r}")
-    root = Path(run_dir) / "checkpoints"
+    run_dir = Path(run_dir)
+    root = run_dir / "checkpoints"
     final = root / f"frames_{frames:012d}"
     tmp = root / f".tmp_frames_{frames:012d}"
+    for path in (final, root / "latest"):  # (checkpoints/, the checkpoint itself, latest: never a symlink)
+        check_no_links(path, run_dir)
     try:
         root.mkdir(parents=True, exist_ok=True)
-        for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process
-            shutil.rmtree(stale, ignore_errors=True)
+        for stale in root.glob(".tmp_frames_*"):  # half-written by a killed process (a planted link: only it goes)
+            stale.unlink() if stale.is_symlink() else shutil.rmtree(stale, ignore_errors=True)
         tmp.mkdir()
         _save_pt(state, tmp / "state.pt")
         if replay_buffer is not None:
@@ -163,7 +185,7 @@ def save_checkpoint(run_dir: str | Path, frames: int, state: dict[str, Any], rep
         shutil.rmtree(final, ignore_errors=True)
         os.replace(tmp, final)
         fsync_dir(root)
-        atomic_write_text(root / "latest", final.name)
+        atomic_write_text(root / "latest", final.name, root=run_dir)
     except OSError as err:
         shutil.rmtree(tmp, ignore_errors=True)
         raise disk_error(err, f"checkpoint {final}") from err
@@ -238,15 +260,29 @@ def verify_checkpoint(path: str | Path, only: tuple[str, ...] | None = None) -> 
     return None
 
 
+def _latest_problem(root: Path, found: list[Path]) -> str | None:
+    """What is wrong with ``checkpoints/latest`` (``None``: nothing, or there is no such file)."""
+    latest = root / "latest"
+    if not latest.is_file():
+        return None
+    try:
+        text = latest.read_bytes().decode().strip()
+    except UnicodeDecodeError:
+        return "is not UTF-8 text (garbled)"
+    except OSError as err:
+        return f"cannot be read ({err.strerror or err})"
+    if root / text not in found:
+        return f"names {text[:60]!r}, which is not a checkpoint of this run"
+    return None
+
+
 def _candidates(run_dir: Path) -> list[Path]:
     root = run_dir / "checkpoints"
     found = sorted((p for p in root.glob("frames_*") if p.is_dir()), reverse=True)
-    latest = root / "latest"
-    if latest.is_file():
-        named = root / latest.read_text().strip()
-        if named in found:  # the one `latest` names first, then the others newest first
-            found.remove(named)
-            found.insert(0, named)
+    if _latest_problem(root, found) is None and (root / "latest").is_file():
+        named = root / (root / "latest").read_text().strip()
+        found.remove(named)  # the one `latest` names first, then the others newest first
+        found.insert(0, named)
     return found
 
 
@@ -261,6 +297,10 @@ def find_checkpoint(run_dir: str | Path, only: tuple[str, ...] | None = None,
     for _ in range(5):
         skipped = []
         candidates = _candidates(run_dir)
+        latest = _latest_problem(run_dir / "checkpoints", candidates)
+        if latest is not None:  # (said, then the newest intact checkpoint is used)
+            skipped.append((run_dir / "checkpoints" / "latest", f"{latest}; using the newest intact checkpoint "
+                                                                 f"instead"))
         for cand in candidates:
             problem = verify_checkpoint(cand, only)
             if problem is None:
@@ -284,15 +324,41 @@ def _refuse_pickle(path: Path) -> UntrustedCheckpointError:
         f"`morl-trl convert-run {run}` (or pass --trust-pickle / trust_pickle=True)")
 
 
-def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None, *, trust_pickle: bool = False
-                    ) -> dict[str, Any]:
+def damaged(path: Path, problem: str) -> DamagedCheckpointError:
+    """The one-line error for checkpoint ``path`` whose files are not what morl_trl wrote."""
+    return DamagedCheckpointError(
+        f"checkpoint {str(path)!r} is damaged: {problem}. Move it out of {str(path.parent)!r} to use the previous "
+        f"checkpoint, or start the run again")
+
+
+#: what :class:`~morl_trl.runs.Run` adds to every checkpoint's state.pt (besides the recipe's own state), and its type
+RUN_STATE = {"frames": int, "updates": int, "next_eval": int, "next_ckpt": int, "last_eval": int, "rng": dict}
+
+
+def check_state(path: Path, state: Any, keys: dict[str, type] = RUN_STATE) -> dict[str, Any]:
+    """``state`` (read from ``path/state.pt``) if it has ``keys`` of their types, else :class:`DamagedCheckpointError`."""
+    if not isinstance(state, dict):
+        raise damaged(path, f"state.pt holds a {type(state).__name__}, not the dict of a checkpoint")
+    missing = [k for k in keys if k not in state]
+    if missing:
+        raise damaged(path, f"state.pt has no {missing} (it holds {sorted(map(str, state))[:8]})")
+    wrong = [f"{k} is a {type(state[k]).__name__}, not a {t.__name__}" for k, t in keys.items()
+             if not isinstance(state[k], t) or isinstance(state[k], bool)]
+    if wrong:
+        raise damaged(path, f"in state.pt, {'; '.join(wrong)}")
+    return state
+
+
+def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None, *, trust_pickle: bool = False,
+                    keys: dict[str, type] | None = None) -> dict[str, Any]:
     """Read ``state.pt`` (and refill ``replay_buffer`` in place, if given and the checkpoint
     holds one: see :func:`checkpoint_buffer`) of a verified checkpoint, with
     ``torch.load(weights_only=True)``: a file that is not tensors and plain data is refused
     (:class:`~morl_trl.runs.plain.UnsafeFileError`), nothing in it is run.
 
     A checkpoint of the old pickled format is refused (:class:`UntrustedCheckpointError`)
-    unless ``trust_pickle=True``, which loads it with a warning."""
+    unless ``trust_pickle=True``, which loads it with a warning. ``keys``: what ``state.pt`` must
+    hold (e.g. :data:`RUN_STATE`; :func:`check_state`), else :class:`DamagedCheckpointError`."""
     path = Path(path)
     if checkpoint_format(path) < 2:
         if not trust_pickle:
@@ -303,9 +369,20 @@ def load_checkpoint(path: str | Path, replay_buffer=None, map_location=None, *, 
         if replay_buffer is not None and checkpoint_buffer(path) == "saved":  # (verified: present as written)
             replay_buffer.loads(path / "buffer")
         return state
-    state = load_plain(path / "state.pt", map_location=map_location)
-    if replay_buffer is not None and checkpoint_buffer(path) == "saved":
-        replay_buffer.load_state_dict(load_plain(path / "buffer.pt", map_location=map_location))
+    try:
+        state = load_plain(path / "state.pt", map_location=map_location)
+        if keys is not None:
+            state = check_state(path, state, keys)
+        if replay_buffer is not None and checkpoint_buffer(path) == "saved":
+            try:
+                replay_buffer.load_state_dict(load_plain(path / "buffer.pt", map_location=map_location))
+            except (KeyError, TypeError, AttributeError, RuntimeError, IndexError) as err:
+                raise damaged(path, f"buffer.pt does not fit this run's replay buffer ({first_line(err)})") from None
+    except DamagedCheckpointError:
+        raise
+    except UnsafeFileError as err:
+        raise type(err)(f"{err}. Move checkpoint {str(path)!r} out of {str(path.parent)!r} to use the previous "
+                        f"checkpoint") from None
     return state
 
 

@@ -25,6 +25,8 @@ import os
 import time
 from pathlib import Path
 
+from morl_trl.runs.nofollow import check_no_links, refuse_links
+
 try:
     import fcntl
 except ImportError:  # (Windows: no advisory locks; runs are then unguarded)
@@ -54,20 +56,28 @@ class RunLock:
     Args:
         run_dir: the run directory (must exist).
         what: what the holder does (``"training"``, ``"evaluating"``, ...), shown to a second writer.
+        check_links: refuse a run directory holding a symlink (:func:`~morl_trl.runs.nofollow.refuse_links`).
     """
 
-    def __init__(self, run_dir: str | Path, what: str) -> None:
+    def __init__(self, run_dir: str | Path, what: str, *, check_links: bool = True) -> None:
         self.run_dir = Path(run_dir)
         self.what = what
+        self.check_links = check_links
         self._fd: int | None = None
 
     def acquire(self) -> "RunLock":
-        if self._fd is not None or fcntl is None:
+        if self._fd is not None:
+            return self
+        if self.check_links:  # every writer locks first: a run holding a symlink is refused before any write
+            refuse_links(self.run_dir)
+        if fcntl is None:
             return self
         path = self.run_dir / LOCK_FILE
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
         except OSError as err:
+            if path.is_symlink():
+                check_no_links(path, self.run_dir)  # (SymlinkRefusedError naming it)
             raise OSError(err.errno, f"cannot lock run directory {str(self.run_dir)!r}: {err.strerror}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

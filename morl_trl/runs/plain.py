@@ -20,13 +20,17 @@ Example:
 from __future__ import annotations
 
 import collections
+import errno
+import os
+import zipfile
 from typing import Any
 
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 
-__all__ = ["to_plain", "from_plain", "save_plain", "load_plain", "UnsafeFileError"]
+__all__ = ["to_plain", "from_plain", "save_plain", "load_plain", "UnsafeFileError", "first_line", "check_inflation",
+           "INFLATION_SLACK"]
 
 _MARK = "__morl_trl_plain__"
 _ATOMS = (type(None), bool, int, float, complex, str, bytes, torch.Size, torch.dtype, torch.device)
@@ -90,18 +94,85 @@ def from_plain(obj: Any) -> Any:
     return obj
 
 
+#: what torch's zip writer says when a write under it fails (it turns ``OSError(ENOSPC)`` into a ``RuntimeError``)
+_ZIP_WRITE_FAILED = ("unexpected pos", "PytorchStreamWriter failed", "inline_container")
+
+
+def _write_failure(file, err: RuntimeError) -> OSError:
+    """torch's zip-writer ``RuntimeError`` as the ``OSError`` it hides: ENOSPC when the file's disk is
+    (nearly) full, else EIO."""
+    path = file if isinstance(file, (str, os.PathLike)) else getattr(file, "name", None)  # (an fd for os.fdopen's)
+    code = errno.EIO
+    try:
+        st = os.fstatvfs(path) if isinstance(path, int) else os.statvfs(os.path.dirname(os.path.abspath(path)))
+        code = errno.ENOSPC if st.f_bavail * st.f_frsize < 1 << 20 else errno.EIO
+    except (OSError, TypeError):
+        pass
+    return OSError(code, os.strerror(code) if code == errno.ENOSPC else f"{os.strerror(code)} ({first_line(err)})")
+
+
 def save_plain(obj: Any, file) -> None:
-    """``torch.save(to_plain(obj), file)``: readable by :func:`load_plain` without unpickling code."""
-    torch.save(to_plain(obj), file)
+    """``torch.save(to_plain(obj), file)``: readable by :func:`load_plain` without unpickling code.
+    A write that fails under torch's zip writer (a full disk) is an ``OSError`` (``ENOSPC`` when
+    the disk is full), never its ``RuntimeError: [enforce fail at inline_container.cc] ... unexpected pos``."""
+    plain = to_plain(obj)
+    try:
+        torch.save(plain, file)
+    except RuntimeError as err:
+        if not any(s in str(err) for s in _ZIP_WRITE_FAILED):
+            raise
+        raise _write_failure(file, err) from None
+
+
+def first_line(err: BaseException, limit: int = 200) -> str:
+    """The first line of an error's message (its type's name for an empty one), at most ``limit`` characters:
+    what an error about a file shows of torch's (a TensorDict's repr can run to hundreds of lines)."""
+    lines = str(err).strip().splitlines()
+    text = f"{type(err).__name__}: {lines[0]}" if lines else type(err).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: what a file may hold beyond its size on disk (the zip's own headers are counted in that size)
+INFLATION_SLACK = 1 << 20
+
+
+def check_inflation(path: str | os.PathLike) -> None:
+    """:class:`UnsafeFileError` if the ``.pt`` file (a zip) at ``path`` would inflate beyond its own
+    size on disk (+ :data:`INFLATION_SLACK`): :func:`save_plain` stores every entry uncompressed,
+    so a file of ours never does, while a small compressed one can hold gigabytes of zeros. Reads
+    the zip's directory only, before anything is allocated."""
+    size = os.path.getsize(path)
+    try:
+        with zipfile.ZipFile(path) as z:
+            entries = z.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError):
+        return  # (not a zip: torch.load refuses it, naming the file)
+    total = sum(e.file_size for e in entries)
+    if total > size + INFLATION_SLACK:
+        packed = sum(e.compress_type != zipfile.ZIP_STORED for e in entries)
+        raise UnsafeFileError(
+            f"{str(path)!r} would inflate to {total:,} bytes from {size:,} on disk ({packed} compressed entries): a "
+            f"file morl_trl writes holds no more than its own size (+ {INFLATION_SLACK:,} bytes), so it is refused "
+            f"before anything is allocated; it was not written by morl_trl")
 
 
 def load_plain(file, map_location=None) -> Any:
     """Read a file written by :func:`save_plain` with ``torch.load(weights_only=True)``;
-    :class:`UnsafeFileError` if it holds anything else (nothing in it is executed)."""
+    :class:`UnsafeFileError` if it holds anything else (nothing in it is executed), or if it is
+    empty or damaged (the error names the file and what is wrong)."""
+    name = file if isinstance(file, (str, os.PathLike)) else getattr(file, "name", file)  # (the path, not its last part)
+    if isinstance(file, (str, os.PathLike)) and os.path.isfile(file) and os.path.getsize(file) == 0:
+        raise UnsafeFileError(f"{str(name)!r} is empty (0 bytes): it was cut short or emptied, so it holds nothing "
+                              f"to load")
+    if isinstance(file, (str, os.PathLike)) and os.path.isfile(file):
+        check_inflation(file)
     try:
         data = torch.load(file, weights_only=True, map_location=map_location)
     except Exception as err:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, ... for foreign files
-        name = getattr(file, "name", file)
         raise UnsafeFileError(f"{str(name)!r} is not a file of tensors and plain data (refused, nothing in it was "
-                              f"run): {str(err).splitlines()[0]}") from None
-    return from_plain(data)
+                              f"run): {first_line(err)}") from None
+    try:
+        return from_plain(data)
+    except Exception as err:  # noqa: BLE001 - a marked dict of the wrong layout
+        raise UnsafeFileError(f"{str(name)!r} holds tensors and plain data in a layout morl_trl did not write "
+                              f"({first_line(err)})") from None

@@ -47,6 +47,9 @@ from tqdm.auto import tqdm
 
 from morl_trl.runs.estimate import DurationEstimate, hms
 from morl_trl.runs.checkpoint import (
+    RUN_STATE,
+    check_rng_state,
+    damaged,
     checkpoint_buffer,
     checkpoint_frames,
     find_checkpoint,
@@ -55,6 +58,7 @@ from morl_trl.runs.checkpoint import (
     save_checkpoint,
 )
 from morl_trl.runs.interrupt import RunInterrupted
+from morl_trl.runs.plain import first_line
 from morl_trl.runs.lock import RunLock
 from morl_trl.runs.run_dir import NewRunDir, check_new_run_dir
 from morl_trl.runs.run_log import RunLog, check_logger
@@ -210,13 +214,19 @@ class Run:
         checkpoint (:func:`~morl_trl.runs.session.restore_fresh_episodes`) and the session says so."""
         if self.resume_from is None:
             return None
-        state = load_checkpoint(self.resume_from, buffer, map_location=map_location, trust_pickle=self.trust_pickle)
+        state = load_checkpoint(self.resume_from, buffer, map_location=map_location, trust_pickle=self.trust_pickle,
+                                keys=RUN_STATE)
         self.frames, self.updates, self.last_eval = state["frames"], state["updates"], state["last_eval"]
         self.next_eval, self.next_ckpt = state["next_eval"], state["next_ckpt"]
+        check_rng_state(self.resume_from, state["rng"])
         if env is not None:
-            self.exact = state["env"]["simulator"] is not None and state["device"] == str(map_location)
-            if not self.exact:
-                restore_fresh_episodes(env, state, self.cfg.seed + self.frames)
+            try:
+                self.exact = state["env"]["simulator"] is not None and state["device"] == str(map_location)
+                if not self.exact:
+                    restore_fresh_episodes(env, state, self.cfg.seed + self.frames)
+            except (KeyError, TypeError, AttributeError, RuntimeError, IndexError, ValueError) as err:
+                raise damaged(self.resume_from, f"its env state does not fit this run's env ({first_line(err)})"
+                              ) from None
         self.restored = (state, env, map_location)
         return state
 
@@ -366,12 +376,13 @@ class Run:
             self.evaluate(session["evaluator"])
         if self.checkpoint_due():
             self.checkpoint(session["snapshot"](), session["buffer"])
-        if session["interrupt"].requested and self.frames < self.cfg.frames:  # Ctrl-C: checkpoint, say how to resume
+        interrupt = session["interrupt"]
+        if interrupt.requested and self.frames < self.cfg.frames:  # a signal: checkpoint, say how to resume
             path = self.checkpoint(session["snapshot"](), session["buffer"], interrupted=True)
             msg = f"interrupted at {self.frames:,} frames; checkpointed in {path.name}; resume with: {session['command']}"
-            self.note(msg)
             self.log.report_stop(msg)
-            raise RunInterrupted(msg)
+            self.note(f"stopped by {interrupt.signal_name}: {msg}")  # (the last line of log.txt)
+            raise RunInterrupted(msg, interrupt.signum)
 
     def eval_due(self) -> bool:
         return self.frames >= self.next_eval
@@ -423,7 +434,9 @@ class Run:
             self.log.random_result = evaluator.evaluate("random")
         if self.log.last_result is not None:
             self.log.report(self.summary, fps=self.fps())
-        self.checkpoint(snapshot, buffer, finished=True)
+        path = self.checkpoint(snapshot, buffer, finished=True)
+        self.log.note(f"finished: {self.frames:,} frames, {self.updates:,} updates; the final checkpoint is "
+                      f"{path.name}")  # (the last line of log.txt)
         return self.summary
 
     def stop(self, error: str, snapshot: dict, buffer=None) -> Path:
@@ -431,8 +444,10 @@ class Run:
         state, say why in log.txt and report.md; returns the checkpoint's path."""
         path = self.checkpoint(snapshot, buffer, stopped=error)
         reason = f"{error} (at {self.frames:,} frames, after {self.updates} updates)"
-        self.log.note(f"stopped: {reason}; the last good state is checkpointed in {path}")
         if self.log.last_result is not None:
             self.log.report(self.summary, fps=self.fps())
         self.log.report_stop(f"stopped: {reason}; the last good state is checkpointed in {path.name}")
+        command = (self._session or {}).get("command")
+        self.log.note(f"stopped: {reason}; the last good state is checkpointed in {path}"
+                      + (f"; once the cause is fixed, resume with: {command}" if command else ""))
         return path

@@ -90,12 +90,14 @@ class NewRunDir:
             probe = probe.parent
         parent.mkdir(parents=True, exist_ok=True)
         staging = parent / f".{run_dir.name}.starting-{os.getpid()}"
+        if staging.is_symlink():  # (planted: the link goes, its target stays as it is)
+            staging.unlink()
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir()
         lock = RunLock(staging, "training").acquire()  # (the lock stays with the directory when it is renamed)
         try:
             if run_dir.is_dir() and run_dir_contents(run_dir):  # overwrite (checked above): the old run goes aside
-                self._old_lock = RunLock(run_dir, "being replaced").acquire()  # refused if a process uses it
+                self._old_lock = RunLock(run_dir, "being replaced", check_links=False).acquire()  # (deleted whole)  # refused if a process uses it
                 self._replaced = parent / f".{run_dir.name}.replaced-{os.getpid()}"
                 shutil.rmtree(self._replaced, ignore_errors=True)
                 os.replace(run_dir, self._replaced)

@@ -35,15 +35,17 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from morl_trl.runs.atomic import atomic_write, atomic_write_bytes
+from morl_trl.runs.atomic import atomic_write, atomic_write_bytes, disk_error
+from morl_trl.runs.nofollow import check_no_links, open_nofollow
 
 
 __all__ = ["RunLog", "check_logger"]
 
 
-def _append_rows(path: Path, rows: list[dict]) -> None:
+def _append_rows(path: Path, rows: list[dict], root: Path | None = None) -> None:
     if not rows:
         return
+    check_no_links(path, root)
     path.parent.mkdir(parents=True, exist_ok=True)
     new = not path.exists()
     keys = list(dict.fromkeys(k for r in rows for k in r))
@@ -62,10 +64,13 @@ def _append_rows(path: Path, rows: list[dict]) -> None:
             w.writeheader()
             w.writerows(rows)
 
-        atomic_write(path, write, mode="w", newline="")
+        atomic_write(path, write, mode="w", newline="", root=root)
         return
-    with path.open("a", newline="") as fh:  # appended rows: a line cut by a kill is dropped on resume (truncate)
-        csv.DictWriter(fh, fieldnames=keys).writerows(rows)
+    try:
+        with open_nofollow(path, "a", root=root, newline="") as fh:  # (a line cut by a kill is dropped on resume)
+            csv.DictWriter(fh, fieldnames=keys).writerows(rows)
+    except OSError as err:
+        raise disk_error(err, str(path)) from err
 
 
 def _cut_lines(path: Path, frames: int, *, header: bool) -> int:
@@ -166,7 +171,7 @@ class RunLog:
     # ------------------------------------------------------------------ notes
     def note(self, message: str) -> None:
         line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {message}"
-        with (self.run_dir / "log.txt").open("a") as fh:
+        with open_nofollow(self.run_dir / "log.txt", "a", root=self.run_dir) as fh:
             fh.write(line + "\n")
         tqdm.write(message)  # above a progress bar, never through it
 
@@ -187,7 +192,7 @@ class RunLog:
             if value is not None and math.isfinite(value):
                 row[key] = float(value)
                 self._scalar(f"train/{key}", row[key], frames)
-        _append_rows(self.out_dir / "train" / "losses.csv", [row])
+        _append_rows(self.out_dir / "train" / "losses.csv", [row], self.run_dir)
         self.flush()
 
     def training_episodes(self, frames: int, batch) -> None:
@@ -226,7 +231,7 @@ class RunLog:
         """Append the training episodes held in memory to ``train/episodes.csv``."""
         rows, self._episode_rows = self._episode_rows, []
         self._flushed_at = time.monotonic()
-        _append_rows(self.run_dir / "train" / "episodes.csv", rows)
+        _append_rows(self.run_dir / "train" / "episodes.csv", rows, self.run_dir)
 
     # ------------------------------------------------------------------ evaluation
     def evaluation(self, frames: int, result) -> dict:
@@ -234,10 +239,14 @@ class RunLog:
         self.flush()
         self.last_result = result
         rows = [{"frames": frames, **r} for r in result.metric_rows()]
-        _append_rows(self.out_dir / "eval" / "metrics.csv", rows)
-        _append_rows(self.out_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()])
-        _append_rows(self.out_dir / "eval" / "sorl.csv", [{"frames": frames, **r} for r in result.sorl_rows()])
-        result.write_csv(self.out_dir / "fronts" / f"frames_{frames:012d}.csv", kind="fronts")
+        _append_rows(self.out_dir / "eval" / "metrics.csv", rows, self.run_dir)
+        _append_rows(self.out_dir / "eval" / "episodes.csv", [{"frames": frames, **r} for r in result.to_rows()],
+                     self.run_dir)
+        _append_rows(self.out_dir / "eval" / "sorl.csv", [{"frames": frames, **r} for r in result.sorl_rows()],
+                     self.run_dir)
+        fronts = self.out_dir / "fronts" / f"frames_{frames:012d}.csv"
+        check_no_links(fronts, self.run_dir)
+        result.write_csv(fronts, kind="fronts")
         for name, value in result.summary(prefix=f"{self.tag}_eval").items():
             self._scalar(name, value, frames)
         nhgr = result.aggregate.get("nhgr")
@@ -254,12 +263,15 @@ class RunLog:
         from morl_trl.reporting.report import write_report
 
         self.flush()  # (its training curves read train/episodes.csv)
+        check_no_links(self.out_dir / "report.md", self.run_dir)
+        for p in self.out_dir.glob("*report*"):  # (report.md, report_*.png, report_floors.json and their temporaries)
+            check_no_links(p, self.run_dir)
         return write_report(self, summary, fps)
 
     def report_stop(self, message: str) -> None:
         """Add a line saying why the run stopped early to ``report.md`` (created if missing)."""
         path = self.out_dir / "report.md"
-        with path.open("a") as fh:
+        with open_nofollow(path, "a", root=self.run_dir) as fh:
             fh.write(f"\n**Run stopped early.** {message}\n")
 
     def close(self) -> None:

@@ -65,9 +65,10 @@ from typing import Callable
 
 from morl_trl._torchrl_compat import load_collector_state
 from morl_trl.runs.atomic import DiskFullError, disk_error
-from morl_trl.runs.checkpoint import find_checkpoint, set_rng_state
+from morl_trl.runs.checkpoint import damaged, find_checkpoint, set_rng_state
+from morl_trl.runs.plain import first_line
 from morl_trl.runs.env_state import load_context_sampler_state, load_env_state, transforms_of
-from morl_trl.runs.interrupt import GracefulInterrupt, RunInterrupted
+from morl_trl.runs.interrupt import GracefulInterrupt, RunInterrupted, signal_name
 
 __all__ = ["StopRun", "session", "restore_fresh_episodes", "resume_command", "latest_checkpoint_name"]
 
@@ -110,15 +111,25 @@ def restore_fresh_episodes(env, state: dict, seed: int) -> None:
 def session(run, spec, reference=None, *, evaluator, snapshot: Callable[[], dict], buffer=None, collector=None,
             notes: list[str] = (), resume_command_text: str | None = None):
     """The body of :meth:`Run.session <morl_trl.runs.Run.session>` (see the module docstring)."""
+    interrupt = GracefulInterrupt()  # (its handlers stay until the run has left: a second signal exits at once)
+    with interrupt, _session(run, spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer,
+                             collector=collector, notes=notes, resume_command_text=resume_command_text,
+                             interrupt=interrupt) as out:
+        yield out
+
+
+@contextmanager
+def _session(run, spec, reference=None, *, evaluator, snapshot, buffer, collector, notes, resume_command_text,
+             interrupt):
     cfg = run.cfg
     resumed = run.restored
     state, env, device = resumed if resumed is not None else (None, None, None)
     command = resume_command_text or resume_command(cfg, run.dir)
-    interrupt = GracefulInterrupt()
     started = run.resume_from is not None
+    ended = False
     run._session = dict(evaluator=evaluator, snapshot=snapshot, buffer=buffer, interrupt=interrupt, command=command)
     try:
-        with run.start(spec, reference, notes=notes), interrupt:
+        with run.start(spec, reference, notes=notes):
             if run.resume_from is None:  # a new run: the untrained policy, then a checkpoint to resume from
                 try:
                     run.evaluate(evaluator)
@@ -130,13 +141,18 @@ def session(run, spec, reference=None, *, evaluator, snapshot: Callable[[], dict
                 started = True
             elif state is not None:
                 if env is not None:  # (restore(env=...): the env, and the collector, continue)
-                    _continue_env(run, spec, state, env, collector, device)
+                    try:
+                        _continue_env(run, spec, state, env, collector, device)
+                    except (KeyError, TypeError, AttributeError, RuntimeError, IndexError, ValueError) as err:
+                        raise damaged(run.resume_from, f"its env and collector state does not fit this run's "
+                                                       f"({first_line(err)})") from None
                 set_rng_state(state["rng"])  # last: nothing above draws from the global generators again
             try:
                 yield run  # the recipe's loop
             except StopRun as err:
                 run.updates += getattr(err, "updates_done", 0)
                 path = run.stop(str(err), snapshot(), buffer)
+                ended = True  # (log.txt's last line is written)
                 raise type(err)(f"{err}; the last good state is checkpointed in {path}") from None
             run.finish(evaluator, snapshot(), buffer, random_baseline=bool(getattr(cfg, "eval_random_baseline", False)))
     except RunInterrupted:
@@ -147,22 +163,38 @@ def session(run, spec, reference=None, *, evaluator, snapshot: Callable[[], dict
         reason = err if isinstance(err, DiskFullError) else disk_error(err, "the run's files")
         msg = (f"stopped: {reason.strerror or reason} at {run.frames:,} frames; the last good checkpoint is "
                f"{latest_checkpoint_name(run.dir)}; once the cause is fixed, resume with: {command}")
-        for say in (run.log.note, run.log.report_stop):
+        for say in (run.log.report_stop, run.log.note):  # (log.txt's last line)
             try:
                 say(msg)
             except OSError:
                 pass  # (the disk may still be full)
         raise type(reason)(reason.errno, msg) from None
     except BaseException as err:
-        # a second Ctrl-C (it may surface as another error from where it landed): exit at once
-        if started and (isinstance(err, KeyboardInterrupt) or interrupt.count >= 2):
-            raise KeyboardInterrupt(f"interrupted; the last checkpoint is {latest_checkpoint_name(run.dir)}; "
-                                    f"resume with: {command}") from None
+        if not started or ended or run.log is None:
+            raise
+        last = latest_checkpoint_name(run.dir)
+        # a second signal (it may surface as another error from where it landed): exit at once
+        if isinstance(err, KeyboardInterrupt) or interrupt.count >= 2:
+            signum = getattr(err, "signum", interrupt.signum)
+            msg = f"interrupted; the last checkpoint is {last}; resume with: {command}"
+            _last_line(run, f"stopped by a second {signal_name(signum)}: {msg}")
+            raise RunInterrupted(msg, signum) from None
+        first = (str(err).strip().splitlines() or [""])[0][:300]
+        _last_line(run, f"stopped: {type(err).__name__}: {first} (at {run.frames:,} frames); the last checkpoint is "
+                        f"{last}; once the cause is fixed, resume with: {command}")
         raise
     finally:
         run._session = None
         if collector is not None:
             collector.shutdown()
+
+
+def _last_line(run, message: str) -> None:
+    """The line that ends ``log.txt`` (why the run stopped), if it can still be written."""
+    try:
+        run.log.note(message)
+    except OSError:
+        pass
 
 
 def _continue_env(run, spec, state: dict, env, collector, device) -> None:

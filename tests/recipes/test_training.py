@@ -128,6 +128,11 @@ def test_non_finite_loss_stops_with_a_clear_message_and_a_good_checkpoint(tmp_pa
     assert "stopped: non-finite loss {'loss_qvalue': nan}; the networks were left as they were before this update " \
            "(at 768 frames, after 20 updates)" in log
     assert "**Run stopped early.** stopped: non-finite loss" in (run / "report.md").read_text()
+    last = log.strip().splitlines()[-1].split(" ", 2)[2]  # (log.txt ends with why it stopped, how to resume)
+    assert last.startswith("stopped: non-finite loss {'loss_qvalue': nan}")
+    assert last.endswith(f"(at 768 frames, after 20 updates); the last good state is checkpointed in "
+                         f"{run / 'checkpoints' / 'frames_000000000768'}; once the cause is fixed, resume with: "
+                         f"morl-trl train envelope MOLavaGridDR-v0 --resume {run}")
     ckpt = latest_checkpoint(run)
     assert ckpt.name == "frames_000000000768"  # not the last periodic checkpoint (512): nothing is lost
     state = load_checkpoint(ckpt)

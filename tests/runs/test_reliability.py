@@ -239,7 +239,7 @@ def test_resume_refuses_a_run_without_checkpoints(run, cli):
 # ---------------------------------------------------------------- 5. configs are checked
 @pytest.mark.parametrize("text, message", [
     ('frames = "lots"\n', "config key 'frames' (collector) is 'lots'; valid: an int in [1, inf]"),
-    ("hidden = 64\n", "config key 'hidden' (network) is 64; valid: a non-empty list of positive ints"),
+    ("hidden = 64\n", "config key 'hidden' (network) is 64; valid: a non-empty list of ints in [1, 65,536] (hidden layer widths)"),
     ("eval_interval = 0\n", "config key 'eval_interval' (eval) is 0; valid: an int in [1, inf]"),
 ])
 def test_bad_config_file_values_name_the_key(tmp_path, text, message):

@@ -100,10 +100,19 @@ def _str(optional: bool = False):
     return check
 
 
+#: the widest hidden layer a config may ask for, and the most weights between its hidden layers
+#: (checked before anything is allocated: a config from elsewhere may ask for terabytes)
+MAX_HIDDEN_WIDTH = 65_536
+MAX_HIDDEN_WEIGHTS = 2**28  # (1 GiB of float32 per network)
+
+
 def _hidden(v):
     ok = isinstance(v, tuple) and len(v) > 0 and all(
-        isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v)
-    return None if ok else "a non-empty list of positive ints (hidden layer widths), e.g. [256, 256]"
+        isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_HIDDEN_WIDTH for x in v)
+    if ok and sum(a * b for a, b in zip(v, v[1:])) > MAX_HIDDEN_WEIGHTS:
+        ok = False
+    return None if ok else (f"a non-empty list of ints in [1, {MAX_HIDDEN_WIDTH:,}] (hidden layer widths), e.g. "
+                            f"[256, 256], with at most {MAX_HIDDEN_WEIGHTS:,} weights between consecutive layers")
 
 
 def _floats(v):

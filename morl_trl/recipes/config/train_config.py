@@ -233,7 +233,11 @@ class TrainConfig:
         """A run's ``config.json`` (also one written by an earlier version: see :func:`upgrade_keys`)."""
         path = Path(path)
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_bytes().decode())
+        except UnicodeDecodeError as err:
+            raise ValueError(f"cannot read the config {str(path)!r}: it is not UTF-8 text (byte "
+                             f"{err.object[err.start]:#04x} at position {err.start}): it was damaged or is not a "
+                             f"config; restore it from a copy of the run") from None
         except (OSError, json.JSONDecodeError) as err:
             raise ValueError(f"cannot read the config {str(path)!r}: {err}") from None
         if not isinstance(data, dict):
