@@ -53,8 +53,8 @@ files go to a temporary folder):
     (96, ['frames_000000000000', 'frames_000000000096', 'latest'])
     >>> [line.split(",")[0] for line in (run.dir / "eval" / "metrics.csv").read_text().splitlines()]
     ['frames', '0', '64', '96']
-    >>> [line[20:].split(" (")[0] for line in (run.dir / "log.txt").read_text().splitlines()][1:]  # every evaluation
-    ['[eval @ 0 frames', '[eval @ 64 frames', '[eval @ 96 frames']
+    >>> [line[20:].split(" (")[0] for line in (run.dir / "log.txt").read_text().splitlines()][1:]  # every evaluation, and how it ended
+    ['[eval @ 0 frames', '[eval @ 64 frames', '[eval @ 96 frames', 'finished: 96 frames, 0 updates; the final checkpoint is frames_000000000096']
 """
 
 from __future__ import annotations

@@ -58,7 +58,7 @@ def test_a_run_with_a_gpu_share_trains_on_cuda():
     ({"colour": 1}, r"unknown key\(s\) \['colour'\]"),
     ({"resources": {"gpus": -1}}, "resources.gpus is -1; valid: a number >= 0"),
     ({"overrides": {"lr": 1e-3, "seed": 3}}, r"overrides may not set \['seed'\]"),
-    ({"overrides": {"lrr": 1}}, r"unknown config key\(s\) \['lrr'\]"),
+    ({"overrides": {"lrr": 1}}, r"unknown config key 'lrr' \(did you mean 'lr'\?\)"),
     ({"cell": [{"domain": "MOHopperDR-v5", "overrides": {"lr": 1e-3}}]}, "matches no cell of the grid"),
     ({"block": 5}, r"block is 5; valid: \[\[block\]\] tables, each with algorithms and domains"),
     ({"cell": "x"}, r"cell is 'x'; valid: \[\[cell\]\] tables"),

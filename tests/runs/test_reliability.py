@@ -31,7 +31,10 @@ def cli(capsys, monkeypatch, tmp_path):
 
     def run(*args) -> _Out:
         capsys.readouterr()
-        rc = main([str(a) for a in args])
+        try:
+            rc = main([str(a) for a in args])
+        except SystemExit as stop:  # (argparse's own refusals exit from inside main, as in the console script)
+            rc = stop.code
         out = capsys.readouterr()
         return _Out(rc, out.out, out.err)
 
@@ -250,8 +253,8 @@ def test_bad_config_file_values_name_the_key(tmp_path, text, message):
 
 
 @pytest.mark.parametrize("flag, value, message", [
-    ("--frames", "-100", "config key 'frames' (collector) is -100; valid: an int in [1, inf]"),
-    ("--frames", "0", "config key 'frames' (collector) is 0; valid: an int in [1, inf]"),
+    ("--frames", "-100", "argument --frames: '-100' is not a frame count: give a whole number >= 1, e.g. 3000, 1e5, 100k or 3M"),
+    ("--frames", "0", "argument --frames: '0' is not a frame count: give a whole number >= 1, e.g. 3000, 1e5, 100k or 3M"),
     ("--device", "gpu", "config key 'device' (run) is 'gpu'; valid: a torch device string such as 'cpu', 'cuda'"),
     ("--device", "meta", "config key 'device' (run) is 'meta'; valid: 'cpu' or 'cuda' (training runs on those)"),
     pytest.param("--device", "cuda", "config key 'device' (run) is 'cuda'; valid: 'cpu' (no CUDA device is available",
@@ -260,8 +263,10 @@ def test_bad_config_file_values_name_the_key(tmp_path, text, message):
 def test_bad_flags_exit_2_with_one_line_and_make_no_run_dir(tmp_path, flag, value, message, cli):
     out = cli("train", "envelope", "MOLavaGridDR-v0", flag, value, "--run-dir", tmp_path / "run")
     assert out.returncode == 2
-    assert out.stderr.startswith(f"morl-trl train: error: {message}")
-    assert out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+    *usage, last = out.stderr.splitlines()  # one error line, after argparse's usage where argparse refused it
+    assert last.startswith(f"morl-trl train: error: {message}")
+    assert all(line.startswith(("usage: ", " ")) for line in usage) and (flag == "--frames") == bool(usage)
+    assert "Traceback" not in out.stderr
     assert not (tmp_path / "run").exists()
 
 
