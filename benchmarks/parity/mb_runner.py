@@ -92,7 +92,22 @@ def _policy(case: dict, agent, space):
     if algo == "pgmorl":
         members = agent.archive.individuals or agent.agents
         return _row_act(_nearest(members, lambda m: m.np_weights), space)
+    if algo in ("gpi_ls", "gpi_pd") and not len(getattr(agent, "weight_support", None) or []):  # (set by train())
+        return _row_act(lambda o, w: _untrained_gpi_action(agent, o, w), space)
     return _row_act(lambda o, w: agent.eval(o, w), space)
+
+
+def _untrained_gpi_action(agent, obs, w):
+    """MB's GPI agent before its first iteration: no weight support to take the GPI maximum over, so its
+    Q-networks act greedily for ``w`` (``max_action``: the GPI maximum over the support ``{w}``)."""
+    import torch as th
+
+    for q_net in agent.q_nets:
+        q_net.eval()
+    action = agent.max_action(th.as_tensor(obs).float().to(agent.device), th.as_tensor(w).float().to(agent.device))
+    for q_net in agent.q_nets:
+        q_net.train()
+    return action
 
 
 def evaluate_after_archive_updates(agent, evaluate, eval_every: int) -> None:
@@ -195,7 +210,7 @@ def run(case_name: str, seed: int, out: Path) -> None:
         evaluate_after_archive_updates(agent, evaluate, case["eval_every"])
     else:
         agent = cls(env=env, **kw)
-    if algo in ("envelope", "capql"):  # untrained policies act: the curve starts at frame 0 as ours
+    if algo in ("envelope", "capql", "gpi_ls", "gpi_pd", "morld"):  # untrained policies act: frame 0 as ours
         evaluate(0)
     t, e0 = time.perf_counter(), eval_s[0]
     _call(agent.train, total_timesteps=case["frames"], eval_env=eval_env, ref_point=ref_point,
