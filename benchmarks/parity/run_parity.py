@@ -1,8 +1,8 @@
 """Parity with MORL-Baselines: ours and MB 1.3.0 on the same env, hyperparameters, networks,
 frame budget and evaluation; learning curves, final IQM with bootstrap CIs, frames/s.
 
-    python benchmarks/parity/run_parity.py                       # every runnable case, seeds 0-4
-    python benchmarks/parity/run_parity.py --cases gpi_ls-dst --seeds 0-4 --libs ours,mb
+    python benchmarks/parity/run_parity.py                       # every runnable case, this round's seeds (100-104)
+    python benchmarks/parity/run_parity.py --cases gpi_ls-dst --round 1 --libs ours,mb   # round 1's seeds, 0-4
     python benchmarks/parity/run_parity.py --report-only         # RESULTS.md + PNGs from what is done
     python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only   # MB's venv only (the speed benchmarks' peer)
 
@@ -31,7 +31,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
 from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
-from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, verdict  # noqa: E402
+from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
 #: what MB's modules import of MB_DEPS, by import name (its GPI-LS / GPI-PD: cdd, cvxpy, seaborn at module level)
@@ -308,7 +308,10 @@ def _seeds(text: str) -> list[int]:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", default=",".join(CASES))
-    p.add_argument("--seeds", default="0-4")
+    p.add_argument("--seeds", default=None, help="e.g. 0-4 or 100,101 (default: --round's seeds)")
+    p.add_argument("--round", type=int, default=2,
+                   help="the seed rule's round (verdict.round_seeds, fixed before running, never used for tuning): "
+                        "1 -> seeds 0-4 (issue 29), 2 -> 100-104 (issue 48, the default)")
     p.add_argument("--libs", default="mb,ours")
     p.add_argument("--out", type=Path, default=HERE / "results")
     p.add_argument("--mb-venv", type=Path, default=Path.home() / ".cache" / "morl_trl" / f"mb-{MB_VERSION}")
@@ -329,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.mb_venv_only:
         print(ensure_mb_venv(args.mb_venv))
         return 0
-    seeds, cases = _seeds(args.seeds), args.cases.split(",")
+    seeds, cases = (_seeds(args.seeds) if args.seeds else round_seeds(args.round)), args.cases.split(",")
     unknown = [c for c in cases if c not in CASES]
     if unknown:
         raise SystemExit(f"unknown case(s) {unknown}; runnable: {list(CASES)}; not yet: {PENDING}")
