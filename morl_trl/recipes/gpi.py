@@ -64,14 +64,13 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import domain_of
 from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
 from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
-from morl_trl.objectives.updaters import polyak_
+from morl_trl.objectives.updaters import PeriodicHardUpdate, polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
 from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
                                     num_objectives, obs_shape)
@@ -107,7 +106,8 @@ class GPIAgent(Agent):
     def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
                  exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
                  num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
-        updater = HardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
+        # (a copy at every step() call: the loop calls it once per target_update_period frames)
+        updater = PeriodicHardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
                          device=device, exploration_module=exploration_module)
         self.gpi_policy = eval_policy if gpi_policy is None else gpi_policy
