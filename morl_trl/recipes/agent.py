@@ -114,6 +114,11 @@ class Agent:
         Default: nothing to do (MORL/D's round robin resets at an exchange, PGMORL re-seeds its simulators)."""
         return False
 
+    def after_step(self, buffer) -> None:
+        """Called by the training loop after each batch's ``run.step`` (its evaluation and checkpoint when
+        due), and once when a resumed run's session has restored its state and RNG. Default: nothing (GPI begins its next
+        iteration here, so that an evaluation at an iteration's end acts with the support it trained on)."""
+
     def frames_to_collect(self, frames_done: int) -> int:
         """The frames the collector still has to collect when ``frames_done`` frames (as
         :meth:`frames_of` counts them) are done: ``cfg.frames - frames_done``."""
