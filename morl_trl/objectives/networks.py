@@ -301,9 +301,11 @@ def make_vector_q_network(
     unconditioned discrete MOSAC critic). ``obs_shape=(C, H, W)`` puts a
     :class:`NatureCNN` in front of the MLP.
 
-    Two forms of the Envelope network: ``preference_layer=0, init="default"`` concatenates ``w``
-    at the input with PyTorch's default init (as the public MORL-Baselines ``QNet`` does:
-    ``mlp(obs_dim + k, ...)``); ``preference_layer=1, init="orthogonal"`` concatenates ``w``
+    Forms of the Envelope network: ``preference_layer=0, init="orthogonal"`` concatenates ``w``
+    at the input with orthogonal weights (gain 1) and zero biases, as the public MORL-Baselines 1.3.0
+    ``QNet`` does (``mlp(obs_dim + k, ...)``, then ``self.apply(layer_init)``; the recipe's
+    ``envelope_network="mb"``); ``init="default"`` keeps PyTorch's init (``"input"``);
+    ``preference_layer=1, init="orthogonal"`` concatenates ``w``
     after the first hidden layer with orthogonal weights (gain 1) and zero biases, which is
     what the paper authors' copy of MORL-Baselines does according to the line-by-line
     comparison of their code (the Envelope recipe's default, ``envelope_network="authors"``).

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import torch
 from torch import Tensor
-from torchrl.objectives import SoftUpdate
+from torchrl.objectives import HardUpdate, SoftUpdate
+from torchrl.objectives.utils import TargetNetUpdater
 
 from morl_trl._torchrl_compat import target_updater_params
 
-__all__ = ["PolyakUpdate", "polyak_"]
+__all__ = ["PeriodicHardUpdate", "PolyakUpdate", "polyak_"]
 
 
 def polyak_(targets, sources, tau: float) -> None:
@@ -71,3 +72,43 @@ class PolyakUpdate(SoftUpdate):
                             "before calling step()")
         sources, targets = self.leaves()
         polyak_(targets, sources, 1 - self.eps)
+
+
+class PeriodicHardUpdate(HardUpdate):
+    r"""A hard copy of the online parameters into the target ones on every ``value_network_update_interval``-th
+    :meth:`step`: MORL-Baselines' ``global_step % target_net_update_freq == 0`` with one step per update.
+
+    TorchRL's :class:`~torchrl.objectives.HardUpdate` copies when its counter, which runs
+    ``0, 1, ..., n``, equals ``n``: every ``n + 1`` steps. With ``n = 1`` (a copy per call, as GPI's
+    recipe steps it once per ``target_update_period`` frames) that is every *second* call, which
+    doubled GPI's target period; with ``n = 200`` (Envelope) it was 201 updates (issue 48). Here the
+    counter runs ``0 .. n - 1`` and the copy happens when it wraps. ``counter`` keeps TorchRL's name,
+    so checkpoints carry it as before (a saved counter at or past ``n`` copies at the next step).
+
+    Example:
+        >>> from morl_trl.objectives import GPILoss, GPIQNetwork
+        >>> loss = GPILoss(GPIQNetwork(2, 4, 2, hidden=(8, 8)))
+        >>> updater = PeriodicHardUpdate(loss, value_network_update_interval=2)
+        >>> copied = []
+        >>> for _ in range(4):
+        ...     _ = [p.data.add_(1.0) for p in loss.value_network_params.values(True, True)]
+        ...     updater.step()
+        ...     copied.append(all(torch.equal(a, b) for a, b in zip(loss.value_network_params.values(True, True),
+        ...                                                           loss.target_value_network_params.values(True, True))))
+        >>> copied
+        [False, True, False, True]
+    """
+
+    def __init__(self, loss_module, *, value_network_update_interval: int = 1000) -> None:
+        if int(value_network_update_interval) < 1:
+            raise ValueError(f"value_network_update_interval must be >= 1, got {value_network_update_interval}")
+        super().__init__(loss_module, value_network_update_interval=int(value_network_update_interval))
+
+    def _step(self, p_source: Tensor, p_target: Tensor) -> None:
+        p_target.data.copy_(p_source.data)
+
+    def step(self) -> None:
+        self.counter += 1
+        if self.counter >= self.value_network_update_interval:
+            self.counter = 0
+            TargetNetUpdater.step(self)  # (the initialised check, then _step on every parameter: the copy)

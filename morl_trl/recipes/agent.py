@@ -15,10 +15,10 @@ from torch import nn
 from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
 from torchrl.modules import EGreedyModule
-from torchrl.objectives import HardUpdate
 
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.networks import orthogonal_init_
+from morl_trl.objectives.updaters import PeriodicHardUpdate
 from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation, optimizer_step
 from morl_trl.recipes.state_upgrade import upgrade_agent_state
 
@@ -41,7 +41,7 @@ class Agent:
             greedy / mean action, or sampled actions).
         loss: the :class:`~torchrl.objectives.LossModule`.
         optimizers: name -> optimizer; stepped together after one backward of the summed losses.
-        target_updater: TorchRL ``SoftUpdate`` / ``HardUpdate`` (stepped after every update).
+        target_updater: a ``SoftUpdate`` / :class:`~morl_trl.objectives.updaters.PeriodicHardUpdate` (stepped after every update).
     """
 
     def __init__(self, cfg, loss, explore_policy, eval_policy, optimizers, target_updater,
@@ -113,6 +113,11 @@ class Agent:
         after every batch's :meth:`learn`); ``True``: restart every episode first (``collector.reset()``).
         Default: nothing to do (MORL/D's round robin resets at an exchange, PGMORL re-seeds its simulators)."""
         return False
+
+    def after_step(self, buffer) -> None:
+        """Called by the training loop after each batch's ``run.step`` (its evaluation and checkpoint when
+        due), and once when a resumed run's session has restored its state and RNG. Default: nothing (GPI begins its next
+        iteration here, so that an evaluation at an iteration's end acts with the support it trained on)."""
 
     def frames_to_collect(self, frames_done: int) -> int:
         """The frames the collector still has to collect when ``frames_done`` frames (as
@@ -371,10 +376,12 @@ def eval_exploration(cfg) -> ExplorationType:
 
 
 def target_updater(cfg, loss):
-    """Polyak averaging with ``cfg.tau`` (:class:`~morl_trl.objectives.PolyakUpdate`), else a hard copy every ``cfg.target_update_period`` updates."""
+    """Polyak averaging with ``cfg.tau`` (:class:`~morl_trl.objectives.PolyakUpdate`), else a hard copy every
+    ``cfg.target_update_period`` updates (:class:`~morl_trl.objectives.updaters.PeriodicHardUpdate`: exactly that
+    period; TorchRL's ``HardUpdate`` copies every ``period + 1``)."""
     if cfg.tau is not None:
         return PolyakUpdate(loss, tau=cfg.tau)
-    return HardUpdate(loss, value_network_update_interval=cfg.target_update_period)
+    return PeriodicHardUpdate(loss, value_network_update_interval=cfg.target_update_period)
 
 
 def actor_critic_optimizers(cfg, loss) -> dict:

@@ -18,7 +18,8 @@ sota-implementations:
 
 Faithful to the authors' runs by default (config keys in brackets, ours as options):
 ``w`` concatenated after the first hidden layer with orthogonal init
-(``envelope_network="authors"``; ``"input"``: at the input, PyTorch's init), homotopy
+(``envelope_network="authors"``; ``"mb"``: at the input with orthogonal init, MORL-Baselines 1.3.0's
+``QNet`` and a foreign env's default; ``"input"``: at the input, PyTorch's init), homotopy
 ``lambda`` fixed at ``homotopy_lambda0`` (``homotopy_final=1.0`` anneals it over
 ``homotopy_frames``), PER priorities from the first sampled preference without
 importance weights (``envelope_priority="mean"``, ``per_importance_weights=true``), gradient
@@ -90,11 +91,12 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
     spec = action_spec(env)
     if not is_discrete(spec):
         raise ValueError(f"envelope needs discrete actions; {cfg.env_id} has {type(spec).__name__}: use capql or mosac")
-    authors = cfg.envelope_network == "authors"
+    form = cfg.envelope_network
     qnet = make_vector_q_network(obs_shape(env), spec.space.n, num_objectives(env), num_cells=cfg.hidden,
-                                 # the authors concatenate w after the first hidden layer, or after the CNN
-                                 preference_layer=1 if authors and len(obs_shape(env)) == 1 else 0,
-                                 init="orthogonal" if authors else "default").to(device)
+                                 # the authors concatenate w after the first hidden layer, or after the CNN;
+                                 # MORL-Baselines 1.3.0 ("mb") at the input (after the CNN), both with orthogonal init
+                                 preference_layer=1 if form == "authors" and len(obs_shape(env)) == 1 else 0,
+                                 init="default" if form == "input" else "orthogonal").to(device)
     greedy = TensorDictSequential(qnet, MOQValueModule())
     egreedy = epsilon_greedy(cfg, env)
     anneal = cfg.homotopy_final is not None

@@ -30,7 +30,11 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                      buffer_size=1_000_000, hidden=(256, 256, 256, 256), batch_size=256, init_random_frames=100,
                      gamma=0.99, max_grad_norm=1.0, num_sampled_prefs=4, prioritized=True, per_alpha=0.6,
                      per_importance_weights=False, homotopy_lambda0=0.0, homotopy_final=None,
-                     preference_distribution="gaussian", preference_resample="episode"),
+                     preference_distribution="gaussian", preference_resample="episode",
+                     # its QNet: w at the input, layer_init's orthogonal weights (the paper's domains keep the
+                     # authors' form, w after the first hidden layer, which diverged on deep-sea-treasure at
+                     # these settings: issue 48)
+                     envelope_network="mb"),
     # morl_baselines/multi_policy/gpi_pd/gpi_pd.py: GPIPD.__init__ (GPILS: dyna and gpi_pd off) and
     # GPIPD.train (timesteps_per_iter 10_000, num_eval_episodes_for_front 5)
     **{algo: dict(**_ONE_ENV, **_EVAL, lr=3e-4, eps_start=0.01, eps_end=0.01, tau=None, target_update_period=1000,

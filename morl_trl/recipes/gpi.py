@@ -64,14 +64,13 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.objectives import HardUpdate
 
 from morl_trl.envs import domain_of
 from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
 from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
 from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
-from morl_trl.objectives.updaters import polyak_
+from morl_trl.objectives.updaters import PeriodicHardUpdate, polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
 from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
                                     num_objectives, obs_shape)
@@ -108,7 +107,8 @@ class GPIAgent(Agent):
     def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
                  exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
                  num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
-        updater = HardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
+        # (a copy at every step() call: the loop calls it once per target_update_period frames)
+        updater = PeriodicHardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
                          device=device, exploration_module=exploration_module)
         self.gpi_policy = eval_policy if gpi_policy is None else gpi_policy
@@ -128,6 +128,8 @@ class GPIAgent(Agent):
         self.support: np.ndarray | None = None
         self.iteration = 0
         self.iteration_end = cfg.gpi_iteration_frames
+        #: an iteration ended and the next begins at :meth:`after_step` (after the run's evaluation)
+        self.begin_pending = False
         self.evaluations = 0
         self._front_evaluator = None
         self.frames = 0
@@ -193,6 +195,7 @@ class GPIAgent(Agent):
         self.weight = np.asarray(w, np.float64)
         self.support = unique_weights(ls.get_weight_support() + ls.get_corner_weights(top_k=4) + [self.weight])
         self.iteration += 1
+        self.begin_pending = False
         self._apply_weights()
         if buffer is not None and self.cfg.prioritized and len(buffer) and not self.continuous:  # (discrete only)
             self._reset_priorities(buffer)
@@ -206,11 +209,24 @@ class GPIAgent(Agent):
             td = buffer.storage[index].to(self.device)
             buffer.update_priority(index, self.loss.priorities(td))
 
+    def after_step(self, buffer) -> None:
+        """The next iteration (:meth:`begin_iteration`) once the one that ended has been evaluated: the
+        training loop calls this after ``run.step``, so an evaluation due at an iteration's end acts by GPI
+        over the support ``M`` that iteration trained on, as MORL-Baselines' ``GPIPD.train`` (its evaluation
+        after ``add_solution``, before the next ``next_weight``) and the parity harness's MB side (evaluated
+        inside the env step). Issue 48: evaluated over the next ``M`` (new corner weights not yet trained
+        on), deep-sea-treasure seed 11 read 0.663 at 20k frames where the trained ``M`` gave 0.844. Not after
+        the run's last frame (MB begins no iteration after its last)."""
+        if self.begin_pending and self.frames < self.cfg.frames:
+            self.begin_iteration(buffer)
+
     # ------------------------------------------------------------------ learning
     def learn(self, batch, buffer, frames: int):
         """One batch of :func:`train_gpi`'s loop (store, Dyna, updates, target copy, iteration boundary)
         as one call, for driving an agent batch by batch (unit tests, benchmarks); the recipe writes
         the same steps out, and ``tests/recipes/test_gpi_recipe.py`` holds the two equal."""
+        if self.begin_pending:  # (a caller that does not call after_step: the iteration begins here)
+            self.begin_iteration(buffer)
         prev, self.frames = self.frames, frames
         self.store(buffer, batch)
         losses, n = None, 0
@@ -227,7 +243,7 @@ class GPIAgent(Agent):
             while self.iteration_end <= frames:
                 self.iteration_end += cfg.gpi_iteration_frames
             self.end_iteration()
-            self.begin_iteration(buffer)
+            self.begin_pending = True  # the next iteration begins at after_step (after the evaluation)
         return losses, n
 
     def sample_batch(self, buffer):
@@ -348,6 +364,7 @@ class GPIAgent(Agent):
         state = super().state_dict()
         state.update(linear_support=self.linear_support.state_dict(), weight=self.weight, support=self.support,
                      iteration=self.iteration, iteration_end=self.iteration_end, evaluations=self.evaluations,
+                     begin_pending=self.begin_pending,
                      frames=self.frames, updates=self.continuous_updates,
                      dynamics=None if self.dynamics is None else self.dynamics.model.state_dict())
         return state
@@ -357,6 +374,7 @@ class GPIAgent(Agent):
         self.linear_support.load_state_dict(state["linear_support"])
         self.weight, self.support = np.asarray(state["weight"]), np.asarray(state["support"])
         self.iteration, self.iteration_end = state["iteration"], state["iteration_end"]
+        self.begin_pending = bool(state.get("begin_pending", False))
         self.evaluations, self.frames, self.continuous_updates = state["evaluations"], state["frames"], state.get("updates", 0)
         if self.dynamics is not None and state.get("dynamics") is not None:
             self.dynamics.model.load_state_dict(state["dynamics"])
@@ -496,6 +514,7 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
     # (run.step) evaluate and checkpoint when due. A checkpoint is the state at the end of a batch.
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
+        agent.after_step(buffer)  # (a resumed run: an iteration that ended at its checkpoint begins, RNG restored)
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
             prev, agent.frames = agent.frames, frames
@@ -522,10 +541,11 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
                 while agent.iteration_end <= frames:
                     agent.iteration_end += cfg.gpi_iteration_frames
                 agent.end_iteration()  # GPI over M evaluated at each weight of M -> the linear support (CCS)
-                agent.begin_iteration(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
+                agent.begin_pending = True
             schedules(agent, frames)
             collector.update_policy_weights_()
-            run.step(losses, updates, epsilon=agent.epsilon)
+            run.step(losses, updates, epsilon=agent.epsilon)  # (an evaluation due now acts by GPI over this M)
+            agent.after_step(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
     return run.summary, agent
 
 

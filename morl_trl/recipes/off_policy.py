@@ -186,6 +186,7 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
     # batch (after its evaluation), so the batch after it is the same whether the run resumes or not.
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
+        agent.after_step(buffer)  # (a resumed run: what it did right after the checkpoint, its RNG now restored)
         for batch in collector:
             frames = run.collected(batch, agent.frames_of(batch))  # (PGMORL: one member's frames, as the authors)
             losses, updates = agent.learn(batch, buffer, frames)  # store + the algorithm's updates
@@ -194,6 +195,7 @@ def train_agent(run: Run) -> tuple[dict, Agent]:
                 reset_collector(collector)
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)
+            agent.after_step(buffer)  # (GPI: the next iteration begins after the evaluation of the last)
     return run.summary, agent
 
 

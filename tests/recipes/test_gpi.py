@@ -53,16 +53,37 @@ def test_iterations_grow_the_ccs_and_pick_the_next_weight():
     cfg, env, agent = _agent("gpi_ls")
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [4, 16] = 64 frames
-    agent.learn(td, buffer, 64)  # reaches gpi_iteration_frames: evaluate M, add to the CCS, next weight
-    assert agent.iteration == 2
+    agent.learn(td, buffer, 64)  # reaches gpi_iteration_frames: evaluate M, add to the CCS
+    assert agent.iteration == 1 and agent.begin_pending  # the next weight after the run's step (its evaluation)
+    agent.after_step(buffer)
+    assert agent.iteration == 2 and not agent.begin_pending
     assert len(agent.linear_support.visited_weights) == 2  # both weights of M were evaluated
     np.testing.assert_array_equal(agent.weight, [0, 1])  # the second extremum
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
     agent.learn(td, buffer, 128)
+    agent.after_step(buffer)
     assert agent.iteration == 3 and len(agent.linear_support.ccs) >= 1
     assert agent.weight.shape == (2,) and np.isclose(agent.weight.sum(), 1)
     # the evaluation policy acts by GPI over the support the loss trains on
     torch.testing.assert_close(agent.eval_policy.support, agent.loss.weight_support)
+
+
+def test_an_evaluation_at_an_iterations_end_acts_over_the_support_it_trained_on():
+    """Issue 48: the run's evaluation at an iteration's end used GPI over the next support (new corner
+    weights never trained on: DST seed 11 read 0.663 at 20k frames where the trained support gave 0.844);
+    MB's GPIPD.train evaluates after add_solution, before next_weight, and its parity side inside the step."""
+    cfg, env, agent = _agent("gpi_ls")
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    trained = agent.eval_policy.support.clone()
+    agent.learn(env.rollout(16, agent.explore_policy, break_when_any_done=False), buffer, 64)  # the iteration ends
+    torch.testing.assert_close(agent.eval_policy.support, trained)  # what run.step evaluates now
+    agent.after_step(buffer)
+    assert agent.iteration == 2 and agent.eval_policy.support.shape[0] >= trained.shape[0]
+    # a caller that never calls after_step: the next learn() begins the iteration first
+    cfg, env, other = _agent("gpi_ls")
+    other.learn(env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 64)
+    other.learn(env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 96)
+    assert other.iteration == 2 and not other.begin_pending
 
 
 def test_gpi_pd_rolls_out_the_model_into_its_buffer():
@@ -115,7 +136,9 @@ def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
     losses, n = agent.learn(td, buffer, 64)
     assert n == 2 and 50 <= len(agent.model_buffer) <= 100  # 50 observations x 2 model steps, less the terminated
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
-    assert agent.iteration == 2 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
+    assert agent.iteration == 1 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
+    agent.after_step(buffer)  # (the loop's call after run.step: the next iteration)
+    assert agent.iteration == 2
 
 
 @pytest.mark.parametrize("fused", [True, False])

@@ -62,8 +62,10 @@ def test_the_gpi_recipe_trains_exactly_as_the_agent_loop(tmp_path, monkeypatch, 
     assert (state["frames"], state["updates"]) == (192, 10)  # 2 updates per batch from 64 frames on (5 batches)
     agent = state["agent"]
     # the iteration boundaries at 64, 128 and 192 each evaluated GPI over M at its 2 weights (added to the linear
-    # support) and then at the corner weights of the CCS (the next w): 6 evaluations; the one at 192 began the 4th
-    assert (agent["iteration"], agent["iteration_end"], agent["frames"], agent["evaluations"]) == (4, 256, 192, 6)
+    # support); those at 64 and 128 then, after the run's step, at the corner weights of the CCS (the next w): 5
+    # evaluations; the run's last frame begins no 4th iteration (issue 48: MB begins none after its last)
+    assert (agent["iteration"], agent["iteration_end"], agent["frames"], agent["evaluations"]) == (3, 256, 192, 5)
+    assert agent["begin_pending"]
     assert len(agent["linear_support"]["visited"]) == 6
     # GPI-PD: one model fit (at 128) and rollouts every 32 frames from 64 (5 batches)
     assert calls == ({"fit_model": 1, "rollout_model": 5} if algo == "gpi_pd" else {"fit_model": 0, "rollout_model": 0})
@@ -77,7 +79,7 @@ def test_the_continuous_gpi_recipe_trains_exactly_as_the_agent_loop(tmp_path, mo
                          eval_contexts=("MOHopperDefault-v5",), gpi_dynamics_rollout_len=2)
     assert (state["frames"], state["updates"]) == (192, 10)
     assert state["agent"]["updates"] == 10  # the continuous update count (the delayed actor's clock)
-    assert (state["agent"]["iteration"], state["agent"]["iteration_end"]) == (4, 256)
+    assert (state["agent"]["iteration"], state["agent"]["iteration_end"]) == (3, 256)
     assert calls == ({"fit_model": 1, "rollout_model": 5} if algo == "gpi_pd" else {"fit_model": 0, "rollout_model": 0})
 
 
@@ -94,6 +96,6 @@ def test_a_gpi_ls_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_
     log = (resumed / "log.txt").read_text()
     assert "resumed from frames_000000000064 at 64 frames" in log and "fresh episodes" not in log
     a, b = last_checkpoints(whole, resumed)
-    assert (a["frames"], a["updates"], a["agent"]["iteration"]) == (128, 6, 3)
+    assert (a["frames"], a["updates"], a["agent"]["iteration"]) == (128, 6, 2)  # (no iteration begins after the last frame)
     assert_checkpoints_equal(a, b)
     assert_logs_equal(whole, resumed)

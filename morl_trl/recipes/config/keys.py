@@ -206,7 +206,7 @@ KEYS: dict[str, Key] = {
     'homotopy_frames': Key('envelope', 'int | None', 'frames of the homotopy schedule when homotopy_final is set (null: the whole run)', _int(1, optional=True)),
     'per_running_max': Key('replay_buffer', 'bool', "PER priorities as MORL-Baselines' buffer (the authors' Envelope): an update writes (p + M)^per_alpha, M the running maximum written priority (1e-5 at first), new items at M; false: TorchRL's (p + eps)^per_alpha, new items at the largest priority", _bool, inert=False),
     'envelope_priority': Key('envelope', 'str', "PER priority: |w.TD| under the 'first' sampled preference (the authors) or the 'mean' over all of them", _choice(("first", "mean"))),
-    'envelope_network': Key('envelope', 'str', "Q-network form: 'authors' (w concatenated after the first hidden layer, orthogonal init) or 'input' (w at the input, PyTorch's init)", _choice(("authors", "input"))),
+    'envelope_network': Key('envelope', 'str', "Q-network form: 'authors' (w concatenated after the first hidden layer, orthogonal init; the paper's domains), 'mb' (w at the input, orthogonal init: MORL-Baselines 1.3.0's QNet; a foreign env's default) or 'input' (w at the input, PyTorch's init)", _choice(("authors", "mb", "input"))),
     'alpha': Key('actor_critic', 'float', 'entropy temperature (initial value when learned)', _float(0.0, 1e6)),
     'learn_alpha': Key('actor_critic', 'bool', 'learn the temperature', _bool),
     'target_entropy_scale': Key('actor_critic', 'float', 'discrete MOSAC: target entropy as a fraction of the maximum', _float(0.0, 1.0)),
