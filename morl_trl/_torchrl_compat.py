@@ -24,7 +24,7 @@ from torchrl.data.replay_buffers.samplers import PrioritizedSampler
 from torchrl.envs import EnvBase, Transform
 from torchrl.envs.transforms.vecnorm import VecNormV2
 from torchrl.objectives import LossModule
-from torchrl.objectives.utils import _cache_values, _vmap_func
+from torchrl.objectives.utils import TargetNetUpdater, _cache_values, _vmap_func
 
 __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNormNonNegativeVar", "transform_reset", "transform_step", "cache_values",
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
@@ -65,6 +65,7 @@ SUBCLASS_INTERNALS: dict[type, tuple[str, ...]] = {
     PrioritizedSampler: PRIORITIZED_SAMPLER_INTERNALS + PRIORITIZED_SAMPLER_STATE + ("_tree_argmax",
                                                                                      "_STATE_SCHEMA_VERSION"),
     VecNormV2: ("_norm",),
+    TargetNetUpdater: ("_step",),  # (the per-parameter update its step() calls: a hard copy in PeriodicHardUpdate)
 }
 
 
