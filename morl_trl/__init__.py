@@ -17,6 +17,8 @@ _quiet_dependencies()  # narrow filters for two dependency messages (morl_trl/_q
 
 __all__ = ["TrainResult", "TrainedPolicy", "load_policy", "train"]
 
+from morl_trl._lazy import lazy_attributes as _lazy_attributes  # noqa: E402
+
 _LAZY = {
     "train": ("morl_trl.recipes.policy", "train_policy"),
     "load_policy": ("morl_trl.recipes.policy", "load_policy"),
@@ -25,17 +27,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    try:
-        module, attr = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'morl_trl' has no attribute {name!r}") from None
-    import importlib
-
-    value = getattr(importlib.import_module(module), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted([*globals(), *_LAZY])
+__getattr__, __dir__ = _lazy_attributes(globals(), _LAZY)

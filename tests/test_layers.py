@@ -35,7 +35,7 @@ ALLOWED = {
 
 
 #: modules at the package root every layer may use (they import no morl_trl package)
-ROOT_MODULES = {"_torchrl_compat", "_quiet", "_suggest"}
+ROOT_MODULES = {"_torchrl_compat", "_quiet", "_suggest", "_lazy"}
 
 
 def _imports(path: Path) -> set[str]:

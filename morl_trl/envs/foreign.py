@@ -195,6 +195,7 @@ class _GymBatch:
         self.env_id = env_id
         self.steps = 0
         self.spec_env = _gym_factory(env_id, **env_kwargs)  # TorchRL's spec conversion of the spaces
+        self.reward_shape = tuple(self.spec_env.full_reward_spec[self.spec_env.reward_key].shape)
         self.envs = [make_gym_env(env_id, env_kwargs) for _ in range(num_envs)]
         self.num_envs = num_envs
         self.obs_key = "observation"
@@ -228,10 +229,9 @@ class _GymBatch:
             trunc.append(tr)
         if self.steps < REWARD_CHECK_STEPS:  # (the first steps only: no per-step cost after them)
             self.steps += 1
-            want = tuple(self.spec_env.full_reward_spec[self.spec_env.reward_key].shape)
             for r in rew:
-                if np.shape(r) != want:
-                    raise _reward_error(self.env_id, tuple(np.shape(r)), want, self.steps)
+                if np.shape(r) != self.reward_shape:
+                    raise _reward_error(self.env_id, tuple(np.shape(r)), self.reward_shape, self.steps)
         self.obs = self._stack(obs)
         return {self.obs_key: self.obs, "reward": torch.as_tensor(np.stack(rew), dtype=torch.float32),
                 "terminated": torch.as_tensor(term), "truncated": torch.as_tensor(trunc)}

@@ -37,6 +37,8 @@ from __future__ import annotations
 
 # The names below are imported at first use (PEP 562): ``import morl_trl.recipes.config`` (what
 # ``morl-trl train --help`` and its argument checks read) stays free of torch and torchrl.
+from morl_trl._lazy import lazy_attributes as _lazy_attributes  # noqa: E402
+
 _LAZY = {
     "Agent": "morl_trl.recipes.agent",
     "AGENT_BUILDERS": "morl_trl.recipes.algorithms",
@@ -77,17 +79,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    try:
-        module = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'morl_trl.recipes' has no attribute {name!r}") from None
-    import importlib
-
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted([*globals(), *_LAZY])
+__getattr__, __dir__ = _lazy_attributes(globals(), _LAZY)

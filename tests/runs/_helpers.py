@@ -21,6 +21,14 @@ TINY = dict(
 )
 
 
+def train_tiny(run: Path, logger: str = "none", **overrides) -> Path:
+    """Train Envelope on MO-LavaGrid at :data:`TINY` (with ``overrides``) into ``run``; returns ``run``."""
+    from morl_trl.recipes import resolve_config, train
+
+    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger=logger, **{**TINY, **overrides}))
+    return run
+
+
 def write_config(path: Path, **overrides) -> Path:
     values = {**TINY, **overrides}
     path.write_text("\n".join(f"{k} = {json.dumps(list(v) if isinstance(v, tuple) else v)}"

@@ -14,10 +14,10 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from morl_trl.recipes import TrainConfig, evaluate_run, load_policy, resolve_config, train
+from morl_trl.recipes import TrainConfig, evaluate_run, load_policy, train
 from morl_trl.recipes.policy import export_policy
 from morl_trl.runs.plain import load_plain, save_plain
-from tests.runs._helpers import TINY, cli
+from tests.runs._helpers import cli, train_tiny
 
 LAST = "frames_000000000512"
 
@@ -25,7 +25,7 @@ LAST = "frames_000000000512"
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("damaged") / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **TINY))
+    train_tiny(run)
     return run
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from morl_trl.recipes import load_policy
 from morl_trl.runs import DiskFullError, find_checkpoint, verify_checkpoint
-from tests.runs._helpers import cli, write_config
+from tests.runs._helpers import cli, train_tiny, write_config
 
 
 @pytest.fixture
@@ -49,11 +49,9 @@ def test_a_run_that_fills_the_disk_while_torch_writes_a_checkpoint_prints_one_li
 
 
 def test_an_export_to_a_full_disk_is_one_error_and_leaves_nothing(small_disk, tmp_path):
-    from morl_trl.recipes import resolve_config, train
-    from tests.runs._helpers import TINY
 
     run = tmp_path / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **{**TINY, "frames": 256}))
+    train_tiny(run, frames=256)
     policy = load_policy(run)
     (small_disk / "filler").write_bytes(b"\0" * (5 * 2**20 - 8 * 2**10))  # (8 KiB left: less than the export)
     with pytest.raises(DiskFullError) as err:

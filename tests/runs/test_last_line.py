@@ -6,9 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from morl_trl.recipes import resolve_config, train
 from morl_trl.runs import Run
-from tests.runs._helpers import TINY
+from tests.runs._helpers import train_tiny
 
 ENDINGS = ("finished:", "stopped")
 
@@ -19,7 +18,7 @@ def _lines(run) -> list[str]:
 
 def test_a_finished_run_ends_with_one_finished_line(tmp_path):
     run = tmp_path / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **{**TINY, "frames": 256}))
+    train_tiny(run, frames=256)
     lines = _lines(run)
     assert lines[-1] == "finished: 256 frames, 6 updates; the final checkpoint is frames_000000000256"
     assert [line for line in lines if line.startswith(ENDINGS)] == [lines[-1]]
@@ -36,7 +35,7 @@ def test_a_run_stopped_by_an_error_ends_with_why_and_how_to_resume(tmp_path, mon
 
     monkeypatch.setattr(Run, "batch_done", fails_at_192_frames)
     with pytest.raises(RuntimeError, match="the simulator lost its connection"):
-        train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **TINY))
+        train_tiny(run)
     lines = _lines(run)
     assert lines[-1] == ("stopped: RuntimeError: the simulator lost its connection (at 192 frames); the last "
                          "checkpoint is frames_000000000000; once the cause is fixed, resume with: morl-trl train "

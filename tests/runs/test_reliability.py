@@ -14,7 +14,7 @@ from morl_trl.recipes import resolve_config, train
 from morl_trl.runs import checkpoint_buffer, checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from morl_trl.cli import main
-from tests.runs._helpers import TINY, write_config
+from tests.runs._helpers import TINY, train_tiny, write_config
 
 
 class _Out:
@@ -57,8 +57,7 @@ def _outputs(run: Path) -> dict[str, bytes]:
 def finished_run(tmp_path_factory) -> Path:
     """A finished 512-frame MO-LavaGrid run: evaluations at 0, 256, 512; checkpoints at 256 and 512."""
     run = tmp_path_factory.mktemp("base") / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="csv", **TINY))
-    return run
+    return train_tiny(run, logger="csv")
 
 
 @pytest.fixture

@@ -20,7 +20,7 @@ from morl_trl.recipes import TrainConfig, load_policy, resolve_config, train
 from morl_trl.recipes.policy import export_policy
 from morl_trl.runs import DiskFullError, RunLock, RunLockedError, find_checkpoint, latest_checkpoint
 from morl_trl.runs.atomic import atomic_write_text
-from tests.runs._helpers import CWD, TINY, env, write_config
+from tests.runs._helpers import CWD, TINY, env, train_tiny, write_config
 
 SMALL = {**TINY, "frames": 256}
 
@@ -28,8 +28,7 @@ SMALL = {**TINY, "frames": 256}
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("safety") / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="csv", **SMALL))
-    return run
+    return train_tiny(run, logger="csv", frames=256)
 
 
 @pytest.fixture

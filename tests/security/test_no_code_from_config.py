@@ -25,11 +25,10 @@ from morl_trl.recipes.policy import export_policy
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> Path:
-    from morl_trl.recipes import resolve_config
-    from tests.runs._helpers import TINY
+    from tests.runs._helpers import train_tiny
 
     run = tmp_path_factory.mktemp("trust") / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **TINY))
+    train_tiny(run)
     return run
 
 

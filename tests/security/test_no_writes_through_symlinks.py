@@ -14,20 +14,20 @@ from pathlib import Path
 import pytest
 import torch
 
-from morl_trl.recipes import TrainConfig, evaluate_run, load_policy, resolve_config, train
+from morl_trl.recipes import TrainConfig, evaluate_run, load_policy, train
 from morl_trl.recipes.convert import convert_run
 from morl_trl.runs import RunLock, save_checkpoint
 from morl_trl.runs.atomic import atomic_write_text
 from morl_trl.runs.nofollow import SymlinkRefusedError
 from morl_trl.runs.run_dir import NewRunDir
 from morl_trl.runs.run_log import _append_rows
-from tests.runs._helpers import TINY, cli
+from tests.runs._helpers import cli, train_tiny
 
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("links") / "run"
-    train(resolve_config("envelope", "MOLavaGridDR-v0", run_dir=str(run), logger="none", **TINY))
+    train_tiny(run)
     evaluate_run(run)  # (reevaluation/ exists, as in the report)
     return run
 
