@@ -14,7 +14,7 @@ Each figure is a full update as a training loop runs it, replay sampling include
 * **GPI-LS / GPI-PD** at the MO-LunarLander settings (see :func:`ours_gpi`).
 * **PCN** at MO-LunarLander ([pcn.lunarlander] in ../shared/reference/hyperparameters.toml):
   the authors' network (``net_arch = [256] * 4``), batch 256, lr 3e-4, on a replay of 1000
-  episodes. Ours: ``PCNAgent.update``; peer: ``PCN.update()`` with the authors' network.
+  episodes. Ours: ``recipes.pcn.update``; peer: ``PCN.update()`` with the authors' network.
 * **MORL/D** (SB) at MO-Hopper ([morld_sb.hopper]): one *population update* = each of the 6
   members updated once (batch 256 each from the shared buffer, 4 x 256 MLPs, two critics,
   learned temperature). Ours: ``MORLDAgent.update`` (one batched step); peer: ``MOSAC.update()``
@@ -22,7 +22,7 @@ Each figure is a full update as a training loop runs it, replay sampling include
 * **PGMORL** at MO-Hopper ([pgmorl.hopper]): one *update* = one clipped-PPO minibatch step of the
   whole population (6 members, 4 envs x 2048 steps each, 10 epochs x 32 minibatches, 4 x 256 tanh
   MLPs); timed as whole iterations (GAE included) divided by their 320 updates. Ours:
-  ``PGMORLAgent.learn``; peer: each member's ``MOPPO`` advantages and ``update()``.
+  ``recipes.pgmorl.on_batch``; peer: each member's ``MOPPO`` advantages and ``update()``.
 
 PCN, MORL/D and PGMORL are built as ``morl-trl train`` builds them (``resolve_config`` at the
 paper's domain) and time on the CPU only. The peer is MORL-Baselines' ``Envelope.update()`` /
@@ -265,12 +265,14 @@ def _recipe_agent(algo, env_id, **overrides):
 
 
 def ours_pcn(eps):
-    """``PCNAgent.update``: 256 steps of the episode replay (``EpisodeReplay.sample``), ``PCNLoss``
+    """``recipes.pcn.update``: 256 steps of the episode replay (``EpisodeReplay.sample``), ``PCNLoss``
     on the authors' network (26 -> 256 embeddings, 3 x 256 head), fused Adam (lr 3e-4)."""
+    from morl_trl.recipes import pcn
+
     _, _, agent = _recipe_agent("pcn", PCN_ENV)
     for o, a, r in eps:
         agent.replay.add(torch.from_numpy(o), torch.from_numpy(a), torch.from_numpy(r))
-    return lambda: agent.update(None)
+    return lambda: pcn.update(agent)
 
 
 def morld_transitions(n, obs, act, k, seed=3):
@@ -297,9 +299,11 @@ def ours_morld(td, buffer_size):
 
 
 def ours_pgmorl(steps):
-    """``PGMORLAgent.learn`` of one iteration (its evaluation and evolution left out): vector GAE
+    """``recipes.pgmorl.on_batch``: one iteration (its evaluation and evolution left out): vector GAE
     of the 6 x 4 x ``steps`` batch, then 10 epochs x 32 minibatches, each one clipped-PPO step of
     the whole batched population (4 x 256 tanh actor and critic per member)."""
+    from morl_trl.recipes import pgmorl
+
     cfg, env, agent = _recipe_agent("pgmorl", PGMORL_ENV, frames_per_batch=24 * steps)
     P, E = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member
     n, obs = P * E, env.observation_spec["observation"].shape[-1]
@@ -316,7 +320,7 @@ def ours_pgmorl(steps):
 
     def step():
         agent.iteration = 1  # past the first iteration's evaluation of the untrained members; no evolution
-        agent.learn(batch, None, 0)
+        pgmorl.on_batch(agent, batch, None, 0)
 
     return step, cfg.pgmorl_epochs * cfg.pgmorl_minibatches, obs, act, k
 

@@ -5,14 +5,14 @@ Each figure is the learning work of a training loop on filled data, environment 
 
 * **PCN updates/s** at the paper's MO-LunarLander settings: observation 26 (8 x 3 with the
   state-action history + 2), 4 actions, 4 objectives, hidden 64, batch 256, a replay of 1000
-  episodes of 100-300 steps. Ours: ``PCNAgent.update`` (``EpisodeReplay.sample`` + ``PCNLoss``
+  episodes of 100-300 steps. Ours: ``recipes.pcn.update`` (``EpisodeReplay.sample`` + ``PCNLoss``
   + Adam). Peer: MORL-Baselines' ``PCN.update()`` on the same episodes.
 * **PCN commands/s**: choosing a command on that replay (ranking every episode: crowding
   distance, non-dominated set, distances) -- ours ``EpisodeReplay.choose_command(1000)``, the
   peer ``PCN._choose_commands(1000)``.
 * **PGMORL iteration learning, frames/s**: one iteration's learning of the whole population at the
   Hopper settings (population 6, 4 envs x 2048 steps per member, observation 39, 3 actions, 3
-  objectives, 4 x 256 tanh MLPs, 10 epochs x 32 minibatches): ours ``PGMORLAgent.learn`` (one
+  objectives, 4 x 256 tanh MLPs, 10 epochs x 32 minibatches): ours ``recipes.pgmorl.on_batch`` (one
   batched population, vector GAE, ``ClipPPOLoss``); the peer runs, for each of the 6 members,
   MORL-Baselines' ``MOPPO`` advantage computation and ``update()`` on its own filled batch.
   Frames/s = 6 x 4 x 2048 / seconds.
@@ -166,13 +166,15 @@ def main():
     except ImportError:
         sys.exit("morl_baselines is not importable: run with the scratch venv's python (see the docstring)")
 
+    from morl_trl.recipes import pcn, pgmorl
+
     rng = np.random.default_rng(0)
     eps = _episodes(1000, rng)
     ours, peer = ours_pcn(eps), peer_pcn(eps)
     n_upd = 50 if args.quick else 200
     res = {"pcn updates/s": ([], []), "pcn commands/s": ([], []), "pgmorl learning frames/s": ([], [])}
     for _ in range(rounds):
-        res["pcn updates/s"][0].append(rate(lambda: ours.update(), n_upd, timer))
+        res["pcn updates/s"][0].append(rate(lambda: pcn.update(ours), n_upd, timer))
         res["pcn updates/s"][1].append(rate(lambda: peer.update(), n_upd, timer))
         res["pcn commands/s"][0].append(rate(lambda: ours.replay.choose_command(1000), 3, timer))
         res["pcn commands/s"][1].append(rate(lambda: peer._choose_commands(1000), 3, timer))
@@ -182,7 +184,7 @@ def main():
     for _ in range(max(1, rounds // 2 if not args.quick else 1)):
         t0 = timer()
         agent.iteration = 1  # (no evolution step inside the timed learning)
-        agent.learn(batch, None, frames)
+        pgmorl.on_batch(agent, batch, None, frames)
         res["pgmorl learning frames/s"][0].append(frames / (timer() - t0))
         t0 = timer()
         peer_moppo_iteration(agents, obs_dim)

@@ -7,8 +7,10 @@ by supervised learning on the steps of the best episodes of a replay of whole ep
 continuous actions; with its loss and the env's command transform
 (:class:`~morl_trl.transforms.command.DesiredReturnConditioning`) it is everything PCN does per
 frame. What it keeps between batches and checkpoints is a :class:`PCNAgent` (the network, the
-replay, the unfinished episodes, the command, the round counters; :meth:`PCNAgent.learn` is the
-loop's body as one call, for driving an agent batch by batch). Per batch:
+replay, the unfinished episodes, the command, the round counters). The learning is two functions,
+the one definition the loop runs and anything driving an agent batch by batch calls:
+:func:`on_batch` (what the loop does with one collected batch) and :func:`update` (one supervised
+update). Per batch:
 
 1. the collected batch is cut into whole episodes per sub-env (an episode may span batches)
    which enter the episode replay with their returns-to-go (discount: the run's gamma;
@@ -16,8 +18,8 @@ loop's body as one call, for driving an agent batch by batch). Per batch:
 2. the first ``pcn_er_episodes`` episodes act uniformly at random (the authors' experience
    replay warm-up);
 3. then, and after every further ``pcn_step_episodes`` episodes, a round: ``pcn_model_updates``
-   supervised updates on ``batch_size`` steps, and a new command for the episodes that start
-   next: a random non-dominated return among the ``pcn_er_episodes`` best, plus
+   supervised updates on ``batch_size`` steps (:func:`update`), and a new command for the
+   episodes that start next: a random non-dominated return among the ``pcn_er_episodes`` best, plus
    ``U(0, std)`` on one objective, horizon = its length - 2
    (:meth:`~morl_trl.data.episode_replay.EpisodeReplay.choose_command`).
 
@@ -77,7 +79,7 @@ from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 from morl_trl.transforms.command import DesiredReturnConditioning
 
-__all__ = ["PCNAgent", "PCNPolicy", "make_pcn_agent", "make_pcn_training_env", "train_pcn"]
+__all__ = ["PCNAgent", "PCNPolicy", "make_pcn_agent", "make_pcn_training_env", "on_batch", "train_pcn", "update"]
 
 
 def _gamma(cfg) -> float:
@@ -202,6 +204,9 @@ class PCNAgent(Agent):
 
     def __init__(self, cfg, loss, explore_policy, eval_policy, optimizer, replay: EpisodeReplay, command, *,
                  device, max_return) -> None:
+        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):  # (update() is never captured)
+            raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent ({type(self).__name__}) "
+                             f"writes its own update: set compile=false and cudagraphs=false")
         super().__init__(cfg, loss, explore_policy, eval_policy, {"policy": optimizer}, None, device=device)
         self.replay, self.command = replay, command
         self.generator = torch.Generator().manual_seed(cfg.seed + 7)
@@ -212,7 +217,7 @@ class PCNAgent(Agent):
         self._pending: dict[int, dict[str, torch.Tensor]] = {}  # sub-env -> the steps of its unfinished episode
         self.explore_policy.random_actions = True
 
-    # ------------------------------------------------------------------ learning
+    # ------------------------------------------------------------------ episodes and commands
     def store_episodes(self, batch: TensorDictBase, frames: int) -> int:
         """Cut ``batch`` ``[N, T]`` into episodes per sub-env and add the finished ones to the replay, with
         their returns-to-go (an episode may span batches: its first steps wait in the agent until it ends).
@@ -239,44 +244,6 @@ class PCNAgent(Agent):
                 start = stop
         self.episodes += added
         return added
-
-    def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """One batch of :func:`train_pcn`'s loop as one call, for driving an agent batch by batch (unit tests,
-        benchmarks): store its finished episodes, run the rounds they make due. The recipe writes the same
-        steps out, and ``tests/recipes/test_pcn_recipe.py`` holds the two equal."""
-        self.store_episodes(batch, frames)
-        losses, updates = None, 0
-        while self.episodes >= self.next_round:
-            try:
-                losses, n = self._round()
-            except NonFiniteLossError as err:
-                err.updates_done += updates  # (this batch's earlier rounds)
-                raise
-            updates += n
-            self.next_round = self.episodes + self.cfg.pcn_step_episodes
-        self.eval_policy.stale = True
-        return losses, updates
-
-    def _round(self):
-        """``pcn_model_updates`` updates, then a new command for the next episodes."""
-        losses = apply_updates(lambda: self.update(None), self.cfg.pcn_model_updates)
-        desired, horizon = self.replay.choose_command(self.cfg.pcn_er_episodes, generator=self.generator)
-        self.command.set_command(desired, horizon)
-        self.explore_policy.random_actions = False
-        self.rounds += 1
-        return losses, self.cfg.pcn_model_updates
-
-    def update(self, buffer=None) -> TensorDictBase:
-        """One supervised update of :func:`train_pcn` (its ``update``), for :meth:`learn`; ``buffer`` is unused."""
-        obs, action, ret, horizon = self.replay.sample(self.cfg.batch_size, generator=self.generator)
-        obs, action, ret, horizon = (t.to(self.device) for t in (obs, action, ret, horizon))
-        out = self.loss.losses_of(obs, action, ret, horizon)
-        if out is None:  # (a custom network: the generic path)
-            td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
-                            [obs.shape[0]], device=self.device)
-            out = self.loss(td)
-        optimizer_step(out["loss_pcn"], [self.optimizers["policy"]], losses={"loss_pcn": out["loss_pcn"]})
-        return out.detach()
 
     def eval_commands(self, n: int):
         """``(returns [n, k], horizons [n])`` of the evaluation (zeros and 1 before any episode)."""
@@ -341,6 +308,51 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
     return agent
 
 
+def update(agent: PCNAgent, buffer=None) -> TensorDictBase:
+    """One supervised update of ``agent`` on ``batch_size`` steps of its episode replay (``agent.replay``;
+    ``buffer`` is unused: PCN has no transition buffer, the argument keeps the call alike for every algorithm).
+    Returns the losses; a non-finite loss raises :class:`NonFiniteLossError` before anything changes."""
+    # an episode uniformly, then a step of it uniformly: (obs, action, return-to-go, horizon left)
+    obs, action, ret, horizon = agent.replay.sample(agent.cfg.batch_size, generator=agent.generator)
+    obs, action, ret, horizon = (t.to(agent.device) for t in (obs, action, ret, horizon))
+    out = agent.loss.losses_of(obs, action, ret, horizon)  # the action taken given (obs, return-to-go, horizon)
+    if out is None:  # (a custom network: the loss's TensorDict path)
+        td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
+                        [obs.shape[0]], device=agent.device)
+        out = agent.loss(td)
+    optimizer_step(out["loss_pcn"], [agent.optimizers["policy"]], losses={"loss_pcn": out["loss_pcn"]})
+    return out.detach()
+
+
+def on_batch(agent: PCNAgent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """What :func:`train_pcn` does with one collected ``batch`` after ``frames`` frames; returns ``(last losses or
+    None, updates done)``. ``buffer`` is unused (the episodes go to ``agent.replay``).
+
+    Its finished episodes enter the replay with their returns-to-go (:meth:`PCNAgent.store_episodes`); once the
+    warm-up's ``pcn_er_episodes`` episodes are in, and after every further ``pcn_step_episodes``, a round:
+    ``pcn_model_updates`` :func:`update` calls, then the command of the episodes that start next (a random
+    non-dominated return among the ``pcn_er_episodes`` best, plus ``U(0, std)`` on one objective; horizon = its
+    length - 2) and the end of the warm-up's random actions. A :class:`NonFiniteLossError` carries
+    ``updates_done``: the updates of this batch applied before it."""
+    cfg = agent.cfg
+    agent.store_episodes(batch, frames)  # the finished episodes -> the replay, with their returns-to-go
+    losses, updates = None, 0
+    while agent.episodes >= agent.next_round:  # a round
+        try:
+            losses = apply_updates(lambda: update(agent), cfg.pcn_model_updates)
+        except NonFiniteLossError as err:
+            err.updates_done += updates  # (this batch's earlier rounds)
+            raise
+        updates += cfg.pcn_model_updates
+        desired, horizon = agent.replay.choose_command(cfg.pcn_er_episodes, generator=agent.generator)
+        agent.command.set_command(desired, horizon)
+        agent.explore_policy.random_actions = False  # (the warm-up is over)
+        agent.rounds += 1
+        agent.next_round = agent.episodes + cfg.pcn_step_episodes
+    agent.eval_policy.stale = True  # (the evaluation's commands: the replay's best episodes, read again)
+    return losses, updates
+
+
 def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
     """Train PCN, discrete or continuous actions, in ``run`` (opened by
     :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
@@ -357,7 +369,6 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
     # during the warm-up) and the evaluation's, the loss, Adam, the episode replay
     tune_malloc()  # (the allocator for training, as build_agent)
     agent = make_pcn_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
-    loss, optimizer, replay, command = agent.loss, agent.optimizers["policy"], agent.replay, agent.command
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)  # (weight i acts on the i-th best episode's command)
 
@@ -368,20 +379,6 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
         load_agent_state(agent, state, run.resume_from, cfg.algo)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
 
-    def update() -> TensorDictBase:
-        """One supervised update on ``batch_size`` steps of the replay (a non-finite loss raises before
-        anything changes)."""
-        # an episode uniformly, then a step of it uniformly: (obs, action, return-to-go, horizon left)
-        obs, action, ret, horizon = replay.sample(cfg.batch_size, generator=agent.generator)
-        obs, action, ret, horizon = (t.to(device) for t in (obs, action, ret, horizon))
-        out = loss.losses_of(obs, action, ret, horizon)  # the action taken given (obs, return-to-go, horizon)
-        if out is None:  # (a custom network: the loss's TensorDict path)
-            td = TensorDict({"observation": obs, "action": action, "desired_return": ret, "desired_horizon": horizon},
-                            [obs.shape[0]], device=device)
-            out = loss(td)
-        optimizer_step(out["loss_pcn"], [optimizer], losses={"loss_pcn": out["loss_pcn"]})
-        return out.detach()
-
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store its finished episodes; once the warm-up's pcn_er_episodes
@@ -391,24 +388,7 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # (the command is updated per step by the env's DesiredReturnConditioning)
             frames = run.collected(batch)
-            agent.store_episodes(batch, frames)  # the finished episodes -> the replay, with their returns-to-go
-            losses, updates = None, 0
-            while agent.episodes >= agent.next_round:  # a round
-                for i in range(cfg.pcn_model_updates):
-                    try:
-                        losses = update()
-                    except NonFiniteLossError as err:
-                        err.updates_done = updates + i  # (the run counts the updates applied before it)
-                        raise
-                updates += cfg.pcn_model_updates
-                # the command of the episodes that start next: a random non-dominated return among the
-                # pcn_er_episodes best, plus U(0, std) on one objective; horizon = its length - 2
-                desired, horizon = replay.choose_command(cfg.pcn_er_episodes, generator=agent.generator)
-                command.set_command(desired, horizon)
-                agent.explore_policy.random_actions = False  # (the warm-up is over)
-                agent.rounds += 1
-                agent.next_round = agent.episodes + cfg.pcn_step_episodes
-            agent.eval_policy.stale = True  # (the evaluation's commands: the replay's best episodes, read again)
+            losses, updates = on_batch(agent, batch, None, frames)  # store the episodes, the rounds due
             collector.update_policy_weights_()
             run.step(losses, updates)
     return run.summary, agent

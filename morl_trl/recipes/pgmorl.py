@@ -4,10 +4,13 @@
 TorchRL's ``ClipPPOLoss`` and :func:`~morl_trl.objectives.pgmorl.vector_gae` it is everything PGMORL
 does per iteration. What it keeps between iterations and checkpoints is a :class:`PGMORLAgent` (the
 population, the weights, the performance buffer, the Pareto archive, the prediction model, the
-``VecNorm`` statistics), whose named steps the loop calls: :meth:`PGMORLAgent.prepare_batch`,
+``VecNorm`` statistics; its data and evolution steps :meth:`PGMORLAgent.prepare_batch`,
 :meth:`PGMORLAgent.evaluate_members`, :meth:`PGMORLAgent.generation_ends`,
-:meth:`PGMORLAgent.select_tasks`, :meth:`PGMORLAgent.before_batch` (:meth:`PGMORLAgent.learn` is the
-loop's body as one call, for driving an agent batch by batch).
+:meth:`PGMORLAgent.select_tasks`, :meth:`PGMORLAgent.reseed_env`). The learning is module functions,
+the one definition the loop runs and anything driving an agent batch by batch calls:
+:func:`on_batch` (one iteration on one collected batch: :func:`advantages`, :func:`minibatches`,
+:func:`update`, the evolution when due); the frame budget is :func:`counted_frames` and
+:func:`frames_to_collect`.
 
 A population of ``P`` PPO agents with vector critics, run as ONE batched module
 (:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
@@ -108,7 +111,8 @@ from morl_trl.recipes.parts import (
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
-__all__ = ["PGMORLAgent", "make_pgmorl_agent", "make_pgmorl_training_env", "pgmorl_iterations", "train_pgmorl"]
+__all__ = ["PGMORLAgent", "advantages", "counted_frames", "frames_to_collect", "make_pgmorl_agent",
+           "make_pgmorl_training_env", "minibatches", "on_batch", "pgmorl_iterations", "train_pgmorl", "update"]
 
 
 def pgmorl_iterations(frames: int, frames_per_iteration: int, warmup: int, evo_iterations: int) -> int:
@@ -251,43 +255,7 @@ class PGMORLAgent(Agent):
                                                  reduce_batch_dims=True)
         self.reward_clip = ClipTransform(in_keys=["reward_norm"], low=-10.0, high=10.0).to(device)
 
-    # ------------------------------------------------------------------ frame budget
-    def frames_of(self, batch: TensorDictBase) -> int:
-        """One member's frames of the iteration (``E x T``, the authors' 8192): all ``P`` members
-        collect, but the authors' ``global_step`` counts one member's steps (SPEC §6)."""
-        return batch.numel() // self.P
-
-    def frames_to_collect(self, frames_done: int) -> int:
-        """The collector's frames (all members') of the iterations :func:`pgmorl_iterations` still runs."""
-        cfg, per = self.cfg, self.E * self.T
-        total = pgmorl_iterations(cfg.frames, per, cfg.pgmorl_warmup, cfg.pgmorl_evo_iterations)
-        return max(0, total - frames_done // per) * cfg.frames_per_batch
-
-    # ------------------------------------------------------------------ learning
-    def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """One iteration of :func:`train_pgmorl`'s loop (the members' performance, reward normalisation, GAE,
-        the PPO epochs, the evaluations and the task selection when due) as one call, for driving an agent
-        batch by batch (unit tests); the recipe writes the same steps out, and
-        ``tests/recipes/test_pgmorl_recipe.py`` holds the two equal."""
-        b = self.prepare_batch(batch)
-        if self.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
-            self.evaluate_members(add_to_prediction=False)
-        flat = self.advantages(b)
-        losses, n_updates = None, 0
-        for _ in range(self.cfg.pgmorl_epochs):
-            for td in self.minibatches(flat):
-                try:
-                    losses = self.ppo_update(td)
-                except NonFiniteLossError as err:
-                    err.updates_done = n_updates
-                    raise
-                n_updates += 1
-        self.iteration += 1
-        if self.generation_ends():
-            self.evaluate_members(add_to_prediction=True)
-            self.select_tasks()
-        return losses, n_updates
-
+    # ------------------------------------------------------------------ the iteration's data and evolution
     def prepare_batch(self, batch: TensorDictBase) -> TensorDictBase:
         """The collected ``batch`` ``[P * E, T]`` as ``[P, E, T]``: each member's performance recorded from its
         episodes that ended in it (:meth:`record_performance`), then the entries PPO reads, with the vector
@@ -300,54 +268,11 @@ class PGMORLAgent(Agent):
         self.reward_clip(transform_step(self.reward_norm, b, b.get("next")))
         return b
 
-    @torch.no_grad()
-    def advantages(self, b: TensorDictBase) -> TensorDictBase:
-        """``[P, E * T]``: each member's transitions with its critic's values, the per-objective GAE
-        (:func:`~morl_trl.objectives.pgmorl.vector_gae` on the normalised rewards) and the value targets."""
-        P = self.P
-        value = self.critic.module(b.get("observation"))
-        next_value = self.critic.module(b.get(("next", "observation")))
-        adv, target = vector_gae(self.gamma, self.cfg.pgmorl_gae_lambda, value, next_value,
-                                 b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
-                                 b.get(("next", "terminated")))
-        return TensorDict({
-            "observation": b.get("observation"), "action": b.get("action"),
-            "action_log_prob": b.get("action_log_prob"), "state_value": value, "value_target": target,
-            "advantage_vector": adv,
-        }, [P, self.E, b.shape[-1]]).reshape(P, -1)
-
-    def minibatches(self, flat: TensorDictBase):
-        """One epoch: ``pgmorl_minibatches`` minibatches ``[P, N / pgmorl_minibatches]`` of ``flat`` ``[P, N]``, each
-        member's own random permutation (:attr:`generator`), the advantage scalarised with the member's weight
-        and standardised per member and minibatch (``"advantage"``)."""
-        N = flat.shape[1]
-        mb = max(1, N // self.cfg.pgmorl_minibatches)
-        members = torch.arange(self.P).unsqueeze(-1)
-        perm = torch.rand(self.P, N, generator=self.generator).argsort(-1)
-        for start in range(0, N, mb):
-            td = flat[members, perm[:, start:start + mb]]
-            td.set("advantage", scalarize_advantage(td.get("advantage_vector"), self.weights, normalize_dims=(1,)))
-            yield td
-
-    def ppo_update(self, td: TensorDictBase) -> TensorDictBase:
-        """One PPO step of every member on its minibatch ``td`` ``[P, n]``: ``ClipPPOLoss``, the loss scaled by ``P``
-        so each member's gradient is its own, each member's gradient norm clipped to ``max_grad_norm``, Adam."""
-        out = self.loss(td)
-        total = (out["loss_objective"] + out["loss_critic"]) * self.P
-        optimizer_step(total, [self.optimizers["ppo"]], max_grad_norm=self.cfg.max_grad_norm, population=self.P,
-                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})  # each member's norm clipped
-        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
-
     def generation_ends(self) -> bool:
         """Whether the iterations done (:attr:`iteration`) end the warm-up (``pgmorl_warmup``) or a generation
         (every ``pgmorl_evo_iterations`` after it): the members are evaluated and the tasks selected."""
         W, G = self.cfg.pgmorl_warmup, self.cfg.pgmorl_evo_iterations
         return self.iteration == W or (self.iteration > W and (self.iteration - W) % G == 0)
-
-    def before_batch(self) -> bool:
-        """Before an iteration (its reset: ``pgmorl_reset_each_iteration``): :meth:`reseed_env`."""
-        self.reseed_env()
-        return False
 
     def reseed_env(self) -> None:
         """The authors' ``envs.reset(seed=member.seed)`` at every member's ``train()`` (``mo_ppo.py:628``):
@@ -506,13 +431,102 @@ def make_pgmorl_agent(cfg, env, *, gamma: float, device: torch.device) -> PGMORL
     return agent
 
 
+def counted_frames(agent: PGMORLAgent, batch: TensorDictBase) -> int:
+    """The frames an iteration's ``batch`` counts against the run's budget ``frames``: one member's (``E x T``,
+    the authors' 8192). All ``P`` members collect, but the authors' ``global_step`` counts one member's steps
+    (SPEC §6)."""
+    return batch.numel() // agent.P
+
+
+def frames_to_collect(agent: PGMORLAgent, frames_done: int) -> int:
+    """The collector's frames (all members') of the iterations :func:`pgmorl_iterations` still runs when
+    ``frames_done`` frames (as :func:`counted_frames` counts them) are done."""
+    cfg, per = agent.cfg, agent.E * agent.T
+    total = pgmorl_iterations(cfg.frames, per, cfg.pgmorl_warmup, cfg.pgmorl_evo_iterations)
+    return max(0, total - frames_done // per) * cfg.frames_per_batch
+
+
+@torch.no_grad()
+def advantages(agent: PGMORLAgent, b: TensorDictBase) -> TensorDictBase:
+    """``[P, E * T]``: each member's transitions of ``b`` ``[P, E, T]`` (:meth:`PGMORLAgent.prepare_batch`) with its
+    critic's values, the per-objective GAE (:func:`~morl_trl.objectives.pgmorl.vector_gae` on the normalised
+    rewards) and the value targets."""
+    critic = agent.critic.module
+    value = critic(b.get("observation"))
+    next_value = critic(b.get(("next", "observation")))
+    adv, target = vector_gae(agent.gamma, agent.cfg.pgmorl_gae_lambda, value, next_value,
+                             b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
+                             b.get(("next", "terminated")))
+    return TensorDict({"observation": b.get("observation"), "action": b.get("action"),
+                       "action_log_prob": b.get("action_log_prob"), "state_value": value,
+                       "value_target": target, "advantage_vector": adv}, b.shape).reshape(agent.P, -1)
+
+
+def minibatches(agent: PGMORLAgent, flat: TensorDictBase):
+    """One epoch: ``pgmorl_minibatches`` minibatches ``[P, N / pgmorl_minibatches]`` of ``flat`` ``[P, N]``, each
+    member's own random permutation (``agent.generator``), the advantage scalarised with the member's weight
+    and standardised per member and minibatch (``"advantage"``)."""
+    P, N = agent.P, flat.shape[1]
+    size = max(1, N // agent.cfg.pgmorl_minibatches)
+    members = torch.arange(P).unsqueeze(-1)
+    perm = torch.rand(P, N, generator=agent.generator).argsort(-1)
+    for start in range(0, N, size):
+        td = flat[members, perm[:, start:start + size]]
+        td.set("advantage", scalarize_advantage(td.get("advantage_vector"), agent.weights, normalize_dims=(1,)))
+        yield td
+
+
+def update(agent: PGMORLAgent, td: TensorDictBase) -> TensorDictBase:
+    """One PPO step of every member on its minibatch ``td`` ``[P, n]`` (:func:`minibatches`; PPO has no replay
+    buffer): ``ClipPPOLoss`` (ratio and value clip ``pgmorl_clip``, no entropy bonus, value loss
+    ``0.25 * max(unclipped, clipped)``), the loss scaled by ``P`` so each member's gradient is its own, each
+    member's gradient norm clipped to ``max_grad_norm``, Adam. Returns the losses; a non-finite loss raises
+    :class:`NonFiniteLossError` before anything changes."""
+    out = agent.loss(td)
+    total = (out["loss_objective"] + out["loss_critic"]) * agent.P
+    optimizer_step(total, [agent.optimizers["ppo"]], max_grad_norm=agent.cfg.max_grad_norm, population=agent.P,
+                   losses={k: out[k] for k in ("loss_objective", "loss_critic")})
+    return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
+
+
+def on_batch(agent: PGMORLAgent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """One iteration on the collected ``batch`` ``[P * E, T]``; returns ``(last losses, PPO updates done)``.
+    ``buffer`` and ``frames`` are unused (PPO learns from the batch alone; the iterations are counted by
+    ``agent.iteration``).
+
+    Each member's evaluation from its episodes that ended in the batch and the normalised rewards
+    (:meth:`PGMORLAgent.prepare_batch`); at the first iteration the untrained members enter the population (no
+    prediction sample); the GAE (:func:`advantages`); ``pgmorl_epochs`` epochs of :func:`minibatches`, one
+    :func:`update` each; at the end of the warm-up and of every generation (:meth:`PGMORLAgent.generation_ends`)
+    the members' evaluations -> performance buffer, Pareto archive, prediction model, then the task selection.
+    A :class:`NonFiniteLossError` carries ``updates_done``: the updates of this iteration applied before it."""
+    b = agent.prepare_batch(batch)
+    if agent.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
+        agent.evaluate_members(add_to_prediction=False)
+    flat = advantages(agent, b)
+    losses, updates = None, 0
+    for _ in range(agent.cfg.pgmorl_epochs):
+        for td in minibatches(agent, flat):
+            try:
+                losses = update(agent, td)
+            except NonFiniteLossError as err:
+                err.updates_done = updates  # (the run counts the updates applied before it)
+                raise
+            updates += 1
+    agent.iteration += 1
+    if agent.generation_ends():  # the warm-up's end, then every pgmorl_evo_iterations iterations
+        # each member's evaluation -> performance buffer, Pareto archive (+ snapshot), prediction sample
+        agent.evaluate_members(add_to_prediction=True)
+        agent.select_tasks()  # each slot: a copy of a buffer policy + a weight (predicted HV gain + sparsity)
+    return losses, updates
+
+
 def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     """Train PGMORL in ``run`` (opened by :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the
     continuation of one); returns ``(last evaluation summary, agent)``."""
     cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
-    P = cfg.pgmorl_pop
 
     # 1. the env (everything is built before the run directory is touched: a failed start writes nothing):
     # P x E sub-envs (member p owns sub-envs p*E .. p*E+E-1) + history + VecNorm/clip on the observations
@@ -524,7 +538,6 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     # archive, the prediction model, the reward VecNorm; the evaluation acts with the archive's snapshots
     tune_malloc()  # (the allocator for training, as build_agent)
     agent = make_pgmorl_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
-    loss, optimizer, critic, weights = agent.loss, agent.optimizers["ppo"], agent.critic.module, agent.weights
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)
 
@@ -535,16 +548,8 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
-                               frames_to_go=agent.frames_to_collect(run.frames))
-    agent.before_batch()  # each member's sub-envs re-seeded for the first iteration's reset (the authors' seed)
-
-    def update(td: TensorDictBase) -> TensorDictBase:
-        """One PPO step of every member on its minibatch ``td`` ``[P, n]`` (a non-finite loss raises first)."""
-        out = loss(td)  # ratio and value clip pgmorl_clip, no entropy bonus, value loss 0.25 * max(unclipped, clipped)
-        total = (out["loss_objective"] + out["loss_critic"]) * P  # (scaled by P: each member's gradient is its own)
-        optimizer_step(total, [optimizer], max_grad_norm=cfg.max_grad_norm, population=P,  # each member's norm clipped
-                       losses={k: out[k] for k in ("loss_objective", "loss_critic")})
-        return TensorDict({k: out[k].detach() for k in ("loss_objective", "loss_critic")}, [])
+                               frames_to_go=frames_to_collect(agent, run.frames))
+    agent.reseed_env()  # each member's sub-envs re-seeded for the first iteration's reset (the authors' seed)
 
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
@@ -556,45 +561,9 @@ def train_pgmorl(run: Run) -> tuple[dict, PGMORLAgent]:
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # [P * E, T]
-            run.collected(batch, agent.frames_of(batch))  # one member's frames (E x T), as the authors
-            # [P, E, T]: each member's evaluation from its episodes that ended (agent.performance), the rewards
-            # normalised (VecNorm) and clipped into ("next", "reward_norm")
-            b = agent.prepare_batch(batch)
-            if agent.iteration == 0:  # the untrained members: the population's first entries (no prediction sample)
-                agent.evaluate_members(add_to_prediction=False)
-            # per-objective GAE on the normalised rewards with each member's vector critic -> [P, E * T]
-            with torch.no_grad():
-                value = critic(b.get("observation"))
-                next_value = critic(b.get(("next", "observation")))
-                adv, target = vector_gae(agent.gamma, cfg.pgmorl_gae_lambda, value, next_value,
-                                         b.get(("next", "reward_norm")).to(value.dtype), b.get(("next", "done")),
-                                         b.get(("next", "terminated")))
-            flat = TensorDict({"observation": b.get("observation"), "action": b.get("action"),
-                               "action_log_prob": b.get("action_log_prob"), "state_value": value,
-                               "value_target": target, "advantage_vector": adv}, b.shape).reshape(P, -1)
-            # the PPO epochs: each member's own random minibatches, its advantage scalarised with its weight and
-            # standardised per member and minibatch
-            losses, updates = None, 0
-            N = flat.shape[1]
-            size = max(1, N // cfg.pgmorl_minibatches)
-            members = torch.arange(P).unsqueeze(-1)
-            for _ in range(cfg.pgmorl_epochs):
-                perm = torch.rand(P, N, generator=agent.generator).argsort(-1)
-                for start in range(0, N, size):
-                    td = flat[members, perm[:, start:start + size]]
-                    td.set("advantage", scalarize_advantage(td.get("advantage_vector"), weights, normalize_dims=(1,)))
-                    try:
-                        losses = update(td)
-                    except NonFiniteLossError as err:
-                        err.updates_done = updates  # (the run counts the updates applied before it)
-                        raise
-                    updates += 1
-            agent.iteration += 1
-            if agent.generation_ends():  # the warm-up's end, then every pgmorl_evo_iterations iterations
-                # each member's evaluation -> performance buffer, Pareto archive (+ snapshot), prediction sample
-                agent.evaluate_members(add_to_prediction=True)
-                agent.select_tasks()  # each slot: a copy of a buffer policy + a weight (predicted HV gain + sparsity)
-            agent.before_batch()  # the next iteration's sub-envs re-seeded with their member's seed
+            frames = run.collected(batch, counted_frames(agent, batch))  # one member's frames (E x T), as the authors
+            losses, updates = on_batch(agent, batch, None, frames)  # GAE, the PPO epochs, the evolution when due
+            agent.reseed_env()  # the next iteration's sub-envs re-seeded with their member's seed
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)
     return run.summary, agent

@@ -1,5 +1,6 @@
 """PCN: the episode replay's ranking and commands on a hand-made episode set, the agent's episode
-assembly, warm-up and rounds, resume state, and a short run from the CLI's entry point."""
+assembly, warm-up and rounds (pcn.on_batch), resume state, and short runs from the CLI's entry point (their
+counters, an interrupted run resumed exactly)."""
 
 
 import pytest
@@ -7,8 +8,11 @@ import torch
 from tensordict import TensorDict
 
 from morl_trl.data.episode_replay import EpisodeReplay, crowding_distance
-from morl_trl.recipes import resolve_config, train
+from morl_trl.recipes import off_policy, pcn, resolve_config, train
+from morl_trl.recipes.config import valid_keys
 from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+from tests.recipes._helpers import (assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume,
+                                    last_checkpoints)
 
 
 def _episode(first_reward, length, k=2):
@@ -106,16 +110,16 @@ def _batch(done_at, T=6, k=2):
 def test_agent_assembles_episodes_across_batches_then_warms_up_and_runs_rounds():
     cfg, env, agent = _agent()
     assert agent.explore_policy.random_actions
-    losses, n = agent.learn(_batch([[2], []]), None, 12)  # sub-env 0: one episode of 3 steps; sub-env 1 runs on
+    losses, n = pcn.on_batch(agent, _batch([[2], []]), None, 12)  # sub-env 0: one episode of 3 steps; sub-env 1 runs on
     assert (len(agent.replay), n, losses) == (1, 0, None) and agent.explore_policy.random_actions
-    losses, n = agent.learn(_batch([[], [1]]), None, 24)  # sub-env 1's episode: 6 + 2 steps
+    losses, n = pcn.on_batch(agent, _batch([[], [1]]), None, 24)  # sub-env 1's episode: 6 + 2 steps
     assert sorted(agent.replay.episode_lengths.tolist()) == [3, 8]
     assert n == 3 and losses is not None and not agent.explore_policy.random_actions  # warm-up over: one round
     # the return of the 8-step episode with reward (1, 0) per step and gamma 0.995
     assert agent.replay.episode_returns[1, 0].item() == pytest.approx(sum(0.995 ** t for t in range(8)), rel=1e-5)
     desired, horizon = agent.command.command_return, agent.command.command_horizon
     assert horizon.item() in (1.0, 6.0)  # a best episode's length - 2
-    losses, n = agent.learn(_batch([[5], []]), None, 36)  # 1 more episode: no round yet (every 2)
+    losses, n = pcn.on_batch(agent, _batch([[5], []]), None, 36)  # 1 more episode: no round yet (every 2)
     assert n == 0
     state = agent.state_dict()
     _, _, other = _agent()
@@ -188,3 +192,66 @@ def test_every_episode_starts_on_the_same_command_until_it_is_changed():
     t.set_command(torch.tensor([0.0, 2.0]), 7.0)
     td = env.reset()
     assert td["desired_return"].tolist() == [[0.0, 2.0]] * 2 and td["desired_horizon"].tolist() == [[7.0]] * 2
+
+
+# batches of 64 frames from 4 sub-envs; the warm-up is the first 2 finished episodes, then a round of 3 updates
+# (and a new command) after every 2 more; checkpoints every 128 frames, evaluations at 0 and at the end
+TINY = dict(num_envs=4, frames_per_batch=64, pcn_er_episodes=2, pcn_step_episodes=2, pcn_model_updates=3,
+            batch_size=16, hidden=(16, 16), eval_weights=2, checkpoint_interval=128, progress=False,
+            eval_random_baseline=False)
+
+
+def _tiny_run(tmp_path, monkeypatch, env_id, **kw) -> dict:
+    """The CLI's training of PCN on ``env_id`` (TINY + ``kw``); returns its last checkpoint."""
+    cfg = {k: v for k, v in {**TINY, **kw}.items() if k in valid_keys("pcn")}
+    # (report.md's figures take seconds to draw and are not read)
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    assert off_policy.RECIPES["pcn"].__name__ == "train_pcn"
+    train(resolve_config("pcn", env_id, run_dir=str(tmp_path / "run"), **cfg))
+    return last_checkpoints(tmp_path / "run")[0]
+
+
+def test_a_tiny_pcn_run_warms_up_then_runs_rounds(tmp_path, monkeypatch):
+    state = _tiny_run(tmp_path, monkeypatch, "MOLavaGridDR-v0", num_envs=2, frames_per_batch=128, frames=1024,
+                      eval_interval=1024, checkpoint_interval=512, eval_contexts=("MOLavaGridRoom-v0",))
+    agent = state["agent"]
+    # the 2 sub-envs' random episodes are truncated at 256 steps (512 frames): the warm-up's 2 episodes, a round
+    # (3 updates, a command); the next 2 (acting on the command) end at 1024 frames: the second round
+    assert (state["frames"], state["updates"]) == (1024, 6)
+    assert (agent["episodes"], agent["rounds"], agent["next_round"]) == (4, 2, 6)
+    assert agent["random_actions"] is False and agent["pending"] == {}
+    assert agent["command"][1].item() == 254.0  # the chosen episode's length - 2
+    assert sorted(agent["replay"]["length"].tolist()) == [256] * 4
+
+
+def test_a_tiny_continuous_pcn_run_keeps_the_unfinished_episode(tmp_path, monkeypatch):
+    pytest.importorskip("mujoco")
+    state = _tiny_run(tmp_path, monkeypatch, "MOHopperDR-v5", num_envs=2, frames=512, eval_interval=512,
+                      eval_weights=3, eval_contexts=("MOHopperDefault-v5",))
+    agent = state["agent"]
+    # Hopper's episodes are short (it falls): 40 episodes in 512 frames, a round every 2 after the warm-up's 2
+    assert (state["frames"], state["updates"]) == (512, 24)
+    assert (agent["episodes"], agent["rounds"], agent["next_round"]) == (40, 8, 42)
+    assert agent["random_actions"] is False
+    # sub-env 1's unfinished episode: 9 steps so far
+    assert {i: piece["reward"].shape for i, piece in agent["pending"].items()} == {1: (9, 3)}
+
+
+@pytest.mark.slow  # (three short runs)
+def test_a_pcn_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_path, monkeypatch):
+    """Ctrl-C after the batch at 512 frames (the warm-up's episodes and the first round: a checkpoint,
+    RunInterrupted), then ``--resume``: MO-LavaGrid snapshots its simulator, so the run continues exactly (the
+    replay, the unfinished episodes, the command and the generator come back from the checkpoint)."""
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    cfg = {k: v for k, v in TINY.items() if k in valid_keys("pcn")} | dict(
+        num_envs=2, frames_per_batch=128, frames=1024, eval_interval=1024, checkpoint_interval=512,
+        eval_contexts=("MOLavaGridRoom-v0",))
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    train(resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(whole), **cfg))
+    interrupt_then_resume(monkeypatch, resolve_config("pcn", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg), at=512)
+    log = (resumed / "log.txt").read_text()
+    assert "resumed from frames_000000000512 at 512 frames" in log and "fresh episodes" not in log
+    a, b = last_checkpoints(whole, resumed)
+    assert (a["frames"], a["updates"], a["agent"]["rounds"]) == (1024, 6, 2)
+    assert_checkpoints_equal(a, b)
+    assert_logs_equal(whole, resumed)

@@ -1,5 +1,6 @@
 """PGMORL: the prediction model on synthetic data, weight grid, performance buffer, task selection,
-vector GAE, the population's independence, the agent's evaluation policy, and a short run."""
+vector GAE, the population's independence, the agent's evaluation policy, one iteration (pgmorl.on_batch), and
+short runs from the CLI's entry point (their counters, the budget's iterations, a resume)."""
 
 
 import numpy as np
@@ -10,9 +11,10 @@ from tensordict import TensorDict
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.pgmorl import (PPOGaussianHead, make_population_ppo_actor, make_population_value_network,
                                      ppo_population_mlp, scalarize_advantage, vector_gae)
-from morl_trl.recipes import resolve_config, run_training
+from morl_trl.recipes import off_policy, pgmorl, resolve_config, run_training, train
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
 from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
+from tests.recipes._helpers import csv_rows, last_checkpoints
 
 
 def _model(x, A, a, b, c):
@@ -144,14 +146,14 @@ def test_eval_policy_acts_with_the_nearest_member(eval_obs):
     assert torch.allclose(act, expected)
 
 
-def test_learn_runs_ppo_on_every_member_and_state_round_trips():
+def test_on_batch_runs_ppo_on_every_member_and_state_round_trips():
     cfg, env, agent = _agent(pgmorl_epochs=2, pgmorl_minibatches=2)
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):  # as the collector
         batch = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [2, 16]
     before = [p.detach().clone() for p in agent.loss.parameters()]
-    losses, n = agent.learn(batch, None, 32)
+    losses, n = pgmorl.on_batch(agent, batch, None, 32)
     assert n == 4 and torch.isfinite(losses["loss_objective"]) and agent.iteration == 1
     moved = [(p.detach() - b).reshape(2, -1).abs().sum(-1) for p, b in zip(agent.loss.parameters(), before)]
     assert all(bool((m > 0).all()) for m in moved if m.numel())  # both members were updated
@@ -222,6 +224,46 @@ def test_a_run_does_the_iterations_of_its_budget_counting_one_members_frames(tmp
                          run_dir=str(tmp_path / "run"))
     summary, agent, _, _ = run_training(cfg)
     assert agent.iteration == 5 and summary["frames"] == 160
+
+
+# 2 members x 2 sub-envs x 32 steps: 128 frames collected, 64 counted (one member's) per iteration; budget 192 ->
+# 3 iterations. Warm-up 1 iteration, then generations of 1: the members are evaluated after iterations 1-3 (2
+# prediction samples each) and the task selection runs once the prediction model holds 4 (after iterations 2 and
+# 3); 2 epochs x 2 minibatches = 4 PPO updates per iteration; checkpoints every 128 counted frames (at 128 and
+# the end), evaluations at 0 and 192 (32 weights: the paper's 3-objective set, read from a file, not computed)
+TINY = dict(frames=192, pgmorl_pop=2, pgmorl_envs_per_member=2, num_envs=4, frames_per_batch=128, pgmorl_warmup=1,
+            pgmorl_evo_iterations=1, pgmorl_epochs=2, pgmorl_minibatches=2, hidden=(8,), eval_interval=192,
+            eval_weights=32, checkpoint_interval=128, eval_contexts=("MOHopperDefault-v5",), progress=False,
+            eval_random_baseline=False)
+
+
+def test_a_tiny_pgmorl_run_evaluates_the_members_and_selects_tasks_each_generation(tmp_path, monkeypatch):
+    pytest.importorskip("mujoco", reason="PGMORL runs on MuJoCo (continuous actions): needs mujoco")
+    # (report.md's figures take seconds to draw and are not read)
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    calls = {"select_tasks": 0}
+    select = pgmorl.PGMORLAgent.select_tasks
+
+    def counted(self, *args, **kw):
+        calls["select_tasks"] += 1
+        return select(self, *args, **kw)
+    monkeypatch.setattr(pgmorl.PGMORLAgent, "select_tasks", counted)
+    assert off_policy.RECIPES["pgmorl"].__name__ == "train_pgmorl"
+    train(resolve_config("pgmorl", "MOHopperDR-v5", run_dir=str(tmp_path / "run"), **TINY))
+    # a task selection at the end of the warm-up and of every generation
+    assert calls == {"select_tasks": 3}
+    (ckpt,) = last_checkpoints(tmp_path / "run")
+    # one member's frames counted (3 iterations x 2 sub-envs x 32 steps), 4 PPO updates per iteration
+    assert (ckpt["frames"], ckpt["updates"]) == (192, 12)
+    state = ckpt["agent"]
+    assert state["iteration"] == 3
+    # the prediction model: 2 samples per evaluation after iterations 1-3 (the members' first evaluation, after
+    # iteration 0's rollout, has no predecessor); the task selection ran after iterations 2 and 3 (4 samples)
+    assert len(state["predictor"][2]) == 6 and state["generation"] == 2
+    assert state["member_seeds"] == [42, 42]  # both slots are copies the task selection made
+    assert 1 <= len(state["archive"]) == len(state["archive_members"]) <= 10
+    assert [len(r) for r in state["population"]["bins"]] and state["population"]
+    assert [int(r["frames"]) for r in csv_rows(tmp_path / "run" / "eval/metrics.csv")] == [0, 192]
 
 
 def test_population_networks_have_the_authors_mo_ppo_init():

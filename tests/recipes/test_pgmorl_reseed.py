@@ -13,6 +13,7 @@ CPU = torch.device("cpu")
 
 def _run(reseed, batches=3):
     from morl_trl.recipes.off_policy import make_collector
+    from morl_trl.recipes import pgmorl
     from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
 
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=4, pgmorl_envs_per_member=2,
@@ -32,12 +33,12 @@ def _run(reseed, batches=3):
 
     sim._reset_subenvs = recording
     collector = make_collector(cfg, env, agent.explore_policy, CPU, frames_to_go=64 * batches)
-    assert agent.before_batch() is False  # (the training loop's call: re-seeds, no collector reset)
+    agent.reseed_env()  # (train_pgmorl's calls: before the first iteration, then after each)
     frames = 0
     for batch in collector:
-        frames += agent.frames_of(batch)
-        agent.learn(batch, None, frames)
-        agent.before_batch()
+        frames += pgmorl.counted_frames(agent, batch)
+        pgmorl.on_batch(agent, batch, None, frames)
+        agent.reseed_env()
     collector.shutdown()
 
     return cfg, env, agent, first[1:]  # (the first: the collector's own reset at its creation)
