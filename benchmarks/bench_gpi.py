@@ -6,8 +6,8 @@ state-action history + 2), 4 actions, 4 objectives, the authors' Q-network (``[2
 ensemble of 2, dropout 0.01, LayerNorm), batch 128 doubled over a support of 6 weights,
 prioritized replay (alpha 0.6, min priority 0.01). ``gpi_ls``: TD priorities; ``gpi_pd``:
 GPI priorities (the GPI target over ``w`` and 4 support weights; the Dyna part is not timed).
-Ours: :class:`~morl_trl.objectives.GPILoss` + ``TensorDictReplayBuffer`` with
-``morl_trl.data.prioritized_sampler`` (the body of ``GPIAgent.update``).
+Ours: :func:`morl_trl.recipes.gpi.update` (what ``morl-trl train`` runs: :class:`~morl_trl.objectives.GPILoss`,
+the recipe's Adam step, ``TensorDictReplayBuffer`` with ``morl_trl.data.prioritized_sampler``).
 
 The peer is MORL-Baselines' own ``GPIPD.update(weight)`` (``gpi_pd=False/True``, ``dyna=False``),
 driven on a filled buffer. MORL-Baselines imports ``pycddlib==2.1.6`` (``cdd``), ``cvxpy``
@@ -40,7 +40,10 @@ from tensordict import TensorDict  # noqa: E402
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
-from morl_trl.objectives import GPILoss, GPIQNetwork  # noqa: E402
+from morl_trl.objectives import GPILoss, GPIPolicy, GPIQNetwork  # noqa: E402
+from morl_trl.recipes import resolve_config  # noqa: E402
+from morl_trl.recipes.gpi import GPIAgent, update  # noqa: E402
+from morl_trl.recipes.optim import adam, fused_choice  # noqa: E402
 
 OBS, ACTIONS, K, NET, BATCH, GAMMA, LR = 26, 4, 4, [256, 256, 256, 256], 128, 0.99, 3e-4
 CLOCK = time.perf_counter
@@ -58,11 +61,18 @@ def _transitions(n, rng):
 
 
 def ours(tr, support, buffer_size, gpi_pd):
+    """:func:`morl_trl.recipes.gpi.update`, the recipe's update, on a :class:`~morl_trl.recipes.gpi.GPIAgent`
+    at these settings (the recipe's Adam) over a filled prioritized buffer."""
     torch.manual_seed(0)
-    loss = GPILoss(GPIQNetwork(OBS, ACTIONS, K, hidden=tuple(NET)), gpi_pd=gpi_pd)
+    qnet = GPIQNetwork(OBS, ACTIONS, K, hidden=tuple(NET))
+    loss = GPILoss(qnet, gpi_pd=gpi_pd)
     loss.make_value_estimator(gamma=GAMMA)
-    loss.set_weights(torch.as_tensor(support[0]), torch.as_tensor(support))
-    opt = torch.optim.Adam(loss.value_network_params.values(True, True), lr=LR)
+    cfg = resolve_config("gpi_pd" if gpi_pd else "gpi_ls", "MOLunarLanderDR-v0", batch_size=BATCH, lr=LR)
+    agent = GPIAgent(cfg, loss, GPIPolicy(qnet, include_preference=True), GPIPolicy(qnet, dropout=False),
+                     {"qvalue": adam(loss.value_network_params.values(True, True), LR, fused=fused_choice(cfg))},
+                     device=torch.device("cpu"), exploration_module=None, gamma=GAMMA, preference_transform=None,
+                     num_actions=ACTIONS)
+    loss.set_weights(torch.as_tensor(support[0]), torch.as_tensor(support))  # (a mid-run support, not the first)
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size),
                                     sampler=prioritized_sampler(buffer_size, alpha=0.6, beta=0.4),
                                     batch_size=BATCH, priority_key="td_error")
@@ -72,16 +82,7 @@ def ours(tr, support, buffer_size, gpi_pd):
                               ("next", "observation"): torch.as_tensor(tr["next_obs"]),
                               ("next", "reward"): torch.as_tensor(tr["reward"]),
                               ("next", "terminated"): done, ("next", "done"): done}, [n]))
-
-    def step():
-        batch = buffer.sample()
-        out = loss(batch)
-        opt.zero_grad(set_to_none=True)
-        out["loss_qvalue"].backward()
-        opt.step()
-        buffer.update_tensordict_priority(batch)
-
-    return step
+    return lambda: update(agent, buffer)
 
 
 def morl_baselines_peer(tr, support, buffer_size, gpi_pd):

@@ -73,7 +73,6 @@ from torchrl.objectives import HardUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
 from morl_trl.recipes.agent import adam  # noqa: E402
-from morl_trl.recipes.optim import optimizer_step  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
@@ -199,29 +198,27 @@ def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
 
 
 def ours_gpi(tr, support, buffer_size, gpi_pd):
-    """``GPIAgent.update`` (discrete) at the MO-LunarLander settings: ``GPILoss`` on the authors'
-    Q-network (ensemble of 2, dropout 0.01, LayerNorm), fused Adam, prioritized replay (alpha 0.6,
-    min priority 0.01) with priority updates; ``gpi_pd``: GPI priorities over the support."""
-    from morl_trl.objectives import GPILoss, GPIQNetwork
+    """:func:`morl_trl.recipes.gpi.update` (discrete, no model buffer), the recipe's update, at the MO-LunarLander
+    settings: ``GPILoss`` on the authors' Q-network (ensemble of 2, dropout 0.01, LayerNorm), fused Adam,
+    prioritized replay (alpha 0.6, min priority 0.01) with priority updates; ``gpi_pd``: GPI priorities over the
+    support."""
+    from morl_trl.objectives import GPILoss, GPIPolicy, GPIQNetwork
+    from morl_trl.recipes import gpi, resolve_config
 
     g = GPI
-    loss = GPILoss(GPIQNetwork(g["obs"], g["actions"], g["k"], hidden=tuple(NET), num_nets=2, dropout=0.01,
-                               layer_norm=True), gpi_pd=gpi_pd, min_priority=0.01)
+    qnet = GPIQNetwork(g["obs"], g["actions"], g["k"], hidden=tuple(NET), num_nets=2, dropout=0.01, layer_norm=True)
+    loss = GPILoss(qnet, gpi_pd=gpi_pd, min_priority=0.01)
     loss.make_value_estimator(gamma=GAMMA)
-    loss.set_weights(torch.as_tensor(support[0]), torch.as_tensor(support))
-    opt = adam(loss.value_network_params.values(True, True), LR)
+    cfg = resolve_config("gpi_pd" if gpi_pd else "gpi_ls", "MOLunarLanderDR-v0", batch_size=g["batch"], lr=LR)
+    agent = gpi.GPIAgent(cfg, loss, GPIPolicy(qnet, include_preference=True), GPIPolicy(qnet, dropout=False),
+                         {"qvalue": adam(loss.value_network_params.values(True, True), LR)}, device=torch.device("cpu"),
+                         exploration_module=None, gamma=GAMMA, preference_transform=None, num_actions=g["actions"])
+    loss.set_weights(torch.as_tensor(support[0]), torch.as_tensor(support))  # (a mid-run support, not the first)
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size),
                                 sampler=prioritized_sampler(buffer_size, alpha=g["per_alpha"], beta=0.4),
                                 batch_size=g["batch"], priority_key="td_error")
     rb.extend(as_tensordict(tr).exclude("preference"))
-
-    def step():  # GPIAgent.update's steps (discrete, no model buffer): the recipe's optimizer_step
-        batch = rb.sample()
-        out = loss(batch)
-        optimizer_step(out["loss_qvalue"], [opt], losses={"loss_qvalue": out["loss_qvalue"]})
-        rb.update_tensordict_priority(batch)
-
-    return step
+    return lambda: gpi.update(agent, rb)
 
 
 def gpi_support(seed=0):

@@ -3,12 +3,12 @@
 :func:`train_gpi` is the recipe (env -> modules and loss -> buffer and collector -> the loop), for
 discrete and continuous actions; with its losses (:class:`~morl_trl.objectives.GPILoss`,
 :class:`~morl_trl.objectives.gpi.GPIContinuousLoss`) it is everything GPI does per frame. Its loop is
-the authors' weight-support loop (MORL-Baselines' ``GPIPD.train`` / ``train_iteration``); what it
-keeps between batches and checkpoints is a :class:`GPIAgent` (the modules, the linear support, ``w``
-and ``M``, GPI-PD's model buffer), whose named steps the loop calls: :meth:`GPIAgent.sample_batch`,
-:meth:`GPIAgent.fit_model`, :meth:`GPIAgent.rollout_model`, :meth:`GPIAgent.end_iteration`,
-:meth:`GPIAgent.begin_iteration` (:meth:`GPIAgent.learn` is the loop's body as one call, for
-driving an agent batch by batch). Per batch:
+the authors' weight-support loop (MORL-Baselines' ``GPIPD.train`` / ``train_iteration``): per collected
+batch :func:`on_batch` (with :func:`update`, the one gradient update), then the run's step (evaluation,
+checkpoint), then :meth:`GPIAgent.begin_pending_iteration`. What it keeps between batches and checkpoints
+is a :class:`GPIAgent` (the modules, the linear support, ``w`` and ``M``, GPI-PD's model buffer), whose
+named steps these call: :meth:`GPIAgent.sample_batch`, :meth:`GPIAgent.fit_model`,
+:meth:`GPIAgent.rollout_model`, :meth:`GPIAgent.end_iteration`, :meth:`GPIAgent.begin_iteration`. Per batch:
 
 1. Every ``gpi_iteration_frames`` frames an iteration ends: the GPI policy over the support
    ``M`` is evaluated (``gpi_front_episodes`` episodes per weight, in the training domain,
@@ -95,18 +95,23 @@ from morl_trl.runs.env_state import transforms_of
 from morl_trl.runs.run import Run
 from morl_trl.transforms import PreferenceConditioning
 
-__all__ = ["GPIAgent", "make_gpi_agent", "train_gpi"]
+__all__ = ["GPIAgent", "make_gpi_agent", "on_batch", "train_gpi", "update"]
 
 _KEYS = ("observation", "action", ("next", "observation"), ("next", "reward"), ("next", "terminated"),
          ("next", "done"))
 
 
 class GPIAgent(Agent):
-    """GPI-LS / GPI-PD: the weight-support loop around :class:`~morl_trl.objectives.GPILoss` (see the module)."""
+    """GPI-LS / GPI-PD's state between batches and checkpoints, and the weight-support loop's named steps around
+    :class:`~morl_trl.objectives.GPILoss` (see the module); the gradient update and the per-batch step are the
+    module's :func:`update` and :func:`on_batch`."""
 
     def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
                  exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
                  num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
+        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
+            raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent (GPIAgent, "
+                             f"morl_trl.recipes.gpi.update) writes its own update: set compile=false and cudagraphs=false")
         # (a copy at every step() call: the loop calls it once per target_update_period frames)
         updater = PeriodicHardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
@@ -128,7 +133,7 @@ class GPIAgent(Agent):
         self.support: np.ndarray | None = None
         self.iteration = 0
         self.iteration_end = cfg.gpi_iteration_frames
-        #: an iteration ended and the next begins at :meth:`after_step` (after the run's evaluation)
+        #: an iteration ended and the next begins at :meth:`begin_pending_iteration` (after the run's evaluation)
         self.begin_pending = False
         self.evaluations = 0
         self._front_evaluator = None
@@ -209,43 +214,18 @@ class GPIAgent(Agent):
             td = buffer.storage[index].to(self.device)
             buffer.update_priority(index, self.loss.priorities(td))
 
-    def after_step(self, buffer) -> None:
-        """The next iteration (:meth:`begin_iteration`) once the one that ended has been evaluated: the
-        training loop calls this after ``run.step``, so an evaluation due at an iteration's end acts by GPI
-        over the support ``M`` that iteration trained on, as MORL-Baselines' ``GPIPD.train`` (its evaluation
-        after ``add_solution``, before the next ``next_weight``) and the parity harness's MB side (evaluated
-        inside the env step). Issue 48: evaluated over the next ``M`` (new corner weights not yet trained
-        on), deep-sea-treasure seed 11 read 0.663 at 20k frames where the trained ``M`` gave 0.844. Not after
-        the run's last frame (MB begins no iteration after its last)."""
+    def begin_pending_iteration(self, buffer) -> None:
+        """The next iteration (:meth:`begin_iteration`) once the one that ended (``begin_pending``) has been
+        evaluated: :func:`train_gpi` calls this after ``run.step``, so an evaluation due at an iteration's end
+        acts by GPI over the support ``M`` that iteration trained on, as MORL-Baselines' ``GPIPD.train`` (its
+        evaluation after ``add_solution``, before the next ``next_weight``) and the parity harness's MB side
+        (evaluated inside the env step). Evaluated over the next ``M`` instead (new corner weights not yet
+        trained on), deep-sea-treasure seed 11 read 0.663 at 20k frames where the trained ``M`` gave 0.844.
+        Not after the run's last frame (MB begins no iteration after its last)."""
         if self.begin_pending and self.frames < self.cfg.frames:
             self.begin_iteration(buffer)
 
     # ------------------------------------------------------------------ learning
-    def learn(self, batch, buffer, frames: int):
-        """One batch of :func:`train_gpi`'s loop (store, Dyna, updates, target copy, iteration boundary)
-        as one call, for driving an agent batch by batch (unit tests, benchmarks); the recipe writes
-        the same steps out, and ``tests/recipes/test_gpi_recipe.py`` holds the two equal."""
-        if self.begin_pending:  # (a caller that does not call after_step: the iteration begins here)
-            self.begin_iteration(buffer)
-        prev, self.frames = self.frames, frames
-        self.store(buffer, batch)
-        losses, n = None, 0
-        cfg = self.cfg
-        if frames >= cfg.init_random_frames:
-            if self.dynamics is not None:
-                self._dyna(buffer, prev, frames)
-            gated = not self.continuous and frames < cfg.gpi_dynamics_rollout_starts  # (the authors' discrete GPIPD)
-            n = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
-            losses = self.run_updates(buffer, n)
-            if not self.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
-                self.target_updater.step()  # the authors' hard copy every target_update_period steps
-        if frames >= self.iteration_end:
-            while self.iteration_end <= frames:
-                self.iteration_end += cfg.gpi_iteration_frames
-            self.end_iteration()
-            self.begin_pending = True  # the next iteration begins at after_step (after the evaluation)
-        return losses, n
-
     def sample_batch(self, buffer):
         """``(batch, real part)``: ``gpi_real_ratio`` real transitions and model ones once the model buffer has some."""
         cfg = self.cfg
@@ -258,42 +238,11 @@ class GPIAgent(Agent):
         batch = torch.cat([real.select(*_KEYS), model.select(*_KEYS)])
         return batch, real
 
-    def update(self, buffer):
-        """One update of :func:`train_gpi` (its ``update``), for :meth:`learn`."""
-        if self.continuous:
-            return self._update_continuous(buffer)
-        batch, real = self.sample_batch(buffer)
-        out = self.loss(batch)
-        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]], max_grad_norm=self.max_grad_norm,
-                       losses={"loss_qvalue": out["loss_qvalue"]})
-        if self.cfg.prioritized:
-            if real is not batch:
-                real.set("td_error", batch["td_error"][: real.shape[0]])
-            buffer.update_tensordict_priority(real)
-        return out.detach()
-
-    def _update_continuous(self, buffer):
-        """The authors' continuous update: critics every update, the actor every ``gpi_policy_delay``
-        updates; Polyak averaging (``tau``) of the critics every update and of the actor with it."""
-        batch, real = self.sample_batch(buffer)
-        out = self.loss(batch)
-        check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
-        optimizer_step(out["loss_qvalue"], [self.optimizers["qvalue"]])
-        tau = self.cfg.tau if self.cfg.tau is not None else 0.005
-        polyak_(self.loss.target_qvalue_network_params, self.loss.qvalue_network_params, tau)
-        if self.continuous_updates % self.cfg.gpi_policy_delay == 0:
-            # against the critics just updated (the record gives the delay, not this order)
-            optimizer_step(self.loss.actor_loss(), [self.optimizers["actor"]])
-            polyak_(self.loss.target_actor_network_params, self.loss.actor_network_params, tau)
-        self.continuous_updates += 1
-        if self.cfg.prioritized:
-            if real is not batch:
-                real.set("td_error", batch["td_error"][: real.shape[0]])
-            buffer.update_tensordict_priority(real)
-        return out.detach()
-
     # ------------------------------------------------------------------ Dyna
     def _dyna(self, buffer, prev: int, frames: int) -> None:
+        """GPI-PD's Dyna for a batch that took the frames from ``prev`` to ``frames``: :meth:`fit_model` when it
+        crossed a multiple of ``gpi_dynamics_train_freq``, :meth:`rollout_model` when it crossed one of
+        ``gpi_dynamics_rollout_freq`` from ``gpi_dynamics_rollout_starts`` on."""
         cfg = self.cfg
         if frames // cfg.gpi_dynamics_train_freq > prev // cfg.gpi_dynamics_train_freq:
             self.fit_model(buffer)
@@ -472,8 +421,6 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
     # and the first iteration's weight w and support M
     tune_malloc()  # (the allocator for training, as build_agent)
     agent = make_gpi_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
-    loss, optimizers, continuous = agent.loss, agent.optimizers, agent.continuous
-    tau = cfg.tau if cfg.tau is not None else 0.005  # (continuous: Polyak averaging of the targets)
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)  # (GPI over M for each evaluation weight)
 
@@ -485,68 +432,85 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the linear support, w, M, the iteration
         schedules(agent, run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
-
-    def update() -> TensorDictBase:
-        """One gradient step on a sampled batch (a non-finite loss raises before anything changes)."""
-        batch, real = agent.sample_batch(buffer)  # GPI-PD with model data: gpi_real_ratio real, the rest imagined
-        out = loss(batch)  # the TD loss for w (GPI-PD: GPI over M in the target); writes the PER priorities
-        if continuous:  # the authors' TD3-style step: critics every update, the actor every gpi_policy_delay
-            check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
-            optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]])
-            polyak_(loss.target_qvalue_network_params, loss.qvalue_network_params, tau)
-            if agent.continuous_updates % cfg.gpi_policy_delay == 0:
-                optimizer_step(loss.actor_loss(), [optimizers["actor"]])  # against the critics just updated
-                polyak_(loss.target_actor_network_params, loss.actor_network_params, tau)
-            agent.continuous_updates += 1
-        else:
-            optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]], max_grad_norm=agent.max_grad_norm,
-                           losses={"loss_qvalue": out["loss_qvalue"]})
-        if cfg.prioritized:  # the real transitions' priorities (the model buffer has none)
-            if real is not batch:
-                real.set("td_error", batch["td_error"][: real.shape[0]])
-            buffer.update_tensordict_priority(real)
-        return out.detach()
-
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
-    # 4. the loop. One iteration = one batch: store it; GPI-PD's model fit and rollouts when due; the updates;
-    # the target copy; at the end of an iteration, the CCS and the next w and M; the ε schedule; then
-    # (run.step) evaluate and checkpoint when due. A checkpoint is the state at the end of a batch.
+    # 4. the loop. One iteration = one batch (on_batch): store it; GPI-PD's model fit and rollouts when due; the
+    # updates; the target copy; at the end of an iteration, the CCS; the ε schedule; then (run.step) evaluate and
+    # checkpoint when due; then the next w and M. A checkpoint is the state at the end of a batch.
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
-        agent.after_step(buffer)  # (a resumed run: an iteration that ended at its checkpoint begins, RNG restored)
+        agent.begin_pending_iteration(buffer)  # (a resumed run: an iteration that ended at its checkpoint begins, RNG restored)
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
-            prev, agent.frames = agent.frames, frames
-
-            def due(period: int) -> bool:  # whether this batch crossed a multiple of `period` frames
-                return frames // period > prev // period
-
-            agent.store(buffer, batch)  # the entries the loss reads
-            losses, updates = None, 0
-            if frames >= cfg.init_random_frames:
-                if agent.dynamics is not None:  # GPI-PD's Dyna
-                    if due(cfg.gpi_dynamics_train_freq):
-                        agent.fit_model(buffer)  # the dynamics ensemble on the whole real buffer
-                    if frames >= cfg.gpi_dynamics_rollout_starts and due(cfg.gpi_dynamics_rollout_freq):
-                        agent.rollout_model(buffer)  # imagined transitions (GPI action for w) -> agent.model_buffer
-                # 1 update per frame, gpi_gradient_updates per frame from gpi_dynamics_rollout_starts (the authors'
-                # discrete gating; continuous: always), or updates_per_batch per batch
-                gated = not continuous and frames < cfg.gpi_dynamics_rollout_starts
-                updates = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
-                losses = apply_updates(update, updates)  # (a non-finite loss raises, counting those applied)
-                if not continuous and due(cfg.target_update_period):
-                    agent.target_updater.step()  # the authors' hard copy every target_update_period frames
-            if frames >= agent.iteration_end:  # the end of an iteration (every gpi_iteration_frames frames)
-                while agent.iteration_end <= frames:
-                    agent.iteration_end += cfg.gpi_iteration_frames
-                agent.end_iteration()  # GPI over M evaluated at each weight of M -> the linear support (CCS)
-                agent.begin_pending = True
-            schedules(agent, frames)
+            losses, updates = on_batch(agent, batch, buffer, frames)  # (a non-finite loss raises, counting those applied)
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)  # (an evaluation due now acts by GPI over this M)
-            agent.after_step(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
+            agent.begin_pending_iteration(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
     return run.summary, agent
+
+
+def update(agent: GPIAgent, buffer) -> TensorDictBase:
+    """One gradient update of ``agent`` on a batch of :meth:`GPIAgent.sample_batch` (GPI-PD with model data:
+    ``gpi_real_ratio`` real transitions, the rest imagined); returns its losses. The TD loss for ``w`` (GPI-PD:
+    GPI over ``M`` in the target) writes the PER priorities, which go back to the real transitions of ``buffer``
+    (the model buffer has none). Discrete: one Adam step of the Q-networks (``max_grad_norm``; the hard target
+    copy is :func:`on_batch`'s). Continuous, the authors' TD3-style step: the critics every update, the actor
+    every ``gpi_policy_delay`` updates against the critics just updated, each followed by Polyak averaging
+    (``tau``, default 0.005) of its targets. A non-finite loss raises before any network moves."""
+    cfg, loss, optimizers = agent.cfg, agent.loss, agent.optimizers
+    batch, real = agent.sample_batch(buffer)
+    out = loss(batch)
+    if agent.continuous:
+        tau = cfg.tau if cfg.tau is not None else 0.005
+        check_finite({k: out[k] for k in ("loss_qvalue", "loss_actor")})  # both, before either network moves
+        optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]])
+        polyak_(loss.target_qvalue_network_params, loss.qvalue_network_params, tau)
+        if agent.continuous_updates % cfg.gpi_policy_delay == 0:
+            optimizer_step(loss.actor_loss(), [optimizers["actor"]])  # (the record gives the delay, not this order)
+            polyak_(loss.target_actor_network_params, loss.actor_network_params, tau)
+        agent.continuous_updates += 1
+    else:
+        optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]], max_grad_norm=agent.max_grad_norm,
+                       losses={"loss_qvalue": out["loss_qvalue"]})
+    if cfg.prioritized:
+        if real is not batch:
+            real.set("td_error", batch["td_error"][: real.shape[0]])
+        buffer.update_tensordict_priority(real)
+    return out.detach()
+
+
+def on_batch(agent: GPIAgent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """What :func:`train_gpi` does with one collected ``batch`` at ``frames`` frames: returns ``(last losses or
+    None, updates done)``. Stores the batch; from ``init_random_frames`` on, GPI-PD's Dyna when due
+    (:meth:`GPIAgent._dyna`), the updates (:func:`update`: 1 per frame, ``gpi_gradient_updates`` per frame from
+    ``gpi_dynamics_rollout_starts`` on, the authors' discrete gating; continuous: ``gpi_gradient_updates``
+    throughout; or ``updates_per_batch`` per batch) and, discrete, the hard target copy every
+    ``target_update_period`` frames; at the end of an iteration (every ``gpi_iteration_frames`` frames) the CCS
+    (:meth:`GPIAgent.end_iteration`), the next iteration left to :meth:`GPIAgent.begin_pending_iteration`
+    after the run's evaluation; then the ε schedule (:func:`schedules`). A caller that never calls
+    ``begin_pending_iteration`` has the pending iteration begin here first. A non-finite loss raises
+    :class:`~morl_trl.recipes.optim.NonFiniteLossError` with ``updates_done``, the updates applied before it."""
+    cfg = agent.cfg
+    if agent.begin_pending:  # (train_gpi began it after its run.step: only other callers get here)
+        agent.begin_iteration(buffer)
+    prev, agent.frames = agent.frames, frames
+    agent.store(buffer, batch)  # the entries the loss reads
+    losses, updates = None, 0
+    if frames >= cfg.init_random_frames:
+        if agent.dynamics is not None:
+            agent._dyna(buffer, prev, frames)  # the model fit on the whole real buffer; imagined transitions
+        gated = not agent.continuous and frames < cfg.gpi_dynamics_rollout_starts
+        updates = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
+        losses = apply_updates(lambda: update(agent, buffer), updates)
+        if not agent.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
+            agent.target_updater.step()  # the authors' hard copy every target_update_period frames
+    if frames >= agent.iteration_end:
+        while agent.iteration_end <= frames:
+            agent.iteration_end += cfg.gpi_iteration_frames
+        agent.end_iteration()  # GPI over M evaluated at each weight of M -> the linear support (CCS)
+        agent.begin_pending = True
+    schedules(agent, frames)
+    return losses, updates
 
 
 def schedules(agent: GPIAgent, frames: int) -> None:

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from morl_trl.recipes import resolve_config, run_training
+from morl_trl.recipes import resolve_config, run_training, train
 from morl_trl.recipes.config import valid_keys
-from morl_trl.recipes.gpi import make_gpi_agent
+from morl_trl.recipes.gpi import GPIAgent, make_gpi_agent, on_batch
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
+from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 
 TINY = dict(num_envs=4, frames_per_batch=32, init_random_frames=64, updates_per_batch=2, batch_size=16,
             hidden=(16, 16), buffer_size=4096, gpi_iteration_frames=64, gpi_front_episodes=1,
@@ -53,15 +54,15 @@ def test_iterations_grow_the_ccs_and_pick_the_next_weight():
     cfg, env, agent = _agent("gpi_ls")
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)  # [4, 16] = 64 frames
-    agent.learn(td, buffer, 64)  # reaches gpi_iteration_frames: evaluate M, add to the CCS
+    on_batch(agent, td, buffer, 64)  # reaches gpi_iteration_frames: evaluate M, add to the CCS
     assert agent.iteration == 1 and agent.begin_pending  # the next weight after the run's step (its evaluation)
-    agent.after_step(buffer)
+    agent.begin_pending_iteration(buffer)
     assert agent.iteration == 2 and not agent.begin_pending
     assert len(agent.linear_support.visited_weights) == 2  # both weights of M were evaluated
     np.testing.assert_array_equal(agent.weight, [0, 1])  # the second extremum
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
-    agent.learn(td, buffer, 128)
-    agent.after_step(buffer)
+    on_batch(agent, td, buffer, 128)
+    agent.begin_pending_iteration(buffer)
     assert agent.iteration == 3 and len(agent.linear_support.ccs) >= 1
     assert agent.weight.shape == (2,) and np.isclose(agent.weight.sum(), 1)
     # the evaluation policy acts by GPI over the support the loss trains on
@@ -75,14 +76,14 @@ def test_an_evaluation_at_an_iterations_end_acts_over_the_support_it_trained_on(
     cfg, env, agent = _agent("gpi_ls")
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     trained = agent.eval_policy.support.clone()
-    agent.learn(env.rollout(16, agent.explore_policy, break_when_any_done=False), buffer, 64)  # the iteration ends
+    on_batch(agent, env.rollout(16, agent.explore_policy, break_when_any_done=False), buffer, 64)  # the iteration ends
     torch.testing.assert_close(agent.eval_policy.support, trained)  # what run.step evaluates now
-    agent.after_step(buffer)
+    agent.begin_pending_iteration(buffer)
     assert agent.iteration == 2 and agent.eval_policy.support.shape[0] >= trained.shape[0]
-    # a caller that never calls after_step: the next learn() begins the iteration first
+    # a caller that never calls begin_pending_iteration: the next on_batch begins the iteration first
     cfg, env, other = _agent("gpi_ls")
-    other.learn(env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 64)
-    other.learn(env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 96)
+    on_batch(other, env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 64)
+    on_batch(other, env.rollout(16, other.explore_policy, break_when_any_done=False), buffer, 96)
     assert other.iteration == 2 and not other.begin_pending
 
 
@@ -90,7 +91,7 @@ def test_gpi_pd_rolls_out_the_model_into_its_buffer():
     cfg, env, agent = _agent("gpi_pd", gpi_uncertainty_threshold=1e9, gpi_iteration_frames=10_000)
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
-    agent.learn(td, buffer, 64)  # fits the model (train freq 64) and rolls out (starts at 64)
+    on_batch(agent, td, buffer, 64)  # fits the model (train freq 64) and rolls out (starts at 64)
     assert len(agent.model_buffer) == 50
     batch, real = agent.sample_batch(buffer)
     assert batch.shape == (16,) and real.shape == (8,)  # real_ratio 0.5
@@ -133,12 +134,90 @@ def test_continuous_gpi_pd_learns_rolls_out_and_iterates(tmp_path):
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     td = env.rollout(16, agent.explore_policy, break_when_any_done=False)
     before = [p.clone() for p in agent.loss.actor_network_params.values(True, True)]
-    losses, n = agent.learn(td, buffer, 64)
+    losses, n = on_batch(agent, td, buffer, 64)
     assert n == 2 and 50 <= len(agent.model_buffer) <= 100  # 50 observations x 2 model steps, less the terminated
     assert any(not torch.equal(a, b) for a, b in zip(before, agent.loss.actor_network_params.values(True, True)))
     assert agent.iteration == 1 and len(agent.linear_support.visited_weights) == 3  # M: the 3 extrema
-    agent.after_step(buffer)  # (the loop's call after run.step: the next iteration)
+    agent.begin_pending_iteration(buffer)  # (the loop's call after run.step: the next iteration)
     assert agent.iteration == 2
+
+
+# ---------------------------------------------------------------------- the recipe's runs: counters, Dyna, resume
+# 192 frames in batches of 32: iterations end at 64, 128 and 192 (the CCS grows, w and M change), updates from
+# 64 frames; GPI-PD fits its model at 128 and rolls it out every 32 frames from 64 (the updates then mix in
+# model transitions); checkpoints at 128 and 192, evaluations at 0 and 192
+RUN = dict(frames=192, num_envs=4, frames_per_batch=32, init_random_frames=64, updates_per_batch=2, batch_size=16,
+           hidden=(16, 16), buffer_size=1024, gpi_iteration_frames=64, gpi_front_episodes=1,
+           gpi_dynamics_hidden=(16,), gpi_dynamics_train_freq=128, gpi_dynamics_rollout_freq=32,
+           gpi_dynamics_rollout_starts=64, gpi_dynamics_rollout_batch=50, gpi_uncertainty_threshold=1e9,
+           target_update_period=64, eval_interval=192, eval_weights=2, checkpoint_interval=128,
+           eval_contexts=("MOLavaGridRoom-v0",), progress=False, eval_random_baseline=False)
+
+
+def _recipe_run(tmp_path, monkeypatch, algo, env_id, **kw):
+    """``morl-trl train``'s run of ``algo`` on ``env_id`` (RUN + ``kw``): its last checkpoint and the Dyna calls."""
+    cfg = {k: v for k, v in {**RUN, **kw}.items() if k in valid_keys(algo)}
+    # (report.md's figures take seconds to draw and are not checked)
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    calls = {"fit_model": 0, "rollout_model": 0}
+
+    def counted(name):
+        method = getattr(GPIAgent, name)
+
+        def wrapped(self, *args):
+            calls[name] += 1
+            return method(self, *args)
+        monkeypatch.setattr(GPIAgent, name, wrapped)
+
+    for name in calls:
+        counted(name)
+    train(resolve_config(algo, env_id, run_dir=str(tmp_path / algo), **cfg))
+    return last_checkpoints(tmp_path / algo)[0], calls
+
+
+@pytest.mark.parametrize("algo", ["gpi_ls", "gpi_pd"])
+def test_the_recipes_iterations_updates_and_dyna_calls(tmp_path, monkeypatch, algo):
+    state, calls = _recipe_run(tmp_path, monkeypatch, algo, "deep-sea-treasure-v0", eval_contexts=None)
+    assert (state["frames"], state["updates"]) == (192, 10)  # 2 updates per batch from 64 frames on (5 batches)
+    agent = state["agent"]
+    # the iteration boundaries at 64, 128 and 192 each evaluated GPI over M at its 2 weights (added to the linear
+    # support); those at 64 and 128 then, after the run's step, at the corner weights of the CCS (the next w): 5
+    # evaluations; the run's last frame begins no 4th iteration (MB begins none after its last)
+    assert (agent["iteration"], agent["iteration_end"], agent["frames"], agent["evaluations"]) == (3, 256, 192, 5)
+    assert agent["begin_pending"]
+    assert len(agent["linear_support"]["visited"]) == 6
+    # GPI-PD: one model fit (at 128) and rollouts every 32 frames from 64 (5 batches)
+    assert calls == ({"fit_model": 1, "rollout_model": 5} if algo == "gpi_pd" else {"fit_model": 0, "rollout_model": 0})
+    assert (agent["dynamics"] is not None) == (algo == "gpi_pd")
+
+
+@pytest.mark.parametrize("algo", ["gpi_ls", "gpi_pd"])
+def test_the_continuous_recipes_iterations_updates_and_dyna_calls(tmp_path, monkeypatch, algo):
+    pytest.importorskip("mujoco")
+    state, calls = _recipe_run(tmp_path, monkeypatch, algo, "MOHopperDR-v5", num_envs=2, eval_weights=3,
+                               eval_contexts=("MOHopperDefault-v5",), gpi_dynamics_rollout_len=2)
+    assert (state["frames"], state["updates"]) == (192, 10)
+    assert state["agent"]["updates"] == 10  # the continuous update count (the delayed actor's clock)
+    assert (state["agent"]["iteration"], state["agent"]["iteration_end"]) == (3, 256)
+    assert calls == ({"fit_model": 1, "rollout_model": 5} if algo == "gpi_pd" else {"fit_model": 0, "rollout_model": 0})
+
+
+@pytest.mark.slow  # (~10 s)
+def test_a_gpi_ls_run_interrupted_and_resumed_ends_as_the_uninterrupted_run(tmp_path, monkeypatch):
+    """Ctrl-C after the batch at 64 frames (its updates and the first iteration's end: a checkpoint,
+    RunInterrupted), then ``--resume``: MO-LavaGrid snapshots its simulator, so the run continues exactly
+    (the CCS, w, M, the iteration and the CCS evaluations' seeds come back from the checkpoint)."""
+    monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
+    cfg = {k: v for k, v in RUN.items() if k in valid_keys("gpi_ls")} | dict(frames=128, eval_interval=128)
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    train(resolve_config("gpi_ls", "MOLavaGridDR-v0", run_dir=str(whole), **cfg))
+    interrupt_then_resume(monkeypatch, resolve_config("gpi_ls", "MOLavaGridDR-v0", run_dir=str(resumed), **cfg), at=64)
+    log = (resumed / "log.txt").read_text()
+    assert "resumed from frames_000000000064 at 64 frames" in log and "fresh episodes" not in log
+    a, b = last_checkpoints(whole, resumed)
+    assert (a["frames"], a["updates"], a["agent"]["iteration"]) == (128, 6, 2)  # (no iteration begins after the last frame)
+    assert_checkpoints_equal(a, b)
+    assert_logs_equal(whole, resumed)
 
 
 @pytest.mark.parametrize("fused", [True, False])
