@@ -17,7 +17,7 @@ Each figure is a full update as a training loop runs it, replay sampling include
   episodes. Ours: ``recipes.pcn.update``; peer: ``PCN.update()`` with the authors' network.
 * **MORL/D** (SB) at MO-Hopper ([morld_sb.hopper]): one *population update* = each of the 6
   members updated once (batch 256 each from the shared buffer, 4 x 256 MLPs, two critics,
-  learned temperature). Ours: ``MORLDAgent.update`` (one batched step); peer: ``MOSAC.update()``
+  learned temperature). Ours: ``morl_trl.recipes.morld.update`` (one batched step); peer: ``MOSAC.update()``
   of each member, as MORL-Baselines' MORL/D steps them.
 * **PGMORL** at MO-Hopper ([pgmorl.hopper]): one *update* = one clipped-PPO minibatch step of the
   whole population (6 members, 4 envs x 2048 steps each, 10 epochs x 32 minibatches, 4 x 256 tanh
@@ -284,15 +284,16 @@ def morld_transitions(n, obs, act, k, seed=3):
 
 
 def ours_morld(td, buffer_size):
-    """``MORLDAgent.update`` (MORL/D SB at MO-Hopper): all 6 members at once, 256 transitions each
+    """``morld.update`` (MORL/D SB at MO-Hopper): all 6 members at once, 256 transitions each
     from the shared buffer, critics + actor + temperature, one optimizer step per network kind,
     Polyak targets."""
+    from morl_trl.recipes import morld
     from morl_trl.recipes.parts import make_replay_buffer
 
     cfg, _, agent = _recipe_agent("morld", MORLD_ENV, buffer_size=buffer_size)
     rb = make_replay_buffer(cfg, torch.device("cpu"))
     rb.extend(td)
-    return lambda: agent.update(rb), cfg
+    return lambda: morld.update(agent, rb), cfg
 
 
 def ours_pgmorl(steps):

@@ -415,7 +415,7 @@ MORLD = {
     "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
                                                        ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
     "derived.env_reset_at_each_exchange": Same("morld_schedule", expect=lambda v, cfg: "round_robin" if v else
-                                               "concurrent"),  # recipes.morld: Agent.before_batch
+                                               "concurrent"),  # recipes.morld: MORLDAgent.env_reset_due
 }
 
 PCN = {

@@ -11,11 +11,13 @@ authors': for each evaluation weight the Pareto archive's snapshot whose weight 
 :func:`train_morld` is the recipe, read top to bottom (env -> the population, its loss and optimizers ->
 the shared replay buffer and collector -> the loop), for both schedules and both variants. What lives
 between batches and in checkpoints is a :class:`MORLDAgent` (the population, the archive, the turn and the
-counters), whose named steps the loop calls: :meth:`~MORLDAgent.record_returns`, ``store``,
-:meth:`~MORLDAgent.own_updates` (the acting member's updates at the frames of :func:`update_clocks`),
-:meth:`~MORLDAgent.catch_up_updates`, :meth:`~MORLDAgent.exchange`, :meth:`~MORLDAgent.next_turn`;
-concurrent, :meth:`~MORLDAgent.concurrent_updates_due` and :meth:`~MORLDAgent.exchanges_due`
-(:meth:`MORLDAgent.learn` is the loop's body as one call, for driving an agent batch by batch).
+counters). The loop hands each batch to :func:`on_batch` (record the returns, store, the updates, the
+exchange), the one per-batch step, which :func:`update` (one gradient update, the only one) serves:
+round robin, :func:`own_updates` (the acting member's updates at the frames of :func:`update_clocks`),
+:func:`catch_up_updates`, :meth:`~MORLDAgent.exchange`, :meth:`~MORLDAgent.next_turn`; concurrent,
+:meth:`~MORLDAgent.concurrent_updates_due`, :func:`updates_at` and :meth:`~MORLDAgent.exchanges_due`.
+Driving an agent batch by batch outside the recipe (tests, benchmarks) calls the same
+``on_batch(agent, batch, buffer, frames)``.
 
 The population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`:
 every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_schedule``):
@@ -27,8 +29,8 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
   actor steps and target copies on the shared counter's clock, as the authors' ``global_step``).
   At the end of the turn (the exchange) every other member gets ``morld_update_passes`` (10)
   catch-up updates, the members are evaluated and archived (and PSA adapts the weights), and
-  the env is reset (``Agent.before_batch``: the training loop restarts every episode, as each
-  member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
+  the env is reset (:meth:`MORLDAgent.env_reset_due`: the training loop restarts every episode, as
+  each member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
   :class:`~morl_trl.recipes.optim.MemberAdam` (each member's own Adam moments and step count)
   and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
   moments and targets stay bit for bit. The acting member's own updates compute that member
@@ -36,8 +38,9 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
   <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`: its slices of the stacked
   networks on a ``[1, batch_size]`` sample, ``1 / P`` of the work), with the parameters and Adam
   state, to float rounding, of an update of every member with the others masked out
-  (``MORLDAgent.slice_acting_member = False``, the earlier implementation; the two are compared
-  in ``tests/recipes/test_morld_round_robin.py``); the catch-up updates step all the others at once. ``frames`` counts the acting member's frames and the
+  (``MORLDAgent.slice_acting_member = False``; the two are compared in
+  ``tests/recipes/test_morld_round_robin.py``); the catch-up updates step all the others at once. ``frames``
+  counts the acting member's frames and the
   run ends after the turn that reaches it: ``ceil(frames / exchange_every)`` turns
   (:func:`round_robin_turns`).
 * ``"concurrent"`` (our earlier scheme, faster, most of all on a GPU; not the authors'): the
@@ -68,11 +71,12 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
@@ -105,7 +109,7 @@ from morl_trl.recipes.agent import (
     target_updater,
 )
 from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import MemberAdam, fused_choice
+from morl_trl.recipes.optim import MemberAdam, fused_choice, optimizer_step
 from morl_trl.recipes.parts import (
     load_agent_state,
     checkpoint_snapshot,
@@ -122,9 +126,10 @@ from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
 __all__ = ["ActiveMemberRouter", "ArchiveSnapshotRouter", "MORLDAgent", "MemberTargetUpdate", "ParetoArchive",
-           "archive_eval_policy", "make_member_env", "make_morld_agent", "make_morld_training_env",
-           "member_optimizers", "orthogonal_population_init_", "psa_weights", "round_robin_turns",
-           "train_morld", "update_clocks"]
+           "archive_eval_policy", "catch_up_updates", "count_update", "frames_to_collect", "make_member_env",
+           "make_morld_agent", "make_morld_training_env", "member_optimizers", "on_batch",
+           "orthogonal_population_init_", "own_updates", "psa_weights", "round_robin_turns", "sample_members",
+           "train_morld", "update", "update_clocks", "updates_at"]
 
 #: MORL-Baselines 1.3.0: an archived evaluation closer than this (squared distance) is the member itself
 PSA_MIN_DISTANCE = 0.01
@@ -240,7 +245,7 @@ class MemberTargetUpdate:
     @torch.no_grad()
     def step(self) -> None:
         agent = self._agent
-        clock = agent.clock if agent.clock is not None else agent.critic_steps  # (outside learn(): updates)
+        clock = agent.clock if agent.clock is not None else agent.critic_steps  # (off the shared clock: updates)
         if self.tau is None and clock % self.period_frames:
             return
         if agent.sliced_member is not None:  # one member: its slices alone (the masked step's arithmetic)
@@ -369,7 +374,8 @@ def archive_eval_policy(actor, weights: torch.Tensor, snapshots_fn):
 
 
 class MORLDAgent(Agent):
-    """The MORL/D population (see the module docstring): store, update the members, exchange.
+    """The MORL/D population and what lives between batches (see the module docstring): the members'
+    returns, the archive, the exchanges, the turn and the counters. Its updates are :func:`update`'s.
 
     Round robin: :attr:`active` is the member whose turn it is, :attr:`members` the ``[P]`` mask
     of the members the current update steps, :attr:`clock` that update's frame on the shared
@@ -379,8 +385,8 @@ class MORLDAgent(Agent):
     """
 
     #: round robin: the acting member's own updates compute that member alone (``False``: every
-    #: member computes and the step is masked to it, the earlier implementation and the reference
-    #: the tests compare against; slower by about the population size)
+    #: member computes and the step is masked to it, the reference the tests compare against;
+    #: slower by about the population size)
     slice_acting_member: bool = True
 
     def __init__(self, cfg, loss: PopulationMOSACLoss, explore_policy, eval_policy, optimizers, updater, *, device,
@@ -408,21 +414,21 @@ class MORLDAgent(Agent):
         for opt in optimizers.values():
             if isinstance(opt, MemberAdam):
                 opt.members = self.members
-        self.clock: int | None = None  # (None: an update outside learn(), counted as the concurrent schedule's)
+        self.clock: int | None = None  # (None: an update off the shared clock, counted as the concurrent schedule's)
         self.turn_frames = 0
         self.member_updates = torch.zeros(P, dtype=torch.long)
         self.member_frames = torch.zeros(P, dtype=torch.long)
         self.env_resets = 0
-        self._reset_due = False
-        self._catching_up = False
+        self._reset_due = False  # (env_reset_due)
         #: the member whose own update, computed for it alone, is running (``None`` outside one)
         self.sliced_member: int | None = None
+        #: the last actor turn's losses (:func:`update` logs them with the critic-only updates after it)
+        self.last_actor_losses: dict | None = None
 
     @property
     def active(self) -> int:
         """The member whose turn it is (round robin)."""
         return int(self.active_member)
-
 
     def snapshots(self):
         """``(weights [S, k], actor parameters [S, ...])`` of the archive, or ``None`` while it is empty."""
@@ -435,43 +441,7 @@ class MORLDAgent(Agent):
                                      torch.stack([p["actor"] for p in people])))
         return self._snapshots[1]
 
-    # ------------------------------------------------------------------ learning
-    def frames_to_collect(self, frames_done: int) -> int:
-        """Round robin: the frames of the whole turns still to go (the run ends after the turn that reaches ``frames``)."""
-        if not self.round_robin:
-            return super().frames_to_collect(frames_done)
-        e = self.cfg.exchange_every
-        return -(-self.cfg.frames // e) * e - frames_done
-
-    def learn(self, batch: TensorDictBase, buffer, frames: int):
-        """One batch of :func:`train_morld`'s loop as one call (for driving an agent batch by batch, as the
-        generic :func:`~morl_trl.recipes.off_policy.train_agent`): record the finished episodes, store the
-        batch in the shared buffer, update, and exchange every ``cfg.exchange_every`` frames (round robin:
-        after the catch-up updates; the env reset is :meth:`before_batch`'s)."""
-        self.record_returns(batch)
-        self.store(buffer, batch)
-        if not self.round_robin:
-            losses, n = None, 0
-            if frames >= self.cfg.init_random_frames:
-                n = self.concurrent_updates_due(batch)
-                losses = self.run_updates(buffer, n)
-            for _ in range(self.exchanges_due(frames)):
-                self.exchange()
-            return losses, n
-        cfg, a = self.cfg, self.active
-        self.member_frames[a] += batch.numel()
-        self.turn_frames += batch.numel()
-        losses = self.own_updates(buffer, update_clocks(cfg, frames - batch.numel(), frames))
-        n = len(update_clocks(cfg, frames - batch.numel(), frames))
-        if self.turn_frames >= cfg.exchange_every:
-            out = self.catch_up_updates(buffer, frames, done=n)
-            losses = out if out is not None else losses
-            n += self.catch_up_passes
-            self.exchange()
-            self.next_turn()
-            self._reset_due = True
-        return losses, n
-
+    # ------------------------------------------------------------------ schedules
     def concurrent_updates_due(self, batch: TensorDictBase) -> int:
         """Concurrent: the updates of all members this batch earns, ``cfg.updates_per_batch``, or (0) one
         per ``update_frequency`` of each member's frames (a remainder carries over to the next batch)."""
@@ -489,106 +459,26 @@ class MORLDAgent(Agent):
             n += 1
         return n
 
-    def own_updates(self, buffer, clocks: list[int]) -> TensorDictBase | None:
-        """Round robin: one update of the acting member alone at each shared-counter frame of ``clocks``
-        (only its parameters, Adam moments and targets step); returns the last losses (``None``: none)."""
-        a = self.active
-        # (the mask the optimizers and target updates read)
-        self.members.copy_(torch.arange(self.population, device=self.members.device) == a)
-        losses = self._updates_at(buffer, clocks, done=0)
-        self.member_updates[a] += len(clocks)
-        return losses
-
     @property
     def catch_up_passes(self) -> int:
         """Round robin: the catch-up updates each other member gets at an exchange (``morld_update_passes``;
         none with one member)."""
         return self.cfg.morld_update_passes if self.population > 1 else 0
 
-    def catch_up_updates(self, buffer, frames: int, *, done: int) -> TensorDictBase | None:
-        """Round robin, at the exchange after ``frames`` frames (the authors' ``morld.py:559-567``):
-        :attr:`catch_up_passes` updates of every member but the acting one, all at once (their own
-        ``batch_size`` samples each, at the shared frame ``frames``); ``done``: the batch's updates before them."""
-        passes = self.catch_up_passes
-        if not passes:
-            return None
-        self.members.copy_(torch.arange(self.population, device=self.members.device) != self.active)
-        self._catching_up = True
-        try:
-            losses = self._updates_at(buffer, [frames] * passes, done=done)
-        finally:
-            self._catching_up = False
-        self.member_updates[self.members.cpu()] += passes
-        return losses
-
     def next_turn(self) -> None:
-        """Round robin: the next member's turn (``(active + 1) mod P``, on a reset env: the loop's)."""
+        """Round robin: the next member's turn (``(active + 1) mod P``), on a reset env: :meth:`env_reset_due`
+        says so once."""
         self.active_member.fill_((self.active + 1) % self.population)
         self.turn_frames = 0
+        self._reset_due = True
 
-    def update(self, buffer) -> TensorDictBase:
-        """:meth:`Agent.update <morl_trl.recipes.agent.Agent.update>`; the acting member's own update
-        (round robin, :attr:`slice_acting_member`, not a catch-up update) runs inside :meth:`PopulationMOSACLoss.only_member
-        <morl_trl.objectives.population.PopulationMOSACLoss.only_member>` (its ``entropy`` is
-        reported at its row of a ``[P]`` vector, NaN for the others)."""
-        if not (self.round_robin and self.slice_acting_member and not self._catching_up):
-            return super().update(buffer)
-        self.sliced_member = self.active
-        try:
-            with self.loss.only_member(self.sliced_member):
-                out = super().update(buffer)
-        finally:
-            self.sliced_member = None
-        entropy = out.get("entropy", None)
-        if entropy is not None and entropy.shape[-1:] == (1,) and self.population > 1:
-            full = torch.full((self.population,), float("nan"), dtype=entropy.dtype, device=entropy.device)
-            out.set("entropy", full.index_copy(0, self.active_member.view(1), entropy.reshape(1)))
-        return out
-
-    def _updates_at(self, buffer, clocks: list[int], *, done: int):
-        """One :meth:`update` at each shared-counter frame of ``clocks``; ``done``: updates of this batch before them."""
-        losses = None
-        try:
-            for i, g in enumerate(clocks):
-                self.clock = g
-                try:
-                    losses = self.update(buffer)
-                except NonFiniteLossError as err:
-                    err.updates_done = done + i
-                    raise
-        finally:
-            self.clock = None
-        return losses
-
-    def next_is_actor_turn(self) -> bool:
-        """Round robin: the actor (and temperature) steps when the update's shared frame is a multiple of
-        ``policy_freq``, as the authors' ``global_step % policy_freq == 0`` (a catch-up update at an exchange,
-        whose frame is a multiple of ``exchange_every``: the actor steps)."""
-        if not self.round_robin or self.clock is None:
-            return super().next_is_actor_turn()
-        self.critic_steps += 1
-        return self.clock % self.policy_freq == 0
-
-    def before_batch(self) -> bool:
-        """Round robin: after an exchange the next member starts on a reset env (once; the authors' ``train()``
-        starts with ``env.reset()``, ``mosac_continuous_action.py:526``)."""
+    def env_reset_due(self) -> bool:
+        """Round robin: ``True`` once after each :meth:`next_turn` (counted in :attr:`env_resets`): the training
+        loop restarts every episode (``collector`` reset) before the next member's first batch, as the authors'
+        ``train()`` starts with ``env.reset()`` (``mosac_continuous_action.py:526``)."""
         due, self._reset_due = self._reset_due, False
         self.env_resets += int(due)
         return due
-
-    def sample(self, buffer) -> TensorDictBase:
-        """``[P, batch_size]`` transitions of the shared buffer, ``batch_size`` per member; round robin during
-        a turn: one ``batch_size`` draw for the active member, ``[1, batch_size]`` (:attr:`sliced_member`; else
-        the other rows repeat it: their updates are masked)."""
-        p, b = self.population, self.cfg.batch_size
-        if self.sliced_member is not None:
-            return buffer.sample(b).to(self.device).unsqueeze(0)
-        if self.round_robin and not self._catching_up:
-            return buffer.sample(b).to(self.device).expand(p, b)
-        with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
-            warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
-            batch = buffer.sample(p * b)
-        return batch.to(self.device).reshape(p, b)
 
     def record_returns(self, batch: TensorDictBase) -> None:
         """Add the discounted returns of the episodes ending in ``batch`` to their members' sums, on the
@@ -699,6 +589,210 @@ class MORLDAgent(Agent):
         self.env_resets = int(m.get("env_resets", 0))
 
 
+# ---------------------------------------------------------------------- learning
+def frames_to_collect(cfg, frames_done: int) -> int:
+    """The frames the collector still has to collect when ``frames_done`` are done: ``cfg.frames - frames_done``;
+    round robin, those of the whole turns still to go (the run ends after the turn that reaches ``frames``, as
+    the authors' ``while global_step < total_timesteps``).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> cfg = SimpleNamespace(morld_schedule="round_robin", frames=50_001, exchange_every=20_000)
+        >>> frames_to_collect(cfg, 0), frames_to_collect(cfg, 40_000)
+        (60000, 20000)
+    """
+    if cfg.morld_schedule != "round_robin":
+        return cfg.frames - frames_done
+    e = cfg.exchange_every
+    return -(-cfg.frames // e) * e - frames_done
+
+
+def sample_members(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBase:
+    """The batch of one update: ``[P, batch_size]`` transitions of the shared buffer, ``batch_size`` per member;
+    round robin, the acting member's own update (not ``catch_up``): one ``batch_size`` draw, ``[1, batch_size]``
+    when it is computed alone (:attr:`MORLDAgent.sliced_member`), else repeated over the rows (the others'
+    updates are masked)."""
+    p, b = agent.population, agent.cfg.batch_size
+    if agent.sliced_member is not None:
+        return buffer.sample(b).to(agent.device).unsqueeze(0)
+    if agent.round_robin and not catch_up:
+        return buffer.sample(b).to(agent.device).expand(p, b)
+    with warnings.catch_warnings():  # the run's buffer is built with batch_size (one member's): P of them here
+        warnings.filterwarnings("ignore", message="Got conflicting batch_sizes")
+        batch = buffer.sample(p * b)
+    return batch.to(agent.device).reshape(p, b)
+
+
+def count_update(agent: MORLDAgent) -> bool:
+    """Counts one more update (``agent.critic_steps``); whether it is an actor turn. On the shared clock (round
+    robin, ``agent.clock`` set): when that frame is a multiple of ``policy_freq``, as the authors'
+    ``global_step % policy_freq == 0`` (a catch-up update at an exchange, whose frame is a multiple of
+    ``exchange_every``: the actor steps); otherwise every ``policy_freq``-th update (the 2nd, 4th, ... for 2)."""
+    agent.critic_steps += 1
+    clock = agent.clock if agent.round_robin and agent.clock is not None else agent.critic_steps
+    return clock % agent.cfg.policy_freq == 0
+
+
+def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBase:
+    """One gradient update of the members of ``agent.members`` (concurrent: all of them) on a sample of the
+    shared ``buffer`` (:func:`sample_members`); returns its losses. ``catch_up``: a round robin's catch-up
+    update of the other members at an exchange.
+
+    The authors' MOSAC order (``mosac_continuous_action.py:460-482``, ``mosac_discrete_action.py:480-492``),
+    each loss computed alone (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`'s ``qvalue_loss`` /
+    ``actor_loss`` / ``temperature_loss``):
+
+    1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
+    2. on an actor turn (:func:`count_update`), ``policy_freq`` times: ``actor_loss`` (fresh actions, the
+       updated critics) and the ``actor`` optimizer, then, with a learned temperature, ``temperature_loss`` and
+       the ``alpha`` optimizer, on a fresh sample of the just-updated actor (continuous,
+       ``fresh_temperature_sample``) or on the actor step's log-probabilities (discrete);
+    3. the target critics (:class:`MemberTargetUpdate` in the round robin: the stepped members' only).
+
+    ``joint_update=true``: one step of the summed losses instead of 1-2. With ``cfg.max_grad_norm`` each
+    optimizer's gradient norm is clipped first. A non-finite loss is never applied:
+    :class:`~morl_trl.recipes.optim.NonFiniteLossError` is raised before its step (the steps before it in
+    the update stay applied). On a critic-only update the actor's and temperature's losses are those of the
+    last actor turn (NaN before the first).
+
+    The acting member's own update (round robin, ``slice_acting_member``, not ``catch_up``) runs inside
+    :meth:`PopulationMOSACLoss.only_member <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`
+    (that member alone on a ``[1, batch_size]`` sample); its ``entropy`` is reported at its row of a ``[P]``
+    vector, NaN for the others.
+    """
+    cfg, loss, opts = agent.cfg, agent.loss, agent.optimizers
+    member = agent.active if agent.round_robin and agent.slice_acting_member and not catch_up else None
+    agent.sliced_member = member
+    try:
+        with loss.only_member(member) if member is not None else contextlib.nullcontext():
+            batch = sample_members(agent, buffer, catch_up=catch_up)
+            actor_turn = count_update(agent)
+            clip = dict(max_grad_norm=cfg.max_grad_norm)
+            if cfg.joint_update:
+                keys = [k for k in loss.out_keys if k.startswith("loss_")]
+                out = loss(batch)
+                optimizer_step(sum(out[k] for k in keys), opts.values(), losses={k: out[k] for k in keys}, **clip)
+            else:
+                loss_qvalue, _ = loss.qvalue_loss(batch)
+                optimizer_step(loss_qvalue, [opts["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **clip)
+                alpha_opt = opts.get("alpha")
+                if actor_turn:
+                    dist = None
+                    for i in range(cfg.policy_freq):
+                        loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
+                        optimizer_step(loss_actor, [opts["actor"]], losses={"loss_actor": loss_actor}, **clip)
+                        actor_out = {"loss_actor": loss_actor.detach(), "entropy": -meta["log_prob"].mean(-1)}
+                        if alpha_opt is not None:
+                            if loss.fresh_temperature_sample:
+                                # one forward of the updated actor for the temperature's fresh sample and, drawn
+                                # after it, the next actor step's sample (the actor does not change in between)
+                                dist = loss.actor_dist(batch) if i + 1 < cfg.policy_freq else None
+                                loss_alpha = loss.temperature_loss(batch, dist=dist)
+                            else:
+                                loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
+                            optimizer_step(loss_alpha, [alpha_opt], losses={"loss_alpha": loss_alpha}, **clip)
+                            actor_out["loss_alpha"] = loss_alpha.detach()
+                    agent.last_actor_losses = actor_out
+                elif agent.last_actor_losses is None:  # no actor turn yet
+                    nan = torch.full_like(loss_qvalue.detach(), float("nan"))
+                    agent.last_actor_losses = {"loss_actor": nan,
+                                               "entropy": torch.full_like(loss.log_alpha.detach(), float("nan"))}
+                    if alpha_opt is not None:
+                        agent.last_actor_losses["loss_alpha"] = nan
+                with torch.no_grad():
+                    alpha = loss.log_alpha.exp()
+                out = TensorDict({"loss_qvalue": loss_qvalue.detach(), **agent.last_actor_losses, "alpha": alpha},
+                                 batch_size=[])
+            agent.target_updater.step()
+    finally:
+        agent.sliced_member = None
+    out = out.detach()
+    entropy = out.get("entropy", None)
+    if member is not None and entropy is not None and entropy.shape[-1:] == (1,) and agent.population > 1:
+        full = torch.full((agent.population,), float("nan"), dtype=entropy.dtype, device=entropy.device)
+        out.set("entropy", full.index_copy(0, agent.active_member.view(1), entropy.reshape(1)))
+    return out
+
+
+def updates_at(agent: MORLDAgent, buffer, clocks: list, *, catch_up: bool = False, done: int = 0):
+    """One :func:`update` at each shared-counter frame of ``clocks`` (``None``: off the shared clock, the
+    concurrent schedule's); returns the last losses (``None``: no update). A
+    :class:`~morl_trl.recipes.optim.NonFiniteLossError` carries ``updates_done``: ``done`` (this batch's
+    updates before these) plus those applied here."""
+    losses = None
+    try:
+        for i, g in enumerate(clocks):
+            agent.clock = g
+            try:
+                losses = update(agent, buffer, catch_up=catch_up)
+            except NonFiniteLossError as err:
+                err.updates_done = done + i
+                raise
+    finally:
+        agent.clock = None
+    return losses
+
+
+def own_updates(agent: MORLDAgent, buffer, clocks: list[int]) -> TensorDictBase | None:
+    """Round robin: one update of the acting member alone at each shared-counter frame of ``clocks`` (only its
+    parameters, Adam moments and targets step); returns the last losses (``None``: none)."""
+    a = agent.active
+    agent.members.copy_(torch.arange(agent.population, device=agent.members.device) == a)  # (the optimizers' mask)
+    losses = updates_at(agent, buffer, clocks)
+    agent.member_updates[a] += len(clocks)
+    return losses
+
+
+def catch_up_updates(agent: MORLDAgent, buffer, frames: int, *, done: int) -> TensorDictBase | None:
+    """Round robin, at the exchange after ``frames`` frames (the authors' ``morld.py:559-567``):
+    :attr:`~MORLDAgent.catch_up_passes` updates of every member but the acting one, all at once (their own
+    ``batch_size`` samples each, at the shared frame ``frames``); ``done``: the batch's updates before them."""
+    passes = agent.catch_up_passes
+    if not passes:
+        return None
+    agent.members.copy_(torch.arange(agent.population, device=agent.members.device) != agent.active)
+    losses = updates_at(agent, buffer, [frames] * passes, catch_up=True, done=done)
+    agent.member_updates[agent.members.cpu()] += passes
+    return losses
+
+
+def on_batch(agent: MORLDAgent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """What :func:`train_morld`'s loop does with one collected ``batch`` (``frames``: the frames collected so
+    far, this batch included); returns ``(last losses or None, updates done)``.
+
+    Record the finished episodes' returns (the archive's evaluation with ``morld_eval_episodes=0``), store the
+    batch in the buffer all members share, then: round robin, the acting member's own updates at the frames of
+    :func:`update_clocks` and, at the end of its turn, the other members' catch-up updates, the exchange and the
+    next member's turn (on a reset env: :meth:`MORLDAgent.env_reset_due`); concurrent, the updates of all members
+    this batch earns once ``frames`` reaches ``init_random_frames``, and the exchanges due. A
+    :class:`~morl_trl.recipes.optim.NonFiniteLossError` carries ``updates_done``: those applied before it.
+    """
+    cfg = agent.cfg
+    agent.record_returns(batch)
+    agent.store(buffer, batch)
+    if not agent.round_robin:  # every member acts in its block of sub-envs, all updated together
+        losses, updates = None, 0
+        if frames >= cfg.init_random_frames:
+            updates = agent.concurrent_updates_due(batch)
+            losses = updates_at(agent, buffer, [None] * updates)
+        for _ in range(agent.exchanges_due(frames)):
+            agent.exchange()
+        return losses, updates
+    # the authors' MORLD.train: member `agent.active` acts for exchange_every frames
+    agent.member_frames[agent.active] += batch.numel()
+    agent.turn_frames += batch.numel()
+    clocks = update_clocks(cfg, frames - batch.numel(), frames)  # one per update_frequency frames
+    losses = own_updates(agent, buffer, clocks)
+    updates = len(clocks)
+    if agent.turn_frames >= cfg.exchange_every:  # the exchange (morld.py:559-578)
+        out = catch_up_updates(agent, buffer, frames, done=updates)  # morld_update_passes per other member
+        losses = out if out is not None else losses
+        updates += agent.catch_up_passes
+        agent.exchange()  # evaluate the members, archive them, PSA: adapt the weights
+        agent.next_turn()  # the next member, on a reset env
+    return losses, updates
+
+
 # ---------------------------------------------------------------------- builders
 def make_member_env(cfg, device: torch.device, per_member: int, *, seed: int, members: int | None = None):
     """``members * per_member`` sub-envs of ``cfg.env_id`` (default ``members = P``: member ``p`` owns a block
@@ -754,6 +848,10 @@ def orthogonal_population_init_(module: nn.Module) -> nn.Module:
 def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAgent:
     """The population (continuous or discrete, from the env's action spec), its loss, optimizers
     (one Adam per network kind over all members), targets and acting views."""
+    if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
+        raise ValueError("compile / cudagraphs capture the generic update (recipes/capture.py); MORL/D runs its own "
+                         "(morld.update: the round robin steps one member at a time): set compile=false and "
+                         "cudagraphs=false")
     spec = action_spec(env)
     (obs_dim,) = obs_shape(env)
     k = num_objectives(env)
@@ -789,9 +887,6 @@ def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAg
         agent = MORLDAgent(cfg, loss, by_member, evaluate, actor_critic_optimizers(cfg, loss),
                            target_updater(cfg, loss), **kw)
     else:
-        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
-            raise ValueError("compile / cudagraphs capture one update of every member; MORL/D's round robin steps one "
-                             "member at a time: set compile=false and cudagraphs=false, or morld_schedule='concurrent'")
         active = torch.zeros((), dtype=torch.long, device=device)
         tdm = actor.module[0]
         make = tanh_normal_actor if "loc" in tdm.out_keys else categorical_actor
@@ -815,7 +910,6 @@ def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
     cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
-    round_robin = cfg.morld_schedule == "round_robin"
 
     # 1. the env (everything is built before the run directory is touched: a failed start writes nothing).
     # Round robin: num_envs sub-envs the acting member steps; concurrent: num_envs per member, P blocks.
@@ -836,41 +930,20 @@ def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # population, optimizers, archive, the turn and the counters
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
-                               frames_to_go=agent.frames_to_collect(run.frames))
+                               frames_to_go=frames_to_collect(cfg, run.frames))
 
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
-    # 4. the loop. One iteration = one batch: record the finished episodes' returns, store the batch, the
-    # updates, the exchange when due, then (run.step) evaluate and checkpoint when due. A checkpoint is the
+    # 4. the loop. One iteration = one batch: on_batch (record the finished episodes' returns, store the batch,
+    # the updates, the exchange when due), then (run.step) evaluate and checkpoint when due. A checkpoint is the
     # state at the end of a batch (after its evaluation), so the batch after it is the same on a resume.
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
-            agent.record_returns(batch)  # (the archive's evaluation with morld_eval_episodes=0)
-            agent.store(buffer, batch)  # the entries the loss reads, into the buffer all members share
-            if round_robin:  # the authors' MORLD.train: member `agent.active` acts for exchange_every frames
-                a = agent.active
-                agent.member_frames[a] += batch.numel()
-                agent.turn_frames += batch.numel()
-                clocks = update_clocks(cfg, frames - batch.numel(), frames)  # one per update_frequency frames
-                losses = agent.own_updates(buffer, clocks)  # the acting member alone, at each of those frames
-                updates = len(clocks)
-                if agent.turn_frames >= cfg.exchange_every:  # the exchange (morld.py:559-578)
-                    out = agent.catch_up_updates(buffer, frames, done=updates)  # morld_update_passes per other member
-                    losses = out if out is not None else losses
-                    updates += agent.catch_up_passes
-                    agent.exchange()  # evaluate the members, archive them, PSA: adapt the weights
-                    agent.next_turn()  # the next member, on a reset env (each member's train() resets it)
-                    reset_collector(collector)
-                    agent.env_resets += 1
-            else:  # concurrent: every member acts in its block of sub-envs, all updated together
-                losses, updates = None, 0
-                if frames >= cfg.init_random_frames:
-                    updates = agent.concurrent_updates_due(batch)
-                    losses = agent.run_updates(buffer, updates)
-                for _ in range(agent.exchanges_due(frames)):
-                    agent.exchange()
+            losses, updates = on_batch(agent, batch, buffer, frames)
+            if agent.env_reset_due():  # round robin: the next member starts on a reset env
+                reset_collector(collector)
             collector.update_policy_weights_()
             run.step(losses, updates)
     return run.summary, agent

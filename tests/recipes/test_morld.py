@@ -1,5 +1,7 @@
 """MORL/D (morld, morld_psa) and the SAC baseline: the authors' settings, PSA, the archive, learning."""
 
+import importlib.util
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -8,10 +10,12 @@ from torchrl.data import Categorical, Composite, LazyTensorStorage, TensorDictRe
 from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from morl_trl.recipes import ALGORITHMS, AGENT_BUILDERS, TRAINING_ENV_BUILDERS, resolve_config
+from morl_trl.preferences import energy_weights
+from morl_trl.recipes import ALGORITHMS, AGENT_BUILDERS, TRAINING_ENV_BUILDERS, resolve_config, train
+from morl_trl.recipes import morld
 from morl_trl.recipes.morld import MORLDAgent, ParetoArchive, make_morld_agent, psa_weights
 from morl_trl.transforms import DiscountedVectorReturn
-from morl_trl.runs import load_checkpoint
+from morl_trl.runs import latest_checkpoint, load_checkpoint
 
 CPU = torch.device("cpu")
 
@@ -139,7 +143,7 @@ def test_population_learns_a_front_no_single_member_covers():
     frames = 0
     for batch in collector:
         frames += batch.numel()
-        agent.learn(batch, buffer, frames)
+        morld.on_batch(agent, batch, buffer, frames)
     collector.shutdown()
     prefs = torch.tensor([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]])
     td = TensorDict(observation=torch.ones(3, 2), preference=prefs, batch_size=[3])
@@ -261,3 +265,60 @@ def test_member_optimizers_follow_fused_optimizer(fused_optimizer):
     opts = agent.optimizers
     assert {name: opt.fused for name, opt in opts.items()} == {name: fused_optimizer for name in opts}
     assert {opt.param_groups[0]["eps"] for opt in opts.values()} == {1e-4}
+
+
+# ---------------------------------------------------------------------- the recipe's counters
+# round robin: 3 members, turns of 20 frames (2 batches), 60 frames = 3 turns (one per member)
+ROUND_ROBIN = dict(pop_size=3, num_envs=1, frames_per_batch=10, exchange_every=20, init_random_frames=10,
+                   batch_size=8, hidden=(8,), frames=60, morld_update_passes=2, morld_eval_episodes=1,
+                   eval_interval=40, eval_weights=2, checkpoint_interval=40, buffer_size=512, seed=0, progress=False,
+                   eval_random_baseline=False)
+LAVA = dict(target_update_period=5, eval_contexts=("MOLavaGridRoom-v0",))
+
+
+def _trained(tmp_path, algo, env_id, **kw) -> dict:
+    """The last checkpoint of a run of ``train_morld`` (the CLI's ``train``)."""
+    train(resolve_config(algo, env_id, run_dir=str(tmp_path / "run"), **kw))
+    return load_checkpoint(latest_checkpoint(tmp_path / "run"))
+
+
+def _round_robin_counters(state, passes=2):
+    m = state["agent"]["morld"]
+    # 6 batches of 10 frames; the acting member updates once per frame after frame 10 (frames 11..59: 49);
+    # at each of the 3 exchanges `passes` catch-up updates, each of the 2 other members at once
+    assert (state["frames"], state["updates"]) == (60, 49 + 3 * passes)
+    assert (m["exchanges"], m["env_resets"], m["active"], m["turn_frames"]) == (3, 3, 0, 0)
+    assert m["frames_per_member"].tolist() == [20, 20, 20]
+    # member 0: its turn's frames 11..19, then catch-ups at 2 exchanges; members 1 and 2: 20 + 2 catch-ups
+    assert m["member_updates"].tolist() == [9 + 2 * passes, 20 + 2 * passes, 20 + 2 * passes]
+    assert m["eval_episodes"] == 3 * 3  # one episode per member at each exchange
+
+
+def test_the_morld_recipe_counts_turns_updates_resets_and_exchanges_round_robin(tmp_path):
+    _round_robin_counters(_trained(tmp_path, "morld", "MOLavaGridDR-v0", **ROUND_ROBIN, **LAVA))
+
+
+@pytest.mark.slow  # (~10 s on a loaded 2-core machine: a run, evaluated)
+def test_the_morld_psa_recipe_counts_as_morld_and_moves_the_weights(tmp_path):
+    state = _trained(tmp_path, "morld_psa", "MOLavaGridDR-v0", **ROUND_ROBIN, **LAVA)
+    _round_robin_counters(state)
+    weights = state["agent"]["loss"]["weights"]  # (PSA moved them away from the energy weights)
+    assert weights.shape == (3, 2) and not torch.equal(weights, energy_weights(2, 3, seed=0, dtype=torch.float32))
+
+
+@pytest.mark.slow  # (~10 s on a loaded 2-core machine: a run, evaluated)
+def test_the_morld_recipe_counts_updates_and_exchanges_concurrent(tmp_path):
+    kw = dict(ROUND_ROBIN, frames_per_batch=12, num_envs=2, frames=60, updates_per_batch=2, exchange_every=24,
+              eval_interval=36, checkpoint_interval=36)
+    state = _trained(tmp_path, "morld", "MOLavaGridDR-v0", morld_schedule="concurrent", **kw, **LAVA)
+    m = state["agent"]["morld"]
+    # 5 batches of 12 frames (2 per member and sub-env), 2 updates of all members per batch (all past
+    # init_random_frames=10); an exchange every 24 frames
+    assert (state["frames"], state["updates"], m["exchanges"], m["env_resets"]) == (60, 10, 2, 0)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="needs mujoco")
+def test_the_morld_recipe_counts_turns_updates_resets_and_exchanges_on_hopper(tmp_path):
+    _round_robin_counters(_trained(tmp_path, "morld", "MOHopperDR-v5", **dict(ROUND_ROBIN, eval_weights=3),
+                                   eval_contexts=("MOHopperDefault-v5",)))

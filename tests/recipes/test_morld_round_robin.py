@@ -14,6 +14,7 @@ from torchrl.envs.utils import ExplorationType
 from morl_trl._torchrl_compat import reset_collector
 from morl_trl.recipes import TRAINING_ENV_BUILDERS, resolve_config
 from morl_trl.recipes.fidelity import record
+from morl_trl.recipes import morld
 from morl_trl.recipes.morld import make_morld_agent, round_robin_turns
 from morl_trl.transforms import DiscountedVectorReturn
 
@@ -109,7 +110,7 @@ def test_round_robin_trains_one_member_per_turn_resets_the_env_and_catches_the_o
     agent = make_morld_agent(cfg, env, gamma=0.9, device=CPU)
     assert [type(o).__name__ for o in agent.optimizers.values()] == ["MemberAdam"] * 3
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(1_000))
-    collector = Collector(env, agent.explore_policy, frames_per_batch=10, total_frames=agent.frames_to_collect(0),
+    collector = Collector(env, agent.explore_policy, frames_per_batch=10, total_frames=morld.frames_to_collect(cfg, 0),
                           init_random_frames=10, exploration_type=ExplorationType.RANDOM,
                           auto_register_policy_transforms=False)
     actives, first_obs, updates, frames = [], [], [], 0
@@ -120,7 +121,7 @@ def test_round_robin_trains_one_member_per_turn_resets_the_env_and_catches_the_o
         first_obs.append(batch["observation"][0, 0, 0].item())
         before = [_member_state(agent, p) for p in range(3)]
         exchanges = agent.exchanges
-        _, n = agent.learn(batch, buffer, frames)
+        _, n = morld.on_batch(agent, batch, buffer, frames)
         updates.append(n)
         after = [_member_state(agent, p) for p in range(3)]
         for p in range(3):
@@ -133,7 +134,7 @@ def test_round_robin_trains_one_member_per_turn_resets_the_env_and_catches_the_o
                 for k in after[p]:
                     if k.startswith("target."):
                         assert torch.equal(after[p][k], after[p]["critic." + k[len("target."):]]), k
-        if agent.before_batch():
+        if agent.env_reset_due():
             reset_collector(collector)
     collector.shutdown()
     # turns of 20 frames = 2 batches: members 0, 1, 2, 0, 1
@@ -167,7 +168,7 @@ def test_round_robin_clock_gives_the_authors_actor_turns_and_targets():
     turns = []
     for g in (10_001, 10_002, 20_000):
         agent.clock = g
-        turns.append(agent.next_is_actor_turn())
+        turns.append(morld.count_update(agent))
     assert turns == [False, True, True]
     # Polyak (tau 0.005) on the members of the mask only
     loss, upd = agent.loss, agent.target_updater
@@ -183,7 +184,7 @@ def test_round_robin_clock_gives_the_authors_actor_turns_and_targets():
     assert loss.weights.shape == (3, 3)
     # the budget: whole turns (the authors' while global_step < total_timesteps)
     cfg.frames = 50_001
-    assert agent.frames_to_collect(0) == 60_000 and agent.frames_to_collect(40_000) == 20_000
+    assert morld.frames_to_collect(cfg, 0) == 60_000 and morld.frames_to_collect(cfg, 40_000) == 20_000
 
 
 def test_round_robin_settings_are_checked():
@@ -192,9 +193,10 @@ def test_round_robin_settings_are_checked():
         build(resolve_config("morld", "MOLavaGridDR-v0", quick=True, frames_per_batch=60), CPU)
     with pytest.raises(ValueError, match="set updates_per_batch=0"):
         build(resolve_config("morld", "MOLavaGridDR-v0", quick=True, updates_per_batch=4), CPU)
-    cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,), compile=True)
-    with pytest.raises(ValueError, match="morld_schedule='concurrent'"):
-        make_morld_agent(cfg, build(cfg, CPU), gamma=0.99, device=CPU)
+    for schedule in ("round_robin", "concurrent"):  # (MORL/D's update is its own: nothing captures it)
+        cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,), compile=True, morld_schedule=schedule)
+        with pytest.raises(ValueError, match="set compile=false and cudagraphs=false"):
+            make_morld_agent(cfg, build(cfg, CPU), gamma=0.99, device=CPU)
     with pytest.raises(ValueError, match="'morld_schedule'"):
         resolve_config("morld", "MOLavaGridDR-v0", morld_schedule="turns")
 
@@ -247,7 +249,7 @@ def test_the_acting_members_update_computes_it_alone_with_the_masked_updates_res
         agent.loss.qvalue_loss = (lambda f: lambda data: (shapes.append(tuple(data.shape)), f(data))[1])(
             agent.loss.qvalue_loss)
         for i, batch in enumerate(batches):
-            agent.learn(batch, buffer, 10 * (i + 1))
+            morld.on_batch(agent, batch, buffer, 10 * (i + 1))
         calls.append(shapes)
     sliced, masked = agents
     # own updates at the shared steps 1..19 (member 0) and 20..39 (member 1), each [1, 8] sliced, [3, 8] masked;
