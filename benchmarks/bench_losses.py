@@ -139,21 +139,23 @@ def as_tensordict(tr) -> TensorDict:
 
 
 # ------------------------------------------------------------------------------------ ours
-def _agent_step(loss, optimizers, updater, rb, device, *, max_grad_norm=None, prioritized=False, capture=None):
-    """``Agent.update`` on ``rb``, as the recipe runs it: eager, or captured (``"compile"``,
-    ``"cudagraphs"``, ``"both"``) with the non-finite flag read every 100 updates."""
+def _agent_step(recipe, loss, optimizers, updater, rb, device, *, max_grad_norm=None, prioritized=False,
+                capture=None):
+    """The recipe's ``update`` (``recipe``: :mod:`morl_trl.recipes.envelope` or
+    :mod:`~morl_trl.recipes.actor_critic`) on ``rb``, as ``morl-trl train`` runs it: eager, or captured
+    (``"compile"``, ``"cudagraphs"``, ``"both"``) with the non-finite flag read every 100 updates."""
     from types import SimpleNamespace
 
     from morl_trl.recipes.agent import Agent
 
-    cfg = SimpleNamespace(max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
+    cfg = SimpleNamespace(algo="bench", max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
                           compile=capture in ("compile", "both", "whole+compile"), compile_mode=None,
                           cudagraphs=capture in ("cudagraphs", "both", "whole", "whole+compile"),
-                          capture_sampling=capture in ("whole", "whole+compile"))
-    agent = Agent(cfg, loss, None, None, optimizers, updater, device=device)
+                          capture_sampling=capture in ("whole", "whole+compile"), policy_freq=1, joint_update=False)
+    agent = Agent(cfg, loss, None, None, optimizers, updater, device=device, capturable=True)
 
     def step():
-        agent.update(rb)
+        recipe.update(agent, rb)
 
     return step
 
@@ -175,7 +177,9 @@ def ours_envelope(tr, buffer_size, device=torch.device("cpu"), capture=None):
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), sampler=sampler,
                                 batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
-    step = _agent_step(loss, {"qvalue": optim}, updater, rb, device, max_grad_norm=1.0, prioritized=True,
+    from morl_trl.recipes import envelope
+
+    step = _agent_step(envelope, loss, {"qvalue": optim}, updater, rb, device, max_grad_norm=1.0, prioritized=True,
                        capture=capture)
     return step, type(sampler).__name__
 
@@ -194,7 +198,9 @@ def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
                   "qvalue": adam(loss.qvalue_network_params.values(True, True), LR)}
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
-    return _agent_step(loss, optimizers, updater, rb, device, capture=capture)
+    from morl_trl.recipes import actor_critic
+
+    return _agent_step(actor_critic, loss, optimizers, updater, rb, device, capture=capture)
 
 
 def ours_gpi(tr, support, buffer_size, gpi_pd):

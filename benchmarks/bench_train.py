@@ -62,6 +62,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from morl_trl.envs import domain_of  # noqa: E402
 from morl_trl.recipes import build_agent, build_training_env, resolve_config  # noqa: E402
+from morl_trl.recipes.algorithms import algorithm  # noqa: E402
 from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount  # noqa: E402
 
 warnings.filterwarnings("ignore")
@@ -92,11 +93,11 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
     warm = cfg.init_random_frames + cfg.frames_per_batch
     cfg.frames = warm + frames + cfg.frames_per_batch
     collector = make_collector(cfg, env, agent.explore_policy, dev)
+    learn = algorithm(algo).on_batch
     done, updates, t0, timed = 0, 0, None, 0
     for batch in collector:
         done += batch.numel()
-        _, n = agent.learn(batch, buffer, done)
-        agent.on_frames(done)
+        _, n = learn(agent, batch, buffer, done)  # the recipe's own per-batch step (store, updates, schedules)
         collector.update_policy_weights_()
         if t0 is not None:
             timed += batch.numel()

@@ -91,7 +91,24 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     env = build_training_env(cfg, dev)
     agent = build_agent(cfg, env, gamma=discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
-    frames_of = getattr(agent, "frames_of", lambda batch: batch.numel())  # PGMORL counts one member's frames
+    try:  # the checkout's one per-batch step per algorithm (issue 46), else its Agent.learn
+        from morl_trl.recipes.algorithms import algorithm
+
+        on_batch = algorithm(algo).on_batch
+    except (ImportError, AttributeError):
+        on_batch = None
+    if on_batch is None:
+        def on_batch(agent, batch, buffer, frames):
+            out = agent.learn(batch, buffer, frames)
+            agent.on_frames(frames)
+            return out
+    if algo == "pgmorl" and on_batch.__module__.endswith("pgmorl"):  # PGMORL counts one member's frames
+        from morl_trl.recipes.pgmorl import counted_frames
+
+        def frames_of(batch):
+            return counted_frames(agent, batch)
+    else:
+        frames_of = getattr(agent, "frames_of", lambda batch: batch.numel())
     collector = make_collector(cfg, env, agent.explore_policy, dev)
     warm = max(warm, cfg.init_random_frames + cfg.frames_per_batch)
     run_frames, collected, updates, timed, t0, learning = 0, 0, 0, 0, None, 0.0
@@ -99,9 +116,8 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
         collected += batch.numel()
         run_frames += frames_of(batch)
         t_learn = timer()
-        _, n = agent.learn(batch, buffer, run_frames)
+        _, n = on_batch(agent, batch, buffer, run_frames)
         t_learn = timer() - t_learn
-        agent.on_frames(run_frames)
         collector.update_policy_weights_()
         if t0 is not None:
             timed += batch.numel()

@@ -54,16 +54,20 @@ CASES = {
     "gpi_pd_continuous": ("gpi_pd", "MOHopperDR-v5", dict(**_OFF, **_HOP, frames=128, eval_interval=128,
                                                           gpi_iteration_frames=64, gpi_dynamics_rollout_starts=64,
                                                           gpi_dynamics_train_freq=64)),
-    "pcn": ("pcn", "MOLavaGridDR-v0", dict(**_LAVA, frames=1024, frames_per_batch=256, eval_interval=512,
+    "pcn": ("pcn", "MOLavaGridDR-v0", dict(**_LAVA, frames=1024, frames_per_batch=256, num_envs=2, eval_interval=512,
                                            pcn_er_episodes=2, pcn_step_episodes=1, pcn_model_updates=3,
                                            batch_size=16)),
     "pgmorl": ("pgmorl", "MOHopperDR-v5", dict(**_HOP, frames=256, frames_per_batch=64, eval_interval=128,
                                                pgmorl_pop=2, pgmorl_envs_per_member=1, pgmorl_warmup=1,
                                                pgmorl_evo_iterations=1, pgmorl_minibatches=2, pgmorl_epochs=1,
                                                hidden=(8,), num_envs=2)),
-    "morld": ("morld", "MOHopperDR-v5", dict(**{**_OFF, "updates_per_batch": 0}, **_HOP, frames=192, eval_interval=96)),
-    "morld_psa": ("morld_psa", "MOHopperDR-v5", dict(**{**_OFF, "updates_per_batch": 0}, **_HOP, frames=192,
-                                                     eval_interval=96)),
+    # round robin: 3 members, turns of 64 frames (2 catch-up passes at each exchange)
+    "morld": ("morld", "MOHopperDR-v5", dict(**{**_OFF, "updates_per_batch": 0}, **_HOP, num_envs=1, pop_size=3,
+                                             exchange_every=64, frames=224, eval_interval=96)),
+    "morld_psa": ("morld_psa", "MOLavaGridDR-v0", dict(**{**_OFF, "updates_per_batch": 0}, **_LAVA, num_envs=1,
+                                                       pop_size=3, exchange_every=64, frames=256, eval_interval=128)),
+    "morld_concurrent": ("morld", "MOHopperDR-v5", dict(**_OFF, **_HOP, morld_schedule="concurrent", pop_size=3,
+                                                        num_envs=3, frames_per_batch=30, frames=180, eval_interval=90)),
 }
 
 _TIMING = re.compile(r"per_second|fps|seconds|time", re.I)
@@ -99,6 +103,7 @@ torch.save({"flat": flat, "checkpoint": ckpt.name}, out)
 
 def _run(checkout: Path, case: str, workdir: Path) -> dict:
     algo, env_id, overrides = CASES[case]
+    overrides = {**_COMMON, **overrides}
     run_dir = workdir / f"{case}_{checkout.name}"
     out = workdir / f"{case}_{checkout.name}.pt"
     env = dict(os.environ, PYTHONPATH=str(checkout), OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")

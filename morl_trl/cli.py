@@ -146,13 +146,16 @@ def train_main(argv: list[str]) -> int:
         if args.print_config:
             print(cfg.to_toml())
             return 0
-        from morl_trl.recipes import train
+        from morl_trl.recipes import NonFiniteLossError, run_training
 
-        return _run_training(lambda: train(cfg, resume=args.resume, trust_pickle=args.trust_pickle,
-                                           trust_code=args.trust_code))
+        try:
+            run_training(cfg, resume=args.resume, trust_pickle=args.trust_pickle, trust_code=args.trust_code)
+        except NonFiniteLossError as err:
+            return _stopped(err)
+        return 0
     _check_config_env_id(args)
     _check_keys(args.overrides, args.algo)
-    from morl_trl.recipes import resolve_config, train
+    from morl_trl.recipes import NonFiniteLossError, resolve_config, run_training
 
     reference = args.reference or _default_reference()
     flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
@@ -163,7 +166,11 @@ def train_main(argv: list[str]) -> int:
     if args.print_config:
         print(cfg.to_toml())
         return 0
-    return _run_training(lambda: train(cfg, overwrite=args.overwrite))
+    try:
+        run_training(cfg, overwrite=args.overwrite)  # the algorithm's loop (morl_trl.recipes.algorithms.REGISTRY)
+    except NonFiniteLossError as err:
+        return _stopped(err)
+    return 0
 
 
 def _check_keys(overrides: dict, algo: str) -> None:
@@ -228,16 +235,12 @@ def _resume_config(args):
     return resume_config(cfg, {k: v for k, v in flags.items() if v is not None}, "the command line")
 
 
-def _run_training(run) -> int:
-    from morl_trl.recipes import NonFiniteLossError
+def _stopped(err) -> int:
+    """A non-finite loss stopped the run cleanly (its last good state is checkpointed): one line, exit 3."""
     from morl_trl.recipes.off_policy import EXIT_NON_FINITE_LOSS
 
-    try:
-        run()
-    except NonFiniteLossError as err:  # the run stopped cleanly: its last good state is checkpointed
-        print(f"morl-trl train: stopped: {err}", file=sys.stderr)
-        return EXIT_NON_FINITE_LOSS
-    return 0
+    print(f"morl-trl train: stopped: {err}", file=sys.stderr)
+    return EXIT_NON_FINITE_LOSS
 
 
 def evaluate_main(argv: list[str]) -> int:

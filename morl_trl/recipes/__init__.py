@@ -1,28 +1,20 @@
-"""Training recipes: each algorithm's training loop, written once; ``morl-trl train`` runs them.
+"""Training recipes: each algorithm's loop and update, written once; ``morl-trl train`` runs them.
 
-:func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the
-algorithm's recipe; every recipe writes only its loop inside :meth:`Run.session
-<morl_trl.runs.Run.session>` (run directory, resume, evaluations, checkpoints, logs, report,
-Ctrl-C, clean stops). Envelope's, GPI-LS / GPI-PD's, the actor-critics' (CAPQL, MOSAC, SAC) and
-PCN's recipes are one function each, read top to bottom; the others are an agent each, whose ``learn``
-decides what a collected batch does, driven by one generic loop (:func:`~morl_trl.recipes.off_policy.train_agent`):
+:func:`~morl_trl.recipes.off_policy.run_training` opens the run and hands it to the algorithm's
+loop, found in the one registry (:data:`~morl_trl.recipes.algorithms.REGISTRY`). Each recipe module
+holds its algorithm's builder, its ``update`` (one gradient update; ``compile`` / CUDA graphs wrap the
+same function), its ``on_batch`` (what the loop does with one collected batch) and its ``train_*``
+loop, read top to bottom inside :meth:`Run.session <morl_trl.runs.Run.session>` (run directory,
+resume, evaluations, checkpoints, logs, report, Ctrl-C, clean stops):
 
-* ``envelope``: :func:`~morl_trl.recipes.envelope.train_envelope` (its modules:
-  :func:`~morl_trl.recipes.envelope.make_envelope_agent`)
-* ``capql``, ``mosac``, ``mosac_discrete``, ``sac``: :func:`~morl_trl.recipes.actor_critic.train_actor_critic`
-  (its modules: :func:`~morl_trl.recipes.actor_critic.make_capql_agent`,
-  :func:`~morl_trl.recipes.actor_critic.make_mosac_agent`,
-  :func:`~morl_trl.recipes.actor_critic.make_discrete_mosac_agent`, SAC's
-  :func:`~morl_trl.recipes.sac.make_sac_agent` on the scalar reward)
-* ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :func:`~morl_trl.recipes.morld.make_morld_agent`
-  (:class:`~morl_trl.recipes.morld.MORLDAgent`: a batched population, shared buffer, exchanges)
-* ``pcn``: :func:`~morl_trl.recipes.pcn.train_pcn` (its modules: :func:`~morl_trl.recipes.pcn.make_pcn_agent`;
-  :class:`~morl_trl.recipes.pcn.PCNAgent`: the episode replay, the command, the rounds)
-* ``pgmorl``: :func:`~morl_trl.recipes.pgmorl.make_pgmorl_agent`
-  (:class:`~morl_trl.recipes.pgmorl.PGMORLAgent`: population PPO, evolution)
-* ``gpi_ls``, ``gpi_pd``: :func:`~morl_trl.recipes.gpi.train_gpi` (its modules:
-  :func:`~morl_trl.recipes.gpi.make_gpi_agent`; :class:`~morl_trl.recipes.gpi.GPIAgent`: the
-  weight-support iterations, + Dyna for GPI-PD)
+* ``envelope``: :mod:`morl_trl.recipes.envelope`
+* ``capql``, ``mosac``, ``mosac_discrete``, ``sac``: :mod:`morl_trl.recipes.actor_critic` (SAC's modules on
+  the scalar reward: :func:`~morl_trl.recipes.sac.make_sac_agent`)
+* ``morld``, ``morld_psa`` (MORL/D SB, SB+PSA): :mod:`morl_trl.recipes.morld` (a batched population, shared
+  buffer, exchanges)
+* ``pcn``: :mod:`morl_trl.recipes.pcn` (the episode replay, the command, the rounds)
+* ``pgmorl``: :mod:`morl_trl.recipes.pgmorl` (population PPO, evolution)
+* ``gpi_ls``, ``gpi_pd``: :mod:`morl_trl.recipes.gpi` (the weight-support iterations, + Dyna for GPI-PD)
 
 The configuration (:class:`~morl_trl.recipes.config.TrainConfig`) starts from the paper's
 settings for the algorithm and domain; ``examples/`` holds ready config files.
@@ -42,6 +34,7 @@ from morl_trl._lazy import lazy_attributes as _lazy_attributes  # noqa: E402
 _LAZY = {
     "Agent": "morl_trl.recipes.agent",
     "AGENT_BUILDERS": "morl_trl.recipes.algorithms",
+    "REGISTRY": "morl_trl.recipes.algorithms",
     "TRAINING_ENV_BUILDERS": "morl_trl.recipes.algorithms",
     "build_agent": "morl_trl.recipes.algorithms",
     "build_training_env": "morl_trl.recipes.algorithms",
@@ -64,6 +57,7 @@ __all__ = [
     "ALGORITHMS",
     "Agent",
     "NonFiniteLossError",
+    "REGISTRY",
     "TrainConfig",
     "TrainResult",
     "TrainedPolicy",

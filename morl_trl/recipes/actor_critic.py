@@ -14,11 +14,12 @@ of TorchRL's sota-implementations; with the loss it calls (:class:`~morl_trl.obj
 2. the modules (``make_*_agent``): actor, critics, the loss with its value estimator, Adam, the
    target updater;
 3. the replay buffer and TorchRL's collector;
-4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>`: store the batch, then one
-   update per ``update_frequency`` frames (or ``updates_per_batch`` per batch): sample; the
-   critic step; on an actor turn (every ``policy_freq``-th update) ``policy_freq`` x (the actor
-   step, the temperature step); the target step; the PER priorities (``joint_update=true``: one
-   step of the summed losses instead).
+4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>`: per batch :func:`on_batch`
+   stores it, then one :func:`update` per ``update_frequency`` frames (or ``updates_per_batch`` per
+   batch): sample; :func:`gradient_step` (the critic step; on an actor turn, every
+   ``policy_freq``-th update, ``policy_freq`` x (the actor step, the temperature step);
+   ``joint_update=true``: one step of the summed losses instead); the target step; the PER
+   priorities. ``compile`` / ``cudagraphs`` capture the same :func:`gradient_step`.
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -64,6 +65,7 @@ from morl_trl.recipes.agent import (
     updates_due,
 )
 from morl_trl.recipes.allocator import tune_malloc
+from morl_trl.recipes.capture import captured_update
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
     load_agent_state,
@@ -81,7 +83,8 @@ from morl_trl.recipes.parts import (
 from morl_trl.recipes.sac import make_sac_agent
 from morl_trl.runs.run import Run
 
-__all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic"]
+__all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic", "policy_freq",
+           "steps_each_loss", "delayed_actor_step", "gradient_step", "update", "on_batch"]
 
 
 def _continuous(cfg, env, device):
@@ -99,7 +102,7 @@ def _continuous(cfg, env, device):
 def _agent(cfg, loss, actor, gamma, device, **kwargs) -> Agent:
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
-                 device=device, eval_exploration=eval_exploration(cfg), **kwargs)
+                 device=device, eval_exploration=eval_exploration(cfg), capturable=True, **kwargs)
 
 
 class DeterministicActing(TensorDictModuleBase):
@@ -181,7 +184,6 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
     make_agent = {"capql": make_capql_agent, "mosac": make_mosac_agent, "mosac_discrete": make_discrete_mosac_agent,
                   "sac": make_sac_agent}[cfg.algo]
     agent = make_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
-    loss, optimizers, target = agent.loss, agent.optimizers, agent.target_updater
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)  # (the actor, eval_exploration, on the evaluation suite)
 
@@ -192,53 +194,6 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the target updater, critic_steps
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
-    clip = dict(max_grad_norm=cfg.max_grad_norm)
-    alpha_optimizer = optimizers.get("alpha")  # (a learned temperature)
-    last_actor: dict = {}  # the last actor turn's losses, logged with the critic-only updates after it
-
-    def update() -> TensorDictBase:
-        """One update on a sampled batch (a non-finite loss raises before its own step)."""
-        if agent.captured_update:  # compile / cudagraphs / fused on an accelerator: the same step, captured
-            return agent.update(buffer)  # (recipes/capture.py: its non-finite guard stays on the device)
-        batch = buffer.sample().to(device)
-        agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
-        actor_turn = agent.critic_steps % agent.policy_freq == 0  # every policy_freq-th update (the 2nd, 4th, ...)
-        if not agent.steps_each_loss:  # joint_update=true: one step of the summed losses, the actor on the old critics
-            out = loss(batch)
-            optimizer_step(sum(out[k] for k in agent.loss_keys), optimizers.values(),
-                           losses={k: out[k] for k in agent.loss_keys}, **clip)
-        else:  # the authors' order (their sac_continuous.py:435-456, mosac_continuous_action.py:460-482)
-            # the critic step: the targets (target critics, the actor's next actions, the temperature), the critics
-            loss_qvalue, _ = loss.qvalue_loss(batch)
-            optimizer_step(loss_qvalue, [optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **clip)
-            if actor_turn:  # policy_freq x (the actor step on the updated critics, the temperature step)
-                dist = None
-                for i in range(agent.policy_freq):
-                    loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
-                    optimizer_step(loss_actor, [optimizers["actor"]], losses={"loss_actor": loss_actor}, **clip)
-                    last_actor.update(loss_actor=loss_actor.detach(), entropy=-meta["log_prob"].mean(-1))
-                    if alpha_optimizer is not None:
-                        if loss.fresh_temperature_sample:  # continuous: a fresh sample of the updated actor,
-                            # which is also the next actor step's sample (the actor does not change in between)
-                            dist = loss.actor_dist(batch) if i + 1 < agent.policy_freq else None
-                            loss_alpha = loss.temperature_loss(batch, dist=dist)
-                        else:  # discrete: the actor step's log-probabilities (mosac_discrete_action.py:490-492)
-                            loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
-                        optimizer_step(loss_alpha, [alpha_optimizer], losses={"loss_alpha": loss_alpha}, **clip)
-                        last_actor["loss_alpha"] = loss_alpha.detach()
-            elif not last_actor:  # no actor turn yet: NaN actor losses
-                nan = torch.full_like(loss_qvalue.detach(), float("nan"))
-                last_actor.update(loss_actor=nan, entropy=torch.full_like(loss.log_alpha.detach(), float("nan")))
-                if alpha_optimizer is not None:
-                    last_actor["loss_alpha"] = nan
-            with torch.no_grad():
-                alpha = loss.log_alpha.exp()
-            out = TensorDict({"loss_qvalue": loss_qvalue.detach(), **last_actor, "alpha": alpha}, batch_size=[])
-        target.step()  # Polyak averaging with tau (a hard copy every target_update_period updates without)
-        if cfg.prioritized:
-            buffer.update_tensordict_priority(batch)
-        return out.detach()
-
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it, update, then (run.step) evaluate and checkpoint
@@ -248,11 +203,127 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
-            agent.store(buffer, batch)  # the entries the loss reads
-            losses, updates = None, 0
-            if frames >= cfg.init_random_frames:
-                updates = updates_due(cfg, frames, batch.numel())  # one per update_frequency frames, or per batch
-                losses = apply_updates(update, updates)  # (a non-finite loss raises, counting those applied)
+            losses, updates = on_batch(agent, batch, buffer, frames)  # store, the updates due
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=None)
     return run.summary, agent
+
+
+def policy_freq(agent: Agent) -> int:
+    """``cfg.policy_freq``: 1 = an actor step at every update; ``n > 1`` = the delayed actor, as the
+    authors' continuous SAC and MOSAC (``n = 2``)."""
+    return int(getattr(agent.cfg, "policy_freq", 1))
+
+
+def steps_each_loss(agent: Agent) -> bool:
+    """Whether the update steps critics, actor and temperature one after the other, each loss computed
+    alone (:func:`delayed_actor_step`, the authors' order), rather than one joint step of the summed
+    losses (``joint_update=true``, or a loss without the three parts)."""
+    loss = agent.loss
+    return (not getattr(agent.cfg, "joint_update", False) and {"qvalue", "actor"} <= set(agent.optimizers)
+            and all(hasattr(loss, m) for m in ("qvalue_loss", "actor_loss", "temperature_loss")))
+
+
+def delayed_actor_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
+    """The authors' actor-critic step (CleanRL's SAC; their ``sac_continuous.py:435-456``,
+    ``mosac_continuous_action.py:460-482``), each loss computed alone (the loss's ``qvalue_loss`` /
+    ``actor_loss`` / ``temperature_loss``, TorchRL's SACLoss parts):
+
+    1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
+    2. on an actor turn, ``policy_freq`` times: ``actor_loss`` (fresh actions, the updated critics; no
+       target computation) and the ``actor`` optimizer, then, when the temperature is learned,
+       ``temperature_loss`` and the ``alpha`` optimizer, on a fresh sample of the just-updated actor
+       where the loss says so (``fresh_temperature_sample``: continuous, the authors' ``with no_grad:
+       _, log_pi, _ = actor.get_action(obs)`` after the actor step) or on the actor step's
+       log-probabilities (discrete, ``mosac_discrete_action.py:490-492``).
+
+    A non-finite loss is never applied: eager, :class:`~morl_trl.recipes.optim.NonFiniteLossError` is
+    raised before its step (the steps of this update before it stay applied, as in the authors' order
+    they must come first); ``on_device``, its step and every later one of the update are skipped.
+
+    Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless ``on_device``). ``losses`` has the
+    keys of the loss's ``forward``; on a critic-only update the actor's and the temperature's are those
+    of the last actor turn (``agent.last_actor_losses``; NaN before the first).
+    """
+    loss, optimizers, n_actor = agent.loss, agent.optimizers, policy_freq(agent)
+    kw = dict(max_grad_norm=agent.cfg.max_grad_norm, on_device=on_device)
+    loss_qvalue, _ = loss.qvalue_loss(batch)
+    found = optimizer_step(loss_qvalue, [optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **kw)
+    last = getattr(agent, "last_actor_losses", None)
+    if actor_turn:
+        alpha_opt = optimizers.get("alpha")
+        dist = None
+        for i in range(n_actor):
+            loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
+            # on the device a skipped part skips the rest of the update (found_inf carried on)
+            found = optimizer_step(loss_actor, [optimizers["actor"]], losses={"loss_actor": loss_actor},
+                                   found_inf=found, **kw)
+            last = {"loss_actor": loss_actor.detach(), "entropy": -meta["log_prob"].mean(-1)}
+            if alpha_opt is not None:
+                if loss.fresh_temperature_sample:
+                    # one forward of the updated actor for the temperature's fresh sample and, drawn after
+                    # it, the next actor step's sample (the actor does not change in between)
+                    dist = loss.actor_dist(batch) if i + 1 < n_actor else None
+                    loss_alpha = loss.temperature_loss(batch, dist=dist)
+                else:
+                    loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
+                found = optimizer_step(loss_alpha, [alpha_opt], losses={"loss_alpha": loss_alpha},
+                                       found_inf=found, **kw)
+                last["loss_alpha"] = loss_alpha.detach()
+    elif last is None:  # no actor turn yet
+        nan = torch.full_like(loss_qvalue.detach(), float("nan"))
+        last = {"loss_actor": nan, "entropy": torch.full_like(loss.log_alpha.detach(), float("nan"))}
+        if "alpha" in optimizers:
+            last["loss_alpha"] = nan
+    agent.last_actor_losses = last
+    with torch.no_grad():
+        alpha = loss.log_alpha.exp()
+    return TensorDict({"loss_qvalue": loss_qvalue.detach(), **last, "alpha": alpha}, batch_size=[]), found
+
+
+def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
+    """The losses' backward and optimizer steps on ``batch``: the authors' order
+    (:func:`delayed_actor_step`), or with ``joint_update=true`` one step of the summed losses (the actor
+    on the critics before their step). The part of :func:`update` that ``compile`` / CUDA graphs capture
+    (:mod:`morl_trl.recipes.capture`). Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless
+    ``on_device``)."""
+    if steps_each_loss(agent):
+        return delayed_actor_step(agent, batch, actor_turn, on_device=on_device)
+    out = agent.loss(batch)
+    keys = [k for k in agent.loss.out_keys if k.startswith("loss_")]
+    found = optimizer_step(sum(out[k] for k in keys), agent.optimizers.values(), max_grad_norm=agent.cfg.max_grad_norm,
+                           losses={k: out[k] for k in keys}, on_device=on_device)
+    return out, found
+
+
+def update(agent: Agent, buffer) -> TensorDictBase:
+    """One update on a sampled batch: sample, :func:`gradient_step` (on an actor turn, every
+    ``policy_freq``-th update: the 2nd, 4th, ... for 2, as the authors' ``global_step % policy_freq == 0``
+    with an even ``learning_starts``), the target step (Polyak averaging with ``tau``; a hard copy every
+    ``target_update_period`` updates without), the PER priorities. Captured (``compile`` / ``cudagraphs``,
+    or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
+    :class:`~morl_trl.recipes.capture.CapturedUpdate`, its non-finite guard on the device."""
+    agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
+    actor_turn = agent.critic_steps % policy_freq(agent) == 0
+    captured = captured_update(agent, gradient_step)
+    if captured is not None:
+        return captured(buffer, actor_turn)
+    batch = buffer.sample().to(agent.device)
+    out, _ = gradient_step(agent, batch, actor_turn)
+    agent.target_updater.step()
+    if agent.cfg.prioritized:
+        buffer.update_tensordict_priority(batch)
+    return out.detach()
+
+
+def on_batch(agent: Agent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """What the loop does with one collected batch ending at ``frames`` frames: store its transitions
+    (the entries the loss reads), then, from ``init_random_frames`` on, the :func:`update` calls due (one
+    per ``update_frequency`` frames, or ``updates_per_batch``). Returns ``(the last update's losses or
+    None, updates done)``; a non-finite loss raises, counting the updates applied before it."""
+    cfg = agent.cfg
+    agent.store(buffer, batch)
+    if frames < cfg.init_random_frames:
+        return None, 0
+    updates = updates_due(cfg, frames, batch.numel())
+    return apply_updates(lambda: update(agent, buffer), updates), updates

@@ -1,46 +1,82 @@
-"""Which recipe builds what, per algorithm: :data:`AGENT_BUILDERS` and :data:`TRAINING_ENV_BUILDERS`.
+"""The one registry: an algorithm's name -> its builders, its loop and its per-batch step.
 
-A new algorithm is one recipe module (its agent builder and, if its training env differs, an env
-builder) registered here, plus its loss in :mod:`morl_trl.objectives`.
+Each algorithm is one recipe module (its agent builder, ``update``, ``on_batch`` and ``train_*``
+loop, read top to bottom) plus its loss in :mod:`morl_trl.objectives`; adding one is that module,
+its loss and one :class:`Algorithm` row here.
 
 Example:
-    >>> sorted(TRAINING_ENV_BUILDERS)
+    >>> REGISTRY["envelope"].train.__name__, REGISTRY["envelope"].on_batch.__module__
+    ('train_envelope', 'morl_trl.recipes.envelope')
+    >>> sorted(name for name, a in REGISTRY.items() if a.build_env is not make_training_env)
     ['morld', 'morld_psa', 'pcn', 'pgmorl']
-    >>> AGENT_BUILDERS["envelope"].__name__
-    'make_envelope_agent'
 """
 
 from __future__ import annotations
 
-from morl_trl.recipes.actor_critic import make_capql_agent, make_discrete_mosac_agent, make_mosac_agent
+from dataclasses import dataclass
+from typing import Callable
+
+from morl_trl.recipes import actor_critic, envelope, gpi, morld, pcn, pgmorl
 from morl_trl.recipes.agent import Agent
 from morl_trl.recipes.allocator import tune_malloc
 from morl_trl.recipes.config import ALGORITHMS, TrainConfig
-from morl_trl.recipes.envelope import make_envelope_agent
-from morl_trl.recipes.gpi import make_gpi_agent
-from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
 from morl_trl.recipes.parts import make_training_env
-from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
-from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
 from morl_trl.recipes.sac import make_sac_agent
 
-__all__ = ["AGENT_BUILDERS", "TRAINING_ENV_BUILDERS", "build_agent", "build_training_env"]
+__all__ = ["Algorithm", "REGISTRY", "AGENT_BUILDERS", "TRAINING_ENV_BUILDERS", "algorithm", "build_agent",
+           "build_training_env"]
 
-#: algorithm name -> ``builder(cfg, env, *, gamma, device) -> Agent``
-AGENT_BUILDERS = {
-    "envelope": make_envelope_agent,
-    "capql": make_capql_agent,
-    "mosac": make_mosac_agent,
-    "mosac_discrete": make_discrete_mosac_agent,
-    "morld": make_morld_agent,
-    "morld_psa": make_morld_agent,
-    "sac": make_sac_agent,
-    "pcn": make_pcn_agent,
-    "pgmorl": make_pgmorl_agent,
-    "gpi_ls": make_gpi_agent,
-    "gpi_pd": make_gpi_agent,
+
+@dataclass(frozen=True)
+class Algorithm:
+    """One algorithm's entry points.
+
+    Attributes:
+        build_agent: ``(cfg, env, *, gamma, device) -> Agent``: its modules, loss and optimizers.
+        train: ``(run) -> (summary, agent)``: its loop (what ``morl-trl train`` runs).
+        on_batch: ``(agent, batch, buffer, frames) -> (losses | None, updates)``: what its loop does with
+            one collected batch (``buffer``: ``None`` for PCN and PGMORL, which keep their own data).
+        build_env: ``(cfg, device) -> env``: its training env.
+    """
+
+    build_agent: Callable
+    train: Callable
+    on_batch: Callable
+    build_env: Callable = make_training_env
+
+
+def _actor_critic(builder) -> Algorithm:
+    return Algorithm(builder, actor_critic.train_actor_critic, actor_critic.on_batch)
+
+
+#: algorithm name -> :class:`Algorithm`
+REGISTRY: dict[str, Algorithm] = {
+    "envelope": Algorithm(envelope.make_envelope_agent, envelope.train_envelope, envelope.on_batch),
+    "capql": _actor_critic(actor_critic.make_capql_agent),
+    "mosac": _actor_critic(actor_critic.make_mosac_agent),
+    "mosac_discrete": _actor_critic(actor_critic.make_discrete_mosac_agent),
+    "morld": Algorithm(morld.make_morld_agent, morld.train_morld, morld.on_batch, morld.make_morld_training_env),
+    "morld_psa": Algorithm(morld.make_morld_agent, morld.train_morld, morld.on_batch, morld.make_morld_training_env),
+    "sac": _actor_critic(make_sac_agent),
+    "pcn": Algorithm(pcn.make_pcn_agent, pcn.train_pcn, pcn.on_batch, pcn.make_pcn_training_env),
+    "pgmorl": Algorithm(pgmorl.make_pgmorl_agent, pgmorl.train_pgmorl, pgmorl.on_batch,
+                        pgmorl.make_pgmorl_training_env),
+    "gpi_ls": Algorithm(gpi.make_gpi_agent, gpi.train_gpi, gpi.on_batch),
+    "gpi_pd": Algorithm(gpi.make_gpi_agent, gpi.train_gpi, gpi.on_batch),
 }
-assert tuple(AGENT_BUILDERS) == ALGORITHMS
+assert tuple(REGISTRY) == ALGORITHMS
+
+#: views of :data:`REGISTRY`: algorithm name -> agent builder / training env builder
+AGENT_BUILDERS = {name: a.build_agent for name, a in REGISTRY.items()}
+TRAINING_ENV_BUILDERS = {name: a.build_env for name, a in REGISTRY.items() if a.build_env is not make_training_env}
+
+
+def algorithm(name: str) -> Algorithm:
+    """The :class:`Algorithm` named ``name``; an unknown name is an error naming the valid ones."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"unknown algorithm {name!r}; valid: {list(ALGORITHMS)}") from None
 
 
 def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
@@ -49,22 +85,9 @@ def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
     Sets the process's allocator for training first (:func:`~morl_trl.recipes.allocator.tune_malloc`:
     glibc only; ``MORL_TRL_MALLOC=0`` turns it off)."""
     tune_malloc()
-    try:
-        builder = AGENT_BUILDERS[cfg.algo]
-    except KeyError:
-        raise ValueError(f"unknown algorithm {cfg.algo!r}; valid: {list(ALGORITHMS)}") from None
-    return builder(cfg, env, gamma=gamma, device=device)
-
-
-#: algorithm name -> ``builder(cfg, device) -> env`` for an algorithm whose training env is not
-#: :func:`~morl_trl.recipes.parts.make_training_env`'s (DR env + history + preferences + returns)
-TRAINING_ENV_BUILDERS: dict = {
-    "pcn": make_pcn_training_env,
-    "pgmorl": make_pgmorl_training_env,
-}
-TRAINING_ENV_BUILDERS["morld"] = TRAINING_ENV_BUILDERS["morld_psa"] = make_morld_training_env
+    return algorithm(cfg.algo).build_agent(cfg, env, gamma=gamma, device=device)
 
 
 def build_training_env(cfg: TrainConfig, device):
-    """The training env of ``cfg.algo`` (its own builder, else :func:`make_training_env`)."""
-    return TRAINING_ENV_BUILDERS.get(cfg.algo, make_training_env)(cfg, device)
+    """The training env of ``cfg.algo``."""
+    return algorithm(cfg.algo).build_env(cfg, device)

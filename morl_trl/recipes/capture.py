@@ -1,23 +1,25 @@
-"""The update step as one capturable function: ``torch.compile`` and CUDA graphs, TorchRL's sota way.
+"""The recipe's update, captured: ``torch.compile`` and CUDA graphs wrap the one gradient step the
+recipe defines, TorchRL's sota way.
 
-:meth:`Agent.update <morl_trl.recipes.agent.Agent.update>` samples a batch, then runs
-*loss → backward → gradient clipping → optimizer steps → Polyak target update* and finally the
-priority update and hard target copies. With ``cfg.compile`` and/or ``cfg.cudagraphs`` (config
-group ``compile``, as in TorchRL's ``sota-implementations``) the middle part runs as one
-function wrapped by ``torch.compile(mode=cfg.compile_mode)`` and/or
-:class:`tensordict.nn.CudaGraphModule` (one graph launch per update on CUDA).
-
-On an accelerator the same step runs uncompiled by default (when the optimizers are fused), for
-its on-device guard: no host synchronisation per update there either.
+An algorithm whose update can run captured (Envelope, :mod:`~morl_trl.recipes.envelope`; CAPQL,
+MOSAC, discrete MOSAC and SAC, :mod:`~morl_trl.recipes.actor_critic`) writes its update as
+*sample → gradient_step → hard target copy → priority write*, with ``gradient_step(agent, batch,
+actor_turn, on_device=False) -> (losses, found_inf)`` (loss → backward → clipping → optimizer
+steps). With ``cfg.compile`` and/or ``cfg.cudagraphs`` (config group ``compile``, as in TorchRL's
+``sota-implementations``) :func:`captured_update` wraps that same ``gradient_step`` in
+``torch.compile(mode=cfg.compile_mode)`` and/or :class:`tensordict.nn.CudaGraphModule` (one graph
+launch per update on CUDA), and the recipe's update hands the whole update to it. On an
+accelerator the same step runs uncompiled by default (when the optimizers are fused), for its
+on-device guard: no host synchronisation per update there either.
 
 What changes so that nothing in it reads the host:
 
-* the non-finite guard stays on the device: the loss's ``isfinite`` flag is handed to the
-  fused optimizers as ``found_inf`` (the kernel skips the step, as ``GradScaler`` does), the
-  Polyak step is multiplied by it, and priorities of a skipped update are written as 0
-  (never NaN into the sampler's trees). Skipped updates are counted on the device and the
-  count is read every ``cfg.finite_check_interval`` updates: :class:`NonFiniteLossError` is
-  raised then, with the networks as the last finite update left them — the guarantee of the
+* the non-finite guard stays on the device: ``gradient_step(..., on_device=True)`` hands the
+  loss's ``isfinite`` flag to the fused optimizers as ``found_inf`` (the kernel skips the step, as
+  ``GradScaler`` does), the Polyak step is multiplied by it, and priorities of a skipped update
+  are written as 0 (never NaN into the sampler's trees). Skipped updates are counted on the device
+  and the count is read every ``cfg.finite_check_interval`` updates: :class:`NonFiniteLossError`
+  is raised then, with the networks as the last finite update left them — the guarantee of the
   eager path (a non-finite update is never applied), reported up to that many updates late;
 * the loss's input checks (which read the host) are off (``loss.validate_inputs = False``):
   the batches come from the run's own replay buffer, and a non-finite reward makes the loss
@@ -28,7 +30,7 @@ What changes so that nothing in it reads the host:
 With ``cfg.capture_sampling`` (off by default until measured on a GPU) and a prioritized
 buffer on :class:`~morl_trl.data.TorchPrioritizedSampler`, the whole update is one function
 with no host read: drawing the batch from the sum tree, gathering it from the storage, the
-step above, and writing the new priorities into the trees
+gradient step, and writing the new priorities into the trees
 (:meth:`~morl_trl.data.TorchPrioritizedSampler.sample_unchecked`,
 :meth:`~morl_trl.data.TorchPrioritizedSampler.update_priority_unchecked`). With
 ``cfg.cudagraphs`` that function is captured as one CUDA graph (``torch.cuda.graph``; no
@@ -48,8 +50,9 @@ Example:
     ...                      compile=True, compile_mode=None, finite_check_interval=4)
     >>> env = compose_training_env(make_env(cfg.env_id, num_envs=2), gamma=0.99)
     >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
-    >>> agent.cfg.compile, agent.cfg.finite_check_interval
-    (True, 4)
+    >>> from morl_trl.recipes.actor_critic import gradient_step
+    >>> captured_update(agent, gradient_step).interval
+    4
 """
 
 from __future__ import annotations
@@ -60,22 +63,47 @@ from torchrl.objectives import SoftUpdate
 
 from morl_trl._torchrl_compat import replay_sample_unit, sampler_generator, storage_data
 from morl_trl.objectives import PolyakUpdate
-from morl_trl.recipes.optim import NonFiniteLossError, optimizer_step
+from morl_trl.recipes.optim import NonFiniteLossError
 
-__all__ = ["CapturedUpdate"]
+__all__ = ["CapturedUpdate", "captured_update", "runs_captured"]
+
+
+def runs_captured(agent) -> bool:
+    """Whether ``agent``'s update runs captured: ``cfg.compile`` / ``cfg.cudagraphs``, or fused optimizers
+    on an accelerator (the on-device guard); on the CPU otherwise the eager update checks on the host."""
+    if not agent.capturable:
+        return False
+    cfg = agent.cfg
+    fused = all(group.get("fused") for opt in agent.optimizers.values() for group in opt.param_groups)
+    return bool(getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False)) or (
+        torch.device(agent.device).type != "cpu" and fused)
+
+
+def captured_update(agent, gradient_step) -> "CapturedUpdate | None":
+    """The :class:`CapturedUpdate` of ``agent``'s ``gradient_step`` when its update runs captured
+    (:func:`runs_captured`), built on the first call and kept as ``agent.captured``; ``None``: the recipe's
+    eager update."""
+    if agent.captured is None and runs_captured(agent):
+        agent.captured = CapturedUpdate(agent, gradient_step)
+    return agent.captured
 
 
 class CapturedUpdate:
-    """The capturable part of one agent's update; call it with a sampled batch and the buffer.
+    """One agent's whole update with its ``gradient_step`` captured; call it with the buffer and whether
+    the update is an actor turn (the delayed actor's clock, counted by the recipe).
 
     Args:
         agent: the :class:`~morl_trl.recipes.agent.Agent` (its ``cfg`` holds ``compile``,
             ``compile_mode``, ``cudagraphs``, ``finite_check_interval``).
+        gradient_step: the recipe's ``gradient_step(agent, batch, actor_turn, on_device=False) ->
+            (losses, found_inf)``.
     """
 
-    def __init__(self, agent) -> None:
+    def __init__(self, agent, gradient_step) -> None:
         cfg = agent.cfg
         self.agent = agent
+        self.gradient_step = gradient_step
+        self.policy_freq = int(getattr(cfg, "policy_freq", 1))
         self.interval = int(getattr(cfg, "finite_check_interval", 1))
         not_fused = [name for name, opt in agent.optimizers.items()
                      if not all(group.get("fused") for group in opt.param_groups)]
@@ -113,7 +141,7 @@ class CapturedUpdate:
 
         self.fn = capture(self.step)
         # the delayed actor (policy_freq > 1): a critic-only and a critic-then-actor update, one graph each
-        self.fn_actor = capture(self.actor_step) if agent.steps_each_loss and agent.policy_freq > 1 else None
+        self.fn_actor = capture(self.actor_step) if self.policy_freq > 1 else None
         self.capture_sampling = bool(getattr(cfg, "capture_sampling", False))
         self.compiled = bool(getattr(cfg, "compile", False))
         self.cudagraphs = cudagraphs
@@ -124,7 +152,7 @@ class CapturedUpdate:
     def step(self, batch: TensorDictBase) -> TensorDictBase:
         """Loss, backward, clipping, optimizer steps and the Polyak update, skipped on the device if non-finite
         (with ``policy_freq > 1``: the critic-only update, :meth:`actor_step` the other)."""
-        return self._step(batch, self.agent.policy_freq == 1)
+        return self._step(batch, self.policy_freq == 1)
 
     def actor_step(self, batch: TensorDictBase) -> TensorDictBase:
         """The delayed actor's actor turn: the critic step, then ``policy_freq`` actor steps."""
@@ -132,12 +160,7 @@ class CapturedUpdate:
 
     def _step(self, batch: TensorDictBase, actor_turn: bool) -> TensorDictBase:
         agent = self.agent
-        if agent.steps_each_loss:
-            out, found_inf = agent.delayed_actor_step(batch, actor_turn, on_device=True)
-        else:
-            out = agent.loss(batch)
-            found_inf = optimizer_step(sum(out[k] for k in agent.loss_keys), agent.optimizers.values(),
-                                       max_grad_norm=agent.max_grad_norm, on_device=True)
+        out, found_inf = self.gradient_step(agent, batch, actor_turn, on_device=True)
         if self.soft:
             with torch.no_grad():
                 delta = torch._foreach_sub(self.sources, self.targets)
@@ -158,7 +181,7 @@ class CapturedUpdate:
 
         from morl_trl.data import TorchPrioritizedSampler
 
-        if not self.capture_sampling or not self.agent.samples_one_batch or self.agent.policy_freq > 1:
+        if not self.capture_sampling or self.policy_freq > 1:
             return False
         if type(buffer) is not TensorDictReplayBuffer:
             return False
@@ -216,20 +239,17 @@ class CapturedUpdate:
         self._graph.replay()  # the capture recorded the update; this replay applies it
         return self._static_out  # (overwritten by the next update)
 
-    def __call__(self, batch: TensorDictBase | None, buffer) -> TensorDictBase:
+    def __call__(self, buffer, actor_turn: bool = True) -> TensorDictBase:
         agent = self.agent
-        if batch is None:
-            if self._whole is not None or self._samples_in_graph(buffer):
-                agent.next_is_actor_turn()  # (counted; the whole-update capture has policy_freq 1)
-                result = self._run_whole(buffer)
-                if not self.soft:
-                    agent.target_updater.step()
-                self.since_check += 1
-                if self.since_check >= self.interval:
-                    self.check()
-                return result
-            batch = agent.sample(buffer)
-        actor_turn = agent.next_is_actor_turn()
+        if self._whole is not None or self._samples_in_graph(buffer):  # (policy_freq 1: every update an actor turn)
+            result = self._run_whole(buffer)
+            if not self.soft:
+                agent.target_updater.step()
+            self.since_check += 1
+            if self.since_check >= self.interval:
+                self.check()
+            return result
+        batch = buffer.sample().to(agent.device)
         fn = self.fn_actor if self.fn_actor is not None and actor_turn else self.fn
         result = fn(batch)
         if not self.soft:

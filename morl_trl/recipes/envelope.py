@@ -12,9 +12,11 @@ sota-implementations:
    updater (a hard copy every ``target_update_period`` updates);
 3. the replay buffer (prioritized) and TorchRL's collector;
 4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>` (run directory, resume,
-   logs, evaluations and checkpoints when due, Ctrl-C, a clean stop): store the batch, the
-   updates (sample, loss, :func:`~morl_trl.recipes.optim.optimizer_step`, target update, PER
-   priorities), the ε and homotopy schedules.
+   logs, evaluations and checkpoints when due, Ctrl-C, a clean stop): per batch :func:`on_batch`
+   stores it, runs the :func:`update` calls due (sample, :func:`gradient_step`: loss,
+   :func:`~morl_trl.recipes.optim.optimizer_step`; the target update, PER priorities) and the ε
+   and homotopy :func:`schedules`. ``compile`` / ``cudagraphs`` capture the same
+   :func:`gradient_step` (:mod:`morl_trl.recipes.capture`).
 
 Faithful to the authors' runs by default (config keys in brackets, ours as options):
 ``w`` concatenated after the first hidden layer with orthogonal init
@@ -65,6 +67,7 @@ from morl_trl.recipes.agent import (
     updates_due,
 )
 from morl_trl.recipes.allocator import tune_malloc
+from morl_trl.recipes.capture import captured_update
 from morl_trl.recipes.optim import optimizer_step
 from morl_trl.recipes.parts import (
     load_agent_state,
@@ -81,7 +84,7 @@ from morl_trl.recipes.parts import (
 )
 from morl_trl.runs.run import Run
 
-__all__ = ["make_envelope_agent", "train_envelope"]
+__all__ = ["make_envelope_agent", "train_envelope", "gradient_step", "update", "on_batch", "schedules"]
 
 
 def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
@@ -109,7 +112,7 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
     loss.make_value_estimator(gamma=gamma)
     optimizers = {"qvalue": adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))}
     return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
-                 device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg))
+                 device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg), capturable=True)
 
 
 def train_envelope(run: Run) -> tuple[dict, Agent]:
@@ -125,7 +128,6 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
     # 2. the modules: Q-network, greedy and ε-greedy policies, the loss, Adam, the target updater
     tune_malloc()  # (the allocator for training, as build_agent)
     agent = make_envelope_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
-    loss, optimizer, target = agent.loss, agent.optimizers["qvalue"], agent.target_updater
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)  # (the greedy policy on the evaluation suite)
 
@@ -138,20 +140,6 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
         schedules(agent, run.frames)
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
 
-    def update() -> TensorDictBase:
-        """One gradient step on a sampled batch (a non-finite loss raises before anything changes)."""
-        if agent.captured_update:  # compile / cudagraphs / fused on an accelerator: the same step, captured
-            return agent.update(buffer)  # (recipes/capture.py: its non-finite guard stays on the device)
-        agent.critic_steps += 1  # (the update counter the checkpoint keeps)
-        batch = buffer.sample().to(device)
-        out = loss(batch)  # the envelope TD loss over the sampled preferences; writes the PER priorities
-        optimizer_step(out["loss_qvalue"], [optimizer], max_grad_norm=cfg.max_grad_norm,
-                       losses={"loss_qvalue": out["loss_qvalue"]})
-        target.step()  # (a hard copy every target_update_period updates)
-        if cfg.prioritized:
-            buffer.update_tensordict_priority(batch)
-        return out.detach()
-
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it, update, the schedules, then (run.step) evaluate
@@ -161,15 +149,56 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
                      notes=start_notes(cfg, run, spec, reference)):
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
-            agent.store(buffer, batch)  # the entries the loss reads
-            losses, updates = None, 0
-            if frames >= cfg.init_random_frames:
-                updates = updates_due(cfg, frames, batch.numel())  # one per update_frequency frames, or per batch
-                losses = apply_updates(update, updates)  # (a non-finite loss raises, counting those applied)
-            schedules(agent, frames)
+            losses, updates = on_batch(agent, batch, buffer, frames)  # store, the updates due, the schedules
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)
     return run.summary, agent
+
+
+def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool = True, *, on_device: bool = False):
+    """The envelope TD loss over the sampled preferences (it writes the batch's PER priorities), its
+    backward, the gradient clipping and Adam: the part of :func:`update` that ``compile`` / CUDA
+    graphs capture (:mod:`morl_trl.recipes.capture`). Returns ``(losses, found_inf)``: eager, a
+    non-finite loss raises :class:`~morl_trl.recipes.optim.NonFiniteLossError` before the step
+    (``found_inf`` is ``None``); ``on_device``, the step is skipped on the device and ``found_inf``
+    says so. (``actor_turn``: unused, Envelope has no actor.)"""
+    out = agent.loss(batch)
+    found_inf = optimizer_step(out["loss_qvalue"], [agent.optimizers["qvalue"]], max_grad_norm=agent.cfg.max_grad_norm,
+                               losses={"loss_qvalue": out["loss_qvalue"]}, on_device=on_device)
+    return out, found_inf
+
+
+def update(agent: Agent, buffer) -> TensorDictBase:
+    """One gradient step on a sampled batch: sample, :func:`gradient_step`, the target updater (a hard
+    copy every ``target_update_period`` updates), the PER priorities. Captured (``compile`` /
+    ``cudagraphs``, or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
+    :class:`~morl_trl.recipes.capture.CapturedUpdate`, its non-finite guard on the device."""
+    agent.critic_steps += 1  # (the update counter the checkpoint keeps)
+    captured = captured_update(agent, gradient_step)
+    if captured is not None:
+        return captured(buffer)
+    batch = buffer.sample().to(agent.device)
+    out, _ = gradient_step(agent, batch)
+    agent.target_updater.step()
+    if agent.cfg.prioritized:
+        buffer.update_tensordict_priority(batch)
+    return out.detach()
+
+
+def on_batch(agent: Agent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
+    """What the loop does with one collected batch ending at ``frames`` frames: store its transitions
+    (the entries the loss reads), then, from ``init_random_frames`` on, the :func:`update` calls due
+    (one per ``update_frequency`` frames, or ``updates_per_batch``), then the schedules. Returns
+    ``(the last update's losses or None, updates done)``; a non-finite loss raises, counting the updates
+    applied before it."""
+    cfg = agent.cfg
+    agent.store(buffer, batch)
+    losses, updates = None, 0
+    if frames >= cfg.init_random_frames:
+        updates = updates_due(cfg, frames, batch.numel())
+        losses = apply_updates(lambda: update(agent, buffer), updates)
+    schedules(agent, frames)
+    return losses, updates
 
 
 def schedules(agent: Agent, frames: int) -> None:

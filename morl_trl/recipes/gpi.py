@@ -109,9 +109,6 @@ class GPIAgent(Agent):
     def __init__(self, cfg, loss: GPILoss, explore_policy, eval_policy: GPIPolicy, optimizers, *, device,
                  exploration_module, gamma: float, preference_transform: PreferenceConditioning | None,
                  num_actions: int | None, dynamics: DynamicsLoss | None = None, gpi_policy=None) -> None:
-        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
-            raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent (GPIAgent, "
-                             f"morl_trl.recipes.gpi.update) writes its own update: set compile=false and cudagraphs=false")
         # (a copy at every step() call: the loop calls it once per target_update_period frames)
         updater = PeriodicHardUpdate(loss, value_network_update_interval=1) if num_actions is not None else None
         super().__init__(cfg, loss, explore_policy, eval_policy, optimizers, updater,
@@ -470,7 +467,7 @@ def update(agent: GPIAgent, buffer) -> TensorDictBase:
             polyak_(loss.target_actor_network_params, loss.actor_network_params, tau)
         agent.continuous_updates += 1
     else:
-        optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]], max_grad_norm=agent.max_grad_norm,
+        optimizer_step(out["loss_qvalue"], [optimizers["qvalue"]], max_grad_norm=agent.cfg.max_grad_norm,
                        losses={"loss_qvalue": out["loss_qvalue"]})
     if cfg.prioritized:
         if real is not batch:

@@ -76,7 +76,7 @@ import math
 import warnings
 
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
@@ -86,7 +86,7 @@ from morl_trl.metrics import is_nondominated
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.batched import BatchedLinear
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
-from morl_trl.recipes.actor_critic import orthogonal_critic_copies_
+from morl_trl.recipes.actor_critic import gradient_step, orthogonal_critic_copies_
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
     nearest_member,
@@ -109,7 +109,7 @@ from morl_trl.recipes.agent import (
     target_updater,
 )
 from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import MemberAdam, fused_choice, optimizer_step
+from morl_trl.recipes.optim import MemberAdam, fused_choice
 from morl_trl.recipes.parts import (
     load_agent_state,
     checkpoint_snapshot,
@@ -640,7 +640,8 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
 
     The authors' MOSAC order (``mosac_continuous_action.py:460-482``, ``mosac_discrete_action.py:480-492``),
     each loss computed alone (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`'s ``qvalue_loss`` /
-    ``actor_loss`` / ``temperature_loss``):
+    ``actor_loss`` / ``temperature_loss``), the actor-critics' own step
+    (:func:`~morl_trl.recipes.actor_critic.gradient_step`):
 
     1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
     2. on an actor turn (:func:`count_update`), ``policy_freq`` times: ``actor_loss`` (fresh actions, the
@@ -660,49 +661,14 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
     (that member alone on a ``[1, batch_size]`` sample); its ``entropy`` is reported at its row of a ``[P]``
     vector, NaN for the others.
     """
-    cfg, loss, opts = agent.cfg, agent.loss, agent.optimizers
+    loss = agent.loss
     member = agent.active if agent.round_robin and agent.slice_acting_member and not catch_up else None
     agent.sliced_member = member
     try:
         with loss.only_member(member) if member is not None else contextlib.nullcontext():
             batch = sample_members(agent, buffer, catch_up=catch_up)
             actor_turn = count_update(agent)
-            clip = dict(max_grad_norm=cfg.max_grad_norm)
-            if cfg.joint_update:
-                keys = [k for k in loss.out_keys if k.startswith("loss_")]
-                out = loss(batch)
-                optimizer_step(sum(out[k] for k in keys), opts.values(), losses={k: out[k] for k in keys}, **clip)
-            else:
-                loss_qvalue, _ = loss.qvalue_loss(batch)
-                optimizer_step(loss_qvalue, [opts["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **clip)
-                alpha_opt = opts.get("alpha")
-                if actor_turn:
-                    dist = None
-                    for i in range(cfg.policy_freq):
-                        loss_actor, meta = loss.actor_loss(batch) if dist is None else loss.actor_loss(batch, dist)
-                        optimizer_step(loss_actor, [opts["actor"]], losses={"loss_actor": loss_actor}, **clip)
-                        actor_out = {"loss_actor": loss_actor.detach(), "entropy": -meta["log_prob"].mean(-1)}
-                        if alpha_opt is not None:
-                            if loss.fresh_temperature_sample:
-                                # one forward of the updated actor for the temperature's fresh sample and, drawn
-                                # after it, the next actor step's sample (the actor does not change in between)
-                                dist = loss.actor_dist(batch) if i + 1 < cfg.policy_freq else None
-                                loss_alpha = loss.temperature_loss(batch, dist=dist)
-                            else:
-                                loss_alpha = loss.temperature_loss(batch, meta["log_prob"])
-                            optimizer_step(loss_alpha, [alpha_opt], losses={"loss_alpha": loss_alpha}, **clip)
-                            actor_out["loss_alpha"] = loss_alpha.detach()
-                    agent.last_actor_losses = actor_out
-                elif agent.last_actor_losses is None:  # no actor turn yet
-                    nan = torch.full_like(loss_qvalue.detach(), float("nan"))
-                    agent.last_actor_losses = {"loss_actor": nan,
-                                               "entropy": torch.full_like(loss.log_alpha.detach(), float("nan"))}
-                    if alpha_opt is not None:
-                        agent.last_actor_losses["loss_alpha"] = nan
-                with torch.no_grad():
-                    alpha = loss.log_alpha.exp()
-                out = TensorDict({"loss_qvalue": loss_qvalue.detach(), **agent.last_actor_losses, "alpha": alpha},
-                                 batch_size=[])
+            out, _ = gradient_step(agent, batch, actor_turn)  # the actor-critics' step, on the population's loss
             agent.target_updater.step()
     finally:
         agent.sliced_member = None
@@ -848,10 +814,6 @@ def orthogonal_population_init_(module: nn.Module) -> nn.Module:
 def make_morld_agent(cfg, env, *, gamma: float, device: torch.device) -> MORLDAgent:
     """The population (continuous or discrete, from the env's action spec), its loss, optimizers
     (one Adam per network kind over all members), targets and acting views."""
-    if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):
-        raise ValueError("compile / cudagraphs capture the generic update (recipes/capture.py); MORL/D runs its own "
-                         "(morld.update: the round robin steps one member at a time): set compile=false and "
-                         "cudagraphs=false")
     spec = action_spec(env)
     (obs_dim,) = obs_shape(env)
     k = num_objectives(env)

@@ -1,20 +1,12 @@
-"""``morl-trl train``: open the run, then run the algorithm's recipe; and ``morl-trl evaluate``.
+"""``morl-trl train``: open the run, then run the algorithm's loop; and ``morl-trl evaluate``.
 
 :func:`run_training` opens the :class:`~morl_trl.runs.Run` (a new run, or the continuation of
-one) and hands it to the algorithm's recipe: its own, top to bottom, when it has one
-(:data:`RECIPES`: Envelope, :func:`morl_trl.recipes.envelope.train_envelope`; GPI-LS and GPI-PD,
-:func:`morl_trl.recipes.gpi.train_gpi`; CAPQL, MOSAC, discrete MOSAC and SAC,
-:func:`morl_trl.recipes.actor_critic.train_actor_critic`; PCN, :func:`morl_trl.recipes.pcn.train_pcn`; PGMORL,
-:func:`morl_trl.recipes.pgmorl.train_pgmorl`; MORL/D, :func:`morl_trl.recipes.morld.train_morld`), else the
-loop of every algorithm written as an :class:`~morl_trl.recipes.agent.Agent`
-(:func:`train_agent`):
-
-1. the parts (:mod:`morl_trl.recipes.parts`): the training env, the agent of the algorithm
-   (:func:`~morl_trl.recipes.algorithms.build_agent`: its modules, loss and optimizers), the
-   evaluator, the replay buffer and TorchRL's collector;
-2. the loop inside :meth:`Run.session <morl_trl.runs.Run.session>`: collect a batch,
-   ``agent.learn`` (store + the algorithm's updates), the schedules, ``run.step`` (evaluate and
-   checkpoint when due).
+one), seeds the process and hands the run to the algorithm's loop, found in the one registry
+(:data:`~morl_trl.recipes.algorithms.REGISTRY`: Envelope's
+:func:`~morl_trl.recipes.envelope.train_envelope`, the actor-critics'
+:func:`~morl_trl.recipes.actor_critic.train_actor_critic`, GPI's, PCN's, PGMORL's, MORL/D's), which
+reads top to bottom: the env, the agent, the evaluator, the replay buffer, TorchRL's collector, then
+per batch its ``on_batch`` (store + the updates due) and ``run.step`` (evaluate and checkpoint when due).
 
 Everything about the run itself (directory, resume, logs, checkpoints, progress bar, report,
 Ctrl-C, a clean stop) is :class:`morl_trl.runs.Run` and its session.
@@ -22,28 +14,20 @@ Ctrl-C, a clean stop) is :class:`morl_trl.runs.Run` and its session.
 
 from __future__ import annotations
 
+import contextlib
 import random
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from morl_trl._torchrl_compat import reset_collector
 from morl_trl.envs import make_env
 from morl_trl.envs.trust import check_trusted
-from morl_trl.recipes.actor_critic import train_actor_critic
 from morl_trl.recipes.agent import Agent
-from morl_trl.recipes.algorithms import build_agent, build_training_env
+from morl_trl.recipes.algorithms import algorithm, build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
-from morl_trl.recipes.envelope import train_envelope
-from morl_trl.recipes.gpi import train_gpi
-from morl_trl.recipes.morld import train_morld
-from morl_trl.recipes.pcn import train_pcn
-from morl_trl.recipes.pgmorl import train_pgmorl
 from morl_trl.recipes.parts import (
     load_agent_state,
-    checkpoint_snapshot,
-    check_buffer_memory,
     load_reference,
     make_collector,
     make_evaluator,
@@ -51,7 +35,6 @@ from morl_trl.recipes.parts import (
     make_training_env,
     run_discount,
     run_domain,
-    start_notes,
 )
 from morl_trl.preferences import check_simplex
 from morl_trl.runs.checkpoint import checkpoint_format, checkpoint_frames, find_checkpoint, load_checkpoint
@@ -61,18 +44,12 @@ from morl_trl.runs.run_dir import check_writable
 from morl_trl.runs.run_log import RunLog
 from morl_trl.transforms import compose_policy_env
 
-__all__ = ["train", "run_training", "train_agent", "evaluate_run", "EXIT_NON_FINITE_LOSS", "RECIPES",
+__all__ = ["train", "run_training", "evaluate_run", "EXIT_NON_FINITE_LOSS",
            "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
 
 #: what ``morl-trl train`` exits with when a non-finite loss stopped the run (after it wrote
 #: a checkpoint of the last good state); 2 is bad input, 1 an unexpected error.
 EXIT_NON_FINITE_LOSS = 3
-
-#: algorithm name -> its own recipe ``recipe(run) -> (summary, agent)``, for an algorithm written top to
-#: bottom instead of as an :class:`Agent`; the others run :func:`train_agent`
-RECIPES: dict = {"envelope": train_envelope, "gpi_ls": train_gpi, "gpi_pd": train_gpi,
-                 **dict.fromkeys(("capql", "mosac", "mosac_discrete", "sac"), train_actor_critic), "pcn": train_pcn,
-                 "pgmorl": train_pgmorl, **dict.fromkeys(("morld", "morld_psa"), train_morld)}
 
 
 def build(cfg: TrainConfig, device: torch.device):
@@ -128,75 +105,27 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     one-line summary instead of its tables (what ``morl_trl.train`` does)."""
     if resume is not None and (Path(resume) / "config.json").is_file():
         check_writable(Path(resume))
-        lock = RunLock(resume, "training").acquire()  # one writer: a second one is refused, naming this process
+        lock = RunLock(resume, "training")  # one writer: a second one is refused, naming this process
     else:
-        lock = None
-    try:
-        return _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code, echo_report)
-    finally:
-        if lock is not None:
-            lock.release()
-
-
-def _run_training(cfg, resume, overwrite, trust_pickle, lock, trust_code=False, echo_report=True):
-    run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load, resume_config=resume_config)
-    if resume is not None:
-        check_trusted(run.cfg.domain_modules, trust_code, source=repr(str(Path(resume) / "config.json")))
-    run.trust_pickle = trust_pickle
-    run.echo_report = echo_report
-    cfg = run.cfg
-    if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
-        load_checkpoint(run.resume_from)  # refused (naming convert-run and --trust-pickle) before anything is built
-    if run.done:
-        print(f"{run.dir} already reached {run.frames:,} frames (frames = {cfg.frames:,}): nothing to do; "
-              f"pass a larger frames (--frames) to extend it", flush=True)
-        return {"frames": run.frames, "finished": True}, None, run.dir, cfg
-    _set_threads(cfg)
-    _seed_everything(cfg.seed)
-    summary, agent = RECIPES.get(cfg.algo, train_agent)(run)
-    return summary, agent, run.dir, cfg
-
-
-def train_agent(run: Run) -> tuple[dict, Agent]:
-    """The loop of every algorithm written as an :class:`Agent` (all but those of :data:`RECIPES`, Envelope,
-    GPI-LS / GPI-PD, the actor-critics, PCN, PGMORL and MORL/D, which have their own; it drives any Agent): collect a
-    batch, ``agent.learn`` (store + the algorithm's updates), the schedules; :meth:`Run.session` does the rest. Returns
-    ``(last evaluation summary, agent)``."""
-    cfg = run.cfg
-    device = torch.device(cfg.device)
-    spec = run_domain(cfg)
-
-    # 1. the parts (everything is built before the run directory is touched: a failed start writes nothing)
-    env, agent, reference, evaluator = build(cfg, device)
-    check_buffer_memory(cfg, env, device)
-    buffer = make_replay_buffer(cfg, device)
-    state = run.restore(buffer, map_location=device, env=env)  # (a resumed run: its checkpoint)
-    if state is not None:
-        load_agent_state(agent, state, run.resume_from, cfg.algo)
-        agent.on_frames(run.frames)
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
-                               frames_to_go=agent.frames_to_collect(run.frames))
-    if agent.before_batch():
-        reset_collector(collector)
-
-    snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
-
-    # 2. the loop. One iteration = one batch: collect, store, update, then (run.step) evaluate and
-    # checkpoint the policy trained on `run.frames` frames. A checkpoint is the state at the end of a
-    # batch (after its evaluation), so the batch after it is the same whether the run resumes or not.
-    with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
-                     notes=start_notes(cfg, run, spec, reference)):
-        agent.after_step(buffer)  # (a resumed run: what it did right after the checkpoint, its RNG now restored)
-        for batch in collector:
-            frames = run.collected(batch, agent.frames_of(batch))  # (PGMORL: one member's frames, as the authors)
-            losses, updates = agent.learn(batch, buffer, frames)  # store + the algorithm's updates
-            agent.on_frames(frames)  # the schedules (epsilon, homotopy)
-            if agent.before_batch():  # (MORL/D's round robin: the next member starts on a reset env)
-                reset_collector(collector)
-            collector.update_policy_weights_()
-            run.step(losses, updates, epsilon=agent.epsilon)
-            agent.after_step(buffer)  # (GPI: the next iteration begins after the evaluation of the last)
-    return run.summary, agent
+        lock = contextlib.nullcontext()
+    with lock:
+        run = Run.open(cfg, resume=resume, overwrite=overwrite, load_config=TrainConfig.load,
+                       resume_config=resume_config)
+        if resume is not None:
+            check_trusted(run.cfg.domain_modules, trust_code, source=repr(str(Path(resume) / "config.json")))
+        run.trust_pickle = trust_pickle
+        run.echo_report = echo_report
+        cfg = run.cfg
+        if run.resume_from is not None and checkpoint_format(run.resume_from) < 2 and not trust_pickle:
+            load_checkpoint(run.resume_from)  # refused (naming convert-run and --trust-pickle) before anything is built
+        if run.done:
+            print(f"{run.dir} already reached {run.frames:,} frames (frames = {cfg.frames:,}): nothing to do; "
+                  f"pass a larger frames (--frames) to extend it", flush=True)
+            return {"frames": run.frames, "finished": True}, None, run.dir, cfg
+        _set_threads(cfg)
+        _seed_everything(cfg.seed)
+        summary, agent = algorithm(cfg.algo).train(run)  # the algorithm's own loop
+        return summary, agent, run.dir, cfg
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,

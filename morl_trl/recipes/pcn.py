@@ -204,9 +204,6 @@ class PCNAgent(Agent):
 
     def __init__(self, cfg, loss, explore_policy, eval_policy, optimizer, replay: EpisodeReplay, command, *,
                  device, max_return) -> None:
-        if getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False):  # (update() is never captured)
-            raise ValueError(f"compile / cudagraphs capture Agent.update; {cfg.algo}'s agent ({type(self).__name__}) "
-                             f"writes its own update: set compile=false and cudagraphs=false")
         super().__init__(cfg, loss, explore_policy, eval_policy, {"policy": optimizer}, None, device=device)
         self.replay, self.command = replay, command
         self.generator = torch.Generator().manual_seed(cfg.seed + 7)

@@ -88,4 +88,4 @@ def make_sac_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     loss.set_keys(reward=ORIGINAL_REWARD_KEY)
     loss.make_value_estimator(gamma=gamma)
     return Agent(cfg, loss, actor, actor, actor_critic_optimizers(cfg, loss), target_updater(cfg, loss),
-                 device=device, eval_exploration=eval_exploration(cfg))
+                 device=device, eval_exploration=eval_exploration(cfg), capturable=True)

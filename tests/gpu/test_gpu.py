@@ -15,9 +15,10 @@ import torch
 
 from morl_trl.envs import domain_of
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
-from morl_trl.recipes.capture import CapturedUpdate
+from morl_trl.recipes.algorithms import algorithm
+
 from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount
-from tests.recipes.test_capture import params_of, setup
+from tests.recipes.test_capture import capture, params_of, setup, update
 
 pytestmark = [pytest.mark.gpu, pytest.mark.filterwarnings("ignore")]
 
@@ -81,8 +82,7 @@ def test_every_learner_trains_on_the_device(device, algo):
         for i, batch in enumerate(collector):
             assert batch.device is None or batch.device.type == dev.type
             frames += batch.numel()
-            out, n = agent.learn(batch, buffer, frames)
-            agent.on_frames(frames)
+            out, n = algorithm(algo).on_batch(agent, batch, buffer, frames)  # the recipe's own step
             collector.update_policy_weights_()
             updates += n
             losses = out if out is not None else losses
@@ -125,14 +125,14 @@ def test_captured_update_equals_the_eager_update(device, name, mode):
     _, captured, buf_c = setup(name, device=dev, finite_check_interval=4, **overrides)
     captured.loss.load_state_dict(eager.loss.state_dict())
     if mode == "step":
-        captured._captured = CapturedUpdate(captured)  # the captured path, run eagerly
+        capture(captured)  # the captured path, run eagerly
     start = params_of(eager)
     with torch._inductor.config.patch(fallback_random=True), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for i in range(8):
             for agent, buffer in ((eager, buf_e), (captured, buf_c)):
                 torch.manual_seed(100 + i)
-                agent.update(buffer)
+                update(agent, buffer)
     if device == "cuda":
         torch.cuda.synchronize()
     # same kernels: float rounding only; compiled kernels fuse differently (Adam's first steps
@@ -163,16 +163,16 @@ def test_the_whole_envelope_update_in_one_graph_equals_the_eager_update(device, 
     whole.cfg.capture_sampling = True
     whole.loss.load_state_dict(eager.loss.state_dict())
     if mode == "step":
-        whole._captured = CapturedUpdate(whole)  # the host-free function, run eagerly
+        capture(whole)  # the host-free function, run eagerly
     start = params_of(eager)
     with torch._inductor.config.patch(fallback_random=True), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for i in range(8):
             for agent, buffer in ((eager, buf_e), (whole, buf_w)):
                 torch.manual_seed(200 + i)
-                agent.update(buffer)
-    assert whole._captured._whole is not None  # the whole-update path ran
-    assert (whole._captured._graph is not None) == (mode != "step")
+                update(agent, buffer)
+    assert whole.captured._whole is not None  # the whole-update path ran
+    assert (whole.captured._graph is not None) == (mode != "step")
     tol = dict(rtol=1e-5, atol=1e-6) if mode != "both" else dict(rtol=1e-3, atol=1e-3)
     end_e, end_w = params_of(eager), params_of(whole)
     for key in end_e:
@@ -210,13 +210,13 @@ def test_the_captured_functions_read_no_device_value(name):
     optimizer step carry no reason.)"""
     _, agent, buffer = setup(name)
     agent.cfg.capture_sampling = True
-    captured = CapturedUpdate(agent)
+    captured = capture(agent)
     if name == "envelope":
         assert captured._samples_in_graph(buffer)
         fn, args = captured._build_whole(buffer), ()
     else:
         assert not captured._samples_in_graph(buffer)  # uniform replay: the step alone is captured
-        fn, args = captured.step, (agent.sample(buffer),)
+        fn, args = captured.step, (buffer.sample().to(agent.device),)
     torch._dynamo.reset()
     explained = torch._dynamo.explain(fn)(*args)
     assert explained.graph_count >= 1 and explained.op_count > 20

@@ -13,6 +13,8 @@ from morl_trl.objectives.networks import make_gaussian_actor, make_vector_critic
 from morl_trl.objectives.population import make_population_critic, make_population_gaussian_actor
 from morl_trl.objectives.sac import SACLoss
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes.actor_critic import policy_freq, steps_each_loss
+from morl_trl.recipes.agent import apply_updates
 from morl_trl.recipes.off_policy import make_replay_buffer
 from tests.objectives._helpers import random_batch
 
@@ -55,11 +57,15 @@ def _record(agent):
     return events
 
 
-def _morld_updates(agent, buffer, n):
-    """``n`` of MORL/D's updates off the shared clock (the acting member's own, :func:`morl_trl.recipes.morld.update`)."""
-    from morl_trl.recipes import morld
+def _updates(agent, buffer, n):
+    """``n`` of the recipe's updates (:func:`morl_trl.recipes.actor_critic.update`; MORL/D's off the shared clock,
+    the acting member's own, :func:`morl_trl.recipes.morld.update`)."""
+    from morl_trl.recipes import actor_critic, morld
 
-    morld.updates_at(agent, buffer, [None] * n)
+    if agent.cfg.algo == "morld":
+        morld.updates_at(agent, buffer, [None] * n)
+    else:
+        apply_updates(lambda: actor_critic.update(agent, buffer), n)
 
 
 @pytest.mark.parametrize("algo", ["sac", "morld", "mosac"])
@@ -70,15 +76,14 @@ def test_the_delayed_actor_runs_critic_then_two_actor_and_fresh_temperature_step
     temperature's sample and the second actor step's come from one forward of the actor (``D``)."""
     pytest.importorskip("mujoco")
     agent, buffer = _agent(algo, "MOHopperDR-v5")
-    assert agent.policy_freq == 2 and agent.steps_each_loss
+    assert policy_freq(agent) == 2 and steps_each_loss(agent)
     events = _record(agent)
-    run_updates = _morld_updates if algo == "morld" else (lambda agent, buffer, n: agent.run_updates(buffer, n))
-    run_updates(agent, buffer, 2)
+    _updates(agent, buffer, 2)
     critic = ["Q", "target", "step:qvalue"]
     assert events == critic + critic + ["A", "step:actor", "D", "T(fresh)", "step:alpha",
                                         "A", "step:actor", "T(fresh)", "step:alpha"]
     events.clear()
-    run_updates(agent, buffer, 4)  # 6 updates: 6 critic steps and targets, 3 actor turns of 2
+    _updates(agent, buffer, 4)  # 6 updates: 6 critic steps and targets, 3 actor turns of 2
     assert events.count("target") == 4 and events.count("step:qvalue") == 4
     assert events.count("step:actor") == 4 and events.count("step:alpha") == 4
 
@@ -87,9 +92,9 @@ def test_discrete_sac_steps_critic_actor_temperature_on_the_actor_steps_probabil
     """The authors' discrete SAC / MOSACDiscrete: each update a critic step, an actor step on the updated
     critics and a temperature step on the actor step's probabilities (reused, not re-drawn)."""
     agent, buffer = _agent("sac", "MOLavaGridDR-v0")
-    assert agent.policy_freq == 1
+    assert policy_freq(agent) == 1
     events = _record(agent)
-    agent.run_updates(buffer, 3)
+    _updates(agent, buffer, 3)
     assert events == ["Q", "target", "step:qvalue", "A", "step:actor", "T(reused)", "step:alpha"] * 3
 
 
@@ -99,12 +104,12 @@ def test_capql_steps_critics_then_actor_and_joint_update_keeps_one_step(single_t
     pytest.importorskip("mujoco")
     agent, buffer = _agent("capql", "MOHopperDR-v5")
     events = _record(agent)
-    agent.run_updates(buffer, 2)
+    _updates(agent, buffer, 2)
     assert events == ["Q", "target", "step:qvalue", "A", "step:actor"] * 2
     joint, buffer = _agent("capql", "MOHopperDR-v5", joint_update=True)
-    assert not joint.steps_each_loss
+    assert not steps_each_loss(joint)
     events = _record(joint)
-    joint.run_updates(buffer, 2)
+    _updates(joint, buffer, 2)
     assert events == ["target", "step:actor", "step:qvalue"] * 2  # forward (its target), then both optimizers
     with pytest.raises(ValueError, match="joint_update=true steps every loss together"):
         _agent("sac", "MOHopperDR-v5", joint_update=True)

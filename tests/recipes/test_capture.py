@@ -5,9 +5,9 @@ import copy
 import pytest
 import torch
 
-from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes import actor_critic, build_agent, build_training_env, envelope, resolve_config
 from morl_trl.recipes.agent import NonFiniteLossError, adam, obs_shape
-from morl_trl.recipes.capture import CapturedUpdate
+from morl_trl.recipes.capture import CapturedUpdate, runs_captured
 from morl_trl.recipes.off_policy import make_replay_buffer
 from tests.objectives._helpers import random_batch
 
@@ -19,6 +19,22 @@ CASES = {  # (algo, env id, discrete): Polyak targets + plain buffer / hard targ
     "envelope": ("envelope", "MOLavaGridDR-v0", True),
     "mosac": ("mosac", "MOHopperDR-v5", False),  # the delayed actor (policy_freq 2): two captured updates
 }
+RECIPE = {"capql": actor_critic, "envelope": envelope, "mosac": actor_critic}  # (their update, gradient_step)
+
+
+def loss_keys(agent) -> list:
+    return [k for k in agent.loss.out_keys if k.startswith("loss_")]
+
+
+def update(agent, buffer):
+    """The recipe's update (the one ``morl-trl train`` runs)."""
+    return RECIPE[agent.cfg.algo].update(agent, buffer)
+
+
+def capture(agent) -> CapturedUpdate:
+    """The recipe's gradient step, wrapped as a captured update would be (built uncompiled if ``compile`` is off)."""
+    agent.captured = CapturedUpdate(agent, RECIPE[agent.cfg.algo].gradient_step)
+    return agent.captured
 
 
 def setup(name, device=CPU, n=256, **overrides):
@@ -45,7 +61,7 @@ def params_of(agent):
 
 def run(agent, buffer, updates, seed=1):
     torch.manual_seed(seed)
-    losses = [agent.update(buffer) for _ in range(updates)]
+    losses = [update(agent, buffer) for _ in range(updates)]
     return losses, params_of(agent)
 
 
@@ -60,12 +76,12 @@ def same_start(name, **overrides):
 @pytest.mark.parametrize("name", list(CASES))
 def test_captured_step_without_compile_matches_the_eager_update(name):
     eager, buf_e, captured, buf_c = same_start(name)
-    captured._captured = CapturedUpdate(captured)  # the captured path, run eagerly
+    capture(captured)  # the captured path, run eagerly
     start = params_of(eager)
     out_e, params_e = run(eager, buf_e, 4)
     out_c, params_c = run(captured, buf_c, 4)
     for a, b in zip(out_e, out_c):
-        for key in eager.loss_keys:
+        for key in loss_keys(eager):
             torch.testing.assert_close(a[key], b[key], rtol=1e-6, atol=1e-7, equal_nan=True)  # (NaN: no actor turn yet)
     for key in params_e:
         torch.testing.assert_close(params_e[key], params_c[key], rtol=1e-6, atol=1e-7, msg=key)
@@ -77,16 +93,15 @@ def test_captured_step_without_compile_matches_the_eager_update(name):
 @pytest.mark.parametrize("name", list(CASES))
 def test_a_non_finite_update_is_skipped_on_the_device_and_reported(name):
     _, agent, buffer = setup(name, compile=True, finite_check_interval=3)
-    agent._captured = captured = CapturedUpdate.__new__(CapturedUpdate)
     agent.cfg.compile = False  # build it uncompiled: the guard's logic, without the compile time
-    CapturedUpdate.__init__(captured, agent)
-    agent.update(buffer)  # one good update
+    captured = capture(agent)
+    update(agent, buffer)  # one good update
     before = params_of(agent)
     steps = {n: [s["step"].clone() for s in o.state.values()] for n, o in agent.optimizers.items()}
     poisoned = buffer.sample()
     poisoned["next", "reward"][0, 0] = float("nan")
     result = captured.step(poisoned)  # the poisoned update: nothing moves
-    assert not torch.isfinite(sum(result[k] for k in agent.loss_keys))
+    assert not torch.isfinite(sum(result[k] for k in loss_keys(agent)))
     after = params_of(agent)
     for key in before:
         assert torch.equal(before[key], after[key]), key
@@ -96,7 +111,7 @@ def test_a_non_finite_update_is_skipped_on_the_device_and_reported(name):
     assert captured.skipped.item() == 1.0
     captured.since_check += 1  # the poisoned step, called directly
     with pytest.raises(NonFiniteLossError, match="1 of the last 3 updates had a non-finite loss"):
-        agent.update(buffer)  # the third update since the check reads the flag
+        update(agent, buffer)  # the third update since the check reads the flag
     assert captured.skipped.item() == 0.0
 
 
@@ -104,13 +119,13 @@ def test_captured_update_needs_fused_optimizers_and_cuda_for_graphs():
     _, agent, _ = setup("capql", compile=True)
     agent.optimizers["actor"] = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-3)
     with pytest.raises(ValueError, match=r"needs fused optimizers.*\['actor'\]"):
-        CapturedUpdate(agent)
+        capture(agent)
     with pytest.raises(ValueError, match="'cudagraphs' .* is true but device is 'cpu'"):
         resolve_config("capql", "MOHopperDR-v5", cudagraphs=True)
     _, agent, _ = setup("capql")
     agent.cfg.cudagraphs = True  # past the config's check
     with pytest.raises(ValueError, match="cudagraphs=true needs device='cuda'"):
-        CapturedUpdate(agent)
+        capture(agent)
 
 
 def test_adam_is_fused_and_matches_the_per_tensor_loop():
@@ -135,9 +150,10 @@ def test_compiled_update_matches_the_eager_update_on_cpu():
     eager, buf_e, compiled, buf_c = same_start("capql", compile=True, finite_check_interval=2)
     out_e, params_e = run(eager, buf_e, 3)
     out_c, params_c = run(compiled, buf_c, 3)
-    assert isinstance(compiled._captured, CapturedUpdate) and compiled._captured.fn is not compiled._captured.step
+    assert isinstance(compiled.captured, CapturedUpdate) and compiled.captured.fn is not compiled.captured.step
+    assert compiled.captured.gradient_step is actor_critic.gradient_step  # the recipe's own step, compiled
     for a, b in zip(out_e, out_c):
-        for key in eager.loss_keys:
+        for key in loss_keys(eager):
             torch.testing.assert_close(a[key], b[key], rtol=1e-5, atol=1e-6)
     for key in params_e:
         torch.testing.assert_close(params_e[key], params_c[key], rtol=1e-5, atol=1e-6, msg=key)
@@ -150,11 +166,11 @@ def test_cuda_graphed_update_learns_and_skips_non_finite_updates_on_cuda(name):
     cuda = torch.device("cuda")
     _, agent, buffer = setup(name, device=cuda, cudagraphs=True, finite_check_interval=1000)
     start = params_of(agent)
-    losses = [agent.update(buffer) for _ in range(8)]  # warm-up calls, the capture, then replays
-    assert all(torch.isfinite(out[k]).all() for out in losses for k in agent.loss_keys)
+    losses = [update(agent, buffer) for _ in range(8)]  # warm-up calls, the capture, then replays
+    assert all(torch.isfinite(out[k]).all() for out in losses for k in loss_keys(agent))
     moved = [k for k, v in params_of(agent).items() if not torch.equal(v, start[k])]
     assert any(k.endswith("weight") and "target" not in k for k in moved)
-    captured = agent._captured
+    captured = agent.captured
     before = params_of(agent)
     poisoned = buffer.sample()
     poisoned["next", "reward"][0, 0] = float("nan")
@@ -166,7 +182,7 @@ def test_cuda_graphed_update_learns_and_skips_non_finite_updates_on_cuda(name):
 
 def test_a_checkpoint_of_a_per_tensor_adam_keeps_the_agent_fused():
     _, agent, buffer = setup("capql")
-    agent.update(buffer)
+    update(agent, buffer)
     state = agent.state_dict()
     for opt_state in state["optimizers"].values():  # as a checkpoint from before the fused optimizers
         for group in opt_state["param_groups"]:
@@ -176,30 +192,33 @@ def test_a_checkpoint_of_a_per_tensor_adam_keeps_the_agent_fused():
     for opt in other.optimizers.values():
         assert all(group["fused"] is True for group in opt.param_groups)
         assert all(st["step"].item() == 1.0 for st in opt.state.values())
-    other.update(buffer)  # steps with the fused kernel
+    update(other, buffer)  # steps with the fused kernel
     assert all(st["step"].item() == 2.0 for opt in other.optimizers.values() for st in opt.state.values())
 
 
 def test_the_device_guard_is_used_on_accelerators_and_with_capture_only():
     _, agent, _ = setup("capql")
-    assert agent._device_guard() is False  # the CPU checks on the host, at once
+    assert runs_captured(agent) is False  # the CPU checks on the host, at once
     _, agent, _ = setup("capql")
     agent.device = torch.device("cuda")  # (not run: the decision only)
-    assert agent._device_guard() is True
+    assert runs_captured(agent) is True
     _, agent, _ = setup("capql")
     agent.device = torch.device("cuda")
     agent.optimizers["actor"] = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-3)
-    assert agent._device_guard() is False  # a per-tensor optimizer cannot skip on the device: host check
+    assert runs_captured(agent) is False  # a per-tensor optimizer cannot skip on the device: host check
     _, agent, _ = setup("capql", compile=True)
-    assert agent._device_guard() is True
+    assert runs_captured(agent) is True
 
 
-@pytest.mark.parametrize("algo, env_id", [("gpi_ls", "MOLavaGridDR-v0"), ("pcn", "MOLavaGridDR-v0")])
+@pytest.mark.parametrize("algo, env_id", [("gpi_ls", "MOLavaGridDR-v0"), ("pcn", "MOLavaGridDR-v0"),
+                                          ("morld", "MOHopperDR-v5"), ("pgmorl", "MOHopperDR-v5")])
 def test_capture_is_refused_for_agents_with_their_own_update(algo, env_id):
     from morl_trl.recipes import build_agent, build_training_env
 
-    cfg = resolve_config(algo, env_id, hidden=(16,), num_envs=2, compile=True)
+    cfg = resolve_config(algo, env_id, hidden=(16,), num_envs=24 if algo == "pgmorl" else 2, compile=True)
     env = build_training_env(cfg, torch.device("cpu"))
-    with pytest.raises(ValueError, match=rf"compile / cudagraphs capture Agent.update; {algo}'s agent .* writes "
-                                         r"its own update: set compile=false"):
+    if algo in ("morld", "pgmorl"):
+        pytest.importorskip("mujoco")
+    with pytest.raises(ValueError, match=rf"compile / cudagraphs capture an update written for it .*; {algo}'s is "
+                                         r"not: set compile=false and cudagraphs=false"):
         build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))

@@ -118,6 +118,7 @@ def test_cli_config_refuses_a_foreign_key(capsys):
 
 def test_discrete_sac_updates_once_every_four_frames_with_the_authors_optimizers():
     from morl_trl.recipes import build_agent
+    from morl_trl.recipes.actor_critic import on_batch
     from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
     torch.manual_seed(0)
@@ -130,8 +131,8 @@ def test_discrete_sac_updates_once_every_four_frames_with_the_authors_optimizers
     assert {g["eps"] for o in agent.optimizers.values() for g in o.param_groups} == {1e-4}
     buffer = make_replay_buffer(cfg, torch.device("cpu"))
     td = env.rollout(5, agent.explore_policy, break_when_any_done=False)  # 4 x 5 = 20 frames
-    assert agent.learn(td, buffer, 20)[1] == 5  # frames 1..20: one update per 4 frames
+    assert on_batch(agent, td, buffer, 20)[1] == 5  # frames 1..20: one update per 4 frames
     td = env.rollout(3, agent.explore_policy, break_when_any_done=False)  # frames 21..32
-    assert agent.learn(td, buffer, 32)[1] == 3
+    assert on_batch(agent, td, buffer, 32)[1] == 3
     hop = resolve_config("sac", "MOHopperDR-v5")
     assert (hop.lr, hop.q_lr, hop.alpha_lr, hop.alpha, hop.update_frequency) == (3e-4, 1e-3, 1e-3, 1.0, 1)

@@ -6,7 +6,7 @@ import torch
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.envs import make_env
-from morl_trl.recipes import build_agent, resolve_config
+from morl_trl.recipes import build_agent, envelope, resolve_config
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
 CPU = torch.device("cpu")
@@ -48,12 +48,12 @@ def test_envelope_homotopy_stays_fixed_by_default_as_the_authors():
     cfg, _, agent = _agent("envelope", "MOLavaGridDR-v0")
     assert agent.loss.homotopy_steps is None
     for frames in (0, cfg.frames // 2, 10 * cfg.frames):
-        agent.on_frames(frames)
+        envelope.schedules(agent, frames)
         assert float(agent.loss.homotopy_lambda) == pytest.approx(0.95)
     cfg, _, ours = _agent("envelope", "MOLavaGridDR-v0", homotopy_final=1.0, frames=1000)  # our annealing
-    ours.on_frames(500)
+    envelope.schedules(ours, 500)
     assert float(ours.loss.homotopy_lambda) == pytest.approx(0.975)
-    ours.on_frames(1000)
+    envelope.schedules(ours, 1000)
     assert float(ours.loss.homotopy_lambda) == pytest.approx(1.0)
 
 
@@ -74,12 +74,12 @@ def test_envelope_grad_norm_clipped_at_1_as_the_authors():
     cfg, env, agent = _agent("envelope", "MOLavaGridDR-v0", batch_size=32)
     assert cfg.max_grad_norm == 1.0
     buffer = _filled_buffer(cfg, env)
-    agent.update(buffer)
+    envelope.update(agent, buffer)
     assert _grad_norm(agent) == pytest.approx(1.0, rel=1e-4)  # LavaGrid's rewards (-20, 300) give norms >> 1
     torch.manual_seed(0)
     cfg, env, ours = _agent("envelope", "MOLavaGridDR-v0", batch_size=32, set_={"max_grad_norm": None})
     assert cfg.max_grad_norm is None
-    ours.update(_filled_buffer(cfg, env))
+    envelope.update(ours, _filled_buffer(cfg, env))
     assert _grad_norm(ours) > 2.0
 
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from morl_trl.recipes import resolve_config
+from morl_trl.recipes import actor_critic, gpi, morld, resolve_config
+from morl_trl.recipes.agent import apply_updates
 from morl_trl.recipes.gpi import make_gpi_agent
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
@@ -43,7 +44,7 @@ def test_discrete_gpi_does_gradient_updates_per_frame_from_rollout_starts(gradie
     for frames in (16, 32, 48):  # 16 frames per batch; from frame 32 on gradient_updates per frame
         td = env.rollout(4, agent.explore_policy, break_when_any_done=False)  # [4, 4]
         before = _adam_steps(opt)
-        _, n = agent.learn(td, buffer, frames)
+        _, n = gpi.on_batch(agent, td, buffer, frames)
         counts.append(_adam_steps(opt) - before)
         assert n == counts[-1]
     assert counts == expected
@@ -62,7 +63,7 @@ def test_every_capql_training_weight_lies_within_22_5_degrees_of_equal_weights(s
     buffer = make_replay_buffer(cfg, CPU)
     with torch.no_grad():
         td = env.rollout(50, agent.explore_policy, break_when_any_done=False)  # [4, 50]
-    agent.learn(td, buffer, 200)
+    actor_critic.on_batch(agent, td, buffer, 200)
     w = buffer.storage[torch.arange(len(buffer))]["preference"].double()  # every stored (training) weight
     assert w.shape == (200, 3) and len({tuple(r) for r in w.tolist()}) == 200  # a new one every step
     centre = torch.full((3,), 3 ** -0.5, dtype=torch.float64)
@@ -395,6 +396,14 @@ def test_every_layer_has_the_authors_orthogonal_init(algo, env_id, single_thread
 
 
 # ---------------------------------------------------------------------- SAC / MOSAC: delayed actor, tanh log-std
+def _updates(algo, agent, buffer, n) -> None:
+    """``n`` of the recipe's updates (MORL/D's off the shared clock)."""
+    if algo == "morld":
+        morld.updates_at(agent, buffer, [None] * n)
+    else:
+        apply_updates(lambda: actor_critic.update(agent, buffer), n)
+
+
 def _steps(agent) -> dict:
     return {name: _adam_steps(opt) for name, opt in agent.optimizers.items()}
 
@@ -424,11 +433,11 @@ def test_sac_and_mosac_delay_the_actor_as_the_authors(algo, policy_freq, expecte
     buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1))
     critic = agent.loss.qvalue_network_params.clone()
     actor = agent.loss.actor_network_params.clone()
-    agent.run_updates(buffer, 1)  # update 1: critic only when delayed
+    _updates(algo, agent, buffer, 1)  # update 1: critic only when delayed
     moved = (agent.loss.actor_network_params != actor).any()
     assert bool(moved) is (policy_freq == 1)
     assert bool((agent.loss.qvalue_network_params != critic).any())
-    agent.run_updates(buffer, 4)
+    _updates(algo, agent, buffer, 4)
     assert _steps(agent) == expected
     assert agent.critic_steps == 5
 

@@ -199,7 +199,9 @@ def test_sac_agent_learns_from_the_original_reward():
     td = env.rollout(4, agent.explore_policy, break_when_any_done=False).reshape(-1)
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(100), batch_size=8)
     buffer.extend(td)
-    losses = agent.update(buffer)
+    from morl_trl.recipes.actor_critic import update
+
+    losses = update(agent, buffer)
     assert {"loss_actor", "loss_qvalue", "loss_alpha"} <= set(losses.keys())
 
 

@@ -13,6 +13,7 @@ from tests._fingerprint import fingerprint as tensors_fingerprint
 
 from morl_trl.envs import domain_of
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes.algorithms import algorithm
 from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
 
 SMALL = dict(num_envs=2, frames_per_batch=32, init_random_frames=32, updates_per_batch=2, batch_size=16,
@@ -31,7 +32,7 @@ CASES = {
                                                        gpi_dynamics_train_freq=10_000, gpi_policy_delay=2), 4),
     "pcn": ("pcn", "MOLavaGridDR-v0", dict(pcn_er_episodes=2, pcn_step_episodes=1, pcn_model_updates=3,
                                            frames_per_batch=256), 2),  # (episodes: 256 steps)
-    # (PGMORL's re-seed at each iteration, the default since, needs the loop's before_batch: off here,
+    # (PGMORL's re-seed at each iteration, the default since, is the loop's (train_pgmorl): off here,
     # tests/recipes/test_pgmorl_reseed.py checks it)
     "pgmorl": ("pgmorl", "MOHopperDR-v5", dict(pgmorl_pop=2, pgmorl_envs_per_member=1, frames_per_batch=64,
                                                pgmorl_warmup=1, pgmorl_evo_iterations=1, pgmorl_minibatches=2,
@@ -93,8 +94,7 @@ def fingerprint(case: str) -> tuple[float, float, int]:
     frames, updates = 0, 0
     for batch in collector:
         frames += batch.numel()
-        updates += agent.learn(batch, buffer, frames)[1]
-        agent.on_frames(frames)
+        updates += algorithm(algo).on_batch(agent, batch, buffer, frames)[1]
         collector.update_policy_weights_()
     collector.shutdown()
     return (*tensors_fingerprint(agent.loss.state_dict().values()), updates)

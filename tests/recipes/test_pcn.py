@@ -8,7 +8,8 @@ import torch
 from tensordict import TensorDict
 
 from morl_trl.data.episode_replay import EpisodeReplay, crowding_distance
-from morl_trl.recipes import off_policy, pcn, resolve_config, train
+from morl_trl.recipes import pcn, resolve_config, train
+from morl_trl.recipes.algorithms import REGISTRY
 from morl_trl.recipes.config import valid_keys
 from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
 from tests.recipes._helpers import (assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume,
@@ -206,7 +207,7 @@ def _tiny_run(tmp_path, monkeypatch, env_id, **kw) -> dict:
     cfg = {k: v for k, v in {**TINY, **kw}.items() if k in valid_keys("pcn")}
     # (report.md's figures take seconds to draw and are not read)
     monkeypatch.setattr("morl_trl.reporting.report.write_report", lambda log, summary, fps: log.out_dir / "report.md")
-    assert off_policy.RECIPES["pcn"].__name__ == "train_pcn"
+    assert REGISTRY["pcn"].train is pcn.train_pcn
     train(resolve_config("pcn", env_id, run_dir=str(tmp_path / "run"), **cfg))
     return last_checkpoints(tmp_path / "run")[0]
 

@@ -11,7 +11,8 @@ from tensordict import TensorDict
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.pgmorl import (PPOGaussianHead, make_population_ppo_actor, make_population_value_network,
                                      ppo_population_mlp, scalarize_advantage, vector_gae)
-from morl_trl.recipes import off_policy, pgmorl, resolve_config, run_training, train
+from morl_trl.recipes import pgmorl, resolve_config, run_training, train
+from morl_trl.recipes.algorithms import REGISTRY
 from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
 from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
 from tests.recipes._helpers import csv_rows, last_checkpoints
@@ -248,7 +249,7 @@ def test_a_tiny_pgmorl_run_evaluates_the_members_and_selects_tasks_each_generati
         calls["select_tasks"] += 1
         return select(self, *args, **kw)
     monkeypatch.setattr(pgmorl.PGMORLAgent, "select_tasks", counted)
-    assert off_policy.RECIPES["pgmorl"].__name__ == "train_pgmorl"
+    assert REGISTRY["pgmorl"].train is pgmorl.train_pgmorl
     train(resolve_config("pgmorl", "MOHopperDR-v5", run_dir=str(tmp_path / "run"), **TINY))
     # a task selection at the end of the warm-up and of every generation
     assert calls == {"select_tasks": 3}

@@ -4,6 +4,7 @@ import pytest
 import torch
 
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.recipes.algorithms import algorithm
 from morl_trl.recipes.parts import make_collector, make_replay_buffer
 
 CPU = torch.device("cpu")
@@ -21,7 +22,7 @@ def test_the_buffer_stores_exactly_the_entries_the_loss_reads(algo, env_id):
     batches = []
     for batch in collector:
         batches.append(batch)
-        agent.learn(batch, buffer, sum(b.numel() for b in batches))
+        algorithm(algo).on_batch(agent, batch, buffer, sum(b.numel() for b in batches))
     collector.shutdown()
     stored = set(buffer.storage[torch.arange(len(buffer))].keys(True, True)) - {"index"}
     assert agent.replay_keys == list(agent.loss.in_keys)
