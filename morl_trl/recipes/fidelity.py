@@ -214,7 +214,7 @@ def _target_frames(v, cfg):
     return None if cfg.tau is not None and v == 1 else v // cfg.update_frequency
 
 
-#: the rows the DQN family (Envelope, GPI-LS/PD) shares: the config family ``recipes.config.families.DQN_*``
+#: the rows the DQN family (Envelope, GPI-LS/PD) shares (their configs: ``recipes.config.envelope``, ``.gpi``)
 _DQN_ROWS = {
     "init.learning_rate": Same("lr"),
     "init.initial_epsilon": Same("eps_start"),

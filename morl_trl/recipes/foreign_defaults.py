@@ -48,9 +48,10 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                   batch_size=128, alpha=0.2, learn_alpha=False, init_random_frames=1000, prioritized=False),
     # morl_baselines/multi_policy/pcn/pcn.py: PCN.__init__ and PCN.train (one env, its command updated
     # after every episode: the parity benchmark found 16 sub-envs sharing stale commands learning slower)
-    "pcn": dict(**_ONE_ENV, lr=1e-3, gamma=1.0, batch_size=256, pcn_hidden=64, pcn_noise=0.1, pcn_er_episodes=20,
-                pcn_step_episodes=10, pcn_model_updates=50, pcn_buffer_episodes=100, init_random_frames=0,
-                prioritized=False, eval_weights=100, eval_episodes=1),
+    # (hidden [64, 64]: MB's hidden_dim 64, the embedding width and one hidden layer of it)
+    "pcn": dict(num_envs=1, frames_per_batch=1, lr=1e-3, gamma=1.0, batch_size=256, hidden=(64, 64), pcn_noise=0.1,
+                pcn_er_episodes=20, pcn_step_episodes=10, pcn_model_updates=50, pcn_buffer_episodes=100,
+                eval_weights=100, eval_episodes=1),
     # morl_baselines/multi_policy/morld/morld.py: MORLD.__init__ (pop 6, exchange every 40_000 steps,
     # gamma 0.995, no shared buffer, no weight adaptation) with its default policy
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (batch 128, learning_starts 1000,
@@ -66,8 +67,8 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
     "pgmorl": dict(num_envs=24, frames_per_batch=24 * 2048, pgmorl_envs_per_member=4, pgmorl_pop=6, pgmorl_warmup=80,
                    pgmorl_evo_iterations=20, pgmorl_num_buffers=100, pgmorl_buffer_size=2, pgmorl_delta_weight=0.2,
                    pgmorl_sparsity=-1.0, gamma=0.995, hidden=(64, 64), pgmorl_minibatches=32, pgmorl_epochs=10,
-                   lr=3e-4, pgmorl_clip=0.2, max_grad_norm=0.5, pgmorl_gae_lambda=0.95, init_random_frames=0,
-                   prioritized=False, eval_weights=100, eval_episodes=1, eval_exploration="random",
+                   lr=3e-4, pgmorl_clip=0.2, max_grad_norm=0.5, pgmorl_gae_lambda=0.95, eval_weights=100,
+                   eval_episodes=1, eval_exploration="random",
                    # (MO-PPO's envs.reset(seed) at every train(): a wrapped Gymnasium env's sub-envs cannot be
                    # re-seeded one by one here, recipes.pgmorl.PGMORLAgent.reseed_env)
                    pgmorl_reseed_each_iteration=False),

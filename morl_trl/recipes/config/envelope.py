@@ -10,27 +10,52 @@ Example:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from morl_trl.recipes.config.domains import LAVA_GRID, MARIO, domain_table, frozen
-from morl_trl.recipes.config.families import DQN_EXPLORATION, DQN_OPTIM, DQN_REPLAY, algorithm_config, pick
 
-__all__ = ["EnvelopeConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
+__all__ = ["EnvelopeConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 
 
-EnvelopeConfig = algorithm_config(
-    "EnvelopeConfig", "Envelope's keys (LunarLander's values: ``[envelope.lunarlander]``).",
-    # collector and replay (PER without importance weights, priority from the first sampled weight;
-    # MORL-Baselines' buffer: (p + running max)^alpha, new items at the max)
-    DQN_REPLAY, dict(envelope_priority="first", per_running_max=True),
-    # optim: one update per frame, hard target copy every 1000 updates, gradient norm 1
-    pick(DQN_OPTIM, max_grad_norm=1.0),
-    # network: w concatenated after the first hidden layer, orthogonal init
-    dict(hidden=(256, 256, 256, 256), envelope_network="authors"),
+@dataclass
+class EnvelopeConfig:
+    """Envelope's keys (LunarLander's values: ``[envelope.lunarlander]``); what each means: ``KEYS``.
+
+    Source of each default: ``[envelope.lunarlander.<table>] <setting>`` of ``hyperparameters.toml``,
+    "MB" (MORL-Baselines' class default, which the record lists), or "ours" (no counterpart).
+    """
+
+    # collector and replay
+    frames_per_batch: int = 64  # ours (the authors step one env between updates)
+    init_random_frames: int = 100  # init.learning_starts
+    buffer_size: int = 1_000_000  # init.buffer_size
+    batch_size: int = 128  # init.batch_size
+    prioritized: bool = True  # init.per
+    per_alpha: float = 0.6  # init.per_alpha
+    per_beta: float = 0.4  # ours (TorchRL's; unused: per_importance_weights is false)
+    per_importance_weights: bool = False  # init.per (MB's PER without importance weights)
+    envelope_priority: str = "first"  # init.per_alpha's note: |w.TD| under the first sampled weight
+    per_running_max: bool = True  # init.per: MB's buffer, (p + running max)^alpha, new items at the max
+    # optim
+    lr: float = 3e-4  # init.learning_rate
+    updates_per_batch: int = 0  # init.gradient_updates 1: one update per frame
+    target_update_period: int = 1000  # init.target_net_update_freq
+    tau: float | None = None  # init.tau 1.0: hard copies
+    max_grad_norm: float | None = 1.0  # init.max_grad_norm
+    # network
+    hidden: tuple[int, ...] = (256, 256, 256, 256)  # init.net_arch
+    envelope_network: str = "authors"  # network.weight_input: w after the first hidden layer, orthogonal init
     # exploration: epsilon 1 -> 0.05 over 1M frames after learning_starts
-    DQN_EXPLORATION,
-    # preferences: |N(0, I)| normalised, one per episode; 8 sampled per update; lambda fixed at 0.95
-    dict(preference_distribution="gaussian", preference_resample="episode", num_sampled_prefs=8, homotopy_lambda0=0.95,
-         homotopy_final=None, homotopy_frames=None),
-)
+    eps_start: float = 1.0  # init.initial_epsilon
+    eps_end: float = 0.05  # init.final_epsilon
+    eps_frames: int = 1_000_000  # init.epsilon_decay_steps
+    # preferences
+    preference_distribution: str = "gaussian"  # init.dist (|N(0, I)| normalised)
+    preference_resample: str = "episode"  # train.weight None: a new weight per episode
+    num_sampled_prefs: int = 8  # init.num_sample_w
+    homotopy_lambda0: float = 0.95  # init.initial_homotopy_lambda
+    homotopy_final: float | None = None  # init.homotopy_decay_steps None: lambda stays at homotopy_lambda0
+    homotopy_frames: int | None = None  # ours (used only with homotopy_final)
 
 
 SHARED_DEFAULTS = frozen({})
@@ -39,4 +64,3 @@ DEFAULTS = domain_table({
     MARIO: dict(batch_size=64, init_random_frames=25_000, buffer_size=100_000, eps_start=0.2, eps_end=0.01,
                 hidden=(512,)),  # net_arch [512, 512]: the CNN's 512 features, then one 512 layer
 })
-QUICK = frozen({})

@@ -23,45 +23,77 @@ from morl_trl.recipes.config.domains import (
     domain_table,
     frozen,
 )
-from morl_trl.recipes.config.families import DQN_EXPLORATION, DQN_OPTIM, DQN_REPLAY, algorithm_config
 
-__all__ = ["GPILSConfig", "GPIPDConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_PD", "QUICK", "QUICK_PD"]
+__all__ = ["GPILSConfig", "GPIPDConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_PD"]
 
 
-GPILSConfig = algorithm_config(
-    "GPILSConfig", "GPI-LS's keys (LunarLander's values: ``[gpi_ls.lunarlander]``).",
-    DQN_REPLAY, DQN_OPTIM,
-    # the first width is the state/weight feature width (after the CNN on pixels)
-    dict(hidden=(256, 256, 256, 256)),
-    DQN_EXPLORATION,
-    dict(gpi_iteration_frames=50_000,  # timesteps_per_iter
-         gpi_front_episodes=5,  # num_eval_episodes_for_front
-         gpi_num_nets=2, gpi_dropout=0.01, gpi_layer_norm=True, gpi_eval_conditioning="authors",
-         gpi_gradient_updates=1, gpi_min_priority=0.01, gpi_dynamics_rollout_starts=5_000),
+@dataclass
+class GPILSConfig:
+    """GPI-LS's keys (LunarLander's values: ``[gpi_ls.lunarlander]``); what each means: ``KEYS``.
+
+    Source of each default: ``[gpi_ls.lunarlander.<table>] <setting>`` of ``hyperparameters.toml``
+    (the continuous keys: ``[gpi_ls.hopper.init]``), or "ours".
+    """
+
+    # collector and replay: PER without importance weights
+    frames_per_batch: int = 64  # ours (the authors step one env between updates)
+    init_random_frames: int = 100  # init.learning_starts
+    buffer_size: int = 1_000_000  # init.buffer_size
+    batch_size: int = 128  # init.batch_size
+    prioritized: bool = True  # init.per
+    per_alpha: float = 0.6  # init.alpha_per
+    per_beta: float = 0.4  # ours (TorchRL's; unused: per_importance_weights is false)
+    per_importance_weights: bool = False  # init.per (MB's PER without importance weights)
+    # optim: hard target copies every 1000 frames
+    lr: float = 3e-4  # init.learning_rate
+    updates_per_batch: int = 0  # ours (0: gpi_gradient_updates per frame)
+    target_update_period: int = 1000  # init.target_net_update_freq
+    tau: float | None = None  # init.tau 1.0: hard copies
+    max_grad_norm: float | None = None  # init.max_grad_norm
+    # network: the first width is the state/weight feature width (after the CNN on pixels)
+    hidden: tuple[int, ...] = (256, 256, 256, 256)  # init.net_arch
+    # exploration: epsilon 1 -> 0.05 over 1M frames after learning_starts
+    eps_start: float = 1.0  # init.initial_epsilon
+    eps_end: float = 0.05  # init.final_epsilon
+    eps_frames: int = 1_000_000  # init.epsilon_decay_steps
+    # the weight support and the ensemble
+    gpi_iteration_frames: int = 50_000  # train.timesteps_per_iter
+    gpi_front_episodes: int = 5  # train.num_eval_episodes_for_front
+    gpi_num_nets: int = 2  # init.num_nets
+    gpi_dropout: float = 0.01  # init.drop_rate
+    gpi_layer_norm: bool = True  # init.layer_norm
+    gpi_eval_conditioning: str = "authors"  # derived.eval_gpi_indexing_note
+    gpi_gradient_updates: int = 1  # init.gradient_updates (every script passes 1)
+    gpi_min_priority: float = 0.01  # init.min_priority
+    gpi_dynamics_rollout_starts: int = 5_000  # MB's dynamics_rollout_starts (GPI-LS: when gpi_gradient_updates starts)
     # continuous actions (TD3-style actor)
-    dict(gpi_policy_noise=0.2, gpi_noise_clip=0.5, gpi_policy_delay=2),
-)
+    gpi_policy_noise: float = 0.2  # init.policy_noise
+    gpi_noise_clip: float = 0.5  # init.noise_clip
+    gpi_policy_delay: int = 2  # init.delay_policy_update
 
 
 @dataclass
 class GPIPDConfig(GPILSConfig):
-    """GPI-PD: GPI-LS's keys and the learned dynamics model (Dyna)."""
+    """GPI-PD: GPI-LS's keys and the learned dynamics model (Dyna).
 
-    gpi_dynamics_hidden: tuple[int, ...] = (256, 256, 256)
-    gpi_dynamics_ensemble: int = 5
-    gpi_dynamics_elites: int = 2
-    gpi_dynamics_lr: float = 1e-3
-    gpi_dynamics_train_freq: int = 250
-    gpi_dynamics_rollout_freq: int = 250
-    gpi_dynamics_rollout_batch: int = 25_000
-    gpi_dynamics_buffer: int = 100_000
-    gpi_uncertainty_threshold: float = 1.5
-    gpi_real_ratio: float = 0.5
-    gpi_dynamics_rollout_len: int = 1
-    gpi_dynamics_normalize: bool = False
-    gpi_dynamics_max_logvar: float = 0.5  # dynamics_max_logvar_scale (gpi_pd_continuous_action.py:108)
-    gpi_dynamics_max_grad_norm: float | None = None  # dynamics_max_grad_norm (gpi_pd_continuous_action.py:110)
-    gpi_model_termination: str = "authors"
+    Source of each default: ``[gpi_pd.lunarlander.init] <setting>`` of ``hyperparameters.toml``, or "ours".
+    """
+
+    gpi_dynamics_hidden: tuple[int, ...] = (256, 256, 256)  # init.dynamics_net_arch
+    gpi_dynamics_ensemble: int = 5  # init.dynamics_ensemble_size
+    gpi_dynamics_elites: int = 2  # init.dynamics_num_elites
+    gpi_dynamics_lr: float = 1e-3  # init.dynamics_lr
+    gpi_dynamics_train_freq: int = 250  # init.dynamics_train_freq
+    gpi_dynamics_rollout_freq: int = 250  # init.dynamics_rollout_freq
+    gpi_dynamics_rollout_batch: int = 25_000  # init.dynamics_rollout_batch_size
+    gpi_dynamics_buffer: int = 100_000  # init.dynamics_buffer_size
+    gpi_uncertainty_threshold: float = 1.5  # init.dynamics_uncertainty_threshold
+    gpi_real_ratio: float = 0.5  # init.real_ratio
+    gpi_dynamics_rollout_len: int = 1  # init.dynamics_rollout_len
+    gpi_dynamics_normalize: bool = False  # init.dynamics_normalize_inputs
+    gpi_dynamics_max_logvar: float = 0.5  # init.dynamics_max_logvar_scale (gpi_pd_continuous_action.py:108)
+    gpi_dynamics_max_grad_norm: float | None = None  # init.dynamics_max_grad_norm (gpi_pd_continuous_action.py:110)
+    gpi_model_termination: str = "authors"  # network.termination_fn (their Hopper slip: no abs)
 
 
 SHARED_DEFAULTS = frozen({})
@@ -94,7 +126,3 @@ DEFAULTS_PD = domain_table({
                    gpi_dynamics_rollout_freq=5_000, gpi_uncertainty_threshold=1e4, gpi_dynamics_lr=3e-5,
                    gpi_dynamics_hidden=(512, 512), gpi_dynamics_max_logvar=0.1, gpi_dynamics_max_grad_norm=10.0),
 })
-# --quick: several weight-support iterations, cheaper model fits and rollouts
-QUICK = frozen(dict(gpi_iteration_frames=10_000))
-QUICK_PD = frozen(dict(gpi_iteration_frames=10_000, gpi_dynamics_train_freq=5_000, gpi_dynamics_rollout_freq=1_000,
-                       gpi_dynamics_rollout_batch=5_000))

@@ -13,37 +13,63 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from morl_trl.recipes.config.domains import HOPPER, HUMANOID, LAVA_GRID, domain_table, frozen
-from morl_trl.recipes.config.families import ACTOR_CRITIC, algorithm_config, pick
 
-__all__ = ["MOSACConfig", "MOSACDiscreteConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_DISCRETE", "QUICK"]
+__all__ = ["MOSACConfig", "MOSACDiscreteConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_DISCRETE"]
 
 
-MOSACConfig = algorithm_config(
-    "MOSACConfig", "Continuous MOSAC's keys.",
-    # the class defaults of the authors' MOSAC (mosac_continuous_action.py:95-103,141,460-482)
-    pick(ACTOR_CRITIC, ("frames_per_batch", "init_random_frames", "buffer_size", "batch_size", "prioritized",
-                        "per_alpha", "per_beta", "per_importance_weights", "lr", "q_lr", "alpha_lr", "updates_per_batch",
-                        "tau", "target_update_period", "max_grad_norm", "hidden", "alpha", "learn_alpha",
-                        "actor_scale", "policy_freq", "alpha_loss_form", "joint_update"),
-         init_random_frames=10_000, alpha_loss_form="log_alpha"),  # MB 1.3.0 mosac_continuous_action.py:470
-    dict(loss_fresh_preferences=False, preference_distribution="dirichlet", preference_resample="episode"),
-)
+@dataclass
+class MOSACConfig:
+    """Continuous MOSAC's keys; what each means: ``KEYS``.
+
+    Source of each default: "MB" (MORL-Baselines 1.3.0's ``MOSAC.__init__``,
+    mosac_continuous_action.py:95-103,141,460-482; no record row) or "ours".
+    """
+
+    # collector and replay
+    frames_per_batch: int = 64  # ours
+    init_random_frames: int = 10_000  # MB learning_starts
+    buffer_size: int = 1_000_000  # MB
+    batch_size: int = 256  # MB
+    prioritized: bool = False  # MB (no PER)
+    per_alpha: float = 0.6  # ours (used only with prioritized)
+    per_beta: float = 0.4  # ours (used only with prioritized)
+    per_importance_weights: bool = True  # ours (used only with prioritized)
+    # optim
+    lr: float = 3e-4  # MB policy_lr
+    q_lr: float | None = None  # ours (null: lr)
+    alpha_lr: float | None = None  # ours (null: lr)
+    updates_per_batch: int = 0  # MB: one update per frame
+    tau: float | None = 0.005  # MB
+    target_update_period: int = 1000  # ours (used only when tau is null)
+    max_grad_norm: float | None = None  # MB (no clipping)
+    # networks and temperature
+    hidden: tuple[int, ...] = (256, 256, 256, 256)  # MB net_arch
+    alpha: float = 0.2  # MB
+    learn_alpha: bool = True  # MB autotune
+    actor_scale: str = "tanh_log_std"  # MB: log_std = -5 + 3.5 (tanh(x) + 1)
+    policy_freq: int = 2  # MB: 2 actor steps after every 2nd critic step
+    alpha_loss_form: str = "log_alpha"  # MB 1.3.0 mosac_continuous_action.py:470
+    joint_update: bool = False  # ours (false: MB's order, each loss computed alone)
+    # preferences
+    loss_fresh_preferences: bool = False  # ours (the stored weight)
+    preference_distribution: str = "dirichlet"  # ours
+    preference_resample: str = "episode"  # ours
 
 
 @dataclass
 class MOSACDiscreteConfig(MOSACConfig):
-    """Discrete MOSAC's keys: hard target copies, a target entropy scale."""
+    """Discrete MOSAC's keys: continuous MOSAC's, with MB 1.3.0's ``MOSACDiscrete.__init__`` defaults
+    (mosac_discrete_action.py): hard target copies, a target entropy scale."""
 
-    init_random_frames: int = 1_000
-    batch_size: int = 128
-    tau: float | None = None
-    target_update_period: int = 2000
-    target_entropy_scale: float = 0.3
-    policy_freq: int = 1  # MOSACDiscrete steps its actor at every update
-    alpha_loss_form: str = "alpha"  # -alpha (...) (MB 1.3.0 mosac_discrete_action.py:492)
+    init_random_frames: int = 1_000  # MB learning_starts
+    batch_size: int = 128  # MB
+    tau: float | None = None  # MB: hard copies
+    target_update_period: int = 2000  # MB target_net_freq
+    target_entropy_scale: float = 0.3  # MB
+    policy_freq: int = 1  # MB: MOSACDiscrete steps its actor at every update
+    alpha_loss_form: str = "alpha"  # MB: -alpha (...) (mosac_discrete_action.py:492)
 
 
 SHARED_DEFAULTS = frozen({"eval_exploration": "random"})
 DEFAULTS = domain_table({HOPPER: dict(init_random_frames=10_000), HUMANOID: dict(init_random_frames=5_000)})
 DEFAULTS_DISCRETE = domain_table({LAVA_GRID: dict(target_update_period=200)})
-QUICK = frozen({})

@@ -25,24 +25,27 @@ from morl_trl.recipes.config.domains import (
     frozen,
 )
 
-__all__ = ["PCNConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
+__all__ = ["PCNConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 
 
 @dataclass
 class PCNConfig:
-    """PCN's keys (LunarLander's values: ``[pcn.lunarlander]``)."""
+    """PCN's keys (LunarLander's values: ``[pcn.lunarlander]``); what each means: ``KEYS``.
 
-    frames_per_batch: int = 64  # frames collected between calls of the episode bookkeeping
-    lr: float = 3e-4
-    batch_size: int = 256
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    pcn_scaling_factor: tuple[float, ...] | None = None  # null: 0.1 for each objective and the horizon
-    pcn_max_return: tuple[float, ...] | None = None  # null: 100 per objective
-    pcn_buffer_episodes: int = 100_000  # max_buffer_size
-    pcn_er_episodes: int = 1000  # num_er_episodes
-    pcn_step_episodes: int = 10  # num_step_episodes
-    pcn_model_updates: int = 50  # num_model_updates
-    pcn_noise: float = 0.1
+    Source of each default: ``[pcn.lunarlander.<table>] <setting>`` of ``hyperparameters.toml``, or "ours".
+    """
+
+    frames_per_batch: int = 64  # ours: frames collected between calls of the episode bookkeeping
+    lr: float = 3e-4  # init.learning_rate
+    batch_size: int = 256  # init.batch_size
+    hidden: tuple[int, ...] = (256, 256, 256, 256)  # init.net_arch
+    pcn_scaling_factor: tuple[float, ...] | None = None  # init.scaling_factor (null: 0.1 for each objective and the horizon)
+    pcn_max_return: tuple[float, ...] | None = None  # init.max_return (null: 100 per objective)
+    pcn_buffer_episodes: int = 100_000  # train.max_buffer_size
+    pcn_er_episodes: int = 1000  # train.num_er_episodes
+    pcn_step_episodes: int = 10  # train.num_step_episodes
+    pcn_model_updates: int = 50  # train.num_model_updates
+    pcn_noise: float = 0.1  # init.noise
 
 
 SHARED_DEFAULTS = frozen({})
@@ -57,5 +60,3 @@ DEFAULTS = domain_table({
     MARIO: dict(pcn_scaling_factor=(0.1,) * 4, pcn_max_return=(100.0, 100.0, 200.0), pcn_er_episodes=200,
                 batch_size=64, hidden=(512, 512)),
 })
-# --quick: fewer random warm-up episodes than the authors' 1000 and a smaller network
-QUICK = frozen(dict(pcn_er_episodes=50))

@@ -14,34 +14,37 @@ from dataclasses import dataclass
 
 from morl_trl.recipes.config.domains import HALF_CHEETAH, HOPPER, HUMANOID, domain_table, frozen
 
-__all__ = ["PGMORLConfig", "SHARED_DEFAULTS", "DEFAULTS", "QUICK"]
+__all__ = ["PGMORLConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 
 
 @dataclass
 class PGMORLConfig:
-    """PGMORL's keys (Half-Cheetah's values: ``[pgmorl.cheetah]``)."""
+    """PGMORL's keys (Half-Cheetah's values: ``[pgmorl.cheetah]``); what each means: ``KEYS``.
 
-    # P members x 4 envs x 2048 steps per iteration
-    frames_per_batch: int = 24 * 2048
-    lr: float = 3e-4
-    max_grad_norm: float | None = 0.5
-    hidden: tuple[int, ...] = (256, 256, 256, 256)
-    pgmorl_pop: int = 6
-    pgmorl_envs_per_member: int = 4
-    pgmorl_warmup: int = 80
-    pgmorl_evo_iterations: int = 20
-    pgmorl_num_buffers: int = 100
-    pgmorl_buffer_size: int = 2
-    pgmorl_delta_weight: float = 0.2
-    pgmorl_sparsity: float = -1.0
-    pgmorl_epochs: int = 10
-    pgmorl_minibatches: int = 32
-    pgmorl_clip: float = 0.2
-    pgmorl_gae_lambda: float = 0.95
-    pgmorl_eval_obs: str = "raw"
-    pgmorl_reset_each_iteration: bool = True  # envs.reset at each member's train() (mo_ppo.py:628)
+    Source of each default: ``[pgmorl.cheetah.<table>] <setting>`` of ``hyperparameters.toml``, or "ours".
+    """
+
+    frames_per_batch: int = 24 * 2048  # init.steps_per_iteration: P members x 4 envs x 2048 steps per iteration
+    lr: float = 3e-4  # init.learning_rate
+    max_grad_norm: float | None = 0.5  # init.max_grad_norm
+    hidden: tuple[int, ...] = (256, 256, 256, 256)  # init.net_arch
+    pgmorl_pop: int = 6  # init.pop_size
+    pgmorl_envs_per_member: int = 4  # init.num_envs
+    pgmorl_warmup: int = 80  # init.warmup_iterations
+    pgmorl_evo_iterations: int = 20  # init.evolutionary_iterations
+    pgmorl_num_buffers: int = 100  # init.num_performance_buffer
+    pgmorl_buffer_size: int = 2  # init.performance_buffer_size
+    pgmorl_delta_weight: float = 0.2  # init.delta_weight
+    pgmorl_sparsity: float = -1.0  # init.sparsity_coef
+    pgmorl_epochs: int = 10  # init.update_epochs
+    pgmorl_minibatches: int = 32  # init.num_minibatches
+    pgmorl_clip: float = 0.2  # init.clip_coef
+    pgmorl_gae_lambda: float = 0.95  # init.gae_lambda
+    pgmorl_eval_obs: str = "raw"  # ours, as the authors: normalised policies fed raw observations (mo_ppo.py:719-768)
+    # envs.reset at each member's train() (mo_ppo.py:628) ...
+    pgmorl_reset_each_iteration: bool = True  # derived.vector_env_reset_each_iteration
     # ... with reset(seed=member.seed): the run's seed, 42 for a copied member (mo_ppo.py:355-377,628)
-    pgmorl_reseed_each_iteration: bool = True
+    pgmorl_reseed_each_iteration: bool = True  # derived.vector_env_reset_each_iteration
 
 
 # MOPPO.eval samples its actions
@@ -52,6 +55,3 @@ DEFAULTS = domain_table({
     HALF_CHEETAH: dict(),
     HUMANOID: dict(pgmorl_warmup=200, pgmorl_evo_iterations=40),
 })
-# --quick: shorter iterations; an iteration counts one member's 4 x 256 frames (the authors' count): 10 iterations
-QUICK = frozen(dict(num_envs=24, frames_per_batch=24 * 256, pgmorl_warmup=4, pgmorl_evo_iterations=2,
-                    pgmorl_minibatches=8, frames=10_240, eval_interval=5_120, checkpoint_interval=3_072))

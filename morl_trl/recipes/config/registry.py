@@ -1,4 +1,4 @@
-"""Which config dataclass, defaults and ``--quick`` values each algorithm has.
+"""Which config dataclass and defaults each algorithm has (``--quick``: the preset file ``quick.toml``).
 
 Example:
     >>> spec = ALGORITHM_SPECS["pcn"]
@@ -23,13 +23,12 @@ __all__ = ["AlgorithmSpec", "ALGORITHM_SPECS"]
 @dataclass(frozen=True)
 class AlgorithmSpec:
     """An algorithm's config: its dataclass (keys and defaults), the shared sections' values it
-    changes (``shared``), its values per training domain (``domains``) and its ``--quick`` values."""
+    changes (``shared``) and its values per training domain (``domains``)."""
 
     name: str
     config: type
     shared: Mapping[str, Any]
     domains: Mapping[str, Mapping[str, Any]]
-    quick: Mapping[str, Any]
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -38,22 +37,22 @@ class AlgorithmSpec:
 
 
 ALGORITHM_SPECS: Mapping[str, AlgorithmSpec] = MappingProxyType({
-    "envelope": AlgorithmSpec("envelope", envelope.EnvelopeConfig, envelope.SHARED_DEFAULTS, envelope.DEFAULTS,
-                              envelope.QUICK),
-    "capql": AlgorithmSpec("capql", capql.CAPQLConfig, capql.SHARED_DEFAULTS, capql.DEFAULTS, capql.QUICK),
-    "mosac": AlgorithmSpec("mosac", mosac.MOSACConfig, mosac.SHARED_DEFAULTS, mosac.DEFAULTS, mosac.QUICK),
+    "envelope": AlgorithmSpec("envelope", envelope.EnvelopeConfig, envelope.SHARED_DEFAULTS, envelope.DEFAULTS),
+    "capql": AlgorithmSpec("capql", capql.CAPQLConfig, capql.SHARED_DEFAULTS, capql.DEFAULTS),
+    "mosac": AlgorithmSpec("mosac", mosac.MOSACConfig, mosac.SHARED_DEFAULTS, mosac.DEFAULTS),
     "mosac_discrete": AlgorithmSpec("mosac_discrete", mosac.MOSACDiscreteConfig, mosac.SHARED_DEFAULTS,
-                                    mosac.DEFAULTS_DISCRETE, mosac.QUICK),
-    "morld": AlgorithmSpec("morld", morld.MORLDConfig, morld.SHARED_DEFAULTS, morld.DEFAULTS, morld.QUICK),
-    "morld_psa": AlgorithmSpec("morld_psa", morld.MORLDPSAConfig, morld.SHARED_DEFAULTS, morld.DEFAULTS,
-                               morld.QUICK),
-    "sac": AlgorithmSpec("sac", sac.SACConfig, sac.SHARED_DEFAULTS, sac.DEFAULTS, sac.QUICK),
-    "pcn": AlgorithmSpec("pcn", pcn.PCNConfig, pcn.SHARED_DEFAULTS, pcn.DEFAULTS, pcn.QUICK),
-    "pgmorl": AlgorithmSpec("pgmorl", pgmorl.PGMORLConfig, pgmorl.SHARED_DEFAULTS, pgmorl.DEFAULTS, pgmorl.QUICK),
-    "gpi_ls": AlgorithmSpec("gpi_ls", gpi.GPILSConfig, gpi.SHARED_DEFAULTS, gpi.DEFAULTS, gpi.QUICK),
-    "gpi_pd": AlgorithmSpec("gpi_pd", gpi.GPIPDConfig, gpi.SHARED_DEFAULTS, gpi.DEFAULTS_PD, gpi.QUICK_PD),
+                                    mosac.DEFAULTS_DISCRETE),
+    "morld": AlgorithmSpec("morld", morld.MORLDConfig, morld.SHARED_DEFAULTS, morld.DEFAULTS),
+    "morld_psa": AlgorithmSpec("morld_psa", morld.MORLDPSAConfig, morld.SHARED_DEFAULTS, morld.DEFAULTS),
+    "sac": AlgorithmSpec("sac", sac.SACConfig, sac.SHARED_DEFAULTS, sac.DEFAULTS),
+    "pcn": AlgorithmSpec("pcn", pcn.PCNConfig, pcn.SHARED_DEFAULTS, pcn.DEFAULTS),
+    "pgmorl": AlgorithmSpec("pgmorl", pgmorl.PGMORLConfig, pgmorl.SHARED_DEFAULTS, pgmorl.DEFAULTS),
+    "gpi_ls": AlgorithmSpec("gpi_ls", gpi.GPILSConfig, gpi.SHARED_DEFAULTS, gpi.DEFAULTS),
+    "gpi_pd": AlgorithmSpec("gpi_pd", gpi.GPIPDConfig, gpi.SHARED_DEFAULTS, gpi.DEFAULTS_PD),
 })
 assert tuple(ALGORITHM_SPECS) == ALGORITHMS
-for _spec in ALGORITHM_SPECS.values():  # every key is defined once, in KEYS
+for _spec in ALGORITHM_SPECS.values():  # every key is defined once, in KEYS, with one type
     _unknown = set(_spec.keys) - set(KEYS)
     assert not _unknown, (_spec.name, _unknown)
+    _retyped = {f.name: f.type for f in dataclasses.fields(_spec.config) if f.type != KEYS[f.name].type}
+    assert not _retyped, (_spec.name, _retyped)

@@ -1,7 +1,15 @@
-"""Where a run's values come from (later wins): the domain's protocol (its
-:class:`~morl_trl.envs.DomainSpec`: frames, history, evaluation period and weights) -> the shared
-sections' defaults -> the algorithm's dataclass defaults -> its values for the domain (the authors'
-record) -> ``--quick`` (if asked) -> a TOML/JSON config file -> ``--set`` keys and flags.
+"""Where a run's values come from: four layers, later wins.
+
+1. the algorithm's defaults (:func:`algorithm_defaults`): the shared sections' defaults, the values
+   its module changes there (``SHARED_DEFAULTS``) and its dataclass's;
+2. the domain's table (:func:`domain_values`): the domain's protocol (its
+   :class:`~morl_trl.envs.DomainSpec`: frames, history, evaluation period and weights) with the
+   algorithm's row on top: the authors' record (the module's ``DEFAULTS``) on a paper domain,
+   MORL-Baselines' constructor defaults (:mod:`morl_trl.recipes.foreign_defaults`) on a foreign env;
+3. config files: ``--quick``'s preset file (``quick.toml``, the algorithm's table), then ``--config``;
+4. the command line's ``KEY=VALUE`` overrides and flags.
+
+Every key of layers 2-4 is one of the algorithm's (any other is an error naming the valid keys).
 
 Example:
     >>> cfg = resolve_config("envelope", "MOLunarLanderDR-v0", seed=3)
@@ -17,25 +25,23 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import ALGORITHMS, KEYS, NOT_SET, SHARED_SECTIONS, coerce_values
+from morl_trl.recipes.config.keys import ALGORITHMS, KEYS, SHARED_SECTIONS, coerce_values, unknown_keys_message
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
-from morl_trl.recipes.config.train_config import RENAMED, TrainConfig, upgrade_keys, valid_keys
+from morl_trl.recipes.config.sections import SHARED
+from morl_trl.recipes.config.train_config import TrainConfig, upgrade_keys, valid_keys
 
 __all__ = ["resolve_config", "load_config_file", "quick_preset", "coerce_values", "flatten_tables",
-           "RESUME_MAY_CHANGE", "resume_config", "check_env_fits", "defaults", "config_values"]
+           "RESUME_MAY_CHANGE", "resume_config", "check_env_fits", "algorithm_defaults", "domain_values", "defaults",
+           "config_values", "QUICK_PATH", "PROTOCOL_KEYS"]
 
 #: table names a config file may group keys under: the sections, the algorithms, and the groups of
 #: earlier versions (``[replay_buffer]``, ``[optim]``, ...)
 _TABLES = frozenset({*SHARED_SECTIONS, *ALGORITHM_SPECS, *(k.section for k in KEYS.values()), "collector", "compile",
                      "actor_critic"})
-# --quick: a few CPU minutes on 2 cores, learning visibly on the default domains (an algorithm's own
-# --quick values are in its module; keys it does not have are skipped). An evaluation every 10k
-# frames: a learning curve of 7 points, for ~2 s each (Envelope on MO-LunarLander at 8 weights).
-_QUICK = dict(
-    frames=60_000, num_envs=16, frames_per_batch=64, updates_per_batch=16, init_random_frames=2_000,
-    buffer_size=100_000, hidden=(128, 128), eps_frames=30_000, target_update_period=250, eval_interval=10_000,
-    eval_weights=8, checkpoint_interval=20_000,
-)
+#: ``--quick``'s preset file: one table per algorithm
+QUICK_PATH = Path(__file__).parent / "quick.toml"
+#: the keys a domain's protocol sets (its :class:`~morl_trl.envs.DomainSpec`)
+PROTOCOL_KEYS = ("frames", "history_len", "eval_interval", "eval_weights")
 
 
 def flatten_tables(values: dict[str, Any], source: str) -> dict[str, Any]:
@@ -69,47 +75,64 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
     return config_values(data, f"config file {str(path)!r}")
 
 
-def quick_preset(algo: str | None = None) -> dict[str, Any]:
-    """The values ``--quick`` sets (for ``algo``: only its keys, with its own quick values)."""
-    if algo is None:
-        return dict(_QUICK)
-    valid = set(valid_keys(algo))
-    return {**{k: v for k, v in _QUICK.items() if k in valid}, **ALGORITHM_SPECS[algo].quick}
+def quick_preset(algo: str) -> dict[str, Any]:
+    """The values ``--quick`` sets for ``algo``: its table of the preset file :data:`QUICK_PATH`."""
+    with QUICK_PATH.open("rb") as f:
+        tables = tomllib.load(f)
+    return upgrade_keys(config_values(tables[algo], f"{QUICK_PATH.name} [{algo}]"), algo, f"{QUICK_PATH.name} [{algo}]")
 
 
-def defaults(algo: str, env_id: str) -> dict[str, Any]:
-    """``algo``'s values on ``env_id`` before any file or flag (the first lines of the module docstring).
-    A foreign env (no paper record) starts from MORL-Baselines' constructor defaults
-    (:mod:`morl_trl.recipes.foreign_defaults`)."""
-    from morl_trl.envs import domain_of
-
-    spec = domain_of(env_id)  # raises with close matches on an unknown id
-    algo_spec = ALGORITHM_SPECS[algo]
-    values: dict[str, Any] = {"algo": algo, "env_id": env_id}
-    values.update(frames=spec.train_frames, history_len=spec.history_len, eval_interval=spec.eval_interval,
-                  eval_weights=spec.eval_weights)
-    values.update({f.name: f.default for f in dataclasses.fields(algo_spec.config)})
-    values.update(algo_spec.shared)
-    values.update(algo_spec.domains.get(spec.train_id, {}))
-    if spec.foreign:
-        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
-
-        values.update(_own_keys(FOREIGN_DEFAULTS.get(algo, {}), algo))
-        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
-            values.update(_own_keys(FOREIGN_DEFAULTS_CONTINUOUS[algo], algo))
+def algorithm_defaults(algo: str) -> dict[str, Any]:
+    """Layer 1: every key of ``algo`` at its default (the shared sections', the shared values its
+    module changes, its dataclass's)."""
+    spec = ALGORITHM_SPECS[algo]
+    values = {f.name: f.default for cls in SHARED.values() for f in dataclasses.fields(cls)}
+    values.update(spec.shared)
+    values.update({f.name: f.default for f in dataclasses.fields(spec.config)})
+    values["algo"] = algo
     return values
 
 
-def _own_keys(values: dict[str, Any], algo: str) -> dict[str, Any]:
-    """``values`` in ``algo``'s keys: renamed keys mapped; keys it does not have dropped when they
-    hold the value that means "off" (e.g. ``prioritized = false`` for PCN), kept otherwise (an error)."""
-    out: dict[str, Any] = {}
-    for k, v in values.items():
-        if k in RENAMED:
-            out.update(RENAMED[k][1](v, algo))
-        elif k in valid_keys(algo) or KEYS[k].inert is NOT_SET or v != KEYS[k].inert:
-            out[k] = v
-    return out
+def domain_values(algo: str, env_id: str) -> dict[str, Any]:
+    """Layer 2: ``algo``'s table for the domain of ``env_id``: the domain's protocol, with the
+    authors' values for the pair on top (a foreign env, which has no record: MORL-Baselines'
+    constructor defaults, :mod:`morl_trl.recipes.foreign_defaults`)."""
+    from morl_trl.envs import domain_of
+
+    spec = domain_of(env_id)  # raises with close matches on an unknown id
+    values: dict[str, Any] = {"env_id": env_id, "frames": spec.train_frames, "history_len": spec.history_len,
+                              "eval_interval": spec.eval_interval, "eval_weights": spec.eval_weights}
+    values.update(ALGORITHM_SPECS[algo].domains.get(spec.train_id, {}))
+    if spec.foreign:
+        from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
+
+        values.update(FOREIGN_DEFAULTS.get(algo, {}))
+        if algo in FOREIGN_DEFAULTS_CONTINUOUS and not _discrete_actions(spec):
+            values.update(FOREIGN_DEFAULTS_CONTINUOUS[algo])
+    return values
+
+
+def defaults(algo: str, env_id: str) -> dict[str, Any]:
+    """``algo``'s values on ``env_id`` before any file or flag: layers 1 and 2."""
+    return {**algorithm_defaults(algo), **domain_values(algo, env_id)}
+
+
+def _check_tables() -> None:
+    """Every key of every algorithm's tables is one of its keys (nothing is dropped as inert), and no
+    algorithm changes a key of the domain's protocol (layer 2 starts with it)."""
+    from morl_trl.recipes.foreign_defaults import FOREIGN_DEFAULTS, FOREIGN_DEFAULTS_CONTINUOUS
+
+    for algo, spec in ALGORITHM_SPECS.items():
+        valid = valid_keys(algo)
+        tables = {"SHARED_DEFAULTS": spec.shared, **{f"DEFAULTS[{d!r}]": t for d, t in spec.domains.items()},
+                  "FOREIGN_DEFAULTS": FOREIGN_DEFAULTS.get(algo, {}),
+                  "FOREIGN_DEFAULTS_CONTINUOUS": FOREIGN_DEFAULTS_CONTINUOUS.get(algo, {})}
+        for name, table in tables.items():
+            unknown = set(table) - set(valid)
+            if unknown:
+                raise AssertionError(unknown_keys_message(unknown, valid, f"{algo} {name}", algo))
+        protocol = set(spec.shared) & set(PROTOCOL_KEYS)
+        assert not protocol, (algo, protocol)
 
 
 def resolve_config(
@@ -120,7 +143,7 @@ def resolve_config(
     config_file: str | Path | None = None,
     **overrides: Any,
 ) -> TrainConfig:
-    """Build the :class:`TrainConfig` of a run (see the module docstring for the order).
+    """Build the :class:`TrainConfig` of a run (the module docstring's four layers).
 
     A key ``algo`` does not have (in the file or the overrides) is an error naming its valid keys;
     a renamed key is mapped, with a ``DeprecationWarning``.
@@ -142,11 +165,12 @@ def resolve_config(
     from morl_trl.envs import domain_of, load_domain_modules
 
     load_domain_modules(overrides.get("domain_modules") or from_file.get("domain_modules") or ())
-    values = defaults(algo, env_id)
-    if quick:
+    values = algorithm_defaults(algo)  # 1
+    values.update(domain_values(algo, env_id))  # 2
+    if quick:  # 3
         values.update(quick_preset(algo))
     values.update(from_file)
-    given = coerce_values({k: v for k, v in overrides.items() if v is not None})
+    given = coerce_values({k: v for k, v in overrides.items() if v is not None})  # 4
     values.update(upgrade_keys(given, algo, "overrides"))
     cfg = TrainConfig(**coerce_values(values)).validate()
     check_env_fits(cfg, domain_of(env_id))
@@ -220,3 +244,6 @@ def resume_config(saved: TrainConfig, given: dict[str, Any], source: str) -> Tra
                 f"drop {key} or start a new run"
             )
     return saved.replace(**changes).validate()
+
+
+_check_tables()

@@ -14,7 +14,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from morl_trl.recipes.config.keys import KEYS, NOT_SET, RENAMED_KEYS, coerce_values, unknown_keys_message
+from morl_trl.recipes.config.keys import KEY_ALIASES, KEYS, NOT_SET, RENAMED_KEYS, coerce_values, unknown_keys_message
 from morl_trl.recipes.config.registry import ALGORITHM_SPECS
 from morl_trl.recipes.config.sections import SHARED, RunSection
 
@@ -98,7 +98,11 @@ class TrainConfig:
         >>> TrainConfig(algo="pcn").eps_start
         Traceback (most recent call last):
         ...
-        AttributeError: config key 'eps_start' is not a setting of pcn (see morl-trl config pcn ENV_ID)
+        AttributeError: config key 'eps_start' is not a setting of pcn; valid keys of pcn: ['algo', ...] (morl-trl config pcn ENV_ID)
+        >>> TrainConfig(algo="pcn").learning_rate
+        Traceback (most recent call last):
+        ...
+        AttributeError: TrainConfig has no attribute 'learning_rate' (did you mean 'lr'?); valid keys of pcn: [...] (morl-trl config pcn ENV_ID)
         >>> TrainConfig(frames=-100).validate()
         Traceback (most recent call last):
         ...
@@ -129,11 +133,14 @@ class TrainConfig:
             return getattr(self.__dict__["_sections"][owner[name]], name)
         key = KEYS.get(name)
         if key is not None and key.inert is not NOT_SET:
-            return key.inert
+            return key.inert  # (still read by shared code for algorithms without the key: issue 46)
         algo = self.__dict__["_sections"]["run"].algo
-        if key is not None:
-            raise AttributeError(f"config key {name!r} is not a setting of {algo} (see morl-trl config {algo} ENV_ID)")
-        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+        from morl_trl._suggest import did_you_mean
+
+        hint = "" if key is not None else did_you_mean(name, owner, KEY_ALIASES)
+        what = f"config key {name!r} is not a setting of {algo}" if key is not None else \
+            f"{type(self).__name__} has no attribute {name!r}"
+        raise AttributeError(f"{what}{hint}; valid keys of {algo}: {sorted(owner)} (morl-trl config {algo} ENV_ID)")
 
     def __setattr__(self, name: str, value: Any) -> None:
         owner = self.__dict__["_owner"]
