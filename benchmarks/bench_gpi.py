@@ -6,7 +6,7 @@ state-action history + 2), 4 actions, 4 objectives, the authors' Q-network (``[2
 ensemble of 2, dropout 0.01, LayerNorm), batch 128 doubled over a support of 6 weights,
 prioritized replay (alpha 0.6, min priority 0.01). ``gpi_ls``: TD priorities; ``gpi_pd``:
 GPI priorities (the GPI target over ``w`` and 4 support weights; the Dyna part is not timed).
-Ours: :func:`morl_trl.recipes.gpi.update` (what ``morl-trl train`` runs: :class:`~morl_trl.objectives.GPILoss`,
+Ours: :func:`morl_trl.algorithms.gpi.recipe.update` (what ``morl-trl train`` runs: :class:`~morl_trl.objectives.GPILoss`,
 the recipe's Adam step, ``TensorDictReplayBuffer`` with ``morl_trl.data.prioritized_sampler``).
 
 The peer is MORL-Baselines' own ``GPIPD.update(weight)`` (``gpi_pd=False/True``, ``dyna=False``),
@@ -42,8 +42,8 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
 from morl_trl.data import prioritized_sampler  # noqa: E402
 from morl_trl.objectives import GPILoss, GPIPolicy, GPIQNetwork  # noqa: E402
 from morl_trl.recipes import resolve_config  # noqa: E402
-from morl_trl.recipes.gpi import GPIAgent, update  # noqa: E402
-from morl_trl.recipes.optim import adam, fused_choice  # noqa: E402
+from morl_trl.algorithms.gpi.recipe import GPIAgent, update  # noqa: E402
+from morl_trl.training.optim import adam, fused_choice  # noqa: E402
 
 OBS, ACTIONS, K, NET, BATCH, GAMMA, LR = 26, 4, 4, [256, 256, 256, 256], 128, 0.99, 3e-4
 CLOCK = time.perf_counter
@@ -61,7 +61,7 @@ def _transitions(n, rng):
 
 
 def ours(tr, support, buffer_size, gpi_pd):
-    """:func:`morl_trl.recipes.gpi.update`, the recipe's update, on a :class:`~morl_trl.recipes.gpi.GPIAgent`
+    """:func:`morl_trl.algorithms.gpi.recipe.update`, the recipe's update, on a :class:`~morl_trl.algorithms.gpi.recipe.GPIAgent`
     at these settings (the recipe's Adam) over a filled prioritized buffer."""
     torch.manual_seed(0)
     qnet = GPIQNetwork(OBS, ACTIONS, K, hidden=tuple(NET))

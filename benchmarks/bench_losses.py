@@ -17,7 +17,7 @@ Each figure is a full update as a training loop runs it, replay sampling include
   episodes. Ours: ``recipes.pcn.update``; peer: ``PCN.update()`` with the authors' network.
 * **MORL/D** (SB) at MO-Hopper ([morld_sb.hopper]): one *population update* = each of the 6
   members updated once (batch 256 each from the shared buffer, 4 x 256 MLPs, two critics,
-  learned temperature). Ours: ``morl_trl.recipes.morld.update`` (one batched step); peer: ``MOSAC.update()``
+  learned temperature). Ours: ``morl_trl.algorithms.morld.recipe.update`` (one batched step); peer: ``MOSAC.update()``
   of each member, as MORL-Baselines' MORL/D steps them.
 * **PGMORL** at MO-Hopper ([pgmorl.hopper]): one *update* = one clipped-PPO minibatch step of the
   whole population (6 members, 4 envs x 2048 steps each, 10 epochs x 32 minibatches, 4 x 256 tanh
@@ -40,14 +40,14 @@ and the output says so.
 Ours is ``Agent.update`` as the recipes run it (fused Adam, sampling and priority updates
 included). ``--device cuda`` runs ours (and MORL-Baselines, when installed) on the GPU and adds
 rows for the captured update (``compile``, ``cudagraphs``, ``both``: see
-``morl_trl.recipes.capture``) with their speed-up over the eager one:
+``morl_trl.training.capture``) with their speed-up over the eager one:
 
     python benchmarks/bench_losses.py --device cuda [--capture cudagraphs both]
 
 Ours and the peer alternate in rounds so that machine load hits both alike; the
 median rate over rounds is reported. Both run in this one process, under the same allocator
 settings: ``--malloc tuned`` (default) sets glibc's thresholds as a trainer does
-(``morl_trl.recipes.allocator``), ``--malloc default`` leaves glibc's own. On a shared machine, ``--threads 1 --clock cpu``
+(``morl_trl.training.allocator``), ``--malloc default`` leaves glibc's own. On a shared machine, ``--threads 1 --clock cpu``
 (process CPU time) gives steadier figures than wall time.
 """
 
@@ -72,7 +72,7 @@ from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer  # n
 from torchrl.objectives import HardUpdate  # noqa: E402
 
 from morl_trl.data import prioritized_sampler  # noqa: E402
-from morl_trl.recipes.agent import adam  # noqa: E402
+from morl_trl.training.agent import adam  # noqa: E402
 from morl_trl.objectives import (  # noqa: E402
     CAPQLLoss,
     EnvelopeQLoss,
@@ -141,12 +141,12 @@ def as_tensordict(tr) -> TensorDict:
 # ------------------------------------------------------------------------------------ ours
 def _agent_step(recipe, loss, optimizers, updater, rb, device, *, max_grad_norm=None, prioritized=False,
                 capture=None):
-    """The recipe's ``update`` (``recipe``: :mod:`morl_trl.recipes.envelope` or
-    :mod:`~morl_trl.recipes.actor_critic`) on ``rb``, as ``morl-trl train`` runs it: eager, or captured
+    """The recipe's ``update`` (``recipe``: :mod:`morl_trl.algorithms.envelope.recipe` or
+    :mod:`~morl_trl.algorithms.actor_critic.recipe`) on ``rb``, as ``morl-trl train`` runs it: eager, or captured
     (``"compile"``, ``"cudagraphs"``, ``"both"``) with the non-finite flag read every 100 updates."""
     from types import SimpleNamespace
 
-    from morl_trl.recipes.agent import Agent
+    from morl_trl.training.agent import Agent
 
     cfg = SimpleNamespace(algo="bench", max_grad_norm=max_grad_norm, prioritized=prioritized, finite_check_interval=100,
                           compile=capture in ("compile", "both", "whole+compile"), compile_mode=None,
@@ -177,7 +177,7 @@ def ours_envelope(tr, buffer_size, device=torch.device("cpu"), capture=None):
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), sampler=sampler,
                                 batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
-    from morl_trl.recipes import envelope
+    from morl_trl.algorithms.envelope import recipe as envelope
 
     step = _agent_step(envelope, loss, {"qvalue": optim}, updater, rb, device, max_grad_norm=1.0, prioritized=True,
                        capture=capture)
@@ -198,18 +198,19 @@ def ours_capql(tr, buffer_size, device=torch.device("cpu"), capture=None):
                   "qvalue": adam(loss.qvalue_network_params.values(True, True), LR)}
     rb = TensorDictReplayBuffer(storage=LazyTensorStorage(buffer_size, device=device), batch_size=c["batch"])
     rb.extend(as_tensordict(tr).to(device))
-    from morl_trl.recipes import actor_critic
+    from morl_trl.algorithms.actor_critic import recipe as actor_critic
 
     return _agent_step(actor_critic, loss, optimizers, updater, rb, device, capture=capture)
 
 
 def ours_gpi(tr, support, buffer_size, gpi_pd):
-    """:func:`morl_trl.recipes.gpi.update` (discrete, no model buffer), the recipe's update, at the MO-LunarLander
+    """:func:`morl_trl.algorithms.gpi.recipe.update` (discrete, no model buffer), the recipe's update, at the MO-LunarLander
     settings: ``GPILoss`` on the authors' Q-network (ensemble of 2, dropout 0.01, LayerNorm), fused Adam,
     prioritized replay (alpha 0.6, min priority 0.01) with priority updates; ``gpi_pd``: GPI priorities over the
     support."""
     from morl_trl.objectives import GPILoss, GPIPolicy, GPIQNetwork
-    from morl_trl.recipes import gpi, resolve_config
+    from morl_trl.recipes import resolve_config
+    from morl_trl.algorithms.gpi import recipe as gpi
 
     g = GPI
     qnet = GPIQNetwork(g["obs"], g["actions"], g["k"], hidden=tuple(NET), num_nets=2, dropout=0.01, layer_norm=True)
@@ -258,7 +259,7 @@ def _recipe_agent(algo, env_id, **overrides):
     from morl_trl.envs import domain_of
     from morl_trl.recipes import build_agent, build_training_env, resolve_config
     from morl_trl.recipes.config.train_config import valid_keys
-    from morl_trl.recipes.parts import run_discount
+    from morl_trl.training.parts import run_discount
 
     overrides = {**{k: v for k, v in RECIPE_OVERRIDES.items() if k in valid_keys(algo)}, **overrides}
     cfg = resolve_config(algo, env_id, device="cpu", logger="none", progress=False, **overrides)
@@ -270,7 +271,7 @@ def _recipe_agent(algo, env_id, **overrides):
 def ours_pcn(eps):
     """``recipes.pcn.update``: 256 steps of the episode replay (``EpisodeReplay.sample``), ``PCNLoss``
     on the authors' network (26 -> 256 embeddings, 3 x 256 head), fused Adam (lr 3e-4)."""
-    from morl_trl.recipes import pcn
+    from morl_trl.algorithms.pcn import recipe as pcn
 
     _, _, agent = _recipe_agent("pcn", PCN_ENV)
     for o, a, r in eps:
@@ -293,8 +294,8 @@ def ours_morld(td, buffer_size):
     """``morld.update`` (MORL/D SB at MO-Hopper): all 6 members at once, 256 transitions each
     from the shared buffer, critics + actor + temperature, one optimizer step per network kind,
     Polyak targets."""
-    from morl_trl.recipes import morld
-    from morl_trl.recipes.parts import make_replay_buffer
+    from morl_trl.algorithms.morld import recipe as morld
+    from morl_trl.training.parts import make_replay_buffer
 
     cfg, _, agent = _recipe_agent("morld", MORLD_ENV, buffer_size=buffer_size)
     rb = make_replay_buffer(cfg, torch.device("cpu"))
@@ -306,7 +307,7 @@ def ours_pgmorl(steps):
     """``recipes.pgmorl.on_batch``: one iteration (its evaluation and evolution left out): vector GAE
     of the 6 x 4 x ``steps`` batch, then 10 epochs x 32 minibatches, each one clipped-PPO step of
     the whole batched population (4 x 256 tanh actor and critic per member)."""
-    from morl_trl.recipes import pgmorl
+    from morl_trl.algorithms.pgmorl import recipe as pgmorl
 
     cfg, env, agent = _recipe_agent("pgmorl", PGMORL_ENV, frames_per_batch=24 * steps)
     P, E = cfg.pgmorl_pop, cfg.pgmorl_envs_per_member
@@ -890,7 +891,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--malloc", choices=["tuned", "default"], default="tuned",
                    help="tuned (default): glibc's thresholds set as a trainer sets them "
-                        "(morl_trl.recipes.allocator.tune_malloc); default: glibc's own. One process: "
+                        "(morl_trl.training.allocator.tune_malloc); default: glibc's own. One process: "
                         "the peer runs under the same setting")
     args = p.parse_args(argv)
     global CLOCK, SYNC, TABLE, FLOPS, MIN_ROUND_SECONDS
@@ -900,7 +901,7 @@ def main(argv=None) -> int:
         os.environ["MORL_TRL_MALLOC"] = "0"  # (the recipes' build_agent would set it otherwise)
         malloc_label = "glibc defaults"
     else:
-        from morl_trl.recipes.allocator import tune_malloc
+        from morl_trl.training.allocator import tune_malloc
 
         malloc_label = ("glibc thresholds set (mmap 32 MiB, trim 256 MiB)" if tune_malloc()
                         else "unchanged (not glibc, or MORL_TRL_MALLOC / MALLOC_*_ set)")

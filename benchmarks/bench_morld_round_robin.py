@@ -5,7 +5,7 @@ Paper settings of MO-Hopper (``morl-trl config morld MOHopperDR-v5``: ``P = 6``,
 batch 256, two vector critics, delayed actor ``policy_freq = 2``, learned temperature). The same
 agent state and replay buffer (1,024 random transitions of the training env) serve both;
 rounds alternate the two (sliced, masked, masked, sliced, ...) and each times ``--updates``
-updates of member 1 (``morl_trl.recipes.morld.update`` with ``agent.clock`` set as in training). Prints the
+updates of member 1 (``morl_trl.algorithms.morld.recipe.update`` with ``agent.clock`` set as in training). Prints the
 median updates/s of each and their ratio. One update per frame is what the round robin does
 (``update_frequency = 1``), so the ratio bounds the end-to-end frames/s gain from above.
 
@@ -27,8 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer  # noqa: E402
 
-from morl_trl.recipes import TRAINING_ENV_BUILDERS, morld, resolve_config  # noqa: E402
-from morl_trl.recipes.morld import make_morld_agent  # noqa: E402
+from morl_trl.recipes import TRAINING_ENV_BUILDERS, resolve_config  # noqa: E402
+from morl_trl.algorithms.morld import recipe as morld
+from morl_trl.algorithms.morld.recipe import make_morld_agent  # noqa: E402
 
 
 def main(argv=None) -> int:

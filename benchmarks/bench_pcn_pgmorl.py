@@ -60,7 +60,7 @@ def _episodes(n, rng):
 # ---------------------------------------------------------------------- ours
 def ours_pcn(eps):
     from morl_trl.recipes import resolve_config
-    from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+    from morl_trl.algorithms.pcn.recipe import make_pcn_agent, make_pcn_training_env
 
     cfg = resolve_config("pcn", "MOLunarLanderDR-v0", num_envs=1)
     env = make_pcn_training_env(cfg, torch.device("cpu"))
@@ -74,7 +74,7 @@ def ours_pgmorl(quick):
     from tensordict import TensorDict
 
     from morl_trl.recipes import resolve_config
-    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+    from morl_trl.algorithms.pgmorl.recipe import make_pgmorl_agent, make_pgmorl_training_env
 
     steps = 256 if quick else 2048
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", frames_per_batch=24 * steps)
@@ -166,7 +166,8 @@ def main():
     except ImportError:
         sys.exit("morl_baselines is not importable: run with the scratch venv's python (see the docstring)")
 
-    from morl_trl.recipes import pcn, pgmorl
+    from morl_trl.algorithms.pcn import recipe as pcn
+    from morl_trl.algorithms.pgmorl import recipe as pgmorl
 
     rng = np.random.default_rng(0)
     eps = _episodes(1000, rng)

@@ -62,8 +62,8 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from morl_trl.envs import domain_of  # noqa: E402
 from morl_trl.recipes import build_agent, build_training_env, resolve_config  # noqa: E402
-from morl_trl.recipes.algorithms import algorithm  # noqa: E402
-from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount  # noqa: E402
+from morl_trl.algorithms.registry import algorithm  # noqa: E402
+from morl_trl.training.parts import make_collector, make_replay_buffer, run_discount  # noqa: E402
 
 warnings.filterwarnings("ignore")
 

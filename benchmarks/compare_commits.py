@@ -76,8 +76,8 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     from morl_trl.recipes import build_agent, build_training_env, resolve_config
 
     try:  # after the issue-26 restructuring
-        from morl_trl.recipes.parts import make_collector, make_replay_buffer
-        from morl_trl.recipes.parts import run_discount as discount
+        from morl_trl.training.parts import make_collector, make_replay_buffer
+        from morl_trl.training.parts import run_discount as discount
     except ImportError:  # before it
         from morl_trl.recipes.off_policy import _gamma as discount
         from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
@@ -92,7 +92,7 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     agent = build_agent(cfg, env, gamma=discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
     try:  # the checkout's one per-batch step per algorithm (issue 46), else its Agent.learn
-        from morl_trl.recipes.algorithms import algorithm
+        from morl_trl.algorithms.registry import algorithm
 
         on_batch = algorithm(algo).on_batch
     except (ImportError, AttributeError):
@@ -103,7 +103,7 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
             agent.on_frames(frames)
             return out
     if algo == "pgmorl" and on_batch.__module__.endswith("pgmorl"):  # PGMORL counts one member's frames
-        from morl_trl.recipes.pgmorl import counted_frames
+        from morl_trl.algorithms.pgmorl.recipe import counted_frames
 
         def frames_of(batch):
             return counted_frames(agent, batch)

@@ -70,7 +70,7 @@ def main(argv=None) -> int:
     p.add_argument("--filled", type=int, default=100_000, help="replay transitions (the benchmark's 100,000)")
     args = p.parse_args(argv)
     torch.set_num_threads(1)
-    from morl_trl.recipes.allocator import tune_malloc
+    from morl_trl.training.allocator import tune_malloc
 
     tune_malloc()
     step = build(args.method, args.filled)

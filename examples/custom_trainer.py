@@ -1,6 +1,6 @@
 """Your own training loop from morl_trl's public pieces: Envelope on MO-LavaGrid under domain randomization.
 
-This is not the recipe that ``morl-trl train`` runs (that is ``morl_trl/recipes/envelope.py``,
+This is not the recipe that ``morl-trl train`` runs (that is ``morl_trl/algorithms/envelope/recipe.py``,
 the same loop inside ``Run.session``: checkpoints, resume, logs and a report); it shows
 what a custom trainer composes: a DR env, the policy/training stacks, a vector Q-network with
 its scalarized greedy policy, the Envelope loss, TorchRL's collector and replay buffer, and

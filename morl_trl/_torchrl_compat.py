@@ -5,7 +5,7 @@ trajectory pool (what an exact resume needs), to run one transform's ``_reset`` 
 data outside an env (the evaluator's and PGMORL's batched bookkeeping), to build a
 TensorDict without its checks (the envs' hot path), or to reach a replay buffer's sample unit,
 a storage's rows and a sampler's generator (the captured update's sampling,
-:mod:`morl_trl.recipes.capture`); the losses reuse TorchRL's value cache and vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, which fails loudly
+:mod:`morl_trl.training.capture`); the losses reuse TorchRL's value cache and vmap helper. Each name below is checked by ``tests/test_torchrl_compat.py``, which fails loudly
 (naming the attribute) when a TorchRL or tensordict release changes it.
 
 Example:

@@ -167,7 +167,7 @@ def train_main(argv: list[str]) -> int:
         print(cfg.to_toml())
         return 0
     try:
-        run_training(cfg, overwrite=args.overwrite)  # the algorithm's loop (morl_trl.recipes.algorithms.REGISTRY)
+        run_training(cfg, overwrite=args.overwrite)  # the algorithm's loop (morl_trl.algorithms.registry.REGISTRY)
     except NonFiniteLossError as err:
         return _stopped(err)
     return 0

@@ -18,8 +18,8 @@ DOCUMENTED_BY_EXAMPLE = [
     "morl_trl.objectives.networks", "morl_trl.objectives.value", "morl_trl.objectives.gpi",
     "morl_trl.objectives.batched", "morl_trl.objectives.dynamics", "morl_trl.objectives.pgmorl",
     "morl_trl.objectives.pcn", "morl_trl.data.prioritized", "morl_trl.data.segment_tree",
-    "morl_trl.data.episode_replay", "morl_trl.transforms.command", "morl_trl.recipes.pcn",
-    "morl_trl.recipes.pgmorl", "morl_trl.recipes.pgmorl_evolution", "morl_trl.recipes.optim",
+    "morl_trl.data.episode_replay", "morl_trl.transforms.command", "morl_trl.algorithms.pcn.recipe",
+    "morl_trl.algorithms.pgmorl.recipe", "morl_trl.algorithms.pgmorl.evolution", "morl_trl.training.optim",
 ]
 
 #: public classes without a runnable example today (2026-11-26); add an example, then drop the name
@@ -30,7 +30,7 @@ WITHOUT_EXAMPLE = {
     "morl_trl.envs.mujoco.render.MujocoFrameRenderer", "morl_trl.evaluation.results.ContextResult",
     "morl_trl.evaluation.results.EvaluationResult", "morl_trl.grid.status.CellState",
     "morl_trl.gym.env.MOGymnasiumEnv", "morl_trl.objectives.common.MultiObjectiveLossModule",
-    "morl_trl.objectives.fast_path.GaussianActorPlan", "morl_trl.recipes.agent.Agent",
+    "morl_trl.objectives.fast_path.GaussianActorPlan", "morl_trl.training.agent.Agent",
     "morl_trl.reporting.table.TableRow", "morl_trl.runs.run_log.RunLog", "morl_trl.runs.video.VideoCSVLogger",
     "morl_trl.transforms._utils.SeededTransform",
 }

@@ -27,10 +27,17 @@ ALLOWED = {
     "evaluation": {"envs", "transforms", "metrics", "preferences"},
     "reporting": {"envs", "metrics", "preferences", "evaluation"},
     "runs": {"envs", "metrics", "preferences", "evaluation", "reporting"},
+    # the kit every algorithm's loop uses (Agent, optimizer step, capture, the run's parts)
+    "training": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting",
+                 "runs"},
+    # one folder per algorithm (builder, update, on_batch, loop) and the registry
+    "algorithms": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting",
+                   "runs", "training"},
+    # configuration, train / evaluate, policies, the authors' record
     "recipes": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting",
-                "runs"},
+                "runs", "training", "algorithms"},
     "grid": {"envs", "transforms", "objectives", "data", "metrics", "preferences", "evaluation", "reporting", "runs",
-             "recipes"},
+             "training", "algorithms", "recipes"},
 }
 
 

@@ -105,7 +105,7 @@ CASES: dict[str, dict] = {
     # steps x envs per member; max_iterations divides by pop_size). Ours counts one member's steps, as
     # the authors' fork (SPEC §6): its budget is frames / ours_frame_scale and its curve's frames are
     # multiplied back, so both run 3 iterations (2,304 env steps). Two warm-up iterations, not one: ours
-    # evaluates a member by the returns of its iteration's rollout (recipes/pgmorl.py), so with one the
+    # evaluates a member by the returns of its iteration's rollout (algorithms/pgmorl/recipe.py), so with one the
     # warm-up's end would reuse the untrained members' returns (prediction deltas of 0). delta_weight 0.5
     # (MB: 0.2): the task selection's 15 candidate weights instead of 66 (generate_weights(delta / 2, 3)),
     # and the 6 initial weights spread over the simplex; MB's selection refits its prediction model for

@@ -61,7 +61,7 @@ def _pcn_policy(agent, k: int):
     from torchrl.data import Bounded, Categorical
 
     from morl_trl.preferences import energy_weights
-    from morl_trl.recipes.pcn import PCNPolicy
+    from morl_trl.algorithms.pcn.recipe import PCNPolicy
 
     class _Net:
         def module(self, obs, desired, horizon):

@@ -413,7 +413,7 @@ class MultiContextEvaluator:
 
         ``weights`` ``[W', k]`` (on the simplex) and ``seed`` replace the evaluator's own for this
         call only: the same contexts, episodes, env and discount at other weights (GPI-LS's values
-        at the corner weights of its CCS, :mod:`morl_trl.recipes.gpi`). The result's ``weights``
+        at the corner weights of its CCS, :mod:`morl_trl.algorithms.gpi.recipe`). The result's ``weights``
         are the ones evaluated.
         """
         policy = self.policy if policy is None else policy

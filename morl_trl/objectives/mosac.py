@@ -413,7 +413,7 @@ class MOSACLoss(_MOSACBase):
 
     :meth:`qvalue_loss`, :meth:`actor_loss` and :meth:`temperature_loss` compute the three parts
     alone (TorchRL's ``SACLoss`` style), for a step that updates the critics, the actor and the
-    temperature one after the other (the authors'; :meth:`~morl_trl.recipes.agent.Agent.actor_critic_step`).
+    temperature one after the other (the authors'; :meth:`~morl_trl.training.agent.Agent.actor_critic_step`).
 
     Examples:
         >>> from tensordict import TensorDict

@@ -170,7 +170,7 @@ class PCNLoss(LossModule):
     def losses_of(self, observation: torch.Tensor, action: torch.Tensor, desired_return: torch.Tensor,
                   desired_horizon: torch.Tensor) -> TensorDict | None:
         """:meth:`forward` on the batch's tensors, without building its TensorDict (the same operations: what
-        :func:`morl_trl.recipes.pcn.update` runs, ~0.5 ms less per update on a
+        :func:`morl_trl.algorithms.pcn.recipe.update` runs, ~0.5 ms less per update on a
         CPU core). ``None`` where the network is not the plain positional module holding the loss's own
         parameters: call :meth:`forward` then."""
         net = self.policy_network

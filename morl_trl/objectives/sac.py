@@ -3,7 +3,7 @@
 The paper's SAC baseline learns from the domain's scalar reward with TorchRL's own losses. These
 subclasses change nothing in them (same parameters, same state dict, :meth:`forward` as
 TorchRL's) and add what a step that updates critics, actor and temperature one after the other
-needs (:meth:`~morl_trl.recipes.agent.Agent.actor_critic_step`, the authors' order), with the
+needs (:meth:`~morl_trl.training.agent.Agent.actor_critic_step`, the authors' order), with the
 names of :class:`~morl_trl.objectives.MOSACLoss`:
 
 * ``qvalue_loss(td) -> (loss, {"td_error"})``: the critics' loss alone (TorchRL's

@@ -1,6 +1,6 @@
 """``morl-trl convert-run RUN``: rewrite a run's pickled checkpoints (format 1, written before
 2026-11-26) as tensors and plain data (format 2), once, so that loading it never unpickles. (Parameters saved in
-an older layout are converted when an agent loads them: :mod:`morl_trl.recipes.state_upgrade`.)
+an older layout are converted when an agent loads them: :mod:`morl_trl.training.state_upgrade`.)
 
 Converting loads the old pickles one last time: do it only for a run you trust (your own, or
 one from a source you trust). Each checkpoint is replaced atomically; the newest keeps its

@@ -357,11 +357,11 @@ SAC = {
 }
 
 def _morld_turns(cfg: TrainConfig, *, frames: bool = False):
-    """Round robin: the turns (or frames) of each member (:func:`morl_trl.recipes.morld.round_robin_turns`);
+    """Round robin: the turns (or frames) of each member (:func:`morl_trl.algorithms.morld.recipe.round_robin_turns`);
     concurrent: none (every member collects at every step)."""
     if cfg.morld_schedule != "round_robin":
         return "concurrent"
-    from morl_trl.recipes.morld import round_robin_turns
+    from morl_trl.algorithms.morld.recipe import round_robin_turns
 
     turns = round_robin_turns(cfg.frames, cfg.exchange_every, cfg.pop_size)
     return [t * cfg.exchange_every for t in turns] if frames else turns

@@ -2,9 +2,9 @@
 
 :func:`run_training` opens the :class:`~morl_trl.runs.Run` (a new run, or the continuation of
 one), seeds the process and hands the run to the algorithm's loop, found in the one registry
-(:data:`~morl_trl.recipes.algorithms.REGISTRY`: Envelope's
-:func:`~morl_trl.recipes.envelope.train_envelope`, the actor-critics'
-:func:`~morl_trl.recipes.actor_critic.train_actor_critic`, GPI's, PCN's, PGMORL's, MORL/D's), which
+(:data:`~morl_trl.algorithms.registry.REGISTRY`: Envelope's
+:func:`~morl_trl.algorithms.envelope.recipe.train_envelope`, the actor-critics'
+:func:`~morl_trl.algorithms.actor_critic.recipe.train_actor_critic`, GPI's, PCN's, PGMORL's, MORL/D's), which
 reads top to bottom: the env, the agent, the evaluator, the replay buffer, TorchRL's collector, then
 per batch its ``on_batch`` (store + the updates due) and ``run.step`` (evaluate and checkpoint when due).
 
@@ -23,10 +23,10 @@ import torch
 
 from morl_trl.envs import make_env
 from morl_trl.envs.trust import check_trusted
-from morl_trl.recipes.agent import Agent
-from morl_trl.recipes.algorithms import algorithm, build_agent, build_training_env
+from morl_trl.training.agent import Agent
+from morl_trl.algorithms.registry import algorithm, build_agent, build_training_env
 from morl_trl.recipes.config import TrainConfig, resume_config
-from morl_trl.recipes.parts import (
+from morl_trl.training.parts import (
     load_agent_state,
     load_reference,
     make_collector,

@@ -34,9 +34,9 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from morl_trl.envs import domain_of, make_env as _make_env
 from morl_trl.envs.trust import check_trusted
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.algorithms import build_agent, build_training_env
+from morl_trl.algorithms.registry import build_agent, build_training_env
 from morl_trl.recipes.off_policy import run_training
-from morl_trl.recipes.parts import load_agent_state, run_discount, run_domain
+from morl_trl.training.parts import load_agent_state, run_discount, run_domain
 from morl_trl.runs.atomic import atomic_write
 from morl_trl.runs.checkpoint import DamagedCheckpointError, checkpoint_frames, find_checkpoint, load_checkpoint, verify_checkpoint
 from morl_trl.runs.plain import UnsafeFileError, load_plain, save_plain

@@ -75,7 +75,7 @@ __all__ = ["StopRun", "session", "restore_fresh_episodes", "resume_command", "la
 
 class StopRun(RuntimeError):
     """An error after which a run stops cleanly (e.g. a non-finite loss,
-    :class:`~morl_trl.recipes.optim.NonFiniteLossError`): raised inside :meth:`Run.session
+    :class:`~morl_trl.training.optim.NonFiniteLossError`): raised inside :meth:`Run.session
     <morl_trl.runs.Run.session>`, the last good state is checkpointed, ``log.txt`` and
     ``report.md`` say why, and the error is raised again with the checkpoint's path.
 

@@ -92,7 +92,7 @@ def test_pgmorl_case_runs_the_same_iterations_on_both_sides(parity):
     3 PPO iterations of 4 envs x 32 steps per member on pgmorl-hopper."""
     from common import CASES
 
-    from morl_trl.recipes.pgmorl import pgmorl_iterations
+    from morl_trl.algorithms.pgmorl.recipe import pgmorl_iterations
 
     case = CASES["pgmorl-hopper"]
     mb = case["mb"]

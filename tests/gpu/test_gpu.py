@@ -15,9 +15,9 @@ import torch
 
 from morl_trl.envs import domain_of
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
-from morl_trl.recipes.algorithms import algorithm
+from morl_trl.algorithms.registry import algorithm
 
-from morl_trl.recipes.parts import make_collector, make_replay_buffer, run_discount
+from morl_trl.training.parts import make_collector, make_replay_buffer, run_discount
 from tests.recipes.test_capture import capture, params_of, setup, update
 
 pytestmark = [pytest.mark.gpu, pytest.mark.filterwarnings("ignore")]

@@ -11,8 +11,8 @@ import torch
 from morl_trl.objectives import EnvelopeQLoss, GPILoss, GPIQNetwork, make_vector_q_network
 from morl_trl.objectives.updaters import PeriodicHardUpdate
 from morl_trl.recipes import resolve_config
-from morl_trl.recipes.agent import target_updater
-from morl_trl.recipes.gpi import make_gpi_agent
+from morl_trl.training.agent import target_updater
+from morl_trl.algorithms.gpi.recipe import make_gpi_agent
 from morl_trl.recipes.off_policy import make_training_env
 
 

@@ -1,10 +1,11 @@
-"""The actor-critics' recipe (recipes/actor_critic.py: train_actor_critic, for capql, mosac, mosac_discrete and
+"""The actor-critics' recipe (algorithms/actor_critic/recipe.py: train_actor_critic, for capql, mosac, mosac_discrete and
 sac) from end to end: its updates, actor turns and temperature steps, and an interrupted run resumed exactly."""
 
 import pytest
 
-from morl_trl.recipes import actor_critic, resolve_config, train
-from morl_trl.recipes.algorithms import REGISTRY
+from morl_trl.recipes import resolve_config, train
+from morl_trl.algorithms.actor_critic import recipe as actor_critic
+from morl_trl.algorithms.registry import REGISTRY
 from morl_trl.recipes.config import valid_keys
 from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 

@@ -13,8 +13,8 @@ from morl_trl.objectives.networks import make_gaussian_actor, make_vector_critic
 from morl_trl.objectives.population import make_population_critic, make_population_gaussian_actor
 from morl_trl.objectives.sac import SACLoss
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
-from morl_trl.recipes.actor_critic import policy_freq, steps_each_loss
-from morl_trl.recipes.agent import apply_updates
+from morl_trl.algorithms.actor_critic.recipe import policy_freq, steps_each_loss
+from morl_trl.training.agent import apply_updates
 from morl_trl.recipes.off_policy import make_replay_buffer
 from tests.objectives._helpers import random_batch
 
@@ -58,9 +58,10 @@ def _record(agent):
 
 
 def _updates(agent, buffer, n):
-    """``n`` of the recipe's updates (:func:`morl_trl.recipes.actor_critic.update`; MORL/D's off the shared clock,
-    the acting member's own, :func:`morl_trl.recipes.morld.update`)."""
-    from morl_trl.recipes import actor_critic, morld
+    """``n`` of the recipe's updates (:func:`morl_trl.algorithms.actor_critic.recipe.update`; MORL/D's off the shared clock,
+    the acting member's own, :func:`morl_trl.algorithms.morld.recipe.update`)."""
+    from morl_trl.algorithms.actor_critic import recipe as actor_critic
+    from morl_trl.algorithms.morld import recipe as morld
 
     if agent.cfg.algo == "morld":
         morld.updates_at(agent, buffer, [None] * n)

@@ -1,4 +1,4 @@
-"""glibc's allocator set for training (:mod:`morl_trl.recipes.allocator`): a large block freed by one update
+"""glibc's allocator set for training (:mod:`morl_trl.training.allocator`): a large block freed by one update
 stays in the heap for the next (no unmapping and re-faulting), and the switch that turns it off."""
 
 import json
@@ -67,7 +67,7 @@ class _Tuned(Exception):
 
 
 # the own recipes (Envelope, GPI, the actor-critics', PCN's, PGMORL's, MORL/D's); every recipe module's tune_malloc
-# is stubbed, and build_agent's (recipes/algorithms.py: the Agent loop's)
+# is stubbed, and build_agent's (algorithms/registry.py: the Agent loop's)
 @pytest.mark.parametrize("algo", ["envelope", "gpi_ls", "sac", "pcn", "pgmorl", "morld"])
 def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, tmp_path, monkeypatch):
     import importlib
@@ -77,9 +77,9 @@ def test_every_training_path_sets_the_allocator_before_building_the_agent(algo, 
     def tuned():
         raise _Tuned
 
-    for name in ("morl_trl.recipes.envelope", "morl_trl.recipes.gpi", "morl_trl.recipes.actor_critic",
-                 "morl_trl.recipes.pcn", "morl_trl.recipes.pgmorl", "morl_trl.recipes.morld",
-                 "morl_trl.recipes.algorithms"):
+    for name in ("morl_trl.algorithms.envelope.recipe", "morl_trl.algorithms.gpi.recipe", "morl_trl.algorithms.actor_critic.recipe",
+                 "morl_trl.algorithms.pcn.recipe", "morl_trl.algorithms.pgmorl.recipe", "morl_trl.algorithms.morld.recipe",
+                 "morl_trl.algorithms.registry"):
         monkeypatch.setattr(importlib.import_module(name), "tune_malloc", tuned, raising=False)
     env_id, layout = "MOLavaGridDR-v0", {}
     if algo == "pgmorl":  # (continuous actions; 1 member on the 2 sub-envs)

@@ -5,9 +5,11 @@ import copy
 import pytest
 import torch
 
-from morl_trl.recipes import actor_critic, build_agent, build_training_env, envelope, resolve_config
-from morl_trl.recipes.agent import NonFiniteLossError, adam, obs_shape
-from morl_trl.recipes.capture import CapturedUpdate, runs_captured
+from morl_trl.recipes import build_agent, build_training_env, resolve_config
+from morl_trl.algorithms.actor_critic import recipe as actor_critic
+from morl_trl.algorithms.envelope import recipe as envelope
+from morl_trl.training.agent import NonFiniteLossError, adam, obs_shape
+from morl_trl.training.capture import CapturedUpdate, runs_captured
 from morl_trl.recipes.off_policy import make_replay_buffer
 from tests.objectives._helpers import random_batch
 

@@ -118,7 +118,7 @@ def test_cli_config_refuses_a_foreign_key(capsys):
 
 def test_discrete_sac_updates_once_every_four_frames_with_the_authors_optimizers():
     from morl_trl.recipes import build_agent
-    from morl_trl.recipes.actor_critic import on_batch
+    from morl_trl.algorithms.actor_critic.recipe import on_batch
     from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
     torch.manual_seed(0)

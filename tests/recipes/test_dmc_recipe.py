@@ -17,7 +17,7 @@ def test_config_takes_the_dmc_domains_defaults():
 
 def test_no_reference_data_means_no_nhgr():
     from morl_trl.envs import domain_of
-    from morl_trl.recipes.parts import load_reference, no_reference_note
+    from morl_trl.training.parts import load_reference, no_reference_note
 
     spec = domain_of("DMCHopperDR-v0")
     assert load_reference(resolve_config("capql", "DMCHopperDR-v0"), spec) is None

@@ -1,7 +1,7 @@
-"""Envelope's recipe (recipes/envelope.py: train_envelope) from end to end: its counters and checkpoint."""
+"""Envelope's recipe (algorithms/envelope/recipe.py: train_envelope) from end to end: its counters and checkpoint."""
 
 from morl_trl.recipes import resolve_config, train
-from morl_trl.recipes.algorithms import REGISTRY
+from morl_trl.algorithms.registry import REGISTRY
 from tests.recipes._helpers import last_checkpoints
 
 SMALL = dict(frames=256, num_envs=4, frames_per_batch=32, init_random_frames=64, updates_per_batch=2, batch_size=16,

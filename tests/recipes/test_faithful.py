@@ -6,7 +6,8 @@ import torch
 from torchrl.envs.utils import ExplorationType
 
 from morl_trl.envs import make_env
-from morl_trl.recipes import build_agent, envelope, resolve_config
+from morl_trl.recipes import build_agent, resolve_config
+from morl_trl.algorithms.envelope import recipe as envelope
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
 CPU = torch.device("cpu")

@@ -6,7 +6,7 @@ import torch
 
 from morl_trl.recipes import resolve_config, run_training, train
 from morl_trl.recipes.config import valid_keys
-from morl_trl.recipes.gpi import GPIAgent, make_gpi_agent, on_batch
+from morl_trl.algorithms.gpi.recipe import GPIAgent, make_gpi_agent, on_batch
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 from tests.recipes._helpers import assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume, last_checkpoints
 

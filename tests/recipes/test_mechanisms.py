@@ -7,9 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from morl_trl.recipes import actor_critic, gpi, morld, resolve_config
-from morl_trl.recipes.agent import apply_updates
-from morl_trl.recipes.gpi import make_gpi_agent
+from morl_trl.recipes import resolve_config
+from morl_trl.algorithms.actor_critic import recipe as actor_critic
+from morl_trl.algorithms.gpi import recipe as gpi
+from morl_trl.algorithms.morld import recipe as morld
+from morl_trl.training.agent import apply_updates
+from morl_trl.algorithms.gpi.recipe import make_gpi_agent
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
 CPU = torch.device("cpu")
@@ -141,7 +144,7 @@ def test_discrete_gpi_acts_with_dropout_and_evaluates_without(single_thread):
 
 # ---------------------------------------------------------------------- PCN
 def _pcn(env_id="MOLavaGridDR-v0", **kw):
-    from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+    from morl_trl.algorithms.pcn.recipe import make_pcn_agent, make_pcn_training_env
 
     torch.manual_seed(0)
     cfg = resolve_config("pcn", env_id, quick=True, num_envs=2, **kw)
@@ -233,7 +236,7 @@ def test_pgmorl_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread
     from tensordict import TensorDict
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+    from morl_trl.algorithms.pgmorl.recipe import make_pgmorl_agent, make_pgmorl_training_env
 
     cfg = resolve_config("pgmorl", "MOHalfCheetahDR-v5", quick=True, pgmorl_pop=2, num_envs=2,
                          pgmorl_envs_per_member=1, frames_per_batch=32, hidden=(8,))
@@ -265,7 +268,7 @@ def test_morld_evaluates_with_the_nearest_pareto_archive_snapshot(single_thread)
     from tensordict import TensorDict
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-    from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+    from morl_trl.algorithms.morld.recipe import make_morld_agent, make_morld_training_env
 
     cfg = resolve_config("morld", "MOLavaGridDR-v0", quick=True, hidden=(8,))
     env = make_morld_training_env(cfg, CPU)
@@ -545,7 +548,7 @@ def test_gpi_pd_humanoid_model_clips_gradients_at_10_and_starts_max_logvar_at_0_
     # the recipe passes both to the model and to every fit
     pytest.importorskip("mujoco")
     fits = []
-    monkeypatch.setattr("morl_trl.recipes.gpi.fit_dynamics", lambda *a, **k: fits.append(k["max_grad_norm"]))
+    monkeypatch.setattr("morl_trl.algorithms.gpi.recipe.fit_dynamics", lambda *a, **k: fits.append(k["max_grad_norm"]))
     cfg, env, agent = _gpi("gpi_pd", "MOHopperDR-v5", gamma=0.99, gpi_dynamics_max_grad_norm=10.0,
                            gpi_dynamics_max_logvar=0.1, gpi_dynamics_train_freq=16, gpi_dynamics_rollout_starts=10**6)
     assert agent.dynamics.model.max_logvar.flatten()[0].item() == pytest.approx(0.1)
@@ -562,7 +565,7 @@ def test_pgmorl_resets_every_sub_env_at_the_start_of_each_iteration(reset, conti
     (``pgmorl_reset_each_iteration``; false: all 4 sub-envs' episodes go on, none ends within 16 steps)."""
     pytest.importorskip("mujoco")
     from morl_trl.recipes.off_policy import make_collector
-    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+    from morl_trl.algorithms.pgmorl.recipe import make_pgmorl_agent, make_pgmorl_training_env
 
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=4, pgmorl_envs_per_member=2,
                          frames_per_batch=64, frames=192, hidden=(8,), progress=False, pgmorl_reset_each_iteration=reset)
@@ -585,7 +588,7 @@ def test_morld_evaluates_each_member_on_5_separate_stochastic_episodes_per_excha
     """The authors' MORL/D evaluates every member after each exchange with num_eval_episodes_for_front = 5
     stochastic episodes on a DR env (morld.py:281-334,576-578): pop_size x 5 episodes (LavaGrid 25,
     the others 30), never counted as training frames; the archive holds the non-dominated evaluations."""
-    from morl_trl.recipes.morld import make_morld_agent, make_morld_training_env
+    from morl_trl.algorithms.morld.recipe import make_morld_agent, make_morld_training_env
 
     assert [resolve_config(a, e).pop_size * resolve_config(a, e).morld_eval_episodes for a, e in
             (("morld", "MOLavaGridDR-v0"), ("morld_psa", "MOLunarLanderDR-v0"))] == [25, 30]

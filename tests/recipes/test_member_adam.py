@@ -1,4 +1,4 @@
-"""MemberAdam (recipes/optim.py): Adam over a population's stacked parameters stepping only the
+"""MemberAdam (training/optim.py): Adam over a population's stacked parameters stepping only the
 active members, each exactly as torch.optim.Adam on that member alone."""
 
 import copy
@@ -6,7 +6,7 @@ import copy
 import pytest
 import torch
 
-from morl_trl.recipes.optim import MemberAdam, NonFiniteLossError, adam, optimizer_step
+from morl_trl.training.optim import MemberAdam, NonFiniteLossError, adam, optimizer_step
 
 P = 4
 

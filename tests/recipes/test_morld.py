@@ -12,8 +12,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl.preferences import energy_weights
 from morl_trl.recipes import ALGORITHMS, AGENT_BUILDERS, TRAINING_ENV_BUILDERS, resolve_config, train
-from morl_trl.recipes import morld
-from morl_trl.recipes.morld import MORLDAgent, ParetoArchive, make_morld_agent, psa_weights
+from morl_trl.algorithms.morld import recipe as morld
+from morl_trl.algorithms.morld.recipe import MORLDAgent, ParetoArchive, make_morld_agent, psa_weights
 from morl_trl.transforms import DiscountedVectorReturn
 from morl_trl.runs import latest_checkpoint, load_checkpoint
 
@@ -199,7 +199,7 @@ def test_sac_agent_learns_from_the_original_reward():
     td = env.rollout(4, agent.explore_policy, break_when_any_done=False).reshape(-1)
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(100), batch_size=8)
     buffer.extend(td)
-    from morl_trl.recipes.actor_critic import update
+    from morl_trl.algorithms.actor_critic.recipe import update
 
     losses = update(agent, buffer)
     assert {"loss_actor", "loss_qvalue", "loss_alpha"} <= set(losses.keys())

@@ -1,4 +1,4 @@
-"""MORL/D's round robin (recipes/morld.py, the authors' MORLD.train: morld.py:421-431,559-567): one member
+"""MORL/D's round robin (algorithms/morld/recipe.py, the authors' MORLD.train: morld.py:421-431,559-567): one member
 acts and learns per turn of exchange_every frames, the env is reset at each exchange, then every other
 member gets morld_update_passes catch-up updates; an update steps only its members' parameters, Adam
 moments, step counts and target critics."""
@@ -14,8 +14,8 @@ from torchrl.envs.utils import ExplorationType
 from morl_trl._torchrl_compat import reset_collector
 from morl_trl.recipes import TRAINING_ENV_BUILDERS, resolve_config
 from morl_trl.recipes.fidelity import record
-from morl_trl.recipes import morld
-from morl_trl.recipes.morld import make_morld_agent, round_robin_turns
+from morl_trl.algorithms.morld import recipe as morld
+from morl_trl.algorithms.morld.recipe import make_morld_agent, round_robin_turns
 from morl_trl.transforms import DiscountedVectorReturn
 
 CPU = torch.device("cpu")

@@ -76,7 +76,7 @@ def test_the_collector_copies_weights_only_when_it_acts_with_a_copy(single_threa
     from tensordict import TensorDict
 
     from morl_trl.recipes import build_agent, build_training_env, resolve_config
-    from morl_trl.recipes.parts import make_collector
+    from morl_trl.training.parts import make_collector
 
     cfg = resolve_config("envelope", "deep-sea-treasure-v0", hidden=[8], frames=4, init_random_frames=0)
     env = build_training_env(cfg, torch.device("cpu"))

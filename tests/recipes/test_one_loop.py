@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from morl_trl.recipes.algorithms import REGISTRY
+from morl_trl.algorithms.registry import REGISTRY
 
 PACKAGE = Path(__file__).resolve().parents[2] / "morl_trl"
 #: methods that would be a second copy of an algorithm's learning, next to its recipe module's functions
@@ -18,6 +18,12 @@ LOOP_METHODS = {"learn", "update", "run_updates", "delayed_actor_step", "gradien
 def _trees():
     for path in sorted(PACKAGE.rglob("*.py")):
         yield path, ast.parse(path.read_text(), filename=str(path))
+
+
+def test_the_registry_has_every_configured_algorithm_once():
+    from morl_trl.recipes.config import ALGORITHMS
+
+    assert tuple(REGISTRY) == ALGORITHMS
 
 
 def test_no_agent_class_carries_a_copy_of_the_loop_or_the_update():
@@ -54,7 +60,9 @@ def test_the_loop_calls_its_modules_one_on_batch_which_calls_its_one_update(name
 def test_capture_wraps_the_recipes_own_gradient_step():
     """``compile`` / CUDA graphs capture the recipe's ``gradient_step`` (what the eager update calls), never a
     second copy: the capture module has no loss or optimizer call of its own."""
-    from morl_trl.recipes import actor_critic, capture, envelope
+    from morl_trl.algorithms.actor_critic import recipe as actor_critic
+    from morl_trl.training import capture
+    from morl_trl.algorithms.envelope import recipe as envelope
 
     source = inspect.getsource(capture)
     assert "optimizer_step(" not in source and "qvalue_loss(" not in source and ".loss(" not in source

@@ -1,4 +1,4 @@
-"""The one optimizer step (:func:`morl_trl.recipes.optim.optimizer_step`) every recipe uses.
+"""The one optimizer step (:func:`morl_trl.training.optim.optimizer_step`) every recipe uses.
 
 From the same seed, every algorithm's networks after a few collected batches of updates are what
 the six separate copies it replaced computed (fingerprints recorded with the code before the
@@ -13,7 +13,7 @@ from tests._fingerprint import fingerprint as tensors_fingerprint
 
 from morl_trl.envs import domain_of
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
-from morl_trl.recipes.algorithms import algorithm
+from morl_trl.algorithms.registry import algorithm
 from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
 
 SMALL = dict(num_envs=2, frames_per_batch=32, init_random_frames=32, updates_per_batch=2, batch_size=16,
@@ -117,7 +117,7 @@ def _skipping_one_step(monkeypatch, which: int) -> None:
     """Every recipe's ``optimizer_step`` skips its ``which``-th call (gradients dropped): a changed update."""
     import sys
 
-    from morl_trl.recipes import optim
+    from morl_trl.training import optim
 
     real, calls = optim.optimizer_step, []
 
@@ -184,7 +184,7 @@ if __name__ == "__main__":  # prints EXPECTED (only ever from the code before a 
 
 def _adam_run(direct: bool, steps: int = 5, **adam_kwargs):
     """``steps`` updates of a small MLP with a fused Adam: torch's ``opt.step()`` or :func:`fused_adam_step`."""
-    from morl_trl.recipes.optim import adam, fused_adam_step
+    from morl_trl.training.optim import adam, fused_adam_step
 
     torch.manual_seed(0)
     net = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.ReLU(), torch.nn.Linear(8, 2))
@@ -224,7 +224,7 @@ def test_fused_adam_step_leaves_other_adams_to_torch(kwargs):
 
 
 def test_fused_adam_step_leaves_hooked_or_scheduled_optimizers_to_torch():
-    from morl_trl.recipes.optim import adam, fused_adam_step
+    from morl_trl.training.optim import adam, fused_adam_step
 
     w = torch.nn.Parameter(torch.ones(2))
     opt = adam([w], lr=0.1)
@@ -245,7 +245,7 @@ def test_recipe_updates_take_the_direct_adam_step_and_match_torchs(case, monkeyp
     """The recipes' updates run :func:`fused_adam_step` (counted), and with it forced off (torch's
     ``opt.step()`` every time) the networks end bit for bit the same in this process (and at the
     recorded fingerprint, to float32 reordering)."""
-    from morl_trl.recipes import optim
+    from morl_trl.training import optim
 
     taken = []
     real = optim.fused_adam_step
@@ -258,7 +258,7 @@ def test_recipe_updates_take_the_direct_adam_step_and_match_torchs(case, monkeyp
 
 
 def test_population_clip_scales_each_member_to_its_own_norm():
-    from morl_trl.recipes.optim import clip_grad_norm
+    from morl_trl.training.optim import clip_grad_norm
 
     a = torch.nn.Parameter(torch.zeros(2, 2))
     b = torch.nn.Parameter(torch.zeros(2, 1))
@@ -271,7 +271,7 @@ def test_population_clip_scales_each_member_to_its_own_norm():
 
 
 def test_population_clip_is_bit_for_bit_the_squares_summed_with_pow():
-    from morl_trl.recipes.optim import clip_grad_norm
+    from morl_trl.training.optim import clip_grad_norm
 
     g = torch.Generator().manual_seed(0)
     params = [torch.nn.Parameter(torch.zeros(6, 64, 64)), torch.nn.Parameter(torch.zeros(6, 1, 64))]

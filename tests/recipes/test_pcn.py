@@ -8,10 +8,11 @@ import torch
 from tensordict import TensorDict
 
 from morl_trl.data.episode_replay import EpisodeReplay, crowding_distance
-from morl_trl.recipes import pcn, resolve_config, train
-from morl_trl.recipes.algorithms import REGISTRY
+from morl_trl.recipes import resolve_config, train
+from morl_trl.algorithms.pcn import recipe as pcn
+from morl_trl.algorithms.registry import REGISTRY
 from morl_trl.recipes.config import valid_keys
-from morl_trl.recipes.pcn import make_pcn_agent, make_pcn_training_env
+from morl_trl.algorithms.pcn.recipe import make_pcn_agent, make_pcn_training_env
 from tests.recipes._helpers import (assert_checkpoints_equal, assert_logs_equal, interrupt_then_resume,
                                     last_checkpoints)
 

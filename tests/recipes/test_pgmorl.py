@@ -11,10 +11,11 @@ from tensordict import TensorDict
 from morl_trl.objectives.batched import BatchedMLP
 from morl_trl.objectives.pgmorl import (PPOGaussianHead, make_population_ppo_actor, make_population_value_network,
                                      ppo_population_mlp, scalarize_advantage, vector_gae)
-from morl_trl.recipes import pgmorl, resolve_config, run_training, train
-from morl_trl.recipes.algorithms import REGISTRY
-from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
-from morl_trl.recipes.pgmorl_evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
+from morl_trl.recipes import resolve_config, run_training, train
+from morl_trl.algorithms.pgmorl import recipe as pgmorl
+from morl_trl.algorithms.registry import REGISTRY
+from morl_trl.algorithms.pgmorl.recipe import make_pgmorl_agent, make_pgmorl_training_env, pgmorl_iterations
+from morl_trl.algorithms.pgmorl.evolution import PerformanceBuffer, PerformancePredictor, generate_weights, select_tasks
 from tests.recipes._helpers import csv_rows, last_checkpoints
 
 

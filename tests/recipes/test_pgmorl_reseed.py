@@ -13,8 +13,8 @@ CPU = torch.device("cpu")
 
 def _run(reseed, batches=3):
     from morl_trl.recipes.off_policy import make_collector
-    from morl_trl.recipes import pgmorl
-    from morl_trl.recipes.pgmorl import make_pgmorl_agent, make_pgmorl_training_env
+    from morl_trl.algorithms.pgmorl import recipe as pgmorl
+    from morl_trl.algorithms.pgmorl.recipe import make_pgmorl_agent, make_pgmorl_training_env
 
     cfg = resolve_config("pgmorl", "MOHopperDR-v5", pgmorl_pop=2, num_envs=4, pgmorl_envs_per_member=2,
                          frames_per_batch=64, frames=64 * batches, hidden=(8,), progress=False, pgmorl_epochs=1,
@@ -67,7 +67,7 @@ def test_pgmorl_reseeds_each_members_sub_envs_at_every_iteration_as_the_authors(
 
 def test_a_member_the_task_selection_copied_is_reseeded_with_42(monkeypatch):
     pytest.importorskip("mujoco")
-    import morl_trl.recipes.pgmorl as pgmorl
+    import morl_trl.algorithms.pgmorl.recipe as pgmorl
 
     cfg, env, agent, _ = _run(True, batches=1)
     agent.performance[:] = [[1.0, 2.0, 3.0], [2.0, 1.0, 3.0]]

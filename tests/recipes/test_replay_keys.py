@@ -4,8 +4,8 @@ import pytest
 import torch
 
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
-from morl_trl.recipes.algorithms import algorithm
-from morl_trl.recipes.parts import make_collector, make_replay_buffer
+from morl_trl.algorithms.registry import algorithm
+from morl_trl.training.parts import make_collector, make_replay_buffer
 
 CPU = torch.device("cpu")
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from morl_trl.recipes.state_upgrade import upgrade_loss_state
+from morl_trl.training.state_upgrade import upgrade_loss_state
 from morl_trl.runs.plain import load_plain
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"

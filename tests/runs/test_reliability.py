@@ -296,7 +296,7 @@ def test_a_non_empty_run_dir_is_refused_unless_resume_or_overwrite(run, tmp_path
 
 
 def test_a_failed_start_leaves_no_run_dir_and_loses_nothing(run, tmp_path, monkeypatch, cli):
-    import morl_trl.recipes.envelope as envelope_recipe
+    import morl_trl.algorithms.envelope.recipe as envelope_recipe
 
     def broken(*args, **kwargs):
         raise ValueError("the env failed to build")

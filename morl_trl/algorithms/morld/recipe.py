@@ -31,7 +31,7 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
   catch-up updates, the members are evaluated and archived (and PSA adapts the weights), and
   the env is reset (:meth:`MORLDAgent.env_reset_due`: the training loop restarts every episode, as
   each member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
-  :class:`~morl_trl.recipes.optim.MemberAdam` (each member's own Adam moments and step count)
+  :class:`~morl_trl.training.optim.MemberAdam` (each member's own Adam moments and step count)
   and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
   moments and targets stay bit for bit. The acting member's own updates compute that member
   alone (:meth:`PopulationMOSACLoss.only_member
@@ -86,7 +86,7 @@ from morl_trl.metrics import is_nondominated
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.batched import BatchedLinear
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
-from morl_trl.recipes.actor_critic import gradient_step, orthogonal_critic_copies_
+from morl_trl.algorithms.actor_critic.recipe import gradient_step, orthogonal_critic_copies_
 from morl_trl.objectives.population import (
     PopulationMOSACLoss,
     nearest_member,
@@ -97,7 +97,7 @@ from morl_trl.objectives.population import (
     population_policies,
 )
 from morl_trl.preferences import energy_weights
-from morl_trl.recipes.agent import (
+from morl_trl.training.agent import (
     Agent,
     NonFiniteLossError,
     action_spec,
@@ -108,9 +108,9 @@ from morl_trl.recipes.agent import (
     obs_shape,
     target_updater,
 )
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import MemberAdam, fused_choice
-from morl_trl.recipes.parts import (
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.optim import MemberAdam, fused_choice
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
@@ -260,7 +260,7 @@ class MemberTargetUpdate:
 
 
 def member_optimizers(cfg, loss: PopulationMOSACLoss) -> dict:
-    """:func:`~morl_trl.recipes.agent.actor_critic_optimizers` as :class:`~morl_trl.recipes.optim.MemberAdam`
+    """:func:`~morl_trl.training.agent.actor_critic_optimizers` as :class:`~morl_trl.training.optim.MemberAdam`
     (the same learning rates, ``adam_eps`` and ``fused_optimizer``): actor ``[P, ...]``, critics ``[n, P, ...]``, temperatures ``[P]``."""
     kw = {"fused": fused_choice(cfg)}  # (torch's fused kernel where it has one, as the other recipes' adam())
     if cfg.adam_eps is not None:
@@ -641,7 +641,7 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
     The authors' MOSAC order (``mosac_continuous_action.py:460-482``, ``mosac_discrete_action.py:480-492``),
     each loss computed alone (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`'s ``qvalue_loss`` /
     ``actor_loss`` / ``temperature_loss``), the actor-critics' own step
-    (:func:`~morl_trl.recipes.actor_critic.gradient_step`):
+    (:func:`~morl_trl.algorithms.actor_critic.recipe.gradient_step`):
 
     1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
     2. on an actor turn (:func:`count_update`), ``policy_freq`` times: ``actor_loss`` (fresh actions, the
@@ -652,7 +652,7 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
 
     ``joint_update=true``: one step of the summed losses instead of 1-2. With ``cfg.max_grad_norm`` each
     optimizer's gradient norm is clipped first. A non-finite loss is never applied:
-    :class:`~morl_trl.recipes.optim.NonFiniteLossError` is raised before its step (the steps before it in
+    :class:`~morl_trl.training.optim.NonFiniteLossError` is raised before its step (the steps before it in
     the update stay applied). On a critic-only update the actor's and temperature's losses are those of the
     last actor turn (NaN before the first).
 
@@ -683,7 +683,7 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
 def updates_at(agent: MORLDAgent, buffer, clocks: list, *, catch_up: bool = False, done: int = 0):
     """One :func:`update` at each shared-counter frame of ``clocks`` (``None``: off the shared clock, the
     concurrent schedule's); returns the last losses (``None``: no update). A
-    :class:`~morl_trl.recipes.optim.NonFiniteLossError` carries ``updates_done``: ``done`` (this batch's
+    :class:`~morl_trl.training.optim.NonFiniteLossError` carries ``updates_done``: ``done`` (this batch's
     updates before these) plus those applied here."""
     losses = None
     try:
@@ -731,7 +731,7 @@ def on_batch(agent: MORLDAgent, batch: TensorDictBase, buffer, frames: int) -> t
     :func:`update_clocks` and, at the end of its turn, the other members' catch-up updates, the exchange and the
     next member's turn (on a reset env: :meth:`MORLDAgent.env_reset_due`); concurrent, the updates of all members
     this batch earns once ``frames`` reaches ``init_random_frames``, and the exchanges due. A
-    :class:`~morl_trl.recipes.optim.NonFiniteLossError` carries ``updates_done``: those applied before it.
+    :class:`~morl_trl.training.optim.NonFiniteLossError` carries ``updates_done``: those applied before it.
     """
     cfg = agent.cfg
     agent.record_returns(batch)

@@ -1,8 +1,8 @@
 """The :class:`Agent` (an algorithm's loss, policies, optimizers, target updater and state) and the
 pieces every agent builder shares.
 
-The builders, updates and loops live with their algorithm (:mod:`morl_trl.recipes.envelope`,
-:mod:`morl_trl.recipes.actor_critic`, ...); :func:`morl_trl.recipes.build_agent` picks one by name.
+The builders, updates and loops live with their algorithm (:mod:`morl_trl.algorithms.envelope.recipe`,
+:mod:`morl_trl.algorithms.actor_critic.recipe`, ...); :func:`morl_trl.recipes.build_agent` picks one by name.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from torchrl.modules import EGreedyModule
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.objectives.updaters import PeriodicHardUpdate
-from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, keep_implementation
-from morl_trl.recipes.state_upgrade import upgrade_agent_state
+from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, keep_implementation
+from morl_trl.training.state_upgrade import upgrade_agent_state
 
 __all__ = ["Agent", "NonFiniteLossError", "apply_updates", "updates_due", "captures",
            "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
@@ -46,9 +46,9 @@ class Agent:
         optimizers: name -> optimizer.
         target_updater: a ``SoftUpdate`` / :class:`~morl_trl.objectives.updaters.PeriodicHardUpdate`.
         critic_steps: the updates done (the delayed actor's clock; kept by the checkpoint).
-        captured: the :class:`~morl_trl.recipes.capture.CapturedUpdate` of a recipe whose update runs
+        captured: the :class:`~morl_trl.training.capture.CapturedUpdate` of a recipe whose update runs
             captured (``compile`` / ``cudagraphs``, or fused optimizers on an accelerator), built by
-            :func:`~morl_trl.recipes.capture.captured_update` on the first update; ``None`` otherwise.
+            :func:`~morl_trl.training.capture.captured_update` on the first update; ``None`` otherwise.
 
     Args:
         capturable: whether the recipe's update can run captured; ``compile`` / ``cudagraphs`` are

@@ -16,7 +16,7 @@ the environment turns it off, and a ``MALLOC_MMAP_THRESHOLD_`` or ``MALLOC_TRIM_
 the user set wins (nothing is changed then).
 
 Example:
-    >>> from morl_trl.recipes.allocator import tune_malloc
+    >>> from morl_trl.training.allocator import tune_malloc
     >>> tune_malloc() in (True, False)  # True: set (Linux, glibc); False: not applicable or turned off
     True
 """

@@ -4,13 +4,13 @@ read top to bottom.
 
 The agents: a preference-conditioned actor ``pi(a | s, w)`` (tanh-Gaussian or categorical), two
 vector critics ``Q(s, a, w)`` ``[k]`` with Polyak (or hard) targets, Adam for actor, critics and,
-when learned, the temperature (SAC's: :func:`morl_trl.recipes.sac.make_sac_agent`, TorchRL's
+when learned, the temperature (SAC's: :func:`morl_trl.algorithms.actor_critic.sac.make_sac_agent`, TorchRL's
 losses on the scalar reward). :func:`train_actor_critic` is the recipe of all four, in the spirit
 of TorchRL's sota-implementations; with the loss it calls (:class:`~morl_trl.objectives.CAPQLLoss`,
 :class:`~morl_trl.objectives.MOSACLoss`, :class:`~morl_trl.objectives.DiscreteMOSACLoss`,
 :mod:`morl_trl.objectives.sac`) it is everything these algorithms do per frame:
 
-1. the env (:func:`~morl_trl.recipes.parts.make_training_env`);
+1. the env (:func:`~morl_trl.training.parts.make_training_env`);
 2. the modules (``make_*_agent``): actor, critics, the loss with its value estimator, Adam, the
    target updater;
 3. the replay buffer and TorchRL's collector;
@@ -51,7 +51,7 @@ from morl_trl.objectives import (
     make_vector_q_network,
 )
 from morl_trl.objectives.networks import orthogonal_init_
-from morl_trl.recipes.agent import (
+from morl_trl.training.agent import (
     Agent,
     apply_updates,
     action_spec,
@@ -64,10 +64,10 @@ from morl_trl.recipes.agent import (
     target_updater,
     updates_due,
 )
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.capture import captured_update
-from morl_trl.recipes.optim import optimizer_step
-from morl_trl.recipes.parts import (
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.capture import captured_update
+from morl_trl.training.optim import optimizer_step
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
@@ -80,7 +80,7 @@ from morl_trl.recipes.parts import (
     run_domain,
     start_notes,
 )
-from morl_trl.recipes.sac import make_sac_agent
+from morl_trl.algorithms.actor_critic.sac import make_sac_agent
 from morl_trl.runs.run import Run
 
 __all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic", "policy_freq",
@@ -237,7 +237,7 @@ def delayed_actor_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *,
        _, log_pi, _ = actor.get_action(obs)`` after the actor step) or on the actor step's
        log-probabilities (discrete, ``mosac_discrete_action.py:490-492``).
 
-    A non-finite loss is never applied: eager, :class:`~morl_trl.recipes.optim.NonFiniteLossError` is
+    A non-finite loss is never applied: eager, :class:`~morl_trl.training.optim.NonFiniteLossError` is
     raised before its step (the steps of this update before it stay applied, as in the authors' order
     they must come first); ``on_device``, its step and every later one of the update are skipped.
 
@@ -285,7 +285,7 @@ def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_d
     """The losses' backward and optimizer steps on ``batch``: the authors' order
     (:func:`delayed_actor_step`), or with ``joint_update=true`` one step of the summed losses (the actor
     on the critics before their step). The part of :func:`update` that ``compile`` / CUDA graphs capture
-    (:mod:`morl_trl.recipes.capture`). Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless
+    (:mod:`morl_trl.training.capture`). Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless
     ``on_device``)."""
     if steps_each_loss(agent):
         return delayed_actor_step(agent, batch, actor_turn, on_device=on_device)
@@ -302,7 +302,7 @@ def update(agent: Agent, buffer) -> TensorDictBase:
     with an even ``learning_starts``), the target step (Polyak averaging with ``tau``; a hard copy every
     ``target_update_period`` updates without), the PER priorities. Captured (``compile`` / ``cudagraphs``,
     or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
-    :class:`~morl_trl.recipes.capture.CapturedUpdate`, its non-finite guard on the device."""
+    :class:`~morl_trl.training.capture.CapturedUpdate`, its non-finite guard on the device."""
     agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
     actor_turn = agent.critic_steps % policy_freq(agent) == 0
     captured = captured_update(agent, gradient_step)

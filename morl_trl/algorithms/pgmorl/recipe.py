@@ -30,7 +30,7 @@ generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 
    is its own, each member's gradient norm clipped to ``max_grad_norm`` (0.5), Adam (eps 1e-5);
 3. after ``pgmorl_warmup`` iterations and then every ``pgmorl_evo_iterations``: every member's
    evaluation enters the performance buffer, the Pareto archive and the prediction model, and
-   the prediction-guided task selection (:mod:`morl_trl.recipes.pgmorl_evolution`) gives each
+   the prediction-guided task selection (:mod:`morl_trl.algorithms.pgmorl.evolution`) gives each
    slot a (policy of the buffer, weight) pair: the slot takes a copy of that policy (its Adam
    moments reset: our choice, the record does not say what the authors' copy keeps) and trains
    it with that weight.
@@ -88,17 +88,17 @@ from morl_trl.objectives.pgmorl import (
     scalarize_advantage,
     vector_gae,
 )
-from morl_trl.recipes.agent import Agent, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
-from morl_trl.recipes.pgmorl_evolution import (
+from morl_trl.training.agent import Agent, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
+from morl_trl.algorithms.pgmorl.evolution import (
     PerformanceBuffer,
     PerformancePredictor,
     generate_weights,
     nondominated,
     select_tasks,
 )
-from morl_trl.recipes.parts import (
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     load_reference,
@@ -223,7 +223,7 @@ class PGMORLEvalPolicy(TensorDictModuleBase):
 
 
 class PGMORLAgent(Agent):
-    """The PGMORL :class:`~morl_trl.recipes.agent.Agent` (see the module)."""
+    """The PGMORL :class:`~morl_trl.training.agent.Agent` (see the module)."""
 
     def __init__(self, cfg, loss, actor, critic, eval_policy, optimizer, *, weights, steps, gamma, ref_point,
                  device, obs_norm=None) -> None:
@@ -324,7 +324,7 @@ class PGMORLAgent(Agent):
         return torch.stack([e["weight"] for e in self.archive_members]), [e["actor"] for e in self.archive_members]
 
     def select_tasks(self) -> None:
-        """The prediction-guided task selection (:func:`~morl_trl.recipes.pgmorl_evolution.select_tasks`, once the
+        """The prediction-guided task selection (:func:`~morl_trl.algorithms.pgmorl.evolution.select_tasks`, once the
         prediction model has 4 distinct samples): slot ``p`` takes a copy of the chosen policy of the performance
         buffer (its Adam moments reset, seed 42) and trains it with the chosen weight; a new generation."""
         if len({tuple(a) for a in self.predictor.after}) < 4 or not self.population.individuals:

@@ -2,7 +2,7 @@
 
 :func:`optimizer_step` is *loss → non-finite guard → backward → optional gradient-norm clip →
 step*, the same for every algorithm (Envelope, the actor-critics, MORL/D, GPI-LS/PD, PCN,
-PGMORL) and for the captured update (:mod:`morl_trl.recipes.capture`):
+PGMORL) and for the captured update (:mod:`morl_trl.training.capture`):
 
 * eager (the default) the guard reads the loss on the host before anything is touched and
   raises :class:`NonFiniteLossError`: a non-finite update is never applied;
@@ -19,7 +19,7 @@ Example:
     >>> optimizer_step(w.sum() * float("nan"), [opt], losses={"loss_q": w.sum() * float("nan")})
     Traceback (most recent call last):
     ...
-    morl_trl.recipes.optim.NonFiniteLossError: non-finite loss {'loss_q': nan}; the networks were left as they were before this update
+    morl_trl.training.optim.NonFiniteLossError: non-finite loss {'loss_q': nan}; the networks were left as they were before this update
 """
 
 from __future__ import annotations
@@ -189,7 +189,7 @@ class MemberAdam(torch.optim.Optimizer):
     count exactly as ``torch.optim.Adam`` on that member alone would (torch's own Adam, its
     ``foreach`` arithmetic, runs on the member's slices; its bias corrections use its own count); the other members' parameters, moments and counts are left bit for bit as they
     were, whatever their gradients. This is what a population trained one member at a time needs
-    (MORL/D's round robin, :mod:`morl_trl.recipes.morld`): one batched backward over all members,
+    (MORL/D's round robin, :mod:`morl_trl.algorithms.morld.recipe`): one batched backward over all members,
     one step of the active ones. With every member active it is ``P`` independent Adams, as
     ``torch.optim.Adam`` over the stacked tensors.
 

@@ -5,7 +5,7 @@ Everything Envelope does per frame is in this file and its loss,
 sota-implementations:
 
 1. the env: the domain-randomized env, the policy's history, a preference ``w`` per sub-env,
-   vector returns (:func:`~morl_trl.recipes.parts.make_training_env`);
+   vector returns (:func:`~morl_trl.training.parts.make_training_env`);
 2. the modules (:func:`make_envelope_agent`): a vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its
    greedy policy ``argmax_a w · Q(s, a, w)`` (:class:`~morl_trl.objectives.MOQValueModule`),
    TorchRL's ε-greedy exploration on top, the loss with its value estimator, Adam, the target
@@ -14,9 +14,9 @@ sota-implementations:
 4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>` (run directory, resume,
    logs, evaluations and checkpoints when due, Ctrl-C, a clean stop): per batch :func:`on_batch`
    stores it, runs the :func:`update` calls due (sample, :func:`gradient_step`: loss,
-   :func:`~morl_trl.recipes.optim.optimizer_step`; the target update, PER priorities) and the ε
+   :func:`~morl_trl.training.optim.optimizer_step`; the target update, PER priorities) and the ε
    and homotopy :func:`schedules`. ``compile`` / ``cudagraphs`` capture the same
-   :func:`gradient_step` (:mod:`morl_trl.recipes.capture`).
+   :func:`gradient_step` (:mod:`morl_trl.training.capture`).
 
 Faithful to the authors' runs by default (config keys in brackets, ours as options):
 ``w`` concatenated after the first hidden layer with orthogonal init
@@ -25,8 +25,8 @@ Faithful to the authors' runs by default (config keys in brackets, ours as optio
 ``lambda`` fixed at ``homotopy_lambda0`` (``homotopy_final=1.0`` anneals it over
 ``homotopy_frames``), PER priorities from the first sampled preference without
 importance weights (``envelope_priority="mean"``, ``per_importance_weights=true``), gradient
-norm clipped at 1 (``max_grad_norm``) and ``|N(0, I)|`` training preferences
-(``preference_distribution="dirichlet"``).
+norm clipped at 1 (``max_grad_norm``) and ``|N(0, I)|`` preferences, the acting ones and those
+the loss samples alike (``preference_distribution``: one key for both, as the authors' ``dist``).
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -51,7 +51,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
-from morl_trl.recipes.agent import (
+from morl_trl.training.agent import (
     Agent,
     apply_updates,
     action_spec,
@@ -66,10 +66,10 @@ from morl_trl.recipes.agent import (
     target_updater,
     updates_due,
 )
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.capture import captured_update
-from morl_trl.recipes.optim import optimizer_step
-from morl_trl.recipes.parts import (
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.capture import captured_update
+from morl_trl.training.optim import optimizer_step
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
@@ -88,7 +88,7 @@ __all__ = ["make_envelope_agent", "train_envelope", "gradient_step", "update", "
 
 
 def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
-    """Envelope's modules for ``env`` (discrete actions), held by an :class:`~morl_trl.recipes.agent.Agent`
+    """Envelope's modules for ``env`` (discrete actions), held by an :class:`~morl_trl.training.agent.Agent`
     (its policies, state and checkpoint format; ``morl-trl evaluate`` and
     :func:`~morl_trl.recipes.policy.load_policy` rebuild it from a run's config)."""
     spec = action_spec(env)
@@ -108,6 +108,8 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
         final_homotopy_lambda=cfg.homotopy_final if anneal else cfg.homotopy_lambda0,
         homotopy_steps=(cfg.homotopy_frames or cfg.frames) if anneal else None,
         priority=cfg.envelope_priority, use_prioritized_weights=cfg.per_importance_weights,
+        # one distribution for the acting w and the loss's sampled ones, as the authors' random_weights(dist)
+        preference_distribution=cfg.preference_distribution,
     )
     loss.make_value_estimator(gamma=gamma)
     optimizers = {"qvalue": adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))}
@@ -158,8 +160,8 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
 def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool = True, *, on_device: bool = False):
     """The envelope TD loss over the sampled preferences (it writes the batch's PER priorities), its
     backward, the gradient clipping and Adam: the part of :func:`update` that ``compile`` / CUDA
-    graphs capture (:mod:`morl_trl.recipes.capture`). Returns ``(losses, found_inf)``: eager, a
-    non-finite loss raises :class:`~morl_trl.recipes.optim.NonFiniteLossError` before the step
+    graphs capture (:mod:`morl_trl.training.capture`). Returns ``(losses, found_inf)``: eager, a
+    non-finite loss raises :class:`~morl_trl.training.optim.NonFiniteLossError` before the step
     (``found_inf`` is ``None``); ``on_device``, the step is skipped on the device and ``found_inf``
     says so. (``actor_turn``: unused, Envelope has no actor.)"""
     out = agent.loss(batch)
@@ -172,7 +174,7 @@ def update(agent: Agent, buffer) -> TensorDictBase:
     """One gradient step on a sampled batch: sample, :func:`gradient_step`, the target updater (a hard
     copy every ``target_update_period`` updates), the PER priorities. Captured (``compile`` /
     ``cudagraphs``, or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
-    :class:`~morl_trl.recipes.capture.CapturedUpdate`, its non-finite guard on the device."""
+    :class:`~morl_trl.training.capture.CapturedUpdate`, its non-finite guard on the device."""
     agent.critic_steps += 1  # (the update counter the checkpoint keeps)
     captured = captured_update(agent, gradient_step)
     if captured is not None:
@@ -203,6 +205,6 @@ def on_batch(agent: Agent, batch: TensorDictBase, buffer, frames: int) -> tuple[
 
 def schedules(agent: Agent, frames: int) -> None:
     """Envelope's frame-based schedules after ``frames`` frames: ε of the exploration
-    (:func:`~morl_trl.recipes.agent.epsilon`) and the homotopy ``λ`` of the loss."""
+    (:func:`~morl_trl.training.agent.epsilon`) and the homotopy ``λ`` of the loss."""
     agent.exploration_module.eps.fill_(epsilon(agent.cfg, frames))
     agent.loss.update_homotopy(frames)

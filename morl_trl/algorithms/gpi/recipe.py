@@ -33,7 +33,7 @@ named steps these call: :meth:`GPIAgent.sample_batch`, :meth:`GPIAgent.fit_model
    of each batch from the real buffer and the rest from the model buffer.
 
 Evaluation goes through :class:`~morl_trl.evaluation.MultiContextEvaluator` only, as for every
-method. The run's evaluator (:func:`~morl_trl.recipes.parts.make_evaluator`: the suite's contexts,
+method. The run's evaluator (:func:`~morl_trl.training.parts.make_evaluator`: the suite's contexts,
 the run's weights and seed, the same result files) acts by GPI over ``M`` for each evaluation
 weight, as the authors: discrete with dropout off, continuous over the candidate actions
 ``pi(s, w_j)`` with the critic's dropout on and, by default, the critic conditioned as the
@@ -72,11 +72,11 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import PeriodicHardUpdate, polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.recipes.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
+from morl_trl.training.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
                                     num_objectives, obs_shape)
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import adam, check_finite, fused_choice, optimizer_step
-from morl_trl.recipes.parts import (
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.optim import adam, check_finite, fused_choice, optimizer_step
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     check_buffer_memory,
@@ -153,7 +153,7 @@ class GPIAgent(Agent):
 
     @property
     def front_evaluator(self) -> MultiContextEvaluator:
-        """The evaluator of the CCS values: the run's evaluation env (:func:`~morl_trl.recipes.parts.policy_env_factory`)
+        """The evaluator of the CCS values: the run's evaluation env (:func:`~morl_trl.training.parts.policy_env_factory`)
         with no context given at reset, so that each episode runs on a context the training id's sampler
         draws (the authors' ``policy_evaluation_mo`` on their DR training env, SPEC §6), ``gpi_front_episodes``
         episodes per weight, the run's discount; the weights and seed are those of each call."""
@@ -362,7 +362,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
 
 def _evaluation_contexts(cfg) -> torch.Tensor | None:
     """``[E, c]``: the run evaluator's contexts in its order (:func:`~morl_trl.evaluation.suite_contexts`
-    of :func:`~morl_trl.recipes.parts.evaluation_contexts`); ``None`` for a domain whose contexts are not vectors."""
+    of :func:`~morl_trl.training.parts.evaluation_contexts`); ``None`` for a domain whose contexts are not vectors."""
     try:
         return suite_contexts(evaluation_contexts(cfg, domain_of(cfg.env_id)))[2]
     except (KeyError, ValueError, TypeError, NotImplementedError):  # (no registered context vectors)
@@ -486,7 +486,7 @@ def on_batch(agent: GPIAgent, batch: TensorDictBase, buffer, frames: int) -> tup
     (:meth:`GPIAgent.end_iteration`), the next iteration left to :meth:`GPIAgent.begin_pending_iteration`
     after the run's evaluation; then the ε schedule (:func:`schedules`). A caller that never calls
     ``begin_pending_iteration`` has the pending iteration begin here first. A non-finite loss raises
-    :class:`~morl_trl.recipes.optim.NonFiniteLossError` with ``updates_done``, the updates applied before it."""
+    :class:`~morl_trl.training.optim.NonFiniteLossError` with ``updates_done``, the updates applied before it."""
     cfg = agent.cfg
     if agent.begin_pending:  # (train_gpi began it after its run.step: only other callers get here)
         agent.begin_iteration(buffer)
@@ -512,6 +512,6 @@ def on_batch(agent: GPIAgent, batch: TensorDictBase, buffer, frames: int) -> tup
 
 def schedules(agent: GPIAgent, frames: int) -> None:
     """GPI's frame-based schedule after ``frames`` frames: ε of the discrete exploration
-    (:func:`~morl_trl.recipes.agent.epsilon`; the continuous actor's noise is fixed)."""
+    (:func:`~morl_trl.training.agent.epsilon`; the continuous actor's noise is fixed)."""
     if agent.exploration_module is not None:
         agent.exploration_module.eps.fill_(epsilon(agent.cfg, frames))

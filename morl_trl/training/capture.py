@@ -1,8 +1,8 @@
 """The recipe's update, captured: ``torch.compile`` and CUDA graphs wrap the one gradient step the
 recipe defines, TorchRL's sota way.
 
-An algorithm whose update can run captured (Envelope, :mod:`~morl_trl.recipes.envelope`; CAPQL,
-MOSAC, discrete MOSAC and SAC, :mod:`~morl_trl.recipes.actor_critic`) writes its update as
+An algorithm whose update can run captured (Envelope, :mod:`~morl_trl.algorithms.envelope.recipe`; CAPQL,
+MOSAC, discrete MOSAC and SAC, :mod:`~morl_trl.algorithms.actor_critic.recipe`) writes its update as
 *sample → gradient_step → hard target copy → priority write*, with ``gradient_step(agent, batch,
 actor_turn, on_device=False) -> (losses, found_inf)`` (loss → backward → clipping → optimizer
 steps). With ``cfg.compile`` and/or ``cfg.cudagraphs`` (config group ``compile``, as in TorchRL's
@@ -24,7 +24,7 @@ What changes so that nothing in it reads the host:
 * the loss's input checks (which read the host) are off (``loss.validate_inputs = False``):
   the batches come from the run's own replay buffer, and a non-finite reward makes the loss
   non-finite, which the guard catches;
-* every optimizer must be fused (:func:`~morl_trl.recipes.optim.adam` makes them so); with
+* every optimizer must be fused (:func:`~morl_trl.training.optim.adam` makes them so); with
   CUDA graphs they are made ``capturable``.
 
 With ``cfg.capture_sampling`` (off by default until measured on a GPU) and a prioritized
@@ -50,7 +50,7 @@ Example:
     ...                      compile=True, compile_mode=None, finite_check_interval=4)
     >>> env = compose_training_env(make_env(cfg.env_id, num_envs=2), gamma=0.99)
     >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
-    >>> from morl_trl.recipes.actor_critic import gradient_step
+    >>> from morl_trl.algorithms.actor_critic.recipe import gradient_step
     >>> captured_update(agent, gradient_step).interval
     4
 """
@@ -63,7 +63,7 @@ from torchrl.objectives import SoftUpdate
 
 from morl_trl._torchrl_compat import replay_sample_unit, sampler_generator, storage_data
 from morl_trl.objectives import PolyakUpdate
-from morl_trl.recipes.optim import NonFiniteLossError
+from morl_trl.training.optim import NonFiniteLossError
 
 __all__ = ["CapturedUpdate", "captured_update", "runs_captured"]
 
@@ -93,7 +93,7 @@ class CapturedUpdate:
     the update is an actor turn (the delayed actor's clock, counted by the recipe).
 
     Args:
-        agent: the :class:`~morl_trl.recipes.agent.Agent` (its ``cfg`` holds ``compile``,
+        agent: the :class:`~morl_trl.training.agent.Agent` (its ``cfg`` holds ``compile``,
             ``compile_mode``, ``cudagraphs``, ``finite_check_interval``).
         gradient_step: the recipe's ``gradient_step(agent, batch, actor_turn, on_device=False) ->
             (losses, found_inf)``.
@@ -109,7 +109,7 @@ class CapturedUpdate:
                      if not all(group.get("fused") for group in opt.param_groups)]
         if not_fused:
             raise ValueError(f"a captured update (compile/cudagraphs) needs fused optimizers, as "
-                             f"morl_trl.recipes.optim.adam makes them; {not_fused} are not fused")
+                             f"morl_trl.training.optim.adam makes them; {not_fused} are not fused")
         cudagraphs = bool(getattr(cfg, "cudagraphs", False))
         if cudagraphs and torch.device(agent.device).type != "cuda":
             raise ValueError(f"cudagraphs=true needs device='cuda' (got {str(agent.device)!r}); "

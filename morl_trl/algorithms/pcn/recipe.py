@@ -62,10 +62,10 @@ from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
-from morl_trl.recipes.agent import Agent, action_spec, apply_updates, is_discrete, num_objectives, obs_shape
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
-from morl_trl.recipes.parts import (
+from morl_trl.training.agent import Agent, action_spec, apply_updates, is_discrete, num_objectives, obs_shape
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
+from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
     load_reference,

@@ -1,6 +1,6 @@
 """Agent states saved by older code, converted to the current parameter names and layouts on load.
 
-Every agent's ``load_state_dict`` (:class:`~morl_trl.recipes.agent.Agent`) passes its state through
+Every agent's ``load_state_dict`` (:class:`~morl_trl.training.agent.Agent`) passes its state through
 :func:`upgrade_agent_state`, so a checkpoint written before a change of the networks' layout still
 loads, resumes and evaluates (``tests/runs/test_population_states.py`` loads states of the code of
 2026-11-26 from ``tests/fixtures/population_states``).

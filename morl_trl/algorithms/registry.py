@@ -1,12 +1,13 @@
 """The one registry: an algorithm's name -> its builders, its loop and its per-batch step.
 
-Each algorithm is one recipe module (its agent builder, ``update``, ``on_batch`` and ``train_*``
-loop, read top to bottom) plus its loss in :mod:`morl_trl.objectives`; adding one is that module,
-its loss and one :class:`Algorithm` row here.
+Each algorithm is one folder of :mod:`morl_trl.algorithms` (its agent builder, ``update``, ``on_batch``
+and ``train_*`` loop in ``recipe.py``, read top to bottom), its loss in :mod:`morl_trl.objectives` and
+its configuration in :mod:`morl_trl.recipes.config`; adding one is that folder, its loss, its config
+and one :class:`Algorithm` row here.
 
 Example:
     >>> REGISTRY["envelope"].train.__name__, REGISTRY["envelope"].on_batch.__module__
-    ('train_envelope', 'morl_trl.recipes.envelope')
+    ('train_envelope', 'morl_trl.algorithms.envelope.recipe')
     >>> sorted(name for name, a in REGISTRY.items() if a.build_env is not make_training_env)
     ['morld', 'morld_psa', 'pcn', 'pgmorl']
 """
@@ -16,12 +17,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from morl_trl.recipes import actor_critic, envelope, gpi, morld, pcn, pgmorl
-from morl_trl.recipes.agent import Agent
-from morl_trl.recipes.allocator import tune_malloc
-from morl_trl.recipes.config import ALGORITHMS, TrainConfig
-from morl_trl.recipes.parts import make_training_env
-from morl_trl.recipes.sac import make_sac_agent
+from morl_trl.algorithms.actor_critic import recipe as actor_critic
+from morl_trl.algorithms.envelope import recipe as envelope
+from morl_trl.algorithms.gpi import recipe as gpi
+from morl_trl.algorithms.morld import recipe as morld
+from morl_trl.algorithms.pcn import recipe as pcn
+from morl_trl.algorithms.pgmorl import recipe as pgmorl
+from morl_trl.training.agent import Agent
+from morl_trl.training.allocator import tune_malloc
+from morl_trl.training.parts import make_training_env
+from morl_trl.algorithms.actor_critic.sac import make_sac_agent
 
 __all__ = ["Algorithm", "REGISTRY", "AGENT_BUILDERS", "TRAINING_ENV_BUILDERS", "algorithm", "build_agent",
            "build_training_env"]
@@ -64,7 +69,6 @@ REGISTRY: dict[str, Algorithm] = {
     "gpi_ls": Algorithm(gpi.make_gpi_agent, gpi.train_gpi, gpi.on_batch),
     "gpi_pd": Algorithm(gpi.make_gpi_agent, gpi.train_gpi, gpi.on_batch),
 }
-assert tuple(REGISTRY) == ALGORITHMS
 
 #: views of :data:`REGISTRY`: algorithm name -> agent builder / training env builder
 AGENT_BUILDERS = {name: a.build_agent for name, a in REGISTRY.items()}
@@ -76,18 +80,18 @@ def algorithm(name: str) -> Algorithm:
     try:
         return REGISTRY[name]
     except KeyError:
-        raise ValueError(f"unknown algorithm {name!r}; valid: {list(ALGORITHMS)}") from None
+        raise ValueError(f"unknown algorithm {name!r}; valid: {list(REGISTRY)}") from None
 
 
-def build_agent(cfg: TrainConfig, env, *, gamma: float, device) -> Agent:
+def build_agent(cfg, env, *, gamma: float, device) -> Agent:
     """The :class:`Agent` of ``cfg.algo`` for ``env`` (a batched env with ``"preference"``).
 
-    Sets the process's allocator for training first (:func:`~morl_trl.recipes.allocator.tune_malloc`:
+    Sets the process's allocator for training first (:func:`~morl_trl.training.allocator.tune_malloc`:
     glibc only; ``MORL_TRL_MALLOC=0`` turns it off)."""
     tune_malloc()
     return algorithm(cfg.algo).build_agent(cfg, env, gamma=gamma, device=device)
 
 
-def build_training_env(cfg: TrainConfig, device):
+def build_training_env(cfg, device):
     """The training env of ``cfg.algo``."""
     return algorithm(cfg.algo).build_env(cfg, device)

@@ -30,7 +30,7 @@ from torch import nn
 from morl_trl.objectives import make_categorical_actor, make_gaussian_actor, make_vector_critic, make_vector_q_network
 from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.objectives.sac import DiscreteSACLoss, SACLoss
-from morl_trl.recipes.agent import (
+from morl_trl.training.agent import (
     Agent,
     action_spec,
     actor_critic_optimizers,
