@@ -322,7 +322,7 @@ _SAC_ARGS = {
     "alpha": _SAC_ALPHA,
     "autotune": Same("learn_alpha"),
     "target_entropy_scale": Same("target_entropy_scale"),
-    # recipes.agent.Agent.delayed_actor_step: each loss alone, the temperature (alpha_loss_form) after each actor step
+    # algorithms/actor_critic/recipe.py delayed_actor_step: each loss alone, the temperature (alpha_loss_form) after each actor step
     "policy_freq": Same("policy_freq"),
 }
 # the SAC agent's networks, the same rows for the SAC baseline and MORL/D

@@ -32,7 +32,7 @@ def test_layer_table_is_the_enforced_one():
 def test_package_table_names_every_sub_package():
     listed = {cell.strip("`").rstrip("/") for cell, _ in _rows(_section("The package"))}
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
-    assert packages == {"data", "envs", "evaluation", "grid", "gym", "metrics", "objectives", "preferences",
-                        "recipes", "reporting", "runs", "transforms"}
+    assert packages == {"algorithms", "data", "envs", "evaluation", "grid", "gym", "metrics", "objectives",
+                        "preferences", "recipes", "reporting", "runs", "training", "transforms"}
     assert packages <= listed
     assert listed - packages == {"cli.py"}

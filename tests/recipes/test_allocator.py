@@ -41,7 +41,7 @@ print(json.dumps({"tuned": tuned, "again": tune_malloc(), "mapped": mapped, "fre
 def _probe(**env) -> dict:
     full = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_") and k != "MORL_TRL_MALLOC"}
     full.update(env)
-    out = subprocess.run([sys.executable, "-c", PROBE, str(ROOT / "morl_trl" / "recipes" / "allocator.py")], env=full, capture_output=True, text=True, timeout=600)  # (a hang guard)
+    out = subprocess.run([sys.executable, "-c", PROBE, str(ROOT / "morl_trl" / "training" / "allocator.py")], env=full, capture_output=True, text=True, timeout=600)  # (a hang guard)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
