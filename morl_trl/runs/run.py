@@ -103,7 +103,7 @@ def start_line(cfg, frames: int, resumed: bool) -> str:
     what = "resume" if resumed else "start"
     count = "1 evaluation" if evals == 1 else f"about {evals} evaluations"
     return (f"{what}: {cfg.algo} on {cfg.env_id}, seed {cfg.seed}, {cfg.device}: frame budget {cfg.frames:,} "
-            f"({cfg.frames - frames:,} to go, {cfg.init_random_frames:,} of them random before learning), "
+            f"({cfg.frames - frames:,} to go, {getattr(cfg, 'init_random_frames', 0):,} of them random before learning), "
             f"{count} of {cfg.eval_weights} weights; the estimated duration follows once the "
             f"learning speed is measured")
 

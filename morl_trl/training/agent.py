@@ -129,7 +129,7 @@ def updates_due(cfg, frames: int, batch_frames: int) -> int:
         >>> updates_due(SimpleNamespace(updates_per_batch=0, update_frequency=4), 70, 32)
         8
     """
-    every = cfg.update_frequency
+    every = getattr(cfg, "update_frequency", 1)  # (Envelope, CAPQL, MOSAC, GPI have no such key: every frame)
     return cfg.updates_per_batch or frames // every - (frames - batch_frames) // every
 
 
@@ -208,15 +208,18 @@ def target_updater(cfg, loss):
 
 def actor_critic_optimizers(cfg, loss) -> dict:
     """Adam (:func:`adam`) for the actor (``lr``), the critics (``q_lr``) and, when learned, the
-    temperature (``alpha_lr``), with ``adam_eps``."""
-    eps = {} if cfg.adam_eps is None else {"eps": cfg.adam_eps}
-    q_lr = cfg.lr if cfg.q_lr is None else cfg.q_lr
+    temperature (``alpha_lr``), with ``adam_eps`` (an algorithm without one of these keys, e.g. CAPQL:
+    ``lr`` and Adam's own eps)."""
+    adam_eps, q_lr = getattr(cfg, "adam_eps", None), getattr(cfg, "q_lr", None)
+    eps = {} if adam_eps is None else {"eps": adam_eps}
+    q_lr = cfg.lr if q_lr is None else q_lr
     opts = {
         "actor": adam(loss.actor_network_params.values(True, True), cfg.lr, fused=fused_choice(cfg), **eps),
         "qvalue": adam(loss.qvalue_network_params.values(True, True), q_lr, fused=fused_choice(cfg), **eps),
     }
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
-        alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
+        alpha_lr = getattr(cfg, "alpha_lr", None)
+        alpha_lr = cfg.lr if alpha_lr is None else alpha_lr
         opts["alpha"] = adam([loss.log_alpha], alpha_lr, fused=fused_choice(cfg), **eps)
     return opts
 

@@ -52,14 +52,16 @@ def make_training_env(cfg, device: torch.device):
     spec = run_domain(cfg)
     env = make_env(cfg.env_id, num_envs=cfg.num_envs, device=device, seed=cfg.seed)
     return compose_training_env(env, gamma=run_discount(cfg, spec), history_len=cfg.history_len,
-                                preference_seed=cfg.seed + 1, preference_mode=cfg.preference_distribution,
-                                preference_resample=cfg.preference_resample)
+                                # (GPI has no training preference of its own: its support loop sets w)
+                                preference_seed=cfg.seed + 1,
+                                preference_mode=getattr(cfg, "preference_distribution", "dirichlet"),
+                                preference_resample=getattr(cfg, "preference_resample", "episode"))
 
 
 def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
     """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``."""
     storage = LazyTensorStorage(cfg.buffer_size, device=device)
-    if cfg.prioritized and cfg.per_running_max:  # MORL-Baselines' rule (the authors' Envelope)
+    if cfg.prioritized and getattr(cfg, "per_running_max", False):  # MORL-Baselines' rule (the authors' Envelope)
         sampler = RunningMaxPrioritizedSampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
     elif cfg.prioritized:
         sampler = prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
@@ -120,11 +122,11 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
         policy,
         frames_per_batch=per_batch,
         total_frames=max(whole_batches(frames_to_go), per_batch),
-        init_random_frames=whole_batches(cfg.init_random_frames - frames_done),
+        init_random_frames=whole_batches(getattr(cfg, "init_random_frames", 0) - frames_done),  # (PCN, PGMORL: none)
         device=device,
         exploration_type=ExplorationType.RANDOM,
         # PGMORL: every iteration starts from a reset, as the authors' member train() (mo_ppo.py:628)
-        reset_at_each_iter=bool(cfg.pgmorl_reset_each_iteration),
+        reset_at_each_iter=bool(getattr(cfg, "pgmorl_reset_each_iteration", False)),
         auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
         track_traj_ids=track_traj_ids,
     )
@@ -191,8 +193,9 @@ def no_reference_note(spec: DomainSpec, ref_point=None) -> str:
 def start_notes(cfg, run, spec: DomainSpec, reference) -> list[str]:
     """What a run says in log.txt as it starts: NHGR without reference data, a budget that never learns."""
     notes = [] if reference is not None else [no_reference_note(spec, cfg.ref_point)]
-    if cfg.frames < cfg.init_random_frames and run.frames < cfg.frames:
-        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({cfg.init_random_frames:,}): the "
+    warmup = getattr(cfg, "init_random_frames", 0)
+    if cfg.frames < warmup and run.frames < cfg.frames:
+        notes.append(f"warning: frames ({cfg.frames:,}) is below init_random_frames ({warmup:,}): the "
                      f"run takes uniformly random actions only and never learns; raise frames or lower init_random_frames")
     return notes
 

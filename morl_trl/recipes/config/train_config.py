@@ -1,8 +1,9 @@
 """``TrainConfig``: a run's shared sections plus its algorithm's own dataclass, read as flat keys.
 
 ``cfg.batch_size`` reads the key from the section that holds it; a key the algorithm does not have
-reads as its inert value when it has one (``cfg.prioritized`` is ``False`` for PCN) and is an
-``AttributeError`` naming the algorithm's keys otherwise. ``to_dict()`` (what ``config.json``
+is an ``AttributeError`` naming the algorithm's keys. Code shared by several algorithms reads a key
+some of them lack with ``getattr(cfg, key, default)``, which names at the read what an algorithm
+without the key does. ``to_dict()`` (what ``config.json``
 holds) and ``to_toml()`` (``morl-trl config ALGO ENV``) hold exactly the algorithm's keys.
 """
 
@@ -132,8 +133,6 @@ class TrainConfig:
         if name in owner:
             return getattr(self.__dict__["_sections"][owner[name]], name)
         key = KEYS.get(name)
-        if key is not None and key.inert is not NOT_SET:
-            return key.inert  # (still read by shared code for algorithms without the key: issue 46)
         algo = self.__dict__["_sections"]["run"].algo
         from morl_trl._suggest import did_you_mean
 
