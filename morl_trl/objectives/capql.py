@@ -27,9 +27,9 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
 
     A preference-conditioned actor :math:`\pi(a | s, w)` and two vector critics
     :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at
-    once. Each transition is trained on the preference :math:`w` stored with it
-    (the one its action was chosen with: the authors' runs draw a new one every
-    env step from a 22.5-degree cone, see
+    once. Each transition is trained on the preference :math:`w` stored with it,
+    as the authors' runs do (the one its action was chosen with: they draw a new
+    one every env step from a 22.5-degree cone, see
     :func:`~morl_trl.preferences.sample_cone_preferences`); with
     ``resample_preferences=True`` it gets a fresh one (uniform on the simplex) at
     every call instead, so that every update covers the whole simplex.
