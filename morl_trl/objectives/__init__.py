@@ -5,6 +5,8 @@ Losses (all :class:`~torchrl.objectives.LossModule` subclasses taking ``[*B, k]`
 * :class:`EnvelopeQLoss` -- Envelope Q-learning (discrete actions, PER-ready).
 * :class:`CAPQLLoss` -- CAPQL (continuous actions, preference-conditioned SAC).
 * :class:`MOSACLoss` / :class:`DiscreteMOSACLoss` -- MORL/D's multi-objective SAC.
+  CAPQL, MOSAC and MORL/D's population compose their value estimates, critic and actor losses from
+  the functions of :mod:`morl_trl.objectives.actor_critic_parts`.
 * :class:`PCNLoss` -- Pareto Conditioned Networks' supervised loss (:mod:`morl_trl.objectives.pcn`).
 * PGMORL: TorchRL's ``ClipPPOLoss`` on a batched population (:mod:`morl_trl.objectives.pgmorl`:
   :func:`make_population_ppo_actor`, :func:`make_population_value_network`, :func:`vector_gae`).

@@ -2,50 +2,70 @@
 
 from __future__ import annotations
 
-from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
+from dataclasses import dataclass
 
-from morl_trl.objectives.mosac import MOSACLoss
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, composite_lp_aggregate
+from tensordict.utils import NestedKey
+from torch import Tensor
+
+from morl_trl.objectives.actor_critic_parts import (
+    ContinuousSoftActorCriticBase,
+    draw,
+    elementwise_min,
+    soft_actor_objective,
+    soft_next_value,
+    vector_critic_loss,
+)
 
 __all__ = ["CAPQLLoss"]
 
 
-class CAPQLLoss(MOSACLoss):
+class CAPQLLoss(ContinuousSoftActorCriticBase):
     r"""Concave-augmented Pareto Q-learning: one preference-conditioned SAC for all preferences.
 
     A preference-conditioned actor :math:`\pi(a | s, w)` and two vector critics
     :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at
-    once. Each transition is trained on the preference :math:`w` stored with it
-    (the one its action was chosen with: the authors' runs draw a new one every
-    env step from a 22.5-degree cone, see
+    once. Each transition is trained on the preference :math:`w` stored with it,
+    as the authors' runs do (the one its action was chosen with: they draw a new
+    one every env step from a 22.5-degree cone, see
     :func:`~morl_trl.preferences.sample_cone_preferences`); with
     ``resample_preferences=True`` it gets a fresh one (uniform on the simplex) at
-    every call instead. The critics regress onto
+    every call instead, so that every update covers the whole simplex.
 
-    .. math::
+    * Value estimate (:meth:`_value_target`): with :math:`a' \sim \pi(\cdot | s', w)`,
 
-        y = r + \gamma (1 - d) \big(\min_{i} Q^-_i(s', a', w) - \alpha \log\pi(a'|s', w)\,\mathbf 1\big),
-        \quad a' \sim \pi(\cdot | s', w)
+      .. math::
 
-    with the minimum taken per objective, and the actor minimises the
-    entropy-augmented scalarised objective
-    :math:`\alpha \log\pi(a|s,w) - w^\top \min_i Q_i(s, a, w)` with a fixed
-    :math:`\alpha` (0.2 in the paper's runs).
+          y = r + \gamma (1 - d) \big(\min_{i} Q^-_i(s', a', w) - \alpha \log\pi(a'|s', w)\,\mathbf 1\big),
 
-    This is :class:`~morl_trl.objectives.mosac.MOSACLoss` with
-    ``critic_min="elementwise"``, ``critic_loss="vector"`` and ``fixed_alpha=True``,
-    reading the batch's ``"preference"`` as the authors' runs do; pass
-    ``resample_preferences=True`` to train on fresh preferences per sample instead
-    (morl_trl's former default: every update covers the whole simplex).
+      the minimum over the target critics taken per objective.
+    * Critic loss (:meth:`_critic_loss`): each critic's squared error to :math:`y`, averaged over the
+      objectives and summed over the critics; the priority is :math:`|w^\top (Q_i - y)|`, largest over the critics.
+    * Actor loss (:meth:`_actor_loss`): :math:`\alpha \log\pi(a|s,w) - w^\top \min_i Q_i(s, a, w)`,
+      :math:`a \sim \pi(\cdot|s, w)`, with a fixed :math:`\alpha` (0.2 in the paper's runs).
+
+    The three parts are computed alone by :meth:`qvalue_loss` and :meth:`actor_loss` (the authors'
+    critic step, then the actor step) and together by :meth:`forward`.
 
     Args:
         actor_network: e.g. :func:`~morl_trl.objectives.networks.make_gaussian_actor`.
-        qvalue_network: e.g. :func:`~morl_trl.objectives.networks.make_vector_critic`.
+        qvalue_network: e.g. :func:`~morl_trl.objectives.networks.make_vector_critic`. Its parameters
+            are expanded to ``num_qvalue_nets`` independently initialised copies, as in TorchRL's SAC.
 
     Keyword Args:
         alpha (float): entropy coefficient. Defaults to 0.2.
         resample_preferences (bool): fresh preferences per sample instead of the batch's
             stored ones. Defaults to ``False`` (stored, as the authors).
-        **kwargs: any other :class:`MOSACLoss` keyword.
+        num_objectives (int, optional): ``k``; read from networks made by the builders.
+        num_qvalue_nets (int): size of the critic ensemble. Defaults to 2.
+        preference_distribution (str): ``"dirichlet"`` (default) or ``"gaussian"``, for resampling.
+        loss_function (str): ``"l2"`` (default), ``"l1"`` or ``"smooth_l1"``.
+        delay_qvalue (bool): keep target critic parameters (``SoftUpdate``). Defaults to ``True``.
+        reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
+        use_prioritized_weights (bool or "auto"): weight samples by ``"priority_weight"``.
+        deactivate_vmap (bool): loop over the critics instead of ``vmap``. Defaults to ``False``.
 
     Examples:
         >>> import torch
@@ -66,6 +86,41 @@ class CAPQLLoss(MOSACLoss):
         ['alpha', 'entropy', 'loss_actor', 'loss_qvalue']
     """
 
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``).
+
+        Attributes:
+            action: the action. Defaults to ``"action"``.
+            state_action_value: critic output ``[*B, k]``. Defaults to ``"state_action_value"``.
+            preference: preference ``[*B, k]`` (read, or written for the networks). Defaults to ``"preference"``.
+            log_prob: log-probability entry of the actor. Defaults to TorchRL's sample log-prob key.
+            value_target: key of the estimator's target. Defaults to ``"value_target"``.
+            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
+            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
+            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
+            done: done flag under ``"next"``. Defaults to ``"done"``.
+            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
+        """
+
+        action: NestedKey = "action"
+        state_action_value: NestedKey = "state_action_value"
+        preference: NestedKey = "preference"
+        log_prob: NestedKey | None = None
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+        def __post_init__(self):
+            if self.log_prob is None:
+                self.log_prob = "sample_log_prob" if composite_lp_aggregate(nowarn=True) else "action_log_prob"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+
     def __init__(
         self,
         actor_network: ProbabilisticTensorDictSequential,
@@ -73,15 +128,57 @@ class CAPQLLoss(MOSACLoss):
         *,
         alpha: float = 0.2,
         resample_preferences: bool = False,
-        **kwargs,
+        num_objectives: int | None = None,
+        num_qvalue_nets: int = 2,
+        preference_distribution: str = "dirichlet",
+        loss_function: str = "l2",
+        delay_qvalue: bool = True,
+        reduction: str = "mean",
+        use_prioritized_weights: str | bool = "auto",
+        deactivate_vmap: bool = False,
     ) -> None:
-        kwargs.setdefault("critic_min", "elementwise")
-        kwargs.setdefault("critic_loss", "vector")
-        kwargs.setdefault("fixed_alpha", True)
         super().__init__(
             actor_network,
             qvalue_network,
-            alpha_init=alpha,
+            num_objectives=num_objectives,
+            num_qvalue_nets=num_qvalue_nets,
+            preference=None,
             resample_preferences=resample_preferences,
-            **kwargs,
+            preference_distribution=preference_distribution,
+            loss_function=loss_function,
+            alpha_init=alpha,
+            min_alpha=None,
+            max_alpha=None,
+            fixed_alpha=True,
+            delay_qvalue=delay_qvalue,
+            reduction=reduction,
+            use_prioritized_weights=use_prioritized_weights,
+            deactivate_vmap=deactivate_vmap,
+            alpha_loss_form="log_alpha",
         )
+        # the temperature is fixed: no target entropy is used (kept as the state's entry)
+        self.register_buffer("target_entropy", torch.tensor(0.0, device=self.log_alpha.device))
+
+    # ------------------------------------------------------------ value estimate
+    @torch.no_grad()
+    def _value_target(self, data: TensorDictBase, w: Tensor) -> Tensor:
+        """``[B, k]``: ``r + gamma (1 - d) (min_i Q^-_i(s', a', w) - alpha log pi(a'|s', w))``, ``a' ~ pi(.|s', w)``."""
+        next_data = data.get("next")
+        next_action, next_log_prob = draw(self._policy_dist(next_data, w))
+        q_next = self._critics(next_data, w, next_action, params="target")
+        next_value = soft_next_value(elementwise_min(q_next), next_log_prob, self._alpha)
+        return self.value_estimator.value_estimate(data, next_value=next_value)
+
+    # ------------------------------------------------------------ critic loss
+    def _critic_loss(self, data: TensorDictBase, w: Tensor) -> tuple[Tensor, Tensor]:
+        """Per-sample critic loss (vector squared error, summed over the critics) and priority."""
+        target = self._value_target(data, w)
+        q = self._critics(data, w)
+        return vector_critic_loss(q, target, w, self.loss_function)
+
+    # ------------------------------------------------------------ actor loss
+    def _actor_loss(self, data: TensorDictBase, w: Tensor, dist=None) -> tuple[Tensor, Tensor]:
+        """Per-sample actor loss and the sampled actions' log-probabilities (critics without gradient)."""
+        action, log_prob = draw(self._policy_dist(data, w) if dist is None else dist)
+        q = self._critics(data, w, action, params="detached")
+        return soft_actor_objective(log_prob, elementwise_min(q), w, self._alpha), log_prob

@@ -50,9 +50,18 @@ from torchrl.objectives.sac import compute_rsample_log_prob, rsample_and_log_pro
 
 from morl_trl._torchrl_compat import cache_values, clear_weakrefs
 from morl_trl.objectives.batched import BatchedMLP
-from morl_trl.objectives.common import MultiObjectiveLossModule, argmin_along, check_preference
+from morl_trl.objectives.actor_critic_parts import (
+    check_alpha_loss_form,
+    expected_log_prob,
+    expected_soft_actor_objective,
+    expected_soft_next_value,
+    scalarized_min,
+    soft_actor_objective,
+    soft_next_value,
+    temperature_objective,
+)
+from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
-from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
 from morl_trl.objectives.networks import (
     DEFAULT_NUM_CELLS,
     categorical_actor,
@@ -404,11 +413,6 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
                 values.append(self.qvalue_network.module(*(td.get(k) for k in self.qvalue_network.in_keys)))
         return torch.stack(values)
 
-    def _select_min(self, q: Tensor, w: Tensor) -> Tensor:
-        """The vector of the critic with the lowest ``w . Q`` (``q``: ``[n, P, B, ..., k]``)."""
-        worst = argmin_along((q * w).sum(-1), 0, keepdim=True)
-        return q.gather(0, worst.unsqueeze(-1).expand(1, *q.shape[1:])).squeeze(0)
-
     def _actor(self, data: TensorDictBase):
         with self._member_slice(self.actor_network_params).to_module(self.actor_network, preserve_module_state=False):
             return self.actor_network.get_dist(data.select(*self.actor_network.in_keys, strict=False))
@@ -504,7 +508,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             td.set(self.tensor_keys.action, next_action)
             q_next = self._critics(td, self._member_slice(self.target_qvalue_network_params, 1),
                                    self.tensor_keys.state_action_value)
-            next_value = self._select_min(q_next, w) - (alpha * next_log_prob).unsqueeze(-1)
+            next_value = soft_next_value(scalarized_min(q_next, w), next_log_prob, alpha)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
         q = self._critics(data, self._member_slice(self.qvalue_network_params, 1), self.tensor_keys.state_action_value)
         return self._critic_loss(q, target, w)
@@ -517,7 +521,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         td.set(self.tensor_keys.action, action)
         q_pi = self._critics(td, self._member_slice(self._cached_detached_qvalue_params, 1),
                              self.tensor_keys.state_action_value)
-        return self._alpha.view(-1, 1) * log_prob - (self._select_min(q_pi, w) * w).sum(-1), log_prob
+        return soft_actor_objective(log_prob, scalarized_min(q_pi, w), w, self._alpha.view(-1, 1)), log_prob
 
     def _discrete_qvalue(self, data: TensorDictBase) -> tuple[Tensor, Tensor]:
         w = self._w(1)  # over the actions
@@ -527,9 +531,9 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
             next_data = data.get("next")
             dist = self._actor(next_data)
             probs, log_probs = dist.probs, dist.logits
-            q_next = self._select_min(self._critics(next_data, self._member_slice(self.target_qvalue_network_params, 1),
-                                                    key), w)
-            next_value = (probs.unsqueeze(-1) * (q_next - (alpha * log_probs).unsqueeze(-1))).sum(-2)
+            q_next = scalarized_min(self._critics(next_data, self._member_slice(self.target_qvalue_network_params, 1),
+                                                  key), w)
+            next_value = expected_soft_next_value(probs, log_probs, q_next, alpha)
             target = self.value_estimator.value_estimate(data, next_value=next_value)
         q = self._critics(data, self._member_slice(self.qvalue_network_params, 1), key)  # [n, P, B, |A|, k]
         n, p, b, a, k = q.shape
@@ -542,11 +546,10 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         w = self._w(1)
         dist = self._actor(data) if dist is None else dist
         probs, log_probs = dist.probs, dist.logits
-        q_pi = self._select_min(self._critics(data, self._member_slice(self._cached_detached_qvalue_params, 1),
-                                              self.tensor_keys.action_value), w)
-        scalar_q_pi = (q_pi * w).sum(-1)
-        loss_actor = (probs * (self._alpha.view(-1, 1, 1) * log_probs - scalar_q_pi)).sum(-1)
-        return loss_actor, (probs * log_probs).sum(-1)
+        q_pi = scalarized_min(self._critics(data, self._member_slice(self._cached_detached_qvalue_params, 1),
+                                            self.tensor_keys.action_value), w)
+        loss_actor = expected_soft_actor_objective(probs, log_probs, q_pi, w, self._alpha.view(-1, 1, 1))
+        return loss_actor, expected_log_prob(probs, log_probs)
 
     def _sample_log_prob(self, data: TensorDictBase, dist=None) -> Tensor:
         """``[P, B]`` log-probabilities of fresh actions of the current actors (discrete: ``sum_a pi log pi``)."""
@@ -554,7 +557,7 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
         if self.num_actions is None:
             with set_exploration_type(ExplorationType.RANDOM):
                 return self._rsample(dist)[1]
-        return (dist.probs * dist.logits).sum(-1)
+        return expected_log_prob(dist.probs, dist.logits)
 
     @property
     def out_keys(self) -> list[str]:

@@ -48,7 +48,7 @@ from torchrl.objectives.sac import compute_rsample_log_prob
 
 from morl_trl._torchrl_compat import (priority_weight, reduce_loss, sac_alpha, sac_detached_qvalue_params,
                                       sac_vmap_qvalue)
-from morl_trl.objectives.mosac import check_alpha_loss_form, temperature_objective
+from morl_trl.objectives.actor_critic_parts import check_alpha_loss_form, temperature_objective
 
 __all__ = ["SACLoss", "DiscreteSACLoss"]
 

@@ -32,9 +32,49 @@ def test_defaults_are_the_paper_settings():
     assert float(loss._alpha) == pytest.approx(0.2)
     assert not isinstance(loss.log_alpha, torch.nn.Parameter)
     # the authors train on the preference stored with each transition (fresh per-sample draws: an option)
-    assert (loss.critic_min, loss.critic_loss, loss.resample_preferences) == ("elementwise", "vector", False)
+    assert loss.resample_preferences is False
     assert "preference" in loss.in_keys
     assert loss.num_qvalue_nets == 2
+
+
+@pytest.mark.parametrize("resample", [False, True])
+@pytest.mark.parametrize("fast", [True, False])
+def test_capql_is_mosac_with_elementwise_min_vector_loss_and_fixed_alpha(resample, fast):
+    """CAPQL's own value estimate, critic loss and actor loss compute, bit for bit, what ``MOSACLoss`` computes
+    with ``critic_min="elementwise"``, ``critic_loss="vector"`` and a fixed temperature: losses, priorities,
+    and the parameters after three Adam steps with Polyak targets."""
+    from morl_trl.objectives import MOSACLoss
+
+    capql = make_loss(resample_preferences=resample)
+    torch.manual_seed(0)
+    mosac = MOSACLoss(make_gaussian_actor(OBS, SPEC, K, num_cells=(32,)), make_vector_critic(OBS, ACT, K, num_cells=(32,)),
+                      critic_min="elementwise", critic_loss="vector", fixed_alpha=True, alpha_init=0.2,
+                      resample_preferences=resample)
+    mosac.make_value_estimator(gamma=0.9)
+    assert capql.state_dict().keys() == mosac.state_dict().keys()
+    data = random_batch(B, OBS, K, action_dim=ACT)
+    results = []
+    for loss in (capql, mosac):
+        loss.fast_networks = fast
+        torch.manual_seed(3)
+        opt = torch.optim.Adam(loss.parameters(), lr=1e-3)
+        updater = SoftUpdate(loss, tau=0.05)
+        outs = []
+        for _ in range(3):
+            batch = data.clone()
+            q, _ = loss.qvalue_loss(batch)
+            out = loss(batch)
+            opt.zero_grad()
+            (q + out["loss_actor"]).backward()
+            opt.step()
+            updater.step()
+            outs.append((q.detach(), out.detach(), batch["td_error"]))
+        results.append((outs, {k: v.detach().clone() for k, v in loss.state_dict().items()}))
+    (outs_c, state_c), (outs_m, state_m) = results
+    for (qc, oc, pc), (qm, om, pm) in zip(outs_c, outs_m):
+        assert torch.equal(qc, qm) and torch.equal(pc, pm)
+        assert all(torch.equal(oc[key], om[key]) for key in oc.keys())
+    assert all(torch.equal(state_c[key], state_m[key]) for key in state_c)
 
 
 def test_output_keys_finite_without_a_stored_preference():

@@ -143,16 +143,15 @@ def test_discrete_set_keys_renames():
 
 
 def test_select_min_modes_on_concrete_values():
-    loss = continuous_loss(k=2)
     q = torch.tensor([[[1.0, 5.0]], [[2.0, 2.0]]])  # two critics, one sample
     w = torch.tensor([[0.5, 0.5]])
-    loss.critic_min = "scalarized"  # critic 1 has the lower w . Q (2 < 3): its whole vector
-    torch.testing.assert_close(loss._select_min(q, w), torch.tensor([[2.0, 2.0]]))
-    loss.critic_min = "elementwise"
-    torch.testing.assert_close(loss._select_min(q, w), torch.tensor([[1.0, 2.0]]))
+    # critic 1 has the lower w . Q (2 < 3): its whole vector
+    torch.testing.assert_close(continuous_loss(k=2)._select_min(q, w), torch.tensor([[2.0, 2.0]]))
+    torch.testing.assert_close(continuous_loss(k=2, critic_min="elementwise")._select_min(q, w), torch.tensor([[1.0, 2.0]]))
     qd = torch.stack([torch.tensor([[[1.0, 5.0], [0.0, 0.0]]]), torch.tensor([[[2.0, 2.0], [1.0, 1.0]]])])  # [2, 1, A=2, 2]
-    loss.critic_min = "scalarized"
-    torch.testing.assert_close(loss._select_min(qd, w), torch.tensor([[[2.0, 2.0], [0.0, 0.0]]]))
+    torch.testing.assert_close(discrete_loss(k=2)._select_min(qd, w), torch.tensor([[[2.0, 2.0], [0.0, 0.0]]]))
+    with pytest.raises(ValueError, match="critic_min='worst'; valid values are"):
+        continuous_loss(k=2, critic_min="worst")
 
 
 def test_k1_matches_torchrl_sac():
