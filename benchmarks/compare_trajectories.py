@@ -67,7 +67,7 @@ CASES = {
     "morld_psa": ("morld_psa", "MOLavaGridDR-v0", dict(**{**_OFF, "updates_per_batch": 0}, **_LAVA, num_envs=1,
                                                        pop_size=3, exchange_every=64, frames=256, eval_interval=128)),
     "morld_concurrent": ("morld", "MOHopperDR-v5", dict(**_OFF, **_HOP, morld_schedule="concurrent", pop_size=3,
-                                                        num_envs=3, frames_per_batch=30, frames=180, eval_interval=90)),
+                                                        num_envs=3, frames_per_batch=27, frames=162, eval_interval=81)),
 }
 
 _TIMING = re.compile(r"per_second|fps|seconds|time", re.I)

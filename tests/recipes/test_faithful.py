@@ -100,6 +100,16 @@ def test_envelope_recipe_is_the_authors_network_loss_and_preferences():
     assert _preference_transform(env).mode == "dirichlet"
 
 
+def test_envelope_acts_and_learns_on_one_preference_distribution():
+    """The authors' Envelope draws the episode's w and the update's ``num_sample_w`` from one ``dist``
+    (hyperparameters.toml [envelope.*.init] dist = "gaussian"): one key sets both here too."""
+    cfg, env, agent = _agent("envelope", "MOLavaGridDR-v0")
+    assert cfg.preference_distribution == _preference_transform(env).mode == agent.loss.preference_distribution \
+        == "gaussian"
+    cfg, env, ours = _agent("envelope", "MOLavaGridDR-v0", preference_distribution="dirichlet")
+    assert _preference_transform(env).mode == ours.loss.preference_distribution == "dirichlet"
+
+
 # ---------------------------------------------------------------- CAPQL
 def test_capql_recipe_acts_on_a_new_cone_preference_every_step_and_trains_on_it_as_the_authors():
     pytest.importorskip("mujoco")

@@ -40,7 +40,7 @@ class PGMORLConfig:
     pgmorl_minibatches: int = 32  # init.num_minibatches
     pgmorl_clip: float = 0.2  # init.clip_coef
     pgmorl_gae_lambda: float = 0.95  # init.gae_lambda
-    pgmorl_eval_obs: str = "raw"  # ours, as the authors: normalised policies fed raw observations (mo_ppo.py:719-768)
+    pgmorl_eval_obs: str = "raw"  # the authors' evaluation: normalised policies fed raw observations (mo_ppo.py:719-768)
     # envs.reset at each member's train() (mo_ppo.py:628) ...
     pgmorl_reset_each_iteration: bool = True  # derived.vector_env_reset_each_iteration
     # ... with reset(seed=member.seed): the run's seed, 42 for a copied member (mo_ppo.py:355-377,628)

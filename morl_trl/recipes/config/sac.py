@@ -50,7 +50,7 @@ class SACConfig:
     target_entropy_scale: float = 0.3  # init.target_entropy_scale
     actor_scale: str = "tanh_log_std"  # network.actor: log_std = -5 + 3.5 (tanh(x) + 1)
     policy_freq: int = 2  # init.policy_freq: 2 actor steps after every 2nd critic step (sac_continuous.py:134,435-456)
-    alpha_loss_form: str = "alpha"  # ours, as the authors' CleanRL-style SAC: -alpha (log pi + target)
+    alpha_loss_form: str = "alpha"  # the authors' CleanRL-style SAC: -alpha (log pi + target)
     joint_update: bool = False  # ours (false: the authors' order, each loss computed alone)
     # preferences (SAC trains on the scalar reward; the env still carries a preference)
     preference_distribution: str = "dirichlet"  # ours
