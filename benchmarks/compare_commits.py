@@ -75,12 +75,17 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     from morl_trl.envs import domain_of
     from morl_trl.recipes import build_agent, build_training_env, resolve_config
 
-    try:  # after the issue-26 restructuring
-        from morl_trl.training.parts import make_collector, make_replay_buffer
-        from morl_trl.training.parts import run_discount as discount
-    except ImportError:  # before it
-        from morl_trl.recipes.off_policy import _gamma as discount
-        from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
+    # (older layouts first: an editable install of a newer checkout would serve a module the older one lacks)
+    try:  # issue 26 to issue 46
+        from morl_trl.recipes.parts import make_collector, make_replay_buffer
+        from morl_trl.recipes.parts import run_discount as discount
+    except ImportError:
+        try:  # after issue 46's layout
+            from morl_trl.training.parts import make_collector, make_replay_buffer
+            from morl_trl.training.parts import run_discount as discount
+        except ImportError:  # before issue 26
+            from morl_trl.recipes.off_policy import _gamma as discount
+            from morl_trl.recipes.off_policy import make_collector, make_replay_buffer
 
     timer = time.process_time if clock == "cpu" else time.perf_counter
     torch.set_num_threads(1)  # the recipe's default
@@ -91,18 +96,16 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     env = build_training_env(cfg, dev)
     agent = build_agent(cfg, env, gamma=discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
-    try:  # the checkout's one per-batch step per algorithm (issue 46), else its Agent.learn
-        from morl_trl.algorithms.registry import algorithm
-
-        on_batch = algorithm(algo).on_batch
-    except (ImportError, AttributeError):
-        on_batch = None
-    if on_batch is None:
+    if hasattr(agent, "learn"):  # before issue 46: the agent's learn, then its schedules
         def on_batch(agent, batch, buffer, frames):
             out = agent.learn(batch, buffer, frames)
             agent.on_frames(frames)
             return out
-    if algo == "pgmorl" and on_batch.__module__.endswith("pgmorl"):  # PGMORL counts one member's frames
+    else:  # the checkout's one per-batch step per algorithm
+        from morl_trl.algorithms.registry import algorithm
+
+        on_batch = algorithm(algo).on_batch
+    if algo == "pgmorl" and on_batch.__module__.endswith("pgmorl.recipe"):  # PGMORL counts one member's frames
         from morl_trl.algorithms.pgmorl.recipe import counted_frames
 
         def frames_of(batch):

@@ -58,8 +58,12 @@ def make_training_env(cfg, device: torch.device):
                                 preference_resample=getattr(cfg, "preference_resample", "episode"))
 
 
-def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer:
-    """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``."""
+def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer | None:
+    """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``;
+    ``None`` for an algorithm that keeps no transition buffer (no ``buffer_size`` key: PCN keeps whole
+    episodes, PGMORL its on-policy batch)."""
+    if getattr(cfg, "buffer_size", None) is None:
+        return None
     storage = LazyTensorStorage(cfg.buffer_size, device=device)
     if cfg.prioritized and getattr(cfg, "per_running_max", False):  # MORL-Baselines' rule (the authors' Envelope)
         sampler = RunningMaxPrioritizedSampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
