@@ -90,7 +90,7 @@ def ours(algo: str, env_id: str, device: str, frames: int, **overrides) -> dict:
     env = build_training_env(cfg, dev)
     agent = build_agent(cfg, env, gamma=run_discount(cfg, spec), device=dev)
     buffer = make_replay_buffer(cfg, dev)
-    warm = cfg.init_random_frames + cfg.frames_per_batch
+    warm = getattr(cfg, "init_random_frames", 0) + cfg.frames_per_batch  # (PCN, PGMORL: no warm-up key)
     cfg.frames = warm + frames + cfg.frames_per_batch
     collector = make_collector(cfg, env, agent.explore_policy, dev)
     learn = algorithm(algo).on_batch

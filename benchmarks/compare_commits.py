@@ -113,7 +113,7 @@ def time_training(algo: str, env_id: str, frames: int, clock: str, overrides: di
     else:
         frames_of = getattr(agent, "frames_of", lambda batch: batch.numel())
     collector = make_collector(cfg, env, agent.explore_policy, dev)
-    warm = max(warm, cfg.init_random_frames + cfg.frames_per_batch)
+    warm = max(warm, getattr(cfg, "init_random_frames", 0) + cfg.frames_per_batch)  # (PCN, PGMORL: no warm-up key)
     run_frames, collected, updates, timed, t0, learning = 0, 0, 0, 0, None, 0.0
     for batch in collector:
         collected += batch.numel()
