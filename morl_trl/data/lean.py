@@ -3,14 +3,15 @@
 :class:`LeanTensorDictReplayBuffer` is :class:`torchrl.data.TensorDictReplayBuffer` (same
 constructor, storage, sampler, writer, state, checkpoints) whose :meth:`sample` and
 :meth:`update_tensordict_priority` call the sampler and the storage directly when nothing of
-TorchRL's generality is in use, and :meth:`extend` skips the copy an empty transform makes (no transform, sample unit, prefetching, pinned memory or
+TorchRL's generality is in use (no transform, sample unit, prefetching, pinned memory or
 generation tracking; a 1-d storage): the same sampler call (hence the same random draws and
 indices), the same ``storage.get``, the same ``"priority_weight"`` / ``"index"`` entries, the
 same ``sampler.update_priority`` -- without TorchRL's wrappers around them (the delayed-init
 and pin-memory decorators, the ``return_info`` round trip through ``tree_map``, the entry-by-entry
-metadata copy, the priority vector's reshape and reduction over one column), which on a one-env
-run cost as much as the sampling itself (``docs/speed.md``). Any other case is TorchRL's own
-method.
+metadata copy, the priority vector's reshape and reduction over one column): about a fifth of a
+one-transition-per-frame run's sampling (``benchmarks/torchrl_overheads.py``). Any other case is
+TorchRL's own method, as is ``extend`` (its empty transform's clone of a one-transition batch costs
+what a shallow copy would).
 
 Example:
     >>> from tensordict import TensorDict
@@ -53,25 +54,6 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 and not self._writer.tracks_generations and isinstance(storage, TensorStorage)
                 and storage.initialized and storage.ndim == 1 and self.dim_extend == 0
                 and self._collate_fn is _collate_id)
-
-    def extend(self, tensordicts: TensorDictBase, *, update_priority: bool | None = None) -> torch.Tensor:
-        """TorchRL's ``extend`` without the inverse pass of an empty transform (TorchRL's empty
-        ``Compose.inv`` clones the whole batch before it is written: a copy of every entry per
-        call, the write then copying them again into the storage); a shallow copy instead."""
-        transform = self._transform
-        if (transform is None or len(transform) or not isinstance(tensordicts, TensorDictBase)
-                or (self._delayed_init and not self.initialized)):
-            return super().extend(tensordicts, update_priority=update_priority)
-        # a shallow copy (new containers, the same tensors) takes the "index" entries the writer sets, as
-        # TorchRL's clone does: the caller's tensordict is left as it was
-        tensordicts = tensordicts.copy()
-        index = self._extend(tensordicts)  # (ReplayBuffer._extend: the writer, the storage, the sampler)
-        self._set_index_in_td(tensordicts, index)
-        if update_priority is None or update_priority:
-            vector = tensordicts.get(self.priority_key, None)
-            if vector is not None:
-                self.update_priority(index, vector)
-        return index
 
     def sample(self, batch_size: int | None = None, return_info: bool = False,
                include_info: bool | None = None) -> TensorDictBase:
