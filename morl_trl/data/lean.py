@@ -34,7 +34,8 @@ from tensordict import TensorDictBase
 from torchrl.data import TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import PrioritizedSampler
 from torchrl.data.replay_buffers.storages import TensorStorage
-from torchrl.data.replay_buffers.storages.utils import _collate_id  # (TorchRL's default collate of a tensor storage)
+
+from morl_trl._torchrl_compat import collate_id
 
 __all__ = ["LeanTensorDictReplayBuffer"]
 
@@ -53,7 +54,7 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 and not self._pin_memory and self._sample_dependency is None and not self._service_shutdown
                 and not self._writer.tracks_generations and isinstance(storage, TensorStorage)
                 and storage.initialized and storage.ndim == 1 and self.dim_extend == 0
-                and self._collate_fn is _collate_id)
+                and self._collate_fn is collate_id)
 
     def sample(self, batch_size: int | None = None, return_info: bool = False,
                include_info: bool | None = None) -> TensorDictBase:
