@@ -10,11 +10,12 @@ phase               ours                                                  MORL-B
 act                 the collector's policy call                           ``act`` / ``_act`` / the policy's
                                                                           ``get_action``
 env step            the collector env's ``step_and_maybe_reset``          the env's ``step``
-store               ``Agent.store`` / a buffer's ``extend`` / ``add``      the replay buffer's ``add`` / ``push`` /
-                                                                          ``_add_episode``
-sample              a replay buffer's ``sample``                          the replay buffer's ``sample``
-loss                a loss module's call (TorchRL ``LossModule``)          the rest of ``update`` (loss, target
-                                                                          update, schedules)
+store               ``Agent.store`` / a buffer's ``extend`` / PCN's        the replay buffer's ``add`` / ``push`` /
+                    ``store_episodes``                                    ``_add_episode``
+sample              a replay buffer's / PCN's episode replay's ``sample``  the replay buffer's ``sample``
+loss                a loss module's call (TorchRL ``LossModule``) or its   the rest of ``update`` (loss, target
+                    parts' (``qvalue_loss``, ``actor_loss``, ...,         update, schedules)
+                    PCN's ``losses_of``)
 backward+optimizer  ``optimizer_step`` / ``backward`` / ``Optimizer.step``  ``backward``, ``clip_grad_norm_``,
                                                                           ``Optimizer.step`` / ``zero_grad``
 priority write      the buffer's ``update_priority``                      ``update_priorities``
@@ -35,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import inspect
 import json
 import os
 import subprocess
@@ -92,6 +94,15 @@ class Phases:
         self.seconds.clear(), self.calls.clear()
 
 
+_PHASES: list = []
+
+
+def _phases() -> Phases:
+    if not _PHASES:
+        _PHASES.append(Phases())
+    return _PHASES[0]
+
+
 def _patch_torch(ph: Phases) -> None:
     import torch
 
@@ -120,13 +131,19 @@ def ours(case: str, frames: int) -> dict:
 
     torch.set_num_threads(1)
     bench_train.CLOCK = CLOCK
-    ph = Phases()
+    ph = _phases()  # (one for the process: a function wrapped for an earlier case keeps reporting to it)
+    ph.reset()
     _patch_torch(ph)
     ph.patch(Agent, "store", "store")
-    import morl_trl.data.lean  # noqa: F401  (its buffer class among the subclasses)
+    from morl_trl.algorithms.pcn.recipe import PCNAgent
+    from morl_trl.data.episode_replay import EpisodeReplay
+    from morl_trl.objectives import PCNLoss
 
-    def subclasses(cls):
-        return {cls}.union(*(subclasses(c) for c in cls.__subclasses__()))
+    ph.patch(PCNAgent, "store_episodes", "store")  # (PCN: episodes into its episode replay)
+    ph.patch(EpisodeReplay, "sample", "sample")
+    ph.patch(PCNLoss, "losses_of", "loss")
+    import morl_trl.data.lean  # noqa: F401  (its buffer class among the subclasses)
+    import morl_trl.objectives  # noqa: F401  (their losses among the subclasses)
 
     for cls in subclasses(ReplayBuffer):
         ph.patch(cls, "sample", "sample")
@@ -134,6 +151,10 @@ def ours(case: str, frames: int) -> dict:
         ph.patch(cls, "update_tensordict_priority", "priority write")
         ph.patch(cls, "extend", "store")
     ph.patch(LossModule, "__call__", "loss")
+    for cls in subclasses(LossModule):  # (the actor-critics call their losses' parts: qvalue_loss, actor_loss, ...)
+        for name, fn in list(vars(cls).items()):
+            if name.endswith(("_loss", "_dist")) and not name.startswith("_") and inspect.isfunction(fn):
+                ph.patch(cls, name, "loss")
     step = optim.optimizer_step
     timed_step = ph.wrap("backward+optimizer", step)
     for mod in [m for k, m in sys.modules.items() if k.startswith("morl_trl") and m is not None]:
@@ -188,6 +209,11 @@ def ours(case: str, frames: int) -> dict:
         MultiContextEvaluator.evaluate, Run.finish = evaluate, finish
     total_ms = 1e3 / r["fps"]
     return _per_frame(ph, r["frames"], total_ms)
+
+
+def subclasses(cls) -> set:
+    """``cls`` and every class below it."""
+    return {cls}.union(*(subclasses(c) for c in cls.__subclasses__()))
 
 
 def k_is_recipe(mod) -> bool:
