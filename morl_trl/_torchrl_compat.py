@@ -20,7 +20,9 @@ from typing import Any
 import torch
 from torch import Tensor
 from tensordict import TensorDict, TensorDictBase
+from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.samplers import PrioritizedSampler
+from torchrl.data.replay_buffers.storages.utils import _collate_id
 from torchrl.envs import EnvBase, Transform
 from torchrl.envs.transforms.vecnorm import VecNormV2
 from torchrl.objectives import LossModule
@@ -29,7 +31,7 @@ from torchrl.objectives.utils import TargetNetUpdater, _cache_values, _vmap_func
 __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNormNonNegativeVar", "transform_reset", "transform_step", "cache_values",
            "vmap_func", "new_tensordict_unsafe", "PRIORITIZED_SAMPLER_INTERNALS", "PRIORITIZED_SAMPLER_STATE",
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
-           "module_kwargs", "SUBCLASS_INTERNALS", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
+           "module_kwargs", "SUBCLASS_INTERNALS", "collate_id", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
            "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params", "hook_first_steps",
            "drop_step_hook"]
 
@@ -37,6 +39,9 @@ __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNor
 cache_values = _cache_values
 #: ``torchrl.objectives.utils._vmap_func``: ``torch.vmap`` over a functional module, with TorchRL's randomness
 vmap_func = _vmap_func
+#: ``torchrl.data.replay_buffers.storages.utils._collate_id``: the collate function a tensor storage's buffer
+#: gets by default (the identity; :class:`morl_trl.data.lean.LeanTensorDictReplayBuffer` checks for it)
+collate_id = _collate_id
 #: ``TensorDict._new_unsafe``: a TensorDict without the checks (the envs build one per step)
 new_tensordict_unsafe = TensorDict._new_unsafe
 
@@ -66,6 +71,11 @@ SUBCLASS_INTERNALS: dict[type, tuple[str, ...]] = {
                                                                                      "_STATE_SCHEMA_VERSION"),
     VecNormV2: ("_norm",),
     TargetNetUpdater: ("_step",),  # (the per-parameter update its step() calls: a hard copy in PeriodicHardUpdate)
+    # what morl_trl.data.lean's short sample / priority paths read (the parts TorchRL's methods use) and
+    # check (TorchRL's features that send a call back to TorchRL's method)
+    ReplayBuffer: ("_delayed_init", "_init", "_transform", "_storage", "_sampler", "_writer", "_prefetch",
+                   "_sample_unit", "_pin_memory", "_sample_dependency", "_service_shutdown", "_collate_fn",
+                   "_batch_size", "_replay_lock", "_write_lock"),
 }
 
 

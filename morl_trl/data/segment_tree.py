@@ -68,25 +68,51 @@ class _SegmentTree:
             return None
         return self._tree.numpy()
 
+    def _written_subtree(self, written: int) -> tuple[int, int]:
+        """``(m, node)``: the left-most subtree of ``2 ** m`` leaves that holds leaves ``[0, written)``, and its node.
+
+        Every leaf at or past ``written`` holds the neutral value, so above ``node`` each
+        ancestor's right child is neutral and its value is ``node``'s exactly (``x + 0.0`` and
+        ``min(x, inf)`` are ``x``): a write recombines the ``m`` levels below ``node`` and copies
+        its value up the chain, and a search starts at ``node`` (from the root it would turn left
+        at every level above, its mass unchanged). A buffer holding few of its capacity's items
+        (a one-env run's first frames of a million-item buffer) walks ``m`` levels, not
+        ``log2(capacity)``."""
+        m = min(max(0, (written - 1).bit_length()), self._levels)
+        return m, 1 << (self._levels - m)
+
     def _write_host(self, tree: np.ndarray, index: np.ndarray, value: np.ndarray) -> None:
         """``tree[index] = value`` (unique indices) and the parents recombined level by level."""
         if index.size == 1:  # (one new transition per frame: Python floats, rounded where stored)
             # a float32 sum computed in float64 and rounded once is the float32 sum (53 >= 2 * 24 + 2 bits)
             combine, item = self._combine_py, tree.item
-            node = int(index[0]) + self._size
+            leaf = int(index[0])
+            m, top = self._written_subtree(max(self._written, leaf + 1))
+            node = leaf + self._size
             tree[node] = value[0]
-            for _ in range(self._levels):
+            for _ in range(m):
                 node >>= 1
                 tree[node] = combine(item(2 * node), item(2 * node + 1))
+            self._copy_up(tree, top)
             return
         # row p of the pairs view holds the children (2p, 2p + 1) of node p: one gather and one
         # two-element reduction (a single addition / minimum) per level
+        m, top = self._written_subtree(max(self._written, int(index.max()) + 1))
         pairs, reduce = tree.reshape(-1, 2), self._combine_np.reduce
         node = index + self._size
         tree[node] = value
-        for _ in range(self._levels):
+        for _ in range(m):
             node >>= 1  # repeated parents receive identical values: duplicates are harmless
             tree[node] = reduce(pairs[node], axis=1)
+        self._copy_up(tree, top)
+
+    def _copy_up(self, tree: np.ndarray, top: int) -> None:
+        """The ancestors of the left-chain node ``top`` set to its value (see :meth:`_written_subtree`)."""
+        if top > 1:
+            chain = self.__dict__.get("_chains", {}).get(top)
+            if chain is None:
+                chain = self.__dict__.setdefault("_chains", {})[top] = top >> np.arange(1, top.bit_length())
+            tree[chain] = tree[top]
 
     @staticmethod
     def _last_writes(index: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -260,9 +286,10 @@ class SumSegmentTree(_SegmentTree):
         host = self._host()
         if host is not None:
             mass_np = torch.as_tensor(mass, dtype=self.dtype).reshape(-1).numpy().copy()
-            node_np = np.ones(mass_np.shape, dtype=np.int64)
+            m, top = self._written_subtree(self._written)  # (from the root: left, mass unchanged, down to top)
+            node_np = np.full(mass_np.shape, top, dtype=np.int64)
             pairs = host.reshape(-1, 2)  # row p: the children (2p, 2p + 1) of node p
-            for _ in range(self._levels):
+            for _ in range(m):
                 children = pairs[node_np]
                 left_sum = children[:, 0]
                 go_right = (mass_np >= left_sum) & (children[:, 1] > 0)

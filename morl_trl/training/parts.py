@@ -21,6 +21,7 @@ from torchrl.envs.utils import ExplorationType
 
 from morl_trl._torchrl_compat import collector_state
 from morl_trl.data import RunningMaxPrioritizedSampler, prioritized_sampler
+from morl_trl.data.lean import LeanTensorDictReplayBuffer
 from morl_trl.runs.checkpoint import DamagedCheckpointError
 from morl_trl.runs.plain import first_line
 from morl_trl.envs import DomainSpec, domain_of, load_domain_modules, make_env
@@ -59,9 +60,10 @@ def make_training_env(cfg, device: torch.device):
 
 
 def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer | None:
-    """A TorchRL buffer on ``device``: prioritized (keyed by ``"td_error"``) when ``cfg.prioritized``;
-    ``None`` for an algorithm that keeps no transition buffer (no ``buffer_size`` key: PCN keeps whole
-    episodes, PGMORL its on-policy batch)."""
+    """A TorchRL buffer on ``device`` (:class:`~morl_trl.data.lean.LeanTensorDictReplayBuffer`: TorchRL's
+    ``TensorDictReplayBuffer`` with short sampling and priority paths): prioritized (keyed by
+    ``"td_error"``) when ``cfg.prioritized``; ``None`` for an algorithm that keeps no transition buffer
+    (no ``buffer_size`` key: PCN keeps whole episodes, PGMORL its on-policy batch)."""
     if getattr(cfg, "buffer_size", None) is None:
         return None
     storage = LazyTensorStorage(cfg.buffer_size, device=device)
@@ -70,9 +72,9 @@ def make_replay_buffer(cfg, device: torch.device) -> TensorDictReplayBuffer | No
     elif cfg.prioritized:
         sampler = prioritized_sampler(cfg.buffer_size, alpha=cfg.per_alpha, beta=cfg.per_beta, device=device)
     if cfg.prioritized:
-        return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.batch_size,
-                                      priority_key="td_error")
-    return TensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
+        return LeanTensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.batch_size,
+                                          priority_key="td_error")
+    return LeanTensorDictReplayBuffer(storage=storage, batch_size=cfg.batch_size)
 
 
 class RecipeCollector(Collector):
@@ -110,10 +112,14 @@ class RecipeCollector(Collector):
 
 
 def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int = 0,
-                   frames_to_go: int | None = None, track_traj_ids: bool = False) -> Collector:
+                   frames_to_go: int | None = None, track_traj_ids: bool = False,
+                   return_same_td: bool = False) -> Collector:
     """TorchRL's ``Collector`` for the frames still to go (``frames_to_go``, default ``cfg.frames -
     frames_done``; uniformly random before ``init_random_frames``). ``track_traj_ids``: write TorchRL's
-    ``("collector", "traj_ids")`` (no recipe reads them: off, one bookkeeping step less per frame)."""
+    ``("collector", "traj_ids")`` (no recipe reads them: off, one bookkeeping step less per frame).
+    ``return_same_td``: TorchRL's option, every batch is the collector's own buffer, overwritten by the
+    next one (no copy of the whole batch per iteration, which in a one-env run is a copy per frame):
+    for a loop that is done with a batch (stored, logged) before it asks for the next."""
     if frames_to_go is None:
         frames_to_go = cfg.frames - frames_done
     per_batch = cfg.frames_per_batch
@@ -133,6 +139,7 @@ def make_collector(cfg, env, policy, device: torch.device, *, frames_done: int =
         reset_at_each_iter=bool(getattr(cfg, "pgmorl_reset_each_iteration", False)),
         auto_register_policy_transforms=False,  # our policies are feed-forward: no InitTracker needed
         track_traj_ids=track_traj_ids,
+        return_same_td=return_same_td,
     )
 
 

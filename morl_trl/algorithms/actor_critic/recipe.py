@@ -193,7 +193,8 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the target updater, critic_steps
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+    # (return_same_td: each batch is stored and logged before the next one is collected)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames, return_same_td=True)
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch: store it, update, then (run.step) evaluate and checkpoint

@@ -140,7 +140,8 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)
         schedules(agent, run.frames)
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+    # (return_same_td: each batch is stored and logged before the next one is collected)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames, return_same_td=True)
 
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 

@@ -428,7 +428,8 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
     if state is not None:  # (the model buffer is not checkpointed: GPI-PD refills it at its next rollout)
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # networks, optimizers, the linear support, w, M, the iteration
         schedules(agent, run.frames)
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+    # (return_same_td: each batch is stored and logged before the next one is collected)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames, return_same_td=True)
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
     # 4. the loop. One iteration = one batch (on_batch): store it; GPI-PD's model fit and rollouts when due; the

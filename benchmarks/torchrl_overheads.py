@@ -1,0 +1,68 @@
+"""TorchRL's own per-call costs on a one-env run (issue 47): tiny reproducers for an upstream note.
+
+Each row times one TorchRL call on a one-transition batch (process CPU time, one thread) beside
+what it has to do, on the transition layout of Envelope on deep-sea-treasure:
+
+1. ``TensorDictReplayBuffer.extend`` of one transition, and (the default transform, an empty
+   ``Compose``) the clone its ``inv`` makes first (on a one-transition batch as cheap as the
+   shallow copy that would replace it: :class:`~morl_trl.data.lean.LeanTensorDictReplayBuffer`
+   keeps TorchRL's ``extend``);
+2. ``TensorDictReplayBuffer.sample`` against the sampler call + ``storage.get`` it wraps, and
+   :class:`~morl_trl.data.lean.LeanTensorDictReplayBuffer`'s;
+3. a collector batch's ``clone()`` (``Collector.iterator`` clones every batch unless
+   ``return_same_td=True``), which with ``frames_per_batch=1`` is a copy per frame.
+
+    python benchmarks/torchrl_overheads.py
+"""
+
+from __future__ import annotations
+
+import time
+
+import torch
+from tensordict import TensorDict
+from torchrl.data import LazyTensorStorage, RandomSampler, TensorDictReplayBuffer
+
+
+def _timed(fn, n: int = 3000) -> float:
+    for _ in range(100):
+        fn()
+    t = time.process_time()
+    for _ in range(n):
+        fn()
+    return (time.process_time() - t) / n * 1e6
+
+
+def _transition() -> TensorDict:
+    return TensorDict({"observation": torch.randn(1, 2), "action": torch.randint(4, (1,)),
+                       "next": TensorDict({"observation": torch.randn(1, 2), "reward": torch.randn(1, 2),
+                                           "done": torch.zeros(1, 1, dtype=torch.bool),
+                                           "terminated": torch.zeros(1, 1, dtype=torch.bool)}, [1])}, [1],
+                      device="cpu")
+
+
+def main() -> int:
+    torch.set_num_threads(1)
+    from morl_trl.data.lean import LeanTensorDictReplayBuffer
+
+    x = _transition()
+    rows = []
+    for cls in (TensorDictReplayBuffer, LeanTensorDictReplayBuffer):
+        rb = cls(storage=LazyTensorStorage(100_000), sampler=RandomSampler(), batch_size=32)
+        rows.append((f"{cls.__name__}.extend (1 transition)", _timed(lambda: rb.extend(x))))
+        rows.append((f"{cls.__name__}.sample (32)", _timed(rb.sample)))
+    rb = TensorDictReplayBuffer(storage=LazyTensorStorage(100_000), batch_size=32)
+    rb.extend(x)
+    rows.append(("  of which: empty Compose.inv (a clone)", _timed(lambda: rb._transform.inv(x))))
+    rows.append(("  sampler.sample + storage.get", _timed(lambda: rb.storage.get(rb._sampler.sample(rb.storage, 32)[0]))))
+    batch = TensorDict({**{f"k{i}": torch.zeros(1, 1, 2) for i in range(12)},
+                        "next": TensorDict({f"k{i}": torch.zeros(1, 1, 2) for i in range(10)}, [1, 1])}, [1, 1])
+    rows.append(("collector batch clone (22 entries, [1, 1])", _timed(batch.clone)))
+    print(f"torch {torch.__version__}; us per call (process CPU time, 1 thread)")
+    for name, us in rows:
+        print(f"  {name:<48} {us:8.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
