@@ -180,10 +180,11 @@ class CapturedUpdate:
         from torchrl.data.replay_buffers.storages import LazyTensorStorage
 
         from morl_trl.data import TorchPrioritizedSampler
+        from morl_trl.data.lean import LeanTensorDictReplayBuffer
 
         if not self.capture_sampling or self.policy_freq > 1:
             return False
-        if type(buffer) is not TensorDictReplayBuffer:
+        if type(buffer) not in (TensorDictReplayBuffer, LeanTensorDictReplayBuffer):  # (the storage read as is)
             return False
         sampler, storage, transform = buffer.sampler, buffer.storage, buffer.transform
         return (isinstance(sampler, TorchPrioritizedSampler)
