@@ -37,7 +37,7 @@ re-creation of its update loops (same networks, same tensor work: the target net
 evaluated on batch x N x N rows for Envelope, separate critic/actor passes for CAPQL),
 and the output says so.
 
-Ours is ``Agent.update`` as the recipes run it (fused Adam, sampling and priority updates
+Ours is the recipe's own ``update`` as ``morl-trl train`` runs it (fused Adam, sampling and priority updates
 included). ``--device cuda`` runs ours (and MORL-Baselines, when installed) on the GPU and adds
 rows for the captured update (``compile``, ``cudagraphs``, ``both``: see
 ``morl_trl.training.capture``) with their speed-up over the eager one:
@@ -966,7 +966,7 @@ def main(argv=None) -> int:
     kw = {"device": str(device)} if peer == "morl-baselines" else {}
     peer_env = peers[0](env_tr, buffer_size, **kw) if peers and "envelope" in methods else None
     peer_cap = peers[1](cap_tr, buffer_size, **kw) if peers and "capql" in methods else None
-    print("(ours: Agent.update as the recipe runs it: fused Adam, our prioritized sampler for Envelope)")
+    print("(ours: the recipe's update as morl-trl train runs it: fused Adam, our prioritized sampler for Envelope)")
     print(f"{'loss':<10} {'update':<11} {'ours/s':>10} {'peer/s':>10} {'ratio':>9} {'vs eager':>10}")
     if "envelope" in methods:
         compare("Envelope", ours_env, peer_env, warmup=warmup, updates=updates, rounds=rounds, device=device)

@@ -5,7 +5,8 @@ the same timing code (below, :func:`time_training`) runs the training loop's bod
 checkout -- that checkout's own ``resolve_config`` / ``build_training_env`` / ``build_agent`` /
 replay buffer / TorchRL collector, as ``morl-trl train`` builds them -- in a fresh process with
 ``PYTHONPATH`` (and the working directory) pointing at the checkout: collect a batch ->
-``agent.learn`` (store + the algorithm's updates) -> ``agent.on_frames`` -> policy sync.
+the algorithm's ``on_batch`` (store + its updates + schedules; ``agent.learn`` + ``agent.on_frames`` in a checkout
+before issue 46) -> policy sync.
 Evaluation and checkpoints are left out. Timing starts once learning has started (after
 ``init_random_frames`` and one batch of warm-up) and covers ``--frames`` environment frames
 (whole batches). Rounds alternate the checkouts (before, after, after, before, ...) so that

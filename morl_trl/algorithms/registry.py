@@ -15,6 +15,7 @@ Example:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
 from morl_trl.algorithms.actor_critic import recipe as actor_critic
@@ -38,7 +39,8 @@ class Algorithm:
 
     Attributes:
         build_agent: ``(cfg, env, *, gamma, device) -> Agent``: its modules, loss and optimizers.
-        train: ``(run) -> (summary, agent)``: its loop (what ``morl-trl train`` runs).
+        train: ``(run) -> (summary, agent)``: its loop (what ``morl-trl train`` runs; for the actor-critics
+            ``train_actor_critic`` bound to the algorithm's builder).
         on_batch: ``(agent, batch, buffer, frames) -> (losses | None, updates)``: what its loop does with
             one collected batch (``buffer``: ``None`` for PCN and PGMORL, which keep their own data).
         build_env: ``(cfg, device) -> env``: its training env.
@@ -51,7 +53,8 @@ class Algorithm:
 
 
 def _actor_critic(builder) -> Algorithm:
-    return Algorithm(builder, actor_critic.train_actor_critic, actor_critic.on_batch)
+    """CAPQL, MOSAC, discrete MOSAC and SAC: one loop, bound to the algorithm's builder."""
+    return Algorithm(builder, partial(actor_critic.train_actor_critic, make_agent=builder), actor_critic.on_batch)
 
 
 #: algorithm name -> :class:`Algorithm`

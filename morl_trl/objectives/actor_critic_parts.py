@@ -31,10 +31,11 @@ Example:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict, TensorDictBase, TensorDictParams
-from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, dispatch
+from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, composite_lp_aggregate, dispatch
 from tensordict.utils import NestedKey
 from torch import Tensor
 from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -429,6 +430,41 @@ class ContinuousSoftActorCriticBase(SoftActorCriticBase):
     bit, ``tests/objectives/test_fast_path.py``); any other network (a custom module, an encoder in
     front) through TorchRL's parameter swapping; ``fast_networks = False`` forces the latter.
     """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Configurable tensordict keys (``loss.set_keys(name=key)``).
+
+        Attributes:
+            action: the action. Defaults to ``"action"``.
+            state_action_value: critic output ``[*B, k]``. Defaults to ``"state_action_value"``.
+            preference: preference ``[*B, k]`` (read, or written for the networks). Defaults to ``"preference"``.
+            log_prob: log-probability entry of the actor. Defaults to TorchRL's sample log-prob key.
+            value_target: key of the estimator's target. Defaults to ``"value_target"``.
+            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
+            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
+            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
+            done: done flag under ``"next"``. Defaults to ``"done"``.
+            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
+        """
+
+        action: NestedKey = "action"
+        state_action_value: NestedKey = "state_action_value"
+        preference: NestedKey = "preference"
+        log_prob: NestedKey | None = None
+        value_target: NestedKey = "value_target"
+        priority: NestedKey = "td_error"
+        priority_weight: NestedKey = "priority_weight"
+        reward: NestedKey = "reward"
+        done: NestedKey = "done"
+        terminated: NestedKey = "terminated"
+
+        def __post_init__(self):
+            if self.log_prob is None:
+                self.log_prob = "sample_log_prob" if composite_lp_aggregate(nowarn=True) else "action_log_prob"
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
 
     #: evaluate the builders' networks from the parameter leaves (see the class docstring)
     fast_networks: bool = True

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDictBase
-from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, composite_lp_aggregate
+from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
 from tensordict.utils import NestedKey
 from torch import Tensor
 from torchrl.data import Composite, TensorSpec
@@ -141,41 +141,6 @@ class MOSACLoss(ContinuousSoftActorCriticBase):
         >>> sorted(out.keys())
         ['alpha', 'entropy', 'loss_actor', 'loss_alpha', 'loss_qvalue']
     """
-
-    @dataclass
-    class _AcceptedKeys:
-        """Configurable tensordict keys (``loss.set_keys(name=key)``).
-
-        Attributes:
-            action: the action. Defaults to ``"action"``.
-            state_action_value: critic output ``[*B, k]``. Defaults to ``"state_action_value"``.
-            preference: preference ``[*B, k]`` (read, or written for the networks). Defaults to ``"preference"``.
-            log_prob: log-probability entry of the actor. Defaults to TorchRL's sample log-prob key.
-            value_target: key of the estimator's target. Defaults to ``"value_target"``.
-            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
-            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
-            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
-            done: done flag under ``"next"``. Defaults to ``"done"``.
-            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
-        """
-
-        action: NestedKey = "action"
-        state_action_value: NestedKey = "state_action_value"
-        preference: NestedKey = "preference"
-        log_prob: NestedKey | None = None
-        value_target: NestedKey = "value_target"
-        priority: NestedKey = "td_error"
-        priority_weight: NestedKey = "priority_weight"
-        reward: NestedKey = "reward"
-        done: NestedKey = "done"
-        terminated: NestedKey = "terminated"
-
-        def __post_init__(self):
-            if self.log_prob is None:
-                self.log_prob = "sample_log_prob" if composite_lp_aggregate(nowarn=True) else "action_log_prob"
-
-    default_keys = _AcceptedKeys
-    tensor_keys: _AcceptedKeys
 
     def __init__(
         self,

@@ -257,7 +257,7 @@ ENVELOPE = {
     "network.num_q_nets": Code("one Q-network and its target (objectives.envelope)"),
     "network.optimizer": Same("lr"  , expect=lambda v, cfg: 3e-4),
     "network.replay_action_dtype": NotApplicable("storage dtype of the action; ours stores the action spec's dtype"),
-    "derived.epsilon_schedule": Code("recipes.agent: random actions before init_random_frames, then epsilon "
+    "derived.epsilon_schedule": Code("training.agent: random actions before init_random_frames, then epsilon "
                                      "linear from eps_start to eps_end over eps_frames"),
     "derived.homotopy_lambda_effective": Same("homotopy_lambda0"),
     "derived.rows_per_gradient_step": Same("batch_size * num_sampled_prefs",
@@ -322,7 +322,8 @@ _SAC_ARGS = {
     "alpha": _SAC_ALPHA,
     "autotune": Same("learn_alpha"),
     "target_entropy_scale": Same("target_entropy_scale"),
-    # algorithms/actor_critic/recipe.py delayed_actor_step: each loss alone, the temperature (alpha_loss_form) after each actor step
+    # algorithms/actor_critic/recipe.py delayed_actor_step: each loss alone, the temperature (alpha_loss_form)
+    # after each actor step
     "policy_freq": Same("policy_freq"),
 }
 # the SAC agent's networks, the same rows for the SAC baseline and MORL/D
@@ -347,7 +348,7 @@ def _sac_agent(prefix: str, *, net_arch) -> dict[str, Any]:
 SAC = {
     **_sac_agent("init", net_arch=_mario_after_cnn),
     **_SAC_NETWORK,
-    "network.critic": Code("recipes.sac: two critics on the scalar reward"),
+    "network.critic": Code("algorithms.actor_critic.sac: two critics on the scalar reward"),
     "network.num_q_nets": Code("two critics"),
     "network.training_reward": Code("transforms: the domain's original scalar reward (SPEC §4)"),
     "derived.initial_alpha": Same("alpha"),
@@ -368,27 +369,27 @@ def _morld_turns(cfg: TrainConfig, *, frames: bool = False):
 
 
 MORLD = {
-    "init.scalarization_method": Code("recipes.morld: weighted sum w . Q"),
+    "init.scalarization_method": Code("algorithms.morld: weighted sum w . Q"),
     "init.evaluation_mode": Code("SER: discounted vector returns, as the evaluator computes them"),
-    "init.policy_name": Code("recipes.morld: MOSAC on continuous actions, discrete MOSAC otherwise"),
+    "init.policy_name": Code("algorithms.morld: MOSAC on continuous actions, discrete MOSAC otherwise"),
     "init.policy_args": NotApplicable("the members' arguments: one row each under policy_args"),
     "init.pop_size": Same("pop_size"),
     "init.exchange_every": Same("exchange_every"),
-    "init.neighborhood_size": Code("recipes.morld (PSA: the nearest archive neighbour)"),
-    "init.dist_metric": Code("recipes.morld (squared Euclidean distance)"),
-    "init.shared_buffer": Code("recipes.morld: one buffer shared by the members"),
+    "init.neighborhood_size": Code("algorithms.morld (PSA: the nearest archive neighbour)"),
+    "init.dist_metric": Code("algorithms.morld (squared Euclidean distance)"),
+    "init.shared_buffer": Code("algorithms.morld: one buffer shared by the members"),
     "init.sharing_mechanism": NotApplicable("[] in every script: no parameter sharing"),
-    "init.update_passes": Same("morld_update_passes"),  # recipes.morld.MORLDAgent: catch-up after each exchange
+    "init.update_passes": Same("morld_update_passes"),  # algorithms.morld.MORLDAgent: catch-up after each exchange
     "init.weight_init_method": Code("preferences.equally_spaced_weights (the authors' 'uniform')"),
     "init.weight_adaptation_method": Same("weight_adaptation", expect=lambda v, cfg: "psa" if v == "PSA" else "none"),
     "init.asymmetric": NotApplicable("False in every script"),
     "init.history_type": NotApplicable("None in every script"),
-    "policy_args.env": Code("recipes.morld: round robin, the acting member steps the training env (num_envs = 1 "
+    "policy_args.env": Code("algorithms.morld: round robin, the acting member steps the training env (num_envs = 1 "
                             "sub-env, reset at each exchange); morld_schedule='concurrent': every member steps its "
                             "own sub-envs of one batched env"),
     "policy_args.weights": Code("preferences.equally_spaced_weights(k, pop_size, seed)"),
     "policy_args.asymmetric": NotApplicable("False in every script"),
-    "policy_args.scalarization": Code("recipes.morld: w . Q"),
+    "policy_args.scalarization": Code("algorithms.morld: w . Q"),
     **_sac_agent("policy_args", net_arch=_net_arch),
     "policy_args.gamma": Same("gamma", ours=_gamma),
     "policy_args.id": NotApplicable("a member's index (no setting)"),
@@ -396,13 +397,14 @@ MORLD = {
     "policy_args.seed": _SEED,
     "policy_args.parent_rng": NotApplicable("RNG plumbing; one `seed` drives every generator here"),
     "policy_args.device": NotApplicable("`device` (the hardware; no effect on results)"),
-    "train.num_eval_episodes_for_front": Same("morld_eval_episodes"),  # recipes.morld.MORLDAgent.evaluate_members
+    "train.num_eval_episodes_for_front": Same("morld_eval_episodes"),  # algorithms.morld.MORLDAgent.evaluate_members
     **_SAC_NETWORK,
     "network.critic": Code("objectives.population: vector critics, trained on w . Q"),
     "network.num_q_nets": Code("two critics per member"),
     "network.critic_loss": Code("objectives.population: MSE of scalarised values against the min of the targets"),
-    "derived.eval_action": Code("recipes.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled actions"),
-    # round robin (recipes.morld; tests/recipes/test_morld_round_robin.py): turns of exchange_every frames
+    "derived.eval_action": Code("algorithms.morld.ArchiveSnapshotRouter: the nearest archive snapshot, sampled "
+                                "actions"),
+    # round robin (algorithms.morld; tests/recipes/test_morld_round_robin.py): turns of exchange_every frames
     "derived.exchanges_per_member": Same("round_robin_turns(frames, exchange_every, pop_size)",
                                          ours=lambda cfg: _morld_turns(cfg)),
     "derived.own_env_steps_per_member": Same("exchange_every * round_robin_turns(...)",
@@ -411,11 +413,11 @@ MORLD = {
     "derived.updates_for_non_active_member_per_exchange": Same(
         "morld_update_passes", expect=lambda v, cfg: int(v.split()[0]),
         ours=lambda cfg: cfg.morld_update_passes if cfg.morld_schedule == "round_robin" else 0),
-    "derived.psa_rule": Code("recipes.morld.psa_weights (tests/recipes/test_morld.py)"),
+    "derived.psa_rule": Code("algorithms.morld.psa_weights (tests/recipes/test_morld.py)"),
     "derived.archive_eval_episodes_per_exchange": Same("pop_size * morld_eval_episodes",
                                                        ours=lambda cfg: cfg.pop_size * cfg.morld_eval_episodes),
     "derived.env_reset_at_each_exchange": Same("morld_schedule", expect=lambda v, cfg: "round_robin" if v else
-                                               "concurrent"),  # recipes.morld: MORLDAgent.env_reset_due
+                                               "concurrent"),  # algorithms.morld: MORLDAgent.env_reset_due
 }
 
 PCN = {
@@ -440,9 +442,9 @@ PCN = {
     "network.combine": Code("objectives.pcn.PCNNetwork: elementwise product"),
     "network.head": Code("objectives.pcn.PCNNetwork: ReLU layers of hidden[1:], then the output"),
     "network.loss": Code("objectives.pcn.PCNLoss (cross-entropy / MSE)"),
-    "network.train_action": Code("recipes.pcn: sampled from the softmax / prediction + N(0, pcn_noise) per "
+    "network.train_action": Code("algorithms.pcn: sampled from the softmax / prediction + N(0, pcn_noise) per "
                                  "dimension"),
-    "network.eval_action": Code("recipes.pcn: argmax / the noiseless prediction"),
+    "network.eval_action": Code("algorithms.pcn: argmax / the noiseless prediction"),
     "network.weight_input": Code("PCN is conditioned on its command, not on weights"),
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
@@ -450,8 +452,8 @@ PCN = {
     "network.init": Code("objectives.pcn (orthogonal_init_)"),
     "network.optimizer": Same("lr", expect=lambda v, cfg: 3e-4),
     "derived.returns_stored": Code("data.episode_replay: discounted returns-to-go"),
-    "derived.command_choice": Code("recipes.pcn (crowding-penalised top episodes, non-dominated, random pick)"),
-    "derived.eval_commands": Code("recipes.pcn: top-episode commands, updated after every step"),
+    "derived.command_choice": Code("algorithms.pcn (crowding-penalised top episodes, non-dominated, random pick)"),
+    "derived.eval_commands": Code("algorithms.pcn: top-episode commands, updated after every step"),
     "derived.command_update_in_episode": Code("transforms.command: desired return -= r, horizon - 1"),
     "derived.updates_per_loop_per_episodes": Same("(pcn_model_updates, pcn_step_episodes)",
                                                   expect=lambda v, cfg: (50, 10),
@@ -464,13 +466,13 @@ _PPO = {
     "num_minibatches": Same("pgmorl_minibatches"),
     "update_epochs": Same("pgmorl_epochs"),
     "learning_rate": Same("lr"),
-    "anneal_lr": Code("recipes.pgmorl: a constant learning rate"),
+    "anneal_lr": Code("algorithms.pgmorl: a constant learning rate"),
     "clip_coef": Same("pgmorl_clip"),
-    "ent_coef": Code("recipes.pgmorl: ClipPPOLoss(entropy_bonus=False)"),
-    "vf_coef": Code("recipes.pgmorl: value loss 0.5 * 0.5 * max(unclipped, clipped)"),
-    "clip_vloss": Code("recipes.pgmorl: ClipPPOLoss(clip_value=pgmorl_clip)"),
+    "ent_coef": Code("algorithms.pgmorl: ClipPPOLoss(entropy_bonus=False)"),
+    "vf_coef": Code("algorithms.pgmorl: value loss 0.5 * 0.5 * max(unclipped, clipped)"),
+    "clip_vloss": Code("algorithms.pgmorl: ClipPPOLoss(clip_value=pgmorl_clip)"),
     "max_grad_norm": Same("max_grad_norm"),
-    "norm_adv": Code("recipes.pgmorl: the scalarised advantage standardised per member and minibatch"),
+    "norm_adv": Code("algorithms.pgmorl: the scalarised advantage standardised per member and minibatch"),
     "target_kl": NotApplicable("None: no early stop on KL"),
     "gae": Code("objectives.pgmorl.vector_gae"),
     "gae_lambda": Same("pgmorl_gae_lambda"),
@@ -493,8 +495,8 @@ PGMORL = {
     "init.generalization_hyperparams": NotApplicable("the evaluator's arguments: the evaluator rows"),
     "moppo.id": NotApplicable("a member's index (no setting)"),
     "moppo.networks": Code("objectives.pgmorl (batched population actor and critic)"),
-    "moppo.weights": Code("recipes.pgmorl: warm-up weights, then the task selection's"),
-    "moppo.envs": Code("recipes.pgmorl: every member steps its own sub-envs of one batched env"),
+    "moppo.weights": Code("algorithms.pgmorl: warm-up weights, then the task selection's"),
+    "moppo.envs": Code("algorithms.pgmorl: every member steps its own sub-envs of one batched env"),
     "moppo.log": NotApplicable("logging switch"),
     "moppo.gamma": Same("gamma", ours=_gamma),
     "moppo.device": NotApplicable("`device` (the hardware; no effect on results)"),
@@ -504,15 +506,15 @@ PGMORL = {
     "network.actor_logstd": Code("objectives.pgmorl: a state-independent log-std initialised to 0"),
     "network.critic": Code("objectives.pgmorl: Tanh MLP -> k values (orthogonal, gain sqrt 2 hidden, 1 output)"),
     "network.advantage": Code("objectives.pgmorl.vector_gae, scalarised with the member's weight"),
-    "network.optimizers": Code("recipes.pgmorl: Adam(lr, eps=1e-5) per member"),
-    "network.optimizer": Code("recipes.pgmorl: Adam(lr, eps=1e-5)"),
+    "network.optimizers": Code("algorithms.pgmorl: Adam(lr, eps=1e-5) per member"),
+    "network.optimizer": Code("algorithms.pgmorl: Adam(lr, eps=1e-5)"),
     "network.num_hidden_layers": Same("hidden", ours=lambda cfg: len(cfg.hidden)),
     "network.layer_norm": _NO_LN,
     "network.dropout": _NO_DROPOUT,
     "network.init": Code("objectives.pgmorl.ppo_population_mlp (orthogonal, gain sqrt 2 hidden, 1 critic output, 0.01 "
                          "actor output, zero biases)"),
-    "derived.training_env_wrappers": Code("recipes.pgmorl: VecNorm observations and rewards, clipped at +-10"),
-    # recipes.pgmorl.PGMORLAgent.reseed_env (tests/recipes/test_pgmorl.py)
+    "derived.training_env_wrappers": Code("algorithms.pgmorl: VecNorm observations and rewards, clipped at +-10"),
+    # algorithms.pgmorl.PGMORLAgent.reseed_env (tests/recipes/test_pgmorl.py)
     "derived.vector_env_reset_each_iteration": Same("(pgmorl_reset_each_iteration, pgmorl_reseed_each_iteration)",
                                                     expect=lambda v, cfg: (True, True),
                                                     ours=lambda cfg: (cfg.pgmorl_reset_each_iteration,
@@ -524,10 +526,10 @@ PGMORL = {
                                   ours=lambda cfg: cfg.frames_per_batch // cfg.pgmorl_pop // cfg.pgmorl_minibatches),
     "derived.warmup_weights": Code("recipes.pgmorl_evolution.generate_weights(delta_weight)[:pop]"),
     "derived.evolution_candidate_weights": Code("recipes.pgmorl_evolution.generate_weights(delta_weight / 2)"),
-    "derived.actual_env_steps": Code("recipes.pgmorl: one member's frames count against the budget (every member "
+    "derived.actual_env_steps": Code("algorithms.pgmorl: one member's frames count against the budget (every member "
                                      "steps its sub-envs)"),
-    "derived.member_evaluation": Code("recipes.pgmorl (5 sampled episodes per member on the DR env)"),
-    "derived.eval_action": Code("recipes.pgmorl: the nearest archive snapshot, sampled actions, raw observations "
+    "derived.member_evaluation": Code("algorithms.pgmorl (5 sampled episodes per member on the DR env)"),
+    "derived.eval_action": Code("algorithms.pgmorl: the nearest archive snapshot, sampled actions, raw observations "
                                 "(pgmorl_eval_obs='raw')"),
 }
 
@@ -542,10 +544,10 @@ GPI = {
     "init.learning_starts": Same("init_random_frames"),
     "init.gradient_updates": Same("gpi_gradient_updates"),
     "init.max_grad_norm": Same("max_grad_norm", expect=_NONE),
-    "init.use_gpi": Code("recipes.gpi: GPI over the weight support while acting and evaluating"),
-    "init.dyna": Code("recipes.gpi: the dynamics model and rollouts for gpi_pd only",
+    "init.use_gpi": Code("algorithms.gpi: GPI over the weight support while acting and evaluating"),
+    "init.dyna": Code("algorithms.gpi: the dynamics model and rollouts for gpi_pd only",
                       open=None),
-    "init.gpi_pd": Code("recipes.gpi (gpi_pd: priorities from the GPI target)"),
+    "init.gpi_pd": Code("algorithms.gpi (gpi_pd: priorities from the GPI target)"),
     "init.per": Same("prioritized"),
     "init.alpha_per": Same("per_alpha"),
     "init.alpha": Same("per_alpha"),
@@ -556,12 +558,12 @@ GPI = {
     "init.policy_noise": Same("gpi_policy_noise"),
     "init.noise_clip": Same("gpi_noise_clip"),
     "train.timesteps_per_iter": Same("gpi_iteration_frames"),
-    "train.weight_selection_algo": Code("recipes.gpi: GPI-LS corner weights (linear support)"),
+    "train.weight_selection_algo": Code("algorithms.gpi: GPI-LS corner weights (linear support)"),
     "train.num_eval_episodes_for_front": Same("gpi_front_episodes"),
-    "train_iteration.weight": Code("recipes.gpi: the next corner weight"),
-    "train_iteration.weight_support": Code("recipes.gpi: CCS support + top-4 queued corners + w"),
-    "train_iteration.change_w_every_episode": Code("recipes.gpi: a support weight per episode"),
-    "train_iteration.change_weight_every_episode": Code("recipes.gpi: a support weight per episode"),
+    "train_iteration.weight": Code("algorithms.gpi: the next corner weight"),
+    "train_iteration.weight_support": Code("algorithms.gpi: CCS support + top-4 queued corners + w"),
+    "train_iteration.change_w_every_episode": Code("algorithms.gpi: a support weight per episode"),
+    "train_iteration.change_weight_every_episode": Code("algorithms.gpi: a support weight per episode"),
     "train_iteration.eval_freq": Same("eval_interval"),
     "train_iteration.reset_learning_starts": _ONE_CALL,
     "train_iteration.reset_num_timesteps": _ONE_CALL,
@@ -587,15 +589,15 @@ GPI = {
     "network.init": Code("objectives.gpi (orthogonal, zero biases)"),
     "network.optimizer": Same("lr", expect=lambda v, cfg: 3e-4),
     "network.optimizers": Same("lr", expect=lambda v, cfg: 3e-4),
-    "network.eval_action": Code("recipes.gpi: greedy GPI action"),
+    "network.eval_action": Code("algorithms.gpi: greedy GPI action"),
     "network.weight_input": Code("objectives.gpi: the weight is an input of every Q-network (and actor)"),
-    "derived.epsilon_schedule": Code("recipes.agent: random actions before init_random_frames, then epsilon linear "
+    "derived.epsilon_schedule": Code("training.agent: random actions before init_random_frames, then epsilon linear "
                                      "from eps_start to eps_end over eps_frames"),
-    "derived.ccs_values": Code("recipes.gpi: Monte-Carlo returns of the GPI policy (gpi_front_episodes each)"),
+    "derived.ccs_values": Code("algorithms.gpi: Monte-Carlo returns of the GPI policy (gpi_front_episodes each)"),
     "derived.eval_gpi_indexing_note": Same("gpi_eval_conditioning", expect=lambda v, cfg: "authors"),
-    "derived.train_action": Code("recipes.gpi: pi(s, w) + clipped Gaussian noise"),
-    "derived.eval_action": Code("recipes.gpi: greedy GPI over the support"),
-    "derived.rows_per_gradient_step": Code("recipes.gpi: the batch doubled with support weights"),
+    "derived.train_action": Code("algorithms.gpi: pi(s, w) + clipped Gaussian noise"),
+    "derived.eval_action": Code("algorithms.gpi: greedy GPI over the support"),
+    "derived.rows_per_gradient_step": Code("algorithms.gpi: the batch doubled with support weights"),
     "derived.gradient_steps_per_env_step": Same("gpi_gradient_updates"),
     "derived.iterations": Same("frames // gpi_iteration_frames", ours=lambda cfg: cfg.frames // cfg.gpi_iteration_frames),
 }
@@ -621,9 +623,9 @@ GPI_PD = {
     "init.dynamics_real_ratio": Same("gpi_real_ratio"),
     "network.dynamics_model": Code("objectives.dynamics (ensemble of Gaussian MLPs, elites by holdout MSE)"),
     "network.termination_fn": Code("objectives.dynamics.model_termination (gpi_model_termination='authors')"),
-    "derived.rollout_start_states": Code("recipes.gpi: start states drawn from the real buffer by PER priority"),
-    "derived.first_model_fit_step": Code("recipes.gpi (the first fit at gpi_dynamics_train_freq)"),
-    "derived.first_rollout_step": Code("recipes.gpi (the first rollout at gpi_dynamics_rollout_starts)"),
+    "derived.rollout_start_states": Code("algorithms.gpi: start states drawn from the real buffer by PER priority"),
+    "derived.first_model_fit_step": Code("algorithms.gpi (the first fit at gpi_dynamics_train_freq)"),
+    "derived.first_rollout_step": Code("algorithms.gpi (the first rollout at gpi_dynamics_rollout_starts)"),
     "derived.real_samples_per_batch": Same("batch_size * gpi_real_ratio",
                                            ours=lambda cfg: int(cfg.batch_size * cfg.gpi_real_ratio)),
 }

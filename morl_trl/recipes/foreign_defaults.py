@@ -70,7 +70,7 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                    lr=3e-4, pgmorl_clip=0.2, max_grad_norm=0.5, pgmorl_gae_lambda=0.95, eval_weights=100,
                    eval_episodes=1, eval_exploration="random",
                    # (MO-PPO's envs.reset(seed) at every train(): a wrapped Gymnasium env's sub-envs cannot be
-                   # re-seeded one by one here, recipes.pgmorl.PGMORLAgent.reseed_env)
+                   # re-seeded one by one here, algorithms.pgmorl.PGMORLAgent.reseed_env)
                    pgmorl_reseed_each_iteration=False),
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (one fixed weight in MB; here
     # preference-conditioned)

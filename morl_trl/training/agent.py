@@ -47,8 +47,11 @@ class Agent:
         target_updater: a ``SoftUpdate`` / :class:`~morl_trl.objectives.updaters.PeriodicHardUpdate`.
         critic_steps: the updates done (the delayed actor's clock; kept by the checkpoint).
         captured: the :class:`~morl_trl.training.capture.CapturedUpdate` of a recipe whose update runs
-            captured (``compile`` / ``cudagraphs``, or fused optimizers on an accelerator), built by
-            :func:`~morl_trl.training.capture.captured_update` on the first update; ``None`` otherwise.
+            captured (``compile`` / ``cudagraphs``, or fused optimizers on an accelerator), decided by
+            :func:`~morl_trl.training.capture.captured_update` on the first update (``False``: eager;
+            ``None``: not decided yet).
+        last_actor_losses: the actor-critics' losses of the last actor turn, reported by the critic-only
+            updates of the delayed actor (``None`` before the first).
 
     Args:
         capturable: whether the recipe's update can run captured; ``compile`` / ``cudagraphs`` are
@@ -69,6 +72,7 @@ class Agent:
         self.eval_exploration = eval_exploration
         self.capturable = capturable
         self.captured = None
+        self.last_actor_losses = None
         self.critic_steps = 0
         policy_freq = int(getattr(cfg, "policy_freq", 1))
         if policy_freq > 1 and not {"qvalue", "actor"} <= set(optimizers):

@@ -63,6 +63,7 @@ from torchrl.objectives import SoftUpdate
 
 from morl_trl._torchrl_compat import replay_sample_unit, sampler_generator, storage_data
 from morl_trl.objectives import PolyakUpdate
+from morl_trl.training.agent import captures
 from morl_trl.training.optim import NonFiniteLossError
 
 __all__ = ["CapturedUpdate", "captured_update", "runs_captured"]
@@ -73,19 +74,17 @@ def runs_captured(agent) -> bool:
     on an accelerator (the on-device guard); on the CPU otherwise the eager update checks on the host."""
     if not agent.capturable:
         return False
-    cfg = agent.cfg
     fused = all(group.get("fused") for opt in agent.optimizers.values() for group in opt.param_groups)
-    return bool(getattr(cfg, "compile", False) or getattr(cfg, "cudagraphs", False)) or (
-        torch.device(agent.device).type != "cpu" and fused)
+    return captures(agent.cfg) or (torch.device(agent.device).type != "cpu" and fused)
 
 
 def captured_update(agent, gradient_step) -> "CapturedUpdate | None":
     """The :class:`CapturedUpdate` of ``agent``'s ``gradient_step`` when its update runs captured
-    (:func:`runs_captured`), built on the first call and kept as ``agent.captured``; ``None``: the recipe's
-    eager update."""
-    if agent.captured is None and runs_captured(agent):
-        agent.captured = CapturedUpdate(agent, gradient_step)
-    return agent.captured
+    (:func:`runs_captured`); ``None``: the recipe's eager update. Decided on the first call and kept as
+    ``agent.captured`` (``False``: eager), so that an update pays one attribute read for it."""
+    if agent.captured is None:
+        agent.captured = CapturedUpdate(agent, gradient_step) if runs_captured(agent) else False
+    return agent.captured or None
 
 
 class CapturedUpdate:

@@ -47,7 +47,8 @@ def test_the_actor_critic_recipe_counts_its_updates_and_actor_steps(tmp_path, mo
     calls = []
     real = actor_critic.update
     monkeypatch.setattr(actor_critic, "update", lambda agent, buffer: calls.append(1) or real(agent, buffer))
-    assert REGISTRY[algo].train is actor_critic.train_actor_critic
+    assert REGISTRY[algo].train.func is actor_critic.train_actor_critic  # (bound to the algorithm's builder)
+    assert REGISTRY[algo].train.keywords["make_agent"] is REGISTRY[algo].build_agent
     train(resolve_config(algo, env_id, run_dir=str(tmp_path / "recipe"), **cfg))
     assert len(calls) == updates  # (the loop's updates are the module's one update)
     (recipe,) = last_checkpoints(tmp_path / "recipe")

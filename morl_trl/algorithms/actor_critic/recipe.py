@@ -80,7 +80,6 @@ from morl_trl.training.parts import (
     run_domain,
     start_notes,
 )
-from morl_trl.algorithms.actor_critic.sac import make_sac_agent
 from morl_trl.runs.run import Run
 
 __all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic", "policy_freq",
@@ -168,8 +167,9 @@ def make_discrete_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -
     return _agent(cfg, loss, actor, gamma, device)
 
 
-def train_actor_critic(run: Run) -> tuple[dict, Agent]:
-    """Train CAPQL, MOSAC, discrete MOSAC or SAC (``run.cfg.algo``) in ``run`` (opened by
+def train_actor_critic(run: Run, make_agent) -> tuple[dict, Agent]:
+    """Train CAPQL, MOSAC, discrete MOSAC or SAC (``make_agent``: its builder, which the registry binds per
+    algorithm) in ``run`` (opened by
     :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
     ``(last evaluation summary, agent)``."""
     cfg = run.cfg
@@ -181,8 +181,6 @@ def train_actor_critic(run: Run) -> tuple[dict, Agent]:
 
     # 2. the modules: actor, critics (TorchRL's copies, orthogonal init), the loss, Adam, the target updater
     tune_malloc()  # (the allocator for training, as build_agent)
-    make_agent = {"capql": make_capql_agent, "mosac": make_mosac_agent, "mosac_discrete": make_discrete_mosac_agent,
-                  "sac": make_sac_agent}[cfg.algo]
     agent = make_agent(cfg, env, gamma=run_discount(cfg, spec), device=device)
     reference = load_reference(cfg, spec)
     evaluator = make_evaluator(cfg, agent, spec, reference)  # (the actor, eval_exploration, on the evaluation suite)
@@ -250,7 +248,7 @@ def delayed_actor_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *,
     kw = dict(max_grad_norm=agent.cfg.max_grad_norm, on_device=on_device)
     loss_qvalue, _ = loss.qvalue_loss(batch)
     found = optimizer_step(loss_qvalue, [optimizers["qvalue"]], losses={"loss_qvalue": loss_qvalue}, **kw)
-    last = getattr(agent, "last_actor_losses", None)
+    last = agent.last_actor_losses
     if actor_turn:
         alpha_opt = optimizers.get("alpha")
         dist = None

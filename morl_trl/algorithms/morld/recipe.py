@@ -422,8 +422,6 @@ class MORLDAgent(Agent):
         self._reset_due = False  # (env_reset_due)
         #: the member whose own update, computed for it alone, is running (``None`` outside one)
         self.sliced_member: int | None = None
-        #: the last actor turn's losses (:func:`update` logs them with the critic-only updates after it)
-        self.last_actor_losses: dict | None = None
 
     @property
     def active(self) -> int:
