@@ -86,15 +86,62 @@ def _add_trust_code(p) -> None:
 
 
 def train_main(argv: list[str]) -> int:
-    from morl_trl.cli_args import check_algorithm, frame_count, join_negative_values, split_positionals
+    """``morl-trl train``: the config the command line gives, then the algorithm's loop in the opened run."""
+    from morl_trl.cli_args import check_algorithm, join_negative_values, split_positionals
     from morl_trl.recipes.config import ALGORITHMS  # (the config package imports no torch: --help answers at once)
+
+    p = _train_parser(ALGORITHMS)
+    args = p.parse_intermixed_args(join_negative_values(argv, ("--ref-point",)))
+    names, moved = split_positionals([args.algo, args.env_id])
+    args.algo, args.env_id = (names + [None, None])[:2]
+    if not args.resume and args.env_id is None:
+        p.error("the following arguments are required: ALGO, ENV_ID (or --resume RUN_DIR alone)")
+    if args.algo is not None:
+        check_algorithm(args.algo, ALGORITHMS)
+    args.overrides = parse_overrides([*moved, *args.overrides, *args.set_])
+    ref_point = _ref_point(args.ref_point)
+    cfg = _resume_config(args) if args.resume else _new_config(args, ref_point)
+    if args.print_config:
+        print(cfg.to_toml())
+        return 0
+    from morl_trl.algorithms.registry import algorithm
+    from morl_trl.recipes import NonFiniteLossError, open_run
+
+    with open_run(cfg, resume=args.resume, overwrite=args.overwrite, trust_pickle=args.trust_pickle,
+                  trust_code=args.trust_code) as run:
+        if not run.done:
+            try:
+                algorithm(run.cfg.algo).train(run)  # the algorithm's own loop, e.g. train_envelope
+            except NonFiniteLossError as err:
+                return _stopped(err)
+    return 0
+
+
+def _new_config(args, ref_point):
+    """The config of a new run: the algorithm's, the record's for the env, --quick, --config, the
+    KEY=VALUE overrides, then the flags (each layer wins over the one before)."""
+    _check_config_env_id(args)
+    _check_keys(args.overrides, args.algo)
+    from morl_trl.recipes import resolve_config
+
+    reference = args.reference or _default_reference()
+    flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
+                 logger=args.logger, progress=False if args.no_progress else None,
+                 ref_point=ref_point, domain_modules=tuple(args.domain_module) or None)
+    overrides = {**args.overrides, **{k: v for k, v in flags.items() if v is not None}}  # flags win
+    return resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
+
+
+def _train_parser(algorithms) -> "_Parser":
+    """``morl-trl train``'s arguments."""
+    from morl_trl.cli_args import frame_count
 
     p = _Parser(
         prog="morl-trl train",
         description="Train a generalist under domain randomization, evaluate it on the evaluation suite, report.",
     )
     p.add_argument("algo", nargs="?", metavar="ALGO",
-                   help=f"algorithm: {', '.join(ALGORITHMS)} (with --resume: the run's, may be left out)")
+                   help=f"algorithm: {', '.join(algorithms)} (with --resume: the run's, may be left out)")
     p.add_argument("env_id", nargs="?", metavar="ENV_ID",
                    help="training env id, e.g. MOLunarLanderDR-v0 (morl-trl envs lists them) or any MO-Gymnasium id "
                         "(with --resume: the run's, may be left out)")
@@ -132,45 +179,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--domain-module", action="append", default=[], metavar="PKG.MODULE",
                    help="import this module first: it registers your own domains (its SPECS); repeatable")
     p.add_argument("--print-config", action="store_true", help="print the complete resolved config (grouped TOML) and exit")
-    args = p.parse_intermixed_args(join_negative_values(argv, ("--ref-point",)))
-    names, moved = split_positionals([args.algo, args.env_id])
-    args.algo, args.env_id = (names + [None, None])[:2]
-    if not args.resume and args.env_id is None:
-        p.error("the following arguments are required: ALGO, ENV_ID (or --resume RUN_DIR alone)")
-    if args.algo is not None:
-        check_algorithm(args.algo, ALGORITHMS)
-    args.overrides = parse_overrides([*moved, *args.overrides, *args.set_])
-    ref_point = _ref_point(args.ref_point)
-    if args.resume:
-        cfg = _resume_config(args)
-        if args.print_config:
-            print(cfg.to_toml())
-            return 0
-        from morl_trl.recipes import NonFiniteLossError, run_training
-
-        try:
-            run_training(cfg, resume=args.resume, trust_pickle=args.trust_pickle, trust_code=args.trust_code)
-        except NonFiniteLossError as err:
-            return _stopped(err)
-        return 0
-    _check_config_env_id(args)
-    _check_keys(args.overrides, args.algo)
-    from morl_trl.recipes import NonFiniteLossError, resolve_config, run_training
-
-    reference = args.reference or _default_reference()
-    flags = dict(frames=args.frames, seed=args.seed, device=args.device, run_dir=args.run_dir, reference_dir=reference,
-                 logger=args.logger, progress=False if args.no_progress else None,
-                 ref_point=ref_point, domain_modules=tuple(args.domain_module) or None)
-    overrides = {**args.overrides, **{k: v for k, v in flags.items() if v is not None}}  # flags win
-    cfg = resolve_config(args.algo, args.env_id, quick=args.quick, config_file=args.config, **overrides)
-    if args.print_config:
-        print(cfg.to_toml())
-        return 0
-    try:
-        run_training(cfg, overwrite=args.overwrite)  # the algorithm's loop (morl_trl.algorithms.registry.REGISTRY)
-    except NonFiniteLossError as err:
-        return _stopped(err)
-    return 0
+    return p
 
 
 def _check_keys(overrides: dict, algo: str) -> None:

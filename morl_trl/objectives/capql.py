@@ -7,14 +7,8 @@ from tensordict import TensorDictBase
 from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
 from torch import Tensor
 
-from morl_trl.objectives.actor_critic_parts import (
-    ContinuousSoftActorCriticBase,
-    draw,
-    elementwise_min,
-    soft_actor_objective,
-    soft_next_value,
-    vector_critic_loss,
-)
+from morl_trl.objectives.actor_critic_parts import (ContinuousSoftActorCriticBase, draw, elementwise_min,
+                                                    soft_actor_objective, soft_next_value, vector_critic_loss)
 
 __all__ = ["CAPQLLoss"]
 
@@ -23,13 +17,10 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
     r"""Concave-augmented Pareto Q-learning: one preference-conditioned SAC for all preferences.
 
     A preference-conditioned actor :math:`\pi(a | s, w)` and two vector critics
-    :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at
-    once. Each transition is trained on the preference :math:`w` stored with it,
-    as the authors' runs do (the one its action was chosen with: they draw a new
-    one every env step from a 22.5-degree cone, see
-    :func:`~morl_trl.preferences.sample_cone_preferences`); with
-    ``resample_preferences=True`` it gets a fresh one (uniform on the simplex) at
-    every call instead, so that every update covers the whole simplex.
+    :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at once, each transition on
+    the preference :math:`w` stored with it, as the authors' runs (drawn every env step from a 22.5-degree
+    cone, :func:`~morl_trl.preferences.sample_cone_preferences`); ``resample_preferences=True``: a fresh
+    one (uniform on the simplex) at every call.
 
     * Value estimate (:meth:`_value_target`): with :math:`a' \sim \pi(\cdot | s', w)`,
 
@@ -83,41 +74,17 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
         ['alpha', 'entropy', 'loss_actor', 'loss_qvalue']
     """
 
-    def __init__(
-        self,
-        actor_network: ProbabilisticTensorDictSequential,
-        qvalue_network: TensorDictModule,
-        *,
-        alpha: float = 0.2,
-        resample_preferences: bool = False,
-        num_objectives: int | None = None,
-        num_qvalue_nets: int = 2,
-        preference_distribution: str = "dirichlet",
-        loss_function: str = "l2",
-        delay_qvalue: bool = True,
-        reduction: str = "mean",
-        use_prioritized_weights: str | bool = "auto",
-        deactivate_vmap: bool = False,
-    ) -> None:
-        super().__init__(
-            actor_network,
-            qvalue_network,
-            num_objectives=num_objectives,
-            num_qvalue_nets=num_qvalue_nets,
-            preference=None,
-            resample_preferences=resample_preferences,
-            preference_distribution=preference_distribution,
-            loss_function=loss_function,
-            alpha_init=alpha,
-            min_alpha=None,
-            max_alpha=None,
-            fixed_alpha=True,
-            delay_qvalue=delay_qvalue,
-            reduction=reduction,
-            use_prioritized_weights=use_prioritized_weights,
-            deactivate_vmap=deactivate_vmap,
-            alpha_loss_form="log_alpha",
-        )
+    def __init__(self, actor_network: ProbabilisticTensorDictSequential, qvalue_network: TensorDictModule, *,
+                 alpha: float = 0.2, resample_preferences: bool = False, num_objectives: int | None = None,
+                 num_qvalue_nets: int = 2, preference_distribution: str = "dirichlet", loss_function: str = "l2",
+                 delay_qvalue: bool = True, reduction: str = "mean", use_prioritized_weights: str | bool = "auto",
+                 deactivate_vmap: bool = False) -> None:
+        super().__init__(actor_network, qvalue_network, num_objectives=num_objectives, num_qvalue_nets=num_qvalue_nets,
+                         preference=None, resample_preferences=resample_preferences,
+                         preference_distribution=preference_distribution, loss_function=loss_function,
+                         alpha_init=alpha, min_alpha=None, max_alpha=None, fixed_alpha=True, delay_qvalue=delay_qvalue,
+                         reduction=reduction, use_prioritized_weights=use_prioritized_weights,
+                         deactivate_vmap=deactivate_vmap, alpha_loss_form="log_alpha")
         # the temperature is fixed: no target entropy is used (kept as the state's entry)
         self.register_buffer("target_entropy", torch.tensor(0.0, device=self.log_alpha.device))
 

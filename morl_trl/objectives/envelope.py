@@ -33,67 +33,49 @@ def action_index(action: torch.Tensor, batch: int, num_actions: int) -> torch.Te
 class EnvelopeQLoss(MultiObjectiveLossModule):
     r"""Envelope multi-objective Q-learning loss.
 
-    A vector Q-network :math:`Q(s, \cdot, w) \in \mathbb{R}^{|A| \times k}`
-    conditioned on the preference :math:`w` is regressed onto the envelope
-    target, for each transition :math:`j` and each of ``N`` sampled preferences
-    :math:`w_i`:
+    A vector Q-network :math:`Q(s, \cdot, w) \in \mathbb{R}^{|A| \times k}` conditioned on the
+    preference :math:`w` is regressed, for each transition :math:`j` and each of ``N`` sampled
+    preferences :math:`w_i`, onto the envelope target
 
     .. math::
 
         y_{ij} = r_j + \gamma (1 - d_j)\, Q^{-}(s'_j, a^*, w^*), \quad
         (a^*, w^*) = \arg\max_{a',\, w' \in W_j} w_i^\top Q(s'_j, a', w')
 
-    where :math:`W_j` is the set of sampled preferences, the argmax uses the
-    online network and the value the target network :math:`Q^-` (double Q).
-    The loss is the homotopy :math:`(1-\lambda) L_A + \lambda L_B` of the vector
-    regression :math:`L_A = \|Q(s, a, w) - y\|^2` and its scalarisation
-    :math:`L_B = (w^\top Q(s, a, w) - w^\top y)^2`.
-
-    Every (transition, preference) pair goes through each network once: the
-    preference dimension is folded into the batch, so the target costs one
-    forward of the online and one of the target network over ``B * N`` rows
-    (MORL-Baselines evaluates ``B * N * N`` rows per network).
+    (:math:`W_j` the sampled preferences; the argmax by the online network, the value by the target
+    network :math:`Q^-`). The loss is the homotopy :math:`(1-\lambda) L_A + \lambda L_B` of the vector
+    regression :math:`L_A = \|Q(s, a, w) - y\|^2` and its scalarisation :math:`L_B = (w^\top Q - w^\top y)^2`.
+    The preference dimension is folded into the batch: one forward per network over ``B * N`` rows
+    (MORL-Baselines evaluates ``B * N * N``). The per-transition TD error is written under
+    ``tensor_keys.priority`` for :meth:`TensorDictReplayBuffer.update_tensordict_priority`.
 
     Args:
-        value_network (TensorDictModule or nn.Module): reads the observation keys and
-            the preference and writes ``"action_value"`` of shape ``[*B, |A|, k]``; an
-            ``nn.Module`` is wrapped with ``in_keys=["observation", "preference"]``.
-            :func:`~morl_trl.objectives.networks.make_vector_q_network` builds one.
+        value_network (TensorDictModule or nn.Module): reads the observation keys and the preference,
+            writes ``"action_value"`` ``[*B, |A|, k]`` (an ``nn.Module`` is wrapped with
+            ``in_keys=["observation", "preference"]``; :func:`~morl_trl.objectives.networks.make_vector_q_network`).
 
     Keyword Args:
         num_objectives (int, optional): ``k``; read from networks made by the builders.
-        num_preference_samples (int): ``N``, preferences sampled per transition. Defaults to 8.
-        shared_preferences (bool): one set of ``N`` preferences for the whole batch (as in
-            the paper and MORL-Baselines) rather than one set per transition. Defaults to ``True``.
-        include_batch_preference (bool): replace the first sampled preference of each
-            transition by the one stored in the batch under ``"preference"``. Defaults to ``False``.
-        preference_distribution (str): ``"gaussian"`` (MORL-Baselines' ``|N(0, I)|``
-            normalised; the default) or ``"dirichlet"`` (uniform on the simplex).
-        envelope (bool): envelope target; ``False`` gives the scalarised double-DQN
-            target per preference. Defaults to ``True``.
-        double_dqn (bool): pick the target's argmax with the online network. Defaults to ``True``.
-        homotopy_lambda (float): initial :math:`\lambda`. Defaults to 0.
-        final_homotopy_lambda (float): :math:`\lambda` after ``homotopy_steps`` calls' worth
-            of :meth:`update_homotopy`. Defaults to 1.
-        homotopy_steps (int, optional): length of the linear schedule; ``None`` keeps
-            :math:`\lambda` fixed. :math:`\lambda` can also be set directly:
-            ``loss.homotopy_lambda = 0.5``.
+        num_preference_samples (int): ``N`` per transition. Defaults to 8.
+        shared_preferences (bool): one set of ``N`` for the whole batch (the paper, MORL-Baselines) rather
+            than one per transition. Defaults to ``True``.
+        include_batch_preference (bool): the batch's own ``"preference"`` replaces each transition's first
+            sample. Defaults to ``False``.
+        preference_distribution (str): ``"gaussian"`` (``|N(0, I)|`` normalised, MORL-Baselines'; default)
+            or ``"dirichlet"`` (uniform on the simplex).
+        envelope (bool): the envelope target; ``False``: the scalarised double-DQN target per preference.
+        double_dqn (bool): the target's argmax by the online network. Defaults to ``True``.
+        homotopy_lambda (float): the initial :math:`\lambda` (or set ``loss.homotopy_lambda``). Defaults to 0.
+        final_homotopy_lambda (float): :math:`\lambda` after ``homotopy_steps`` (:meth:`update_homotopy`).
+        homotopy_steps (int, optional): the linear schedule's length; ``None`` keeps :math:`\lambda` fixed.
         loss_function (str): ``"l2"`` (default), ``"l1"`` or ``"smooth_l1"``.
-        delay_value (bool): keep target parameters (update them with
-            :class:`~torchrl.objectives.HardUpdate` or ``SoftUpdate``). Defaults to ``True``.
+        delay_value (bool): keep target parameters (``HardUpdate`` / ``SoftUpdate``). Defaults to ``True``.
         reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
-        use_prioritized_weights (bool or "auto"): weight samples by the importance
-            weights a prioritized sampler writes under ``"priority_weight"`` (MORL-Baselines
-            applies none: the Envelope recipe passes ``False`` unless ``per_importance_weights``).
-        priority (str): the per-transition TD error written for prioritized replay:
-            ``"first"`` (the default, as MORL-Baselines and the paper's runs):
-            :math:`|w_0^\top (Q(s_j, a_j, w_0) - y_{0j})|`, the scalarised error under the
-            *first* sampled preference only; ``"mean"``: the mean over the ``N`` preferences,
-            :math:`\frac1N\sum_i |w_i^\top (Q(s_j, a_j, w_i) - y_{ij})|`.
-
-    The per-transition TD error (``priority``) is written into the input under the
-    ``priority`` key (``"td_error"``) for
-    :meth:`TensorDictReplayBuffer.update_tensordict_priority`.
+        use_prioritized_weights (bool or "auto"): weight samples by a prioritized sampler's
+            ``"priority_weight"`` (MORL-Baselines applies none: the recipe passes ``per_importance_weights``).
+        priority (str): the TD error written for prioritized replay: ``"first"`` (default, as MORL-Baselines
+            and the paper's runs) :math:`|w_0^\top (Q(s_j, a_j, w_0) - y_{0j})|` under the first sampled
+            preference only; ``"mean"``: its mean over the ``N`` preferences.
 
     Examples:
         >>> from tensordict import TensorDict
@@ -123,19 +105,10 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
 
     @dataclass
     class _AcceptedKeys:
-        """Configurable tensordict keys (``loss.set_keys(name=key)``).
-
-        Attributes:
-            action_value: network output ``[*B, |A|, k]``. Defaults to ``"action_value"``.
-            action: the action taken (integer or one-hot). Defaults to ``"action"``.
-            preference: preference input of the network, ``[*B, k]``. Defaults to ``"preference"``.
-            value_target: key of the estimator's target. Defaults to ``"value_target"``.
-            priority: where the per-sample TD error is written. Defaults to ``"td_error"``.
-            priority_weight: importance weights of prioritized replay. Defaults to ``"priority_weight"``.
-            reward: ``[*B, k]`` vector reward under ``"next"``. Defaults to ``"reward"``.
-            done: done flag under ``"next"``. Defaults to ``"done"``.
-            terminated: termination flag under ``"next"``. Defaults to ``"terminated"``.
-        """
+        """Configurable tensordict keys (``loss.set_keys(name=key)``): the network's output
+        ``[*B, |A|, k]``, the action (integer or one-hot), the preference ``[*B, k]``, the estimator's
+        target, where the TD error is written, the importance weights, and under ``"next"`` the vector
+        reward ``[*B, k]`` and the done and terminated flags."""
 
         action_value: NestedKey = "action_value"
         action: NestedKey = "action"
@@ -158,26 +131,13 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
     value_network_params: TensorDictParams
     target_value_network_params: TensorDictParams
 
-    def __init__(
-        self,
-        value_network: TensorDictModule | nn.Module,
-        *,
-        num_objectives: int | None = None,
-        num_preference_samples: int = 8,
-        shared_preferences: bool = True,
-        include_batch_preference: bool = False,
-        preference_distribution: str = "gaussian",
-        envelope: bool = True,
-        double_dqn: bool = True,
-        homotopy_lambda: float = 0.0,
-        final_homotopy_lambda: float = 1.0,
-        homotopy_steps: int | None = None,
-        loss_function: str = "l2",
-        delay_value: bool = True,
-        reduction: str = "mean",
-        use_prioritized_weights: str | bool = "auto",
-        priority: str = "first",
-    ) -> None:
+    def __init__(self, value_network: TensorDictModule | nn.Module, *, num_objectives: int | None = None,
+                 num_preference_samples: int = 8, shared_preferences: bool = True,
+                 include_batch_preference: bool = False, preference_distribution: str = "gaussian",
+                 envelope: bool = True, double_dqn: bool = True, homotopy_lambda: float = 0.0,
+                 final_homotopy_lambda: float = 1.0, homotopy_steps: int | None = None, loss_function: str = "l2",
+                 delay_value: bool = True, reduction: str = "mean", use_prioritized_weights: str | bool = "auto",
+                 priority: str = "first") -> None:
         self._in_keys = None
         super().__init__()
         if not isinstance(value_network, TensorDictModule):
@@ -214,11 +174,8 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
 
     # -------------------------------------------------------------- schedule
     def update_homotopy(self, step: int) -> float:
-        r"""Sets :math:`\lambda` on its linear schedule at ``step`` and returns it.
-
-        :math:`\lambda = \lambda_0 + (\lambda_1 - \lambda_0)\min(1, \text{step} / \text{homotopy\_steps})`;
-        without ``homotopy_steps`` :math:`\lambda` stays at its current value.
-        """
+        r"""Sets and returns :math:`\lambda = \lambda_0 + (\lambda_1 - \lambda_0)\min(1, \text{step} /
+        \text{homotopy\_steps})` (without ``homotopy_steps``: unchanged)."""
         if self.homotopy_steps is None:
             return float(self.homotopy_lambda)
         frac = min(1.0, max(0.0, step / max(1, self.homotopy_steps)))
@@ -232,14 +189,9 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         return [key for key in self.value_network.in_keys if key != self.tensor_keys.preference]
 
     def _set_in_keys(self) -> None:
-        keys = [
-            self.tensor_keys.action,
-            ("next", self.tensor_keys.reward),
-            ("next", self.tensor_keys.done),
-            ("next", self.tensor_keys.terminated),
-            *self._network_input_keys,
-            *[("next", key) for key in self._network_input_keys],
-        ]
+        keys = [self.tensor_keys.action, *[("next", k) for k in (self.tensor_keys.reward, self.tensor_keys.done,
+                                                                self.tensor_keys.terminated)],
+                *self._network_input_keys, *[("next", key) for key in self._network_input_keys]]
         if self.include_batch_preference:
             keys.append(self.tensor_keys.preference)
         self._in_keys = list(dict.fromkeys(keys))
@@ -310,10 +262,7 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
 
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """Computes the Envelope loss on a batch of transitions with ``[*B, k]`` rewards.
-
-        Writes the per-transition TD error under ``tensor_keys.priority``.
-        """
+        """The Envelope loss of a batch of transitions with ``[*B, k]`` rewards; writes the TD error."""
         self._check_inputs(tensordict, needs_preference=self.include_batch_preference)
         data = tensordict.reshape(-1) if tensordict.ndim != 1 else tensordict
         batch, n = data.shape[0], self.num_preference_samples
@@ -345,24 +294,12 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
             weights = weights.reshape(batch)
         loss = reduce_loss(self, per_sample, data, weights)
         if self.reduction == "none":
-            out = TensorDict(
-                {
-                    "loss_qvalue": loss.reshape(tensordict.shape),
-                    "vector_loss": vector_loss.mean(-1).detach().reshape(tensordict.shape),
-                    "scalarized_loss": scalarized_loss.mean(-1).detach().reshape(tensordict.shape),
-                },
-                batch_size=tensordict.shape,
-            )
+            shape = tensordict.shape
+            out = TensorDict({"loss_qvalue": loss.reshape(shape), "vector_loss": vector_loss.mean(-1).detach().reshape(
+                shape), "scalarized_loss": scalarized_loss.mean(-1).detach().reshape(shape)}, batch_size=shape)
         else:
-            out = TensorDict(
-                {
-                    "loss_qvalue": loss,
-                    "vector_loss": vector_loss.detach().mean(),
-                    "scalarized_loss": scalarized_loss.detach().mean(),
-                    "homotopy_lambda": lam.detach().clone(),
-                    "scalarized_q": scalar_q.detach().mean(),
-                },
-                batch_size=[],
-            )
+            out = TensorDict({"loss_qvalue": loss, "vector_loss": vector_loss.detach().mean(),
+                              "scalarized_loss": scalarized_loss.detach().mean(), "homotopy_lambda": lam.detach().clone(),
+                              "scalarized_q": scalar_q.detach().mean()}, batch_size=[])
         clear_weakrefs(self, tensordict, out, "value_network_params", "target_value_network_params")
         return out

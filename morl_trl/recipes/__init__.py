@@ -43,6 +43,7 @@ _LAZY = {
     "resolve_config": "morl_trl.recipes.config",
     "evaluate_run": "morl_trl.recipes.off_policy",
     "run_training": "morl_trl.recipes.off_policy",
+    "open_run": "morl_trl.recipes.off_policy",
     "train": "morl_trl.recipes.off_policy",
     "NonFiniteLossError": "morl_trl.training.optim",
     "make_training_env": "morl_trl.training.parts",
@@ -68,6 +69,7 @@ __all__ = [
     "load_policy",
     "resolve_config",
     "run_training",
+    "open_run",
     "train",
     "train_policy",
 ]

@@ -1,7 +1,7 @@
 """``morl-trl train``: open the run, then run the algorithm's loop; and ``morl-trl evaluate``.
 
-:func:`run_training` opens the :class:`~morl_trl.runs.Run` (a new run, or the continuation of
-one), seeds the process and hands the run to the algorithm's loop, found in the one registry
+:func:`run_training` opens the :class:`~morl_trl.runs.Run` (:func:`open_run`: a new run, or the
+continuation of one), seeds the process and hands the run to the algorithm's loop, found in the one registry
 (:data:`~morl_trl.algorithms.registry.REGISTRY`: Envelope's
 :func:`~morl_trl.algorithms.envelope.recipe.train_envelope`, the actor-critics'
 :func:`~morl_trl.algorithms.actor_critic.recipe.train_actor_critic`, GPI's, PCN's, PGMORL's, MORL/D's), which
@@ -44,7 +44,7 @@ from morl_trl.runs.run_dir import check_writable
 from morl_trl.runs.run_log import RunLog
 from morl_trl.transforms import compose_policy_env
 
-__all__ = ["train", "run_training", "evaluate_run", "EXIT_NON_FINITE_LOSS",
+__all__ = ["train", "run_training", "open_run", "evaluate_run", "EXIT_NON_FINITE_LOSS",
            "make_training_env", "make_replay_buffer", "make_collector", "make_evaluator"]
 
 #: what ``morl-trl train`` exits with when a non-finite loss stopped the run (after it wrote
@@ -103,6 +103,21 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
     in memory (``None`` when a resumed run had nothing left to do), where the run was written
     and the config it ran with. ``echo_report=False``: the end of the run prints the report's
     one-line summary instead of its tables (what ``morl_trl.train`` does)."""
+    with open_run(cfg, resume=resume, overwrite=overwrite, trust_pickle=trust_pickle, trust_code=trust_code,
+                  echo_report=echo_report) as run:
+        if run.done:
+            return {"frames": run.frames, "finished": True}, None, run.dir, run.cfg
+        summary, agent = algorithm(run.cfg.algo).train(run)  # the algorithm's own loop
+        return summary, agent, run.dir, run.cfg
+
+
+@contextlib.contextmanager
+def open_run(cfg: TrainConfig | None = None, *, resume: str | Path | None = None, overwrite: bool = False,
+             trust_pickle: bool = False, trust_code: bool | list[str] = False, echo_report: bool = True):
+    """The :class:`~morl_trl.runs.Run` of a new run or of the continuation of ``resume``, opened for its
+    loop (``algorithm(run.cfg.algo).train(run)``): locked against a second writer while inside, the
+    process seeded with ``cfg.seed``. ``run.done``: a resumed run that already reached its frames (said
+    on stdout); there is nothing to train. The arguments are :func:`train`'s."""
     if resume is not None and (Path(resume) / "config.json").is_file():
         check_writable(Path(resume))
         lock = RunLock(resume, "training")  # one writer: a second one is refused, naming this process
@@ -121,11 +136,10 @@ def run_training(cfg: TrainConfig | None = None, *, resume: str | Path | None = 
         if run.done:
             print(f"{run.dir} already reached {run.frames:,} frames (frames = {cfg.frames:,}): nothing to do; "
                   f"pass a larger frames (--frames) to extend it", flush=True)
-            return {"frames": run.frames, "finished": True}, None, run.dir, cfg
-        _set_threads(cfg)
-        _seed_everything(cfg.seed)
-        summary, agent = algorithm(cfg.algo).train(run)  # the algorithm's own loop
-        return summary, agent, run.dir, cfg
+        else:
+            _set_threads(cfg)
+            _seed_everything(cfg.seed)
+        yield run
 
 
 def evaluate_run(run_dir: str | Path, *, reference_dir: str | None = None, weights: int | None = None,

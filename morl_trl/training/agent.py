@@ -7,6 +7,7 @@ The builders, updates and loops live with their algorithm (:mod:`morl_trl.algori
 
 from __future__ import annotations
 
+import contextlib
 import copy
 
 import torch
@@ -22,7 +23,8 @@ from morl_trl.objectives.updaters import PeriodicHardUpdate
 from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, keep_implementation
 from morl_trl.training.state_upgrade import upgrade_agent_state
 
-__all__ = ["Agent", "NonFiniteLossError", "apply_updates", "updates_due", "captures",
+__all__ = ["Agent", "NonFiniteLossError", "counted_update", "updates_due", "captures", "runs_captured",
+           "captured_update",
            "adam", "fused_choice", "is_discrete", "obs_shape", "num_objectives", "action_spec",
            "target_updater", "actor_critic_optimizers", "orthogonal_critic_copies_", "eval_exploration", "epsilon",
            "epsilon_greedy"]
@@ -48,7 +50,7 @@ class Agent:
         critic_steps: the updates done (the delayed actor's clock; kept by the checkpoint).
         captured: the :class:`~morl_trl.training.capture.CapturedUpdate` of a recipe whose update runs
             captured (``compile`` / ``cudagraphs``, or fused optimizers on an accelerator), decided by
-            :func:`~morl_trl.training.capture.captured_update` on the first update (``False``: eager;
+            :func:`captured_update` on the first update (``False``: eager;
             ``None``: not decided yet).
         last_actor_losses: the actor-critics' losses of the last actor turn, reported by the critic-only
             updates of the delayed actor (``None`` before the first).
@@ -87,9 +89,8 @@ class Agent:
 
     @property
     def replay_keys(self) -> list:
-        """The entries of a transition that the replay buffer keeps: those the loss reads
-        (``loss.in_keys``). The collector's batch has many more (episode returns, the
-        ``"next"`` preference, the policy's action values, ...), which only the run's logs read."""
+        """The entries of a transition the replay buffer keeps: those the loss reads (``loss.in_keys``; the
+        collector's batch has more, which only the run's logs read)."""
         return list(self.loss.in_keys)
 
     def store(self, buffer, batch: TensorDictBase) -> None:
@@ -137,22 +138,34 @@ def updates_due(cfg, frames: int, batch_frames: int) -> int:
     return cfg.updates_per_batch or frames // every - (frames - batch_frames) // every
 
 
-def apply_updates(update, n: int):
-    """``n`` calls of ``update()``; returns the last one's losses (``None`` for ``n = 0``). A
-    :class:`NonFiniteLossError` carries ``updates_done``: the updates applied before it (the run counts them).
+@contextlib.contextmanager
+def counted_update(done: int):
+    """Around one of a batch's updates: a :class:`NonFiniteLossError` raised inside carries
+    ``updates_done = done``, the updates of the batch applied before it (the run counts them)."""
+    try:
+        yield
+    except NonFiniteLossError as err:
+        err.updates_done = done
+        raise
 
-    Example:
-        >>> apply_updates(lambda: 1.0, 3), apply_updates(lambda: 1.0, 0)
-        (1.0, None)
-    """
-    losses = None
-    for i in range(n):
-        try:
-            losses = update()
-        except NonFiniteLossError as err:
-            err.updates_done = i
-            raise
-    return losses
+
+def runs_captured(agent) -> bool:
+    """Whether ``agent``'s update runs captured: ``cfg.compile`` / ``cfg.cudagraphs``, or fused optimizers
+    on an accelerator (the on-device guard); on the CPU otherwise the eager update checks on the host."""
+    if not agent.capturable:
+        return False
+    fused = all(group.get("fused") for opt in agent.optimizers.values() for group in opt.param_groups)
+    return captures(agent.cfg) or (torch.device(agent.device).type != "cpu" and fused)
+
+
+def captured_update(agent, gradient_step):
+    """The :class:`~morl_trl.training.capture.CapturedUpdate` of ``agent``'s ``gradient_step`` if its update
+    runs captured (:func:`runs_captured`), else ``False`` (eager); the recipe keeps it as ``agent.captured``."""
+    if not runs_captured(agent):
+        return False
+    from morl_trl.training.capture import CapturedUpdate  # (capture.py builds on this module)
+
+    return CapturedUpdate(agent, gradient_step)
 
 
 def epsilon(cfg, frames: int) -> float:

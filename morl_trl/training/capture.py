@@ -6,9 +6,10 @@ MOSAC, discrete MOSAC and SAC, :mod:`~morl_trl.algorithms.actor_critic.recipe`) 
 *sample → gradient_step → hard target copy → priority write*, with ``gradient_step(agent, batch,
 actor_turn, on_device=False) -> (losses, found_inf)`` (loss → backward → clipping → optimizer
 steps). With ``cfg.compile`` and/or ``cfg.cudagraphs`` (config group ``compile``, as in TorchRL's
-``sota-implementations``) :func:`captured_update` wraps that same ``gradient_step`` in
+``sota-implementations``) :func:`~morl_trl.training.agent.captured_update` wraps that same ``gradient_step`` in
 ``torch.compile(mode=cfg.compile_mode)`` and/or :class:`tensordict.nn.CudaGraphModule` (one graph
-launch per update on CUDA), and the recipe's update hands the whole update to it. On an
+launch per update on CUDA), and the recipe's update hands the whole update to it (the decision:
+:func:`~morl_trl.training.agent.runs_captured`). On an
 accelerator the same step runs uncompiled by default (when the optimizers are fused), for its
 on-device guard: no host synchronisation per update there either.
 
@@ -51,7 +52,7 @@ Example:
     >>> env = compose_training_env(make_env(cfg.env_id, num_envs=2), gamma=0.99)
     >>> agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
     >>> from morl_trl.algorithms.actor_critic.recipe import gradient_step
-    >>> captured_update(agent, gradient_step).interval
+    >>> CapturedUpdate(agent, gradient_step).interval
     4
 """
 
@@ -63,28 +64,9 @@ from torchrl.objectives import SoftUpdate
 
 from morl_trl._torchrl_compat import replay_sample_unit, sampler_generator, storage_data
 from morl_trl.objectives import PolyakUpdate
-from morl_trl.training.agent import captures
 from morl_trl.training.optim import NonFiniteLossError
 
-__all__ = ["CapturedUpdate", "captured_update", "runs_captured"]
-
-
-def runs_captured(agent) -> bool:
-    """Whether ``agent``'s update runs captured: ``cfg.compile`` / ``cfg.cudagraphs``, or fused optimizers
-    on an accelerator (the on-device guard); on the CPU otherwise the eager update checks on the host."""
-    if not agent.capturable:
-        return False
-    fused = all(group.get("fused") for opt in agent.optimizers.values() for group in opt.param_groups)
-    return captures(agent.cfg) or (torch.device(agent.device).type != "cpu" and fused)
-
-
-def captured_update(agent, gradient_step) -> "CapturedUpdate | None":
-    """The :class:`CapturedUpdate` of ``agent``'s ``gradient_step`` when its update runs captured
-    (:func:`runs_captured`); ``None``: the recipe's eager update. Decided on the first call and kept as
-    ``agent.captured`` (``False``: eager), so that an update pays one attribute read for it."""
-    if agent.captured is None:
-        agent.captured = CapturedUpdate(agent, gradient_step) if runs_captured(agent) else False
-    return agent.captured or None
+__all__ = ["CapturedUpdate"]
 
 
 class CapturedUpdate:

@@ -44,8 +44,7 @@ class NonFiniteLossError(StopRun):
 
 
 def check_finite(losses: Mapping[str, torch.Tensor], total: torch.Tensor | None = None) -> None:
-    """Raise :class:`NonFiniteLossError` naming every loss of ``losses`` unless ``total`` (default:
-    each of them) is finite. Reads the host."""
+    """Raise :class:`NonFiniteLossError` naming ``losses`` unless ``total`` (default: each loss) is finite."""
     if total is not None:  # (one host read; torch.isfinite on a CPU scalar is four operations)
         finite = math.isfinite(total.item()) if total.numel() == 1 else bool(torch.isfinite(total).all())
     else:
@@ -56,10 +55,8 @@ def check_finite(losses: Mapping[str, torch.Tensor], total: torch.Tensor | None 
 
 
 def clip_grad_norm(params: Iterable[torch.Tensor], max_norm: float, *, population: int | None = None) -> None:
-    """Clip the gradient norm of ``params`` to ``max_norm``: ``torch.nn.utils.clip_grad_norm_``,
-    or, with ``population=P`` (parameters stacked ``[P, ...]``: a batched population), each
-    member's own norm (over its slices of every parameter), with the same ``max / (norm + 1e-6)``
-    scale capped at 1."""
+    """``torch.nn.utils.clip_grad_norm_``, or with ``population=P`` (parameters stacked ``[P, ...]``) each
+    member's own norm clipped, by the same ``max / (norm + 1e-6)`` scale capped at 1."""
     params = list(params)
     if population is None:
         torch.nn.utils.clip_grad_norm_(params, max_norm)
@@ -76,25 +73,12 @@ def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimize
                    max_grad_norm: float | None = None, population: int | None = None,
                    losses: Mapping[str, torch.Tensor] | None = None, on_device: bool = False,
                    found_inf: torch.Tensor | None = None) -> torch.Tensor | None:
-    """One optimizer step on ``loss``: guard, zero the gradients, backward, clip each optimizer's
-    parameters to ``max_grad_norm`` (:func:`clip_grad_norm`, per member with ``population``),
-    step every optimizer.
-
-    Args:
-        loss: the scalar to minimise.
-        optimizers: stepped together after the one backward.
-        losses: the named losses an error names (default ``{"loss": loss}``).
-        on_device: skip the step on the device instead of raising (see the module docstring);
-            every optimizer must then be fused.
-        found_inf: with ``on_device``, a flag raised by an earlier step of the same update (``1.0``:
-            skip this one too).
-
-    Returns:
-        ``found_inf`` (``1.0`` where the step was skipped) with ``on_device``, else ``None``.
-
-    Raises:
-        NonFiniteLossError: ``loss`` is not finite (eager); nothing was changed.
-    """
+    """One optimizer step on ``loss``: the non-finite guard, zero the gradients, backward, clip each
+    optimizer's parameters to ``max_grad_norm`` (:func:`clip_grad_norm`, per member with ``population``),
+    step every optimizer. Eager, a non-finite ``loss`` raises :class:`NonFiniteLossError` (naming
+    ``losses``) before anything changes; ``on_device`` (fused optimizers), the step is skipped on the
+    device instead and the returned ``found_inf`` is ``1.0`` (``found_inf``: an earlier step's flag of the
+    same update, which skips this one too)."""
     optimizers = list(optimizers)
     if on_device:
         flag = (~torch.isfinite(loss)).to(torch.float32)
@@ -125,19 +109,11 @@ def optimizer_step(loss: torch.Tensor, optimizers: Iterable[torch.optim.Optimize
 
 
 def fused_adam_step(opt: torch.optim.Optimizer) -> bool:
-    """``opt.step()`` of a plain fused ``torch.optim.Adam`` as the two kernels it runs, without the Python around them.
-
-    ``Adam.step`` with ``fused=True`` bumps every step count (one ``_foreach_add_``) and runs
-    ``_fused_adam_`` on each device's parameters; around that it runs a profiler record, the step
-    hooks, ``_init_group`` per parameter and the device grouping: ~0.1 ms per step on a CPU core
-    (1-2% of a PCN update). This calls those two kernels with the same tensors and arguments,
-    hence the same parameters, moments and counts bit for bit (``tests/recipes/test_optimizer_step.py``).
-    It does so only where that is all ``step()`` would do: exactly ``torch.optim.Adam``, fused, one
-    device and dtype, no AMSGrad / weight decay / maximize / differentiable / capturable / tensor
-    learning rate, no step hooks (the optimizer's or torch's global ones), ``step`` not patched on the
-    instance (e.g. by an LR scheduler), every parameter with a gradient and its state already made
-    (the first step makes it), no ``grad_scale`` / ``found_inf``. Otherwise it returns ``False``
-    and touches nothing: call ``opt.step()``.
+    """``opt.step()`` of a plain fused ``torch.optim.Adam`` as the two kernels it runs (the step counts'
+    ``_foreach_add_``, ``_fused_adam_``), without the ~0.1 ms of Python around them on a CPU core: the same
+    parameters, moments and counts bit for bit (``tests/recipes/test_optimizer_step.py``). Only where that is
+    all ``step()`` would do (no hooks, AMSGrad, weight decay, capturable, tensor lr, one device and dtype,
+    state made by a first step, ...); otherwise returns ``False``, touching nothing: call ``opt.step()``.
 
     Example:
         >>> w = torch.nn.Parameter(torch.ones(2))

@@ -8,8 +8,8 @@ import torch
 from morl_trl.recipes import build_agent, build_training_env, resolve_config
 from morl_trl.algorithms.actor_critic import recipe as actor_critic
 from morl_trl.algorithms.envelope import recipe as envelope
-from morl_trl.training.agent import NonFiniteLossError, adam, obs_shape
-from morl_trl.training.capture import CapturedUpdate, runs_captured
+from morl_trl.training.agent import NonFiniteLossError, adam, obs_shape, runs_captured
+from morl_trl.training.capture import CapturedUpdate
 from morl_trl.recipes.off_policy import make_replay_buffer
 from tests.objectives._helpers import random_batch
 

@@ -11,7 +11,6 @@ from morl_trl.recipes import resolve_config
 from morl_trl.algorithms.actor_critic import recipe as actor_critic
 from morl_trl.algorithms.gpi import recipe as gpi
 from morl_trl.algorithms.morld import recipe as morld
-from morl_trl.training.agent import apply_updates
 from morl_trl.algorithms.gpi.recipe import make_gpi_agent
 from morl_trl.recipes.off_policy import make_replay_buffer, make_training_env
 
@@ -404,7 +403,8 @@ def _updates(algo, agent, buffer, n) -> None:
     if algo == "morld":
         morld.updates_at(agent, buffer, [None] * n)
     else:
-        apply_updates(lambda: actor_critic.update(agent, buffer), n)
+        for _ in range(n):
+            actor_critic.update(agent, buffer)
 
 
 def _steps(agent) -> dict:

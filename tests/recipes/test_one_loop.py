@@ -55,7 +55,7 @@ def test_the_loop_calls_its_modules_one_on_batch_which_calls_its_one_update(name
     on_batch_calls = {n.func.id for n in ast.walk(ast.parse(inspect.getsource(entry.on_batch)))
                       if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
     # the updates: update itself, or (MORL/D) the schedule's helper that calls it
-    assert on_batch_calls & {"update", "updates_at", "apply_updates"}, on_batch_calls
+    assert on_batch_calls & {"update", "updates_at"}, on_batch_calls
 
 
 def test_capture_wraps_the_recipes_own_gradient_step():
@@ -70,3 +70,17 @@ def test_capture_wraps_the_recipes_own_gradient_step():
     for recipe in (envelope, actor_critic):
         update = inspect.getsource(recipe.update)
         assert "captured_update(agent, gradient_step)" in update and "gradient_step(agent, batch" in update
+
+
+def test_a_non_finite_update_carries_the_updates_of_its_batch_applied_before_it():
+    """The loops count a batch's updates with ``counted_update``: the error of the third says two were applied."""
+    from morl_trl.training.agent import NonFiniteLossError, counted_update
+
+    applied = []
+    with pytest.raises(NonFiniteLossError) as info:
+        for done in range(4):
+            with counted_update(done):
+                if done == 2:
+                    raise NonFiniteLossError("non-finite loss")
+                applied.append(done)
+    assert info.value.updates_done == 2 and applied == [0, 1]

@@ -2,24 +2,15 @@
 discrete) and the single-objective SAC baseline: ``morl-trl train capql|mosac|mosac_discrete|sac``,
 read top to bottom.
 
-The agents: a preference-conditioned actor ``pi(a | s, w)`` (tanh-Gaussian or categorical), two
-vector critics ``Q(s, a, w)`` ``[k]`` with Polyak (or hard) targets, Adam for actor, critics and,
-when learned, the temperature (SAC's: :func:`morl_trl.algorithms.actor_critic.sac.make_sac_agent`, TorchRL's
-losses on the scalar reward). :func:`train_actor_critic` is the recipe of all four, in the spirit
-of TorchRL's sota-implementations; with the loss it calls (:class:`~morl_trl.objectives.CAPQLLoss`,
-:class:`~morl_trl.objectives.MOSACLoss`, :class:`~morl_trl.objectives.DiscreteMOSACLoss`,
-:mod:`morl_trl.objectives.sac`) it is everything these algorithms do per frame:
-
-1. the env (:func:`~morl_trl.training.parts.make_training_env`);
-2. the modules (``make_*_agent``): actor, critics, the loss with its value estimator, Adam, the
-   target updater;
-3. the replay buffer and TorchRL's collector;
-4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>`: per batch :func:`on_batch`
-   stores it, then one :func:`update` per ``update_frequency`` frames (or ``updates_per_batch`` per
-   batch): sample; :func:`gradient_step` (the critic step; on an actor turn, every
-   ``policy_freq``-th update, ``policy_freq`` x (the actor step, the temperature step);
-   ``joint_update=true``: one step of the summed losses instead); the target step; the PER
-   priorities. ``compile`` / ``cudagraphs`` capture the same :func:`gradient_step`.
+The agents (``make_*_agent``): a preference-conditioned actor ``pi(a | s, w)`` (tanh-Gaussian or
+categorical), two vector critics ``Q(s, a, w)`` ``[k]`` with Polyak (or hard) targets, Adam for actor,
+critics and, when learned, the temperature (SAC: :func:`~morl_trl.algorithms.actor_critic.sac.make_sac_agent`,
+TorchRL's losses on the scalar reward). :func:`train_actor_critic`, the loop of all four, builds the env,
+the agent, the replay buffer and TorchRL's collector; per batch :func:`on_batch` stores it, then runs
+one :func:`update` per ``update_frequency`` frames (or ``updates_per_batch``): sample,
+:func:`gradient_step` (the critic step; every ``policy_freq``-th update ``policy_freq`` x the actor and
+temperature steps; ``joint_update=true``: one step of the summed losses), the target step, the PER
+priorities. ``compile`` / ``cudagraphs`` capture the same :func:`gradient_step`.
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -41,45 +32,17 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from morl_trl.objectives import (
-    CAPQLLoss,
-    DiscreteMOSACLoss,
-    MOSACLoss,
-    make_categorical_actor,
-    make_gaussian_actor,
-    make_vector_critic,
-    make_vector_q_network,
-)
+from morl_trl.objectives import (CAPQLLoss, DiscreteMOSACLoss, MOSACLoss, make_categorical_actor, make_gaussian_actor,
+                                 make_vector_critic, make_vector_q_network)
 from morl_trl.objectives.networks import orthogonal_init_
-from morl_trl.training.agent import (
-    Agent,
-    apply_updates,
-    action_spec,
-    actor_critic_optimizers,
-    eval_exploration,
-    is_discrete,
-    num_objectives,
-    obs_shape,
-    orthogonal_critic_copies_,
-    target_updater,
-    updates_due,
-)
+from morl_trl.training.agent import (Agent, action_spec, actor_critic_optimizers, captured_update, counted_update,
+                                     eval_exploration, is_discrete, num_objectives, obs_shape,
+                                     orthogonal_critic_copies_, target_updater, updates_due)
 from morl_trl.training.allocator import tune_malloc
-from morl_trl.training.capture import captured_update
 from morl_trl.training.optim import optimizer_step
-from morl_trl.training.parts import (
-    load_agent_state,
-    checkpoint_snapshot,
-    check_buffer_memory,
-    load_reference,
-    make_collector,
-    make_evaluator,
-    make_replay_buffer,
-    make_training_env,
-    run_discount,
-    run_domain,
-    start_notes,
-)
+from morl_trl.training.parts import (check_buffer_memory, checkpoint_snapshot, load_agent_state, load_reference,
+                                     make_collector, make_evaluator, make_replay_buffer, make_training_env,
+                                     run_discount, run_domain, start_notes)
 from morl_trl.runs.run import Run
 
 __all__ = ["make_capql_agent", "make_mosac_agent", "make_discrete_mosac_agent", "train_actor_critic", "policy_freq",
@@ -124,16 +87,11 @@ def _loss_kwargs(cfg) -> dict:
 
 
 def make_capql_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
-    """CAPQL: per-objective min of the critics, fixed temperature.
-
-    As the authors by default: the acting preference is redrawn every step from the 22.5-degree
-    cone and stored with the transition (``preference_distribution="cone"``,
-    ``preference_resample="step"``, set on the training env), the loss trains on the stored
-    preference (``loss_fresh_preferences=true``: fresh uniform ones per sample) and the actor's
-    log-std is clamped to [-20, 2] (``actor_scale="softplus"``: TorchRL's biased softplus). Data is
-    collected with the deterministic action ``tanh(mean)`` (``capql_deterministic_collection``;
-    false: sampled actions).
-    """
+    """CAPQL: per-objective min of the critics, fixed temperature. As the authors by default: the acting
+    preference redrawn every step from the 22.5-degree cone and stored (``preference_distribution="cone"``,
+    ``preference_resample="step"``), the loss on the stored preference (``loss_fresh_preferences``), the
+    actor's log-std clamped to [-20, 2] (``actor_scale``), collection with ``tanh(mean)``
+    (``capql_deterministic_collection``)."""
     _, actor, critic = _continuous(cfg, env, device)
     loss = CAPQLLoss(actor, critic, alpha=cfg.alpha, **_loss_kwargs(cfg))
     orthogonal_critic_copies_(loss, critic)
@@ -168,10 +126,8 @@ def make_discrete_mosac_agent(cfg, env, *, gamma: float, device: torch.device) -
 
 
 def train_actor_critic(run: Run, make_agent) -> tuple[dict, Agent]:
-    """Train CAPQL, MOSAC, discrete MOSAC or SAC (``make_agent``: its builder, which the registry binds per
-    algorithm) in ``run`` (opened by
-    :func:`~morl_trl.recipes.off_policy.run_training`: a new run or the continuation of one); returns
-    ``(last evaluation summary, agent)``."""
+    """Train CAPQL, MOSAC, discrete MOSAC or SAC (``make_agent``: its builder, bound by the registry) in
+    ``run`` (:func:`~morl_trl.recipes.off_policy.open_run`); returns ``(last evaluation summary, agent)``."""
     cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
@@ -209,15 +165,13 @@ def train_actor_critic(run: Run, make_agent) -> tuple[dict, Agent]:
 
 
 def policy_freq(agent: Agent) -> int:
-    """``cfg.policy_freq``: 1 = an actor step at every update; ``n > 1`` = the delayed actor, as the
-    authors' continuous SAC and MOSAC (``n = 2``)."""
+    """``cfg.policy_freq``: 1, an actor step every update; ``n > 1``, the delayed actor (the authors' SAC, MOSAC: 2)."""
     return int(getattr(agent.cfg, "policy_freq", 1))
 
 
 def steps_each_loss(agent: Agent) -> bool:
-    """Whether the update steps critics, actor and temperature one after the other, each loss computed
-    alone (:func:`delayed_actor_step`, the authors' order), rather than one joint step of the summed
-    losses (``joint_update=true``, or a loss without the three parts)."""
+    """Whether the update steps critics, actor and temperature one after the other (:func:`delayed_actor_step`),
+    not one joint step of the summed losses (``joint_update=true``, or a loss without the three parts)."""
     loss = agent.loss
     return (not getattr(agent.cfg, "joint_update", False) and {"qvalue", "actor"} <= set(agent.optimizers)
             and all(hasattr(loss, m) for m in ("qvalue_loss", "actor_loss", "temperature_loss")))
@@ -225,25 +179,13 @@ def steps_each_loss(agent: Agent) -> bool:
 
 def delayed_actor_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
     """The authors' actor-critic step (CleanRL's SAC; their ``sac_continuous.py:435-456``,
-    ``mosac_continuous_action.py:460-482``), each loss computed alone (the loss's ``qvalue_loss`` /
-    ``actor_loss`` / ``temperature_loss``, TorchRL's SACLoss parts):
-
-    1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
-    2. on an actor turn, ``policy_freq`` times: ``actor_loss`` (fresh actions, the updated critics; no
-       target computation) and the ``actor`` optimizer, then, when the temperature is learned,
-       ``temperature_loss`` and the ``alpha`` optimizer, on a fresh sample of the just-updated actor
-       where the loss says so (``fresh_temperature_sample``: continuous, the authors' ``with no_grad:
-       _, log_pi, _ = actor.get_action(obs)`` after the actor step) or on the actor step's
-       log-probabilities (discrete, ``mosac_discrete_action.py:490-492``).
-
-    A non-finite loss is never applied: eager, :class:`~morl_trl.training.optim.NonFiniteLossError` is
-    raised before its step (the steps of this update before it stay applied, as in the authors' order
-    they must come first); ``on_device``, its step and every later one of the update are skipped.
-
-    Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless ``on_device``). ``losses`` has the
-    keys of the loss's ``forward``; on a critic-only update the actor's and the temperature's are those
-    of the last actor turn (``agent.last_actor_losses``; NaN before the first).
-    """
+    ``mosac_continuous_action.py:460-482``), each loss alone: the critic step (``qvalue_loss``), then on an
+    actor turn ``policy_freq`` times the actor step (``actor_loss``: fresh actions, the updated critics)
+    and, when learned, the temperature step -- on a fresh sample of the updated actor
+    (``fresh_temperature_sample``, continuous: the authors' ``_, log_pi, _ = actor.get_action(obs)``) or
+    on the actor step's log-probabilities (discrete, ``mosac_discrete_action.py:490-492``). A non-finite
+    loss is never applied (the earlier steps of the update stay). Returns ``(losses, found_inf)``; on a
+    critic-only update the actor's losses are the last actor turn's (NaN before the first)."""
     loss, optimizers, n_actor = agent.loss, agent.optimizers, policy_freq(agent)
     kw = dict(max_grad_norm=agent.cfg.max_grad_norm, on_device=on_device)
     loss_qvalue, _ = loss.qvalue_loss(batch)
@@ -281,11 +223,8 @@ def delayed_actor_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *,
 
 
 def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_device: bool = False):
-    """The losses' backward and optimizer steps on ``batch``: the authors' order
-    (:func:`delayed_actor_step`), or with ``joint_update=true`` one step of the summed losses (the actor
-    on the critics before their step). The part of :func:`update` that ``compile`` / CUDA graphs capture
-    (:mod:`morl_trl.training.capture`). Returns ``(losses, found_inf)`` (``found_inf``: ``None`` unless
-    ``on_device``)."""
+    """The losses' steps on ``batch``: :func:`delayed_actor_step`, or with ``joint_update=true`` one step of
+    the summed losses. The part of :func:`update` that ``compile`` / CUDA graphs capture."""
     if steps_each_loss(agent):
         return delayed_actor_step(agent, batch, actor_turn, on_device=on_device)
     out = agent.loss(batch)
@@ -296,17 +235,15 @@ def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_d
 
 
 def update(agent: Agent, buffer) -> TensorDictBase:
-    """One update on a sampled batch: sample, :func:`gradient_step` (on an actor turn, every
-    ``policy_freq``-th update: the 2nd, 4th, ... for 2, as the authors' ``global_step % policy_freq == 0``
-    with an even ``learning_starts``), the target step (Polyak averaging with ``tau``; a hard copy every
-    ``target_update_period`` updates without), the PER priorities. Captured (``compile`` / ``cudagraphs``,
-    or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
-    :class:`~morl_trl.training.capture.CapturedUpdate`, its non-finite guard on the device."""
+    """One update: sample, :func:`gradient_step` (an actor turn every ``policy_freq``-th update, as the
+    authors' ``global_step % policy_freq == 0``), the target step (Polyak with ``tau``, or a hard copy every
+    ``target_update_period``), the PER priorities; captured, the same step in ``agent.captured``."""
     agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
     actor_turn = agent.critic_steps % policy_freq(agent) == 0
-    captured = captured_update(agent, gradient_step)
-    if captured is not None:
-        return captured(buffer, actor_turn)
+    if agent.captured is None:  # (decided on the first update, after a resumed run's state is loaded)
+        agent.captured = captured_update(agent, gradient_step)
+    if agent.captured:
+        return agent.captured(buffer, actor_turn)
     batch = buffer.sample().to(agent.device)
     out, _ = gradient_step(agent, batch, actor_turn)
     agent.target_updater.step()
@@ -316,13 +253,14 @@ def update(agent: Agent, buffer) -> TensorDictBase:
 
 
 def on_batch(agent: Agent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
-    """What the loop does with one collected batch ending at ``frames`` frames: store its transitions
-    (the entries the loss reads), then, from ``init_random_frames`` on, the :func:`update` calls due (one
-    per ``update_frequency`` frames, or ``updates_per_batch``). Returns ``(the last update's losses or
-    None, updates done)``; a non-finite loss raises, counting the updates applied before it."""
+    """One collected batch ending at ``frames`` frames: store it, then from ``init_random_frames`` on the
+    :func:`update` calls due. Returns ``(the last update's losses or None, updates done)``."""
     cfg = agent.cfg
     agent.store(buffer, batch)
     if frames < cfg.init_random_frames:
         return None, 0
-    updates = updates_due(cfg, frames, batch.numel())
-    return apply_updates(lambda: update(agent, buffer), updates), updates
+    updates, losses = updates_due(cfg, frames, batch.numel()), None
+    for done in range(updates):
+        with counted_update(done):  # (a non-finite loss: the run counts the updates applied before it)
+            losses = update(agent, buffer)
+    return losses, updates

@@ -1,32 +1,19 @@
 """Envelope Q-learning (Yang et al., 2019): ``morl-trl train envelope``, read top to bottom.
 
-Everything Envelope does per frame is in this file and its loss,
-:class:`~morl_trl.objectives.EnvelopeQLoss`; :func:`train_envelope` reads like TorchRL's
-sota-implementations:
+:func:`train_envelope` builds the env (a preference ``w`` per sub-env, vector rewards), the modules
+(:func:`make_envelope_agent`: the vector Q-network ``Q(s, ., w)``, its greedy policy
+``argmax_a w · Q(s, a, w)``, ε-greedy on top, :class:`~morl_trl.objectives.EnvelopeQLoss`, Adam, the
+hard target copy), the prioritized replay buffer and TorchRL's collector; per batch :func:`on_batch`
+stores it and runs the :func:`update` calls due, then the ε and homotopy :func:`schedules`.
+``compile`` / ``cudagraphs`` capture the same :func:`gradient_step` (:mod:`morl_trl.training.capture`).
 
-1. the env: the domain-randomized env, the policy's history, a preference ``w`` per sub-env,
-   vector returns (:func:`~morl_trl.training.parts.make_training_env`);
-2. the modules (:func:`make_envelope_agent`): a vector Q-network ``Q(s, ., w)`` ``[|A|, k]``, its
-   greedy policy ``argmax_a w · Q(s, a, w)`` (:class:`~morl_trl.objectives.MOQValueModule`),
-   TorchRL's ε-greedy exploration on top, the loss with its value estimator, Adam, the target
-   updater (a hard copy every ``target_update_period`` updates);
-3. the replay buffer (prioritized) and TorchRL's collector;
-4. the loop, inside :meth:`Run.session <morl_trl.runs.Run.session>` (run directory, resume,
-   logs, evaluations and checkpoints when due, Ctrl-C, a clean stop): per batch :func:`on_batch`
-   stores it, runs the :func:`update` calls due (sample, :func:`gradient_step`: loss,
-   :func:`~morl_trl.training.optim.optimizer_step`; the target update, PER priorities) and the ε
-   and homotopy :func:`schedules`. ``compile`` / ``cudagraphs`` capture the same
-   :func:`gradient_step` (:mod:`morl_trl.training.capture`).
-
-Faithful to the authors' runs by default (config keys in brackets, ours as options):
-``w`` concatenated after the first hidden layer with orthogonal init
-(``envelope_network="authors"``; ``"mb"``: at the input with orthogonal init, MORL-Baselines 1.3.0's
-``QNet`` and a foreign env's default; ``"input"``: at the input, PyTorch's init), homotopy
-``lambda`` fixed at ``homotopy_lambda0`` (``homotopy_final=1.0`` anneals it over
-``homotopy_frames``), PER priorities from the first sampled preference without
-importance weights (``envelope_priority="mean"``, ``per_importance_weights=true``), gradient
-norm clipped at 1 (``max_grad_norm``) and ``|N(0, I)|`` preferences, the acting ones and those
-the loss samples alike (``preference_distribution``: one key for both, as the authors' ``dist``).
+Faithful to the authors' runs by default (config keys in brackets): ``w`` concatenated after the
+first hidden layer with orthogonal init (``envelope_network="authors"``; ``"mb"``: at the input,
+MORL-Baselines 1.3.0's ``QNet``; ``"input"``: at the input, PyTorch's init), homotopy ``lambda`` fixed
+at ``homotopy_lambda0`` (``homotopy_final`` anneals it over ``homotopy_frames``), PER priorities from
+the first sampled preference without importance weights (``envelope_priority``,
+``per_importance_weights``), gradient norm clipped at 1 (``max_grad_norm``), ``|N(0, I)|``
+preferences for acting and for the loss alike (``preference_distribution``, the authors' ``dist``).
 
 Example:
     >>> from morl_trl.envs import make_env
@@ -37,11 +24,6 @@ Example:
     >>> agent = make_envelope_agent(cfg, env, gamma=0.995, device=torch.device("cpu"))
     >>> agent.eval_policy(env.reset())["action"].shape
     torch.Size([2])
-
-    Training (``morl-trl train envelope MOLavaGridDR-v0 --quick`` runs the same):
-
-    >>> from morl_trl.recipes import train
-    >>> summary = train(resolve_config("envelope", "MOLavaGridDR-v0", quick=True))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -51,37 +33,14 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 
 from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
-from morl_trl.training.agent import (
-    Agent,
-    apply_updates,
-    action_spec,
-    adam,
-    epsilon,
-    epsilon_greedy,
-    eval_exploration,
-    fused_choice,
-    is_discrete,
-    num_objectives,
-    obs_shape,
-    target_updater,
-    updates_due,
-)
+from morl_trl.training.agent import (Agent, action_spec, adam, captured_update, counted_update, epsilon,
+                                     epsilon_greedy, eval_exploration, fused_choice, is_discrete, num_objectives,
+                                     obs_shape, target_updater, updates_due)
 from morl_trl.training.allocator import tune_malloc
-from morl_trl.training.capture import captured_update
 from morl_trl.training.optim import optimizer_step
-from morl_trl.training.parts import (
-    load_agent_state,
-    checkpoint_snapshot,
-    check_buffer_memory,
-    load_reference,
-    make_collector,
-    make_evaluator,
-    make_replay_buffer,
-    make_training_env,
-    run_discount,
-    run_domain,
-    start_notes,
-)
+from morl_trl.training.parts import (check_buffer_memory, checkpoint_snapshot, load_agent_state, load_reference,
+                                     make_collector, make_evaluator, make_replay_buffer, make_training_env,
+                                     run_discount, run_domain, start_notes)
 from morl_trl.runs.run import Run
 
 __all__ = ["make_envelope_agent", "train_envelope", "gradient_step", "update", "on_batch", "schedules"]
@@ -118,8 +77,8 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
 
 
 def train_envelope(run: Run) -> tuple[dict, Agent]:
-    """Train Envelope in ``run`` (opened by :func:`~morl_trl.recipes.off_policy.run_training`: a new
-    run or the continuation of one); returns ``(last evaluation summary, agent)``."""
+    """Train Envelope in ``run`` (:func:`~morl_trl.recipes.off_policy.open_run`: a new run or the
+    continuation of one); returns ``(last evaluation summary, agent)``."""
     cfg = run.cfg
     device = torch.device(cfg.device)
     spec = run_domain(cfg)
@@ -159,12 +118,9 @@ def train_envelope(run: Run) -> tuple[dict, Agent]:
 
 
 def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool = True, *, on_device: bool = False):
-    """The envelope TD loss over the sampled preferences (it writes the batch's PER priorities), its
-    backward, the gradient clipping and Adam: the part of :func:`update` that ``compile`` / CUDA
-    graphs capture (:mod:`morl_trl.training.capture`). Returns ``(losses, found_inf)``: eager, a
-    non-finite loss raises :class:`~morl_trl.training.optim.NonFiniteLossError` before the step
-    (``found_inf`` is ``None``); ``on_device``, the step is skipped on the device and ``found_inf``
-    says so. (``actor_turn``: unused, Envelope has no actor.)"""
+    """The loss (it writes the batch's PER priorities), backward, clipping and Adam: the part of
+    :func:`update` that ``compile`` / CUDA graphs capture. Returns ``(losses, found_inf)`` (see
+    :func:`~morl_trl.training.optim.optimizer_step`; ``actor_turn``: unused, Envelope has no actor)."""
     out = agent.loss(batch)
     found_inf = optimizer_step(out["loss_qvalue"], [agent.optimizers["qvalue"]], max_grad_norm=agent.cfg.max_grad_norm,
                                losses={"loss_qvalue": out["loss_qvalue"]}, on_device=on_device)
@@ -172,14 +128,13 @@ def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool = True, 
 
 
 def update(agent: Agent, buffer) -> TensorDictBase:
-    """One gradient step on a sampled batch: sample, :func:`gradient_step`, the target updater (a hard
-    copy every ``target_update_period`` updates), the PER priorities. Captured (``compile`` /
-    ``cudagraphs``, or fused Adam on an accelerator) the same :func:`gradient_step` runs inside
-    :class:`~morl_trl.training.capture.CapturedUpdate`, its non-finite guard on the device."""
+    """One update: sample, :func:`gradient_step`, the target updater (a hard copy every
+    ``target_update_period`` updates), the PER priorities; captured, the same step in ``agent.captured``."""
     agent.critic_steps += 1  # (the update counter the checkpoint keeps)
-    captured = captured_update(agent, gradient_step)
-    if captured is not None:
-        return captured(buffer)
+    if agent.captured is None:  # (decided on the first update, after a resumed run's state is loaded)
+        agent.captured = captured_update(agent, gradient_step)
+    if agent.captured:
+        return agent.captured(buffer)
     batch = buffer.sample().to(agent.device)
     out, _ = gradient_step(agent, batch)
     agent.target_updater.step()
@@ -189,17 +144,16 @@ def update(agent: Agent, buffer) -> TensorDictBase:
 
 
 def on_batch(agent: Agent, batch: TensorDictBase, buffer, frames: int) -> tuple[TensorDictBase | None, int]:
-    """What the loop does with one collected batch ending at ``frames`` frames: store its transitions
-    (the entries the loss reads), then, from ``init_random_frames`` on, the :func:`update` calls due
-    (one per ``update_frequency`` frames, or ``updates_per_batch``), then the schedules. Returns
-    ``(the last update's losses or None, updates done)``; a non-finite loss raises, counting the updates
-    applied before it."""
+    """One collected batch ending at ``frames`` frames: store it, from ``init_random_frames`` on the
+    :func:`update` calls due, then the schedules. Returns ``(the last update's losses or None, updates done)``."""
     cfg = agent.cfg
     agent.store(buffer, batch)
     losses, updates = None, 0
     if frames >= cfg.init_random_frames:
         updates = updates_due(cfg, frames, batch.numel())
-        losses = apply_updates(lambda: update(agent, buffer), updates)
+        for done in range(updates):
+            with counted_update(done):  # (a non-finite loss: the run counts the updates applied before it)
+                losses = update(agent, buffer)
     schedules(agent, frames)
     return losses, updates
 

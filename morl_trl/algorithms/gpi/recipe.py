@@ -72,7 +72,7 @@ from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import PeriodicHardUpdate, polyak_
 from morl_trl.preferences.linear_support import LinearSupport, unique_weights
-from morl_trl.training.agent import (Agent, action_spec, apply_updates, epsilon, epsilon_greedy, is_discrete,
+from morl_trl.training.agent import (Agent, action_spec, counted_update, epsilon, epsilon_greedy, is_discrete,
                                     num_objectives, obs_shape)
 from morl_trl.training.allocator import tune_malloc
 from morl_trl.training.optim import adam, check_finite, fused_choice, optimizer_step
@@ -499,7 +499,9 @@ def on_batch(agent: GPIAgent, batch: TensorDictBase, buffer, frames: int) -> tup
             agent._dyna(buffer, prev, frames)  # the model fit on the whole real buffer; imagined transitions
         gated = not agent.continuous and frames < cfg.gpi_dynamics_rollout_starts
         updates = cfg.updates_per_batch or batch.numel() * (1 if gated else cfg.gpi_gradient_updates)
-        losses = apply_updates(lambda: update(agent, buffer), updates)
+        for done in range(updates):
+            with counted_update(done):  # (a non-finite loss: the run counts the updates applied before it)
+                losses = update(agent, buffer)
         if not agent.continuous and frames // cfg.target_update_period > prev // cfg.target_update_period:
             agent.target_updater.step()  # the authors' hard copy every target_update_period frames
     if frames >= agent.iteration_end:

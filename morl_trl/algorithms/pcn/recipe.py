@@ -62,9 +62,9 @@ from morl_trl.data.episode_replay import EpisodeReplay
 from morl_trl.envs import domain_of, make_env
 from morl_trl.objectives.pcn import PCNLoss, make_pcn_network
 from morl_trl.preferences import energy_weights
-from morl_trl.training.agent import Agent, action_spec, apply_updates, is_discrete, num_objectives, obs_shape
+from morl_trl.training.agent import Agent, action_spec, counted_update, is_discrete, num_objectives, obs_shape
 from morl_trl.training.allocator import tune_malloc
-from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
+from morl_trl.training.optim import adam, fused_choice, optimizer_step
 from morl_trl.training.parts import (
     load_agent_state,
     checkpoint_snapshot,
@@ -308,7 +308,7 @@ def make_pcn_agent(cfg, env, *, gamma: float, device: torch.device) -> PCNAgent:
 def update(agent: PCNAgent, buffer=None) -> TensorDictBase:
     """One supervised update of ``agent`` on ``batch_size`` steps of its episode replay (``agent.replay``;
     ``buffer`` is unused: PCN has no transition buffer, the argument keeps the call alike for every algorithm).
-    Returns the losses; a non-finite loss raises :class:`NonFiniteLossError` before anything changes."""
+    Returns the losses; a non-finite loss raises :class:`~morl_trl.training.optim.NonFiniteLossError` before anything changes."""
     # an episode uniformly, then a step of it uniformly: (obs, action, return-to-go, horizon left)
     obs, action, ret, horizon = agent.replay.sample(agent.cfg.batch_size, generator=agent.generator)
     obs, action, ret, horizon = (t.to(agent.device) for t in (obs, action, ret, horizon))
@@ -329,17 +329,16 @@ def on_batch(agent: PCNAgent, batch: TensorDictBase, buffer, frames: int) -> tup
     warm-up's ``pcn_er_episodes`` episodes are in, and after every further ``pcn_step_episodes``, a round:
     ``pcn_model_updates`` :func:`update` calls, then the command of the episodes that start next (a random
     non-dominated return among the ``pcn_er_episodes`` best, plus ``U(0, std)`` on one objective; horizon = its
-    length - 2) and the end of the warm-up's random actions. A :class:`NonFiniteLossError` carries
-    ``updates_done``: the updates of this batch applied before it."""
+    length - 2) and the end of the warm-up's random actions. A
+    :class:`~morl_trl.training.optim.NonFiniteLossError` carries ``updates_done``: the updates of this batch
+    applied before it."""
     cfg = agent.cfg
     agent.store_episodes(batch, frames)  # the finished episodes -> the replay, with their returns-to-go
     losses, updates = None, 0
     while agent.episodes >= agent.next_round:  # a round
-        try:
-            losses = apply_updates(lambda: update(agent), cfg.pcn_model_updates)
-        except NonFiniteLossError as err:
-            err.updates_done += updates  # (this batch's earlier rounds)
-            raise
+        for done in range(cfg.pcn_model_updates):
+            with counted_update(updates + done):  # (a non-finite loss: the run counts the updates applied before it)
+                losses = update(agent)
         updates += cfg.pcn_model_updates
         desired, horizon = agent.replay.choose_command(cfg.pcn_er_episodes, generator=agent.generator)
         agent.command.set_command(desired, horizon)
