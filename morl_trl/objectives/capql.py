@@ -18,7 +18,7 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
 
     A preference-conditioned actor :math:`\pi(a | s, w)` and two vector critics
     :math:`Q_{1,2}(s, a, w) \in \mathbb R^k` are trained for every preference at once, each transition on
-    the preference :math:`w` stored with it, as the authors' runs (drawn every env step from a 22.5-degree
+    the preference :math:`w` stored with it, as the authors' runs do (drawn every env step from a 22.5-degree
     cone, :func:`~morl_trl.preferences.sample_cone_preferences`); ``resample_preferences=True``: a fresh
     one (uniform on the simplex) at every call.
 

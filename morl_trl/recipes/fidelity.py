@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from morl_trl.recipes.config import TrainConfig, resolve_config
-from morl_trl.recipes.config.domains import MARIO, MUJOCO, RECORD_DOMAINS
+from morl_trl.algorithms.domains import MARIO, MUJOCO, RECORD_DOMAINS
 
 __all__ = ["Same", "Deliberate", "NotApplicable", "Code", "Row", "RECORD_PATH", "METHODS", "record", "pairs",
            "compare", "open_differences", "rule_for", "format_rows", "markdown", "record_meta"]
@@ -214,7 +214,7 @@ def _target_frames(v, cfg):
     return None if cfg.tau is not None and v == 1 else v // cfg.update_frequency
 
 
-#: the rows the DQN family (Envelope, GPI-LS/PD) shares (their configs: ``recipes.config.envelope``, ``.gpi``)
+#: the rows the DQN family (Envelope, GPI-LS/PD) shares (their configs: ``algorithms.envelope.config``, ``algorithms.gpi.config``)
 _DQN_ROWS = {
     "init.learning_rate": Same("lr"),
     "init.initial_epsilon": Same("eps_start"),

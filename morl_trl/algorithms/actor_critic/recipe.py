@@ -165,7 +165,8 @@ def train_actor_critic(run: Run, make_agent) -> tuple[dict, Agent]:
 
 
 def policy_freq(agent: Agent) -> int:
-    """``cfg.policy_freq``: 1, an actor step every update; ``n > 1``, the delayed actor (the authors' SAC, MOSAC: 2)."""
+    """``cfg.policy_freq``: 1, an actor step every update; ``n > 1``, the delayed actor, as the authors' continuous
+    SAC and MOSAC (2)."""
     return int(getattr(agent.cfg, "policy_freq", 1))
 
 
@@ -235,8 +236,8 @@ def gradient_step(agent: Agent, batch: TensorDictBase, actor_turn: bool, *, on_d
 
 
 def update(agent: Agent, buffer) -> TensorDictBase:
-    """One update: sample, :func:`gradient_step` (an actor turn every ``policy_freq``-th update, as the
-    authors' ``global_step % policy_freq == 0``), the target step (Polyak with ``tau``, or a hard copy every
+    """One update: sample, :func:`gradient_step` (an actor turn every ``policy_freq``-th update: the 2nd, 4th,
+    ... for 2, as the authors' ``global_step % policy_freq == 0``), the target step (Polyak with ``tau``, or a hard copy every
     ``target_update_period``), the PER priorities; captured, the same step in ``agent.captured``."""
     agent.critic_steps += 1  # (the update counter the checkpoint keeps: the delayed actor's clock)
     actor_turn = agent.critic_steps % policy_freq(agent) == 0

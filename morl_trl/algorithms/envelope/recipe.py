@@ -13,7 +13,8 @@ MORL-Baselines 1.3.0's ``QNet``; ``"input"``: at the input, PyTorch's init), hom
 at ``homotopy_lambda0`` (``homotopy_final`` anneals it over ``homotopy_frames``), PER priorities from
 the first sampled preference without importance weights (``envelope_priority``,
 ``per_importance_weights``), gradient norm clipped at 1 (``max_grad_norm``), ``|N(0, I)|``
-preferences for acting and for the loss alike (``preference_distribution``, the authors' ``dist``).
+preferences for acting and for the loss alike (``preference_distribution``: one key for both, as the
+authors' ``dist``).
 
 Example:
     >>> from morl_trl.envs import make_env

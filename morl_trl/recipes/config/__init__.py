@@ -2,9 +2,10 @@
 
 * :mod:`~morl_trl.recipes.config.keys`: every key, defined once (section, meaning, check).
 * :mod:`~morl_trl.recipes.config.sections`: the shared sections (run, env, eval, logging, compute).
-* one module per algorithm (:mod:`~morl_trl.recipes.config.envelope`, ``capql``, ``mosac``, ``sac``,
-  ``morld``, ``pcn``, ``pgmorl``, ``gpi``): its dataclass (its keys and defaults) and, next to it, its
-  values per domain (the authors' record, ``hyperparameters.toml``), frozen.
+* each algorithm's own, in its folder (:mod:`morl_trl.algorithms.envelope.config`,
+  ``algorithms/actor_critic/{capql,mosac,sac}_config.py``, ``algorithms/{gpi,morld,pcn,pgmorl}/config.py``;
+  they import no torch): its dataclass (its keys and defaults) and, next to it, its values per domain (the
+  authors' record, ``hyperparameters.toml``), frozen; :mod:`~morl_trl.recipes.config.registry` lists them.
 * :mod:`~morl_trl.recipes.config.train_config`: :class:`TrainConfig`, what recipes read (flat keys).
 * :mod:`~morl_trl.recipes.config.resolve`: :func:`resolve_config` (where values come from), files, resume.
 

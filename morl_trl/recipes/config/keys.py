@@ -1,7 +1,7 @@
 """Every configuration key, defined once: its section, type, meaning and check.
 
 Which keys an algorithm has, and their defaults, are in that algorithm's module
-(:mod:`morl_trl.recipes.config.envelope`, ...); the shared sections are in
+(:mod:`morl_trl.algorithms.envelope.config`, ...); the shared sections are in
 :mod:`morl_trl.recipes.config.sections`. A key's ``check`` returns ``None`` for a valid value and
 otherwise a description of the valid values (the error names the key, the value and that).
 

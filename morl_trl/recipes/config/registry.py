@@ -14,7 +14,12 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from morl_trl.recipes.config import capql, envelope, gpi, morld, mosac, pcn, pgmorl, sac
+from morl_trl.algorithms.actor_critic import capql_config as capql, mosac_config as mosac, sac_config as sac
+from morl_trl.algorithms.envelope import config as envelope
+from morl_trl.algorithms.gpi import config as gpi
+from morl_trl.algorithms.morld import config as morld
+from morl_trl.algorithms.pcn import config as pcn
+from morl_trl.algorithms.pgmorl import config as pgmorl
 from morl_trl.recipes.config.keys import ALGORITHMS, KEYS
 
 __all__ = ["AlgorithmSpec", "ALGORITHM_SPECS"]

@@ -88,7 +88,7 @@ def upgrade_keys(values: dict[str, Any], algo: str, source: str, *, saved: bool 
 
 class TrainConfig:
     """A run's configuration: the shared sections (run, env, eval, logging, compute) and the
-    algorithm's own dataclass (:mod:`morl_trl.recipes.config.envelope`, ...), built from flat keys.
+    algorithm's own dataclass (:mod:`morl_trl.algorithms.envelope.config`, ...), built from flat keys.
 
     Example:
         >>> cfg = TrainConfig(frames=1000)

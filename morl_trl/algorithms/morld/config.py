@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import HALF_CHEETAH, HOPPER, HUMANOID, LAVA_GRID, LUNAR_LANDER, domain_table, frozen
+from morl_trl.algorithms.domains import HALF_CHEETAH, HOPPER, HUMANOID, LAVA_GRID, LUNAR_LANDER, domain_table, frozen
 
 __all__ = ["MORLDConfig", "MORLDPSAConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 

@@ -1,6 +1,6 @@
 """MOSAC (continuous) and discrete MOSAC as standalone learners: their keys and values.
 
-The authors ran MOSAC only inside MORL/D (:mod:`morl_trl.recipes.config.morld`); these standalone
+The authors ran MOSAC only inside MORL/D (:mod:`morl_trl.algorithms.morld.config`); these standalone
 learners have no row in ``hyperparameters.toml`` and keep MORL-Baselines' class defaults.
 
 Example:
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import HOPPER, HUMANOID, LAVA_GRID, domain_table, frozen
+from morl_trl.algorithms.domains import HOPPER, HUMANOID, LAVA_GRID, domain_table, frozen
 
 __all__ = ["MOSACConfig", "MOSACDiscreteConfig", "SHARED_DEFAULTS", "DEFAULTS", "DEFAULTS_DISCRETE"]
 

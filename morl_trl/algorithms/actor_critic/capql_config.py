@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import HUMANOID, domain_table, frozen
+from morl_trl.algorithms.domains import HUMANOID, domain_table, frozen
 
 __all__ = ["CAPQLConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import (
+from morl_trl.algorithms.domains import (
     HALF_CHEETAH,
     HOPPER,
     HUMANOID,

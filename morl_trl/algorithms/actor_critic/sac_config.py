@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import LAVA_GRID, LUNAR_LANDER, MARIO, domain_table, frozen
+from morl_trl.algorithms.domains import LAVA_GRID, LUNAR_LANDER, MARIO, domain_table, frozen
 
 __all__ = ["SACConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from morl_trl.recipes.config.domains import LAVA_GRID, MARIO, domain_table, frozen
+from morl_trl.algorithms.domains import LAVA_GRID, MARIO, domain_table, frozen
 
 __all__ = ["EnvelopeConfig", "SHARED_DEFAULTS", "DEFAULTS"]
 
