@@ -1,5 +1,6 @@
 """The algorithms, one folder each: its builder, its one ``update``, its ``on_batch`` and its loop, read
-top to bottom (``<name>/recipe.py``). :mod:`~morl_trl.algorithms.registry` maps each name to them.
+top to bottom (``<name>/recipe.py``), and its config (``<name>/config.py``, torch-free).
+:mod:`~morl_trl.algorithms.registry` maps each name to them.
 
 ============================  ===========================================
 ``envelope``                  :mod:`morl_trl.algorithms.envelope`

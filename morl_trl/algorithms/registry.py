@@ -1,9 +1,9 @@
 """The one registry: an algorithm's name -> its builders, its loop and its per-batch step.
 
 Each algorithm is one folder of :mod:`morl_trl.algorithms` (its agent builder, ``update``, ``on_batch``
-and ``train_*`` loop in ``recipe.py``, read top to bottom), its loss in :mod:`morl_trl.objectives` and
-its configuration in :mod:`morl_trl.recipes.config`; adding one is that folder, its loss, its config
-and one :class:`Algorithm` row here.
+and ``train_*`` loop in ``recipe.py``, read top to bottom; its config dataclass in ``config.py``), its loss
+in :mod:`morl_trl.objectives`; adding one is that folder, its loss, one :class:`Algorithm` row here and
+one row of :data:`~morl_trl.recipes.config.ALGORITHM_SPECS` (the torch-free config registry).
 
 Example:
     >>> REGISTRY["envelope"].train.__name__, REGISTRY["envelope"].on_batch.__module__
