@@ -3,11 +3,10 @@
 The whole grid runs as *one* batched environment (a pool of ``chunk_size`` sub-envs) built by
 ``env_factory(num_envs=..., seed=...)`` -- the training composition minus its training-only
 parts. Every sub-env gets its context in the reset TensorDict's ``"context"`` (the rule of
-every contextual env: a context given at reset is used; the evaluator checks that the env
-reports it back) and its preference through the library's own
-:class:`~morl_trl.transforms.PreferenceConditioning` (``mode="given"``); the library's
-:class:`~morl_trl.transforms.DiscountedVectorReturn` sums the returns. An evaluation of ``C``
-contexts x ``W`` weights x ``E`` episodes costs one ``step`` call per time step.
+every contextual env: a context given at reset is used; the evaluator checks that the env reports it back) and its
+preference through the library's own :class:`~morl_trl.transforms.PreferenceConditioning` (``mode="given"``); the
+library's :class:`~morl_trl.transforms.DiscountedVectorReturn` sums the returns. An evaluation of ``C`` contexts x
+``W`` weights x ``E`` episodes costs one ``step`` call per time step.
 """
 
 from __future__ import annotations
@@ -25,19 +24,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from morl_trl._torchrl_compat import transform_reset, transform_step
 from morl_trl.evaluation.results import ContextResult, EvaluationResult
-from morl_trl.metrics import (
-    Bounds,
-    cardinality,
-    eum,
-    hypervolume,
-    igd,
-    interquartile_mean,
-    normalize,
-    normalized_hypervolume,
-    optimality_gap,
-    pareto_front,
-    sparsity,
-)
+from morl_trl.metrics import (Bounds, cardinality, eum, hypervolume, igd, interquartile_mean, normalize,
+                              normalized_hypervolume, optimality_gap, pareto_front, sparsity)
 from morl_trl.preferences import check_simplex, energy_weights
 from morl_trl.transforms import DiscountedVectorReturn, PreferenceConditioning
 
@@ -94,87 +82,52 @@ def _static(env: EnvBase, name: str):
 class MultiContextEvaluator:
     """Evaluate a preference-conditioned policy on every context of a suite, batched.
 
-    For each context ``c``, weight ``w`` and episode ``e`` one sub-environment runs exactly one
-    episode with context ``c`` while the policy reads ``w`` under ``preference_key``
-    (``[*B, k]``). The discounted vector return of that episode is read at its first
-    ``done`` (terminated or truncated); the value of ``(c, w)`` is the mean over episodes; the
-    front of ``c`` is the non-dominated subset of its ``W`` values (the paper's protocol, SPEC §2).
+    Each (context ``c``, weight ``w``, episode) runs one episode in its own sub-env, the policy reading ``w`` under
+    ``preference_key``; the discounted vector return is read at the first ``done``. The value of ``(c, w)`` is the
+    mean over episodes, the front of ``c`` the non-dominated subset of its ``W`` values (the paper's protocol, SPEC
+    §2). The evaluator appends ``PreferenceConditioning(k, mode="given")`` and ``DiscountedVectorReturn(gamma)`` to
+    the env, passes each context at reset and raises ``ValueError`` if the env reports another (e.g. a
+    ``DomainRandomization`` left in the stack).
 
-    The env is ``env_factory(num_envs=..., seed=...)`` -- build the same composition as in
-    training minus what only training needs (e.g. ``make_env(train_id, ...)`` plus
-    ``StateActionHistory(2)``, without the training ``PreferenceConditioning``). The evaluator
-    appends ``PreferenceConditioning(k, mode="given")`` and ``DiscountedVectorReturn(gamma)``,
-    passes each sub-env's context in the reset TensorDict, and raises ``ValueError`` if the env
-    then reports other contexts (e.g. a ``DomainRandomization`` left in the stack), so results
-    are never labelled with contexts they did not run.
-
-    Per context it reports ``hypervolume`` (against ``ref_point``, default the domain's; points
-    that do not dominate it count for nothing, as in the paper), ``eum`` (over ``eum_weights``),
-    ``sparsity`` and ``cardinality``; with bounds (``bounds`` or ``reference``)
-    ``normalized_hypervolume`` and ``normalized_eum``; with a ``reference`` (frozen bounds and
-    specialist fronts, :class:`~morl_trl.reporting.DomainReference`) ``nhgr`` and ``eugr``.
-
-    Where the env emits the domain's original scalar reward (``sorl_key``, default
-    ``"original_reward"``: the reward the paper's SAC baseline trains on, its f_SORL) the
-    evaluator also sums it, undiscounted and discounted, over every episode
+    Per context it reports ``hypervolume`` (points that do not dominate ``ref_point`` count for
+    nothing, as in the paper), ``eum``, ``sparsity``, ``cardinality``; with bounds
+    ``normalized_hypervolume`` and ``normalized_eum``; with a ``reference`` ``nhgr`` and ``eugr``.
+    Where the env emits the original scalar reward (``sorl_key``: the SAC baseline's f_SORL) the
+    evaluator also sums it over every episode
     (``EvaluationResult.sorl_returns``), as the authors' evaluator did: per context, the best
-    weight's f_SORL return and that weight (:meth:`EvaluationResult.sorl_best`). A policy that
-    ignores the weight (SAC) gets as many episodes, and its best is the best of them. An env
-    without that entry has no f_SORL (``sorl_returns`` is ``None``).
+    weight's f_SORL return and that weight (:meth:`EvaluationResult.sorl_best`).
 
     Args:
-        policy: a callable ``TensorDict -> TensorDict`` writing ``"action"`` (a
-            ``TensorDictModule``, a ``ProbabilisticActor``, ...), or ``"random"`` to sample the
-            env's action spec. A policy that ignores the preference (a single-objective
-            baseline) works as is. Deterministic or stochastic actions are chosen with
-            ``exploration_type`` (default deterministic: the mode/mean of a probabilistic
-            actor; the paper evaluated MORL/D and SAC with ``ExplorationType.RANDOM``).
-        contexts: what to evaluate on:
-
-            * a training id (its evaluation suite, e.g. ``"MOLunarLanderDR-v0"``) or a list of
-              env ids of one domain;
-            * a mapping ``name -> context vector [c]`` (with ``env_factory``);
-            * a mapping ``name -> env_factory`` for envs without a context vector (one env per
-              context, e.g. MO-Gymnasium envs in a ``SerialEnv``);
-            * ``None``: one context, ``"default"``, on ``env_factory``'s env as it is.
-        weights: ``[W, k]`` preferences on the simplex, or an int ``W`` for
-            :func:`~morl_trl.preferences.energy_weights` (default 100, the paper's).
+        policy: a callable ``TensorDict -> TensorDict`` writing ``"action"``, or ``"random"`` (the
+            env's action spec). A policy may ignore the preference. Actions follow
+            ``exploration_type`` (the paper evaluated MORL/D and SAC with ``ExplorationType.RANDOM``).
+        contexts: a training id (its evaluation suite) or a list of env ids of one domain; a mapping
+            ``name -> context vector [c]`` (with ``env_factory``); a mapping ``name -> env_factory``
+            (envs without a context vector); or ``None``: one context, ``"default"``.
+        weights: ``[W, k]`` preferences on the simplex, or ``W`` energy weights (default 100, the paper's).
         episodes: episodes per (context, weight) pair.
         gamma: discount (default: the domain's).
-        env_factory: ``env_factory(num_envs=..., seed=...)`` building the batched env (batch
-            size ``[num_envs]``, a vector reward). Default for a registered domain:
-            ``make_env`` of its training id; compose what the policy observes with
-            :func:`~morl_trl.transforms.compose_policy_env`).
-        reference: frozen bounds and specialist fronts for every context
-            (:class:`~morl_trl.reporting.DomainReference`): adds NHGR, EUGR, normalized HV and EUM.
-        bounds: ``name -> Bounds`` (or ``(lower, upper)``) for normalized HV and EUM without
-            specialist fronts (``reference``'s bounds are used when not given).
+        env_factory: ``env_factory(num_envs=..., seed=...)`` building the batched env with a vector
+            reward: the training composition minus its training-only parts (default: ``make_env`` of
+            the domain's training id).
+        reference: frozen bounds and specialist fronts (:class:`~morl_trl.reporting.DomainReference`):
+            adds NHGR, EUGR, normalized HV and EUM.
+        bounds: ``name -> Bounds`` (or ``(lower, upper)``) for normalized HV and EUM without a reference.
         ref_point: unnormalized hypervolume reference point (default: the domain's).
         eum_weights: ``[M, k]`` weights of the EUM/EUGR (default: ``weights``).
-        chunk_size: number of sub-envs of the batched env (default: the whole grid, one
-            sub-env per row). A smaller pool bounds memory: its sub-envs stream through the
-            grid, each taking the next pending (context, weight, episode) as soon as its
-            episode ends (a partial reset). For envs whose cost is per sub-env (Box2D,
-            MuJoCo), a pool of a few times fewer sub-envs than rows is also faster, since
-            finished sub-envs no longer wait, being stepped, for the longest episode.
+        chunk_size: sub-envs of the pool (default: one per row). A smaller pool streams through the
+            grid (a partial reset takes the next pending row), bounding memory; for envs whose cost
+            is per sub-env (Box2D, MuJoCo) it is also faster.
         exploration_type: TorchRL exploration type used while acting.
         device: device of the default env (and of the reset TensorDicts).
-        seed: seed of everything random in the evaluation: the env (built with ``seed`` and
-            re-seeded with it before each run) and torch's RNG while acting (stochastic
-            policies); the global RNG state is restored afterwards. Results are reproducible
-            for a given seed and ``chunk_size``.
-        reset_finished: partially reset sub-envs once they are done even when no row is
-            left for them, so that they keep stepping from valid states while masked (set
-            ``False`` for domains that tolerate being stepped past their end).
+        seed: seeds the env (re-seeded before each run) and torch's RNG while acting (restored
+            afterwards); results are reproducible for a given seed and ``chunk_size``.
+        reset_finished: reset done sub-envs with no row left, so that masked steps start from valid states.
         preference_key: where the policy reads the preference.
-        max_steps: safety horizon (default: the env's ``max_episode_steps``); episodes still
-            running then are cut, with a warning.
-        true_fronts: ``name -> [m, k]`` true Pareto front of a context (discounted with
-            ``gamma``): adds ``igd`` and ``hv_ratio`` (our hypervolume over the true front's).
-            Default: the domain's ``true_front(gamma)`` where it knows one (MO-Gymnasium's
-            ``pareto_front``, :mod:`morl_trl.envs.foreign`).
-        sorl_key: the env's entry holding the original scalar reward ``[*B, 1]`` per step
-            (f_SORL); ``None``: do not record it.
+        max_steps: safety horizon (default: the env's ``max_episode_steps``); longer episodes are cut, with a warning.
+        true_fronts: ``name -> [m, k]`` true Pareto front (discounted with ``gamma``): adds ``igd``
+            and ``hv_ratio``. Default: the domain's ``true_front(gamma)`` where it knows one.
+        sorl_key: the env's entry holding the original scalar reward ``[*B, 1]``; ``None``: not recorded.
 
     Example:
         >>> from morl_trl.evaluation import MultiContextEvaluator
@@ -186,29 +139,15 @@ class MultiContextEvaluator:
         ['cardinality', 'eum', 'hypervolume', 'sparsity']
     """
 
-    def __init__(
-        self,
-        policy: Policy | str,
-        contexts: str | Sequence[str] | Mapping[str, object] | None = None,
-        weights: torch.Tensor | np.ndarray | int | None = None,
-        *,
-        episodes: int = 1,
-        gamma: float | None = None,
-        env_factory: EnvFactory | None = None,
-        reference=None,
-        bounds: Mapping[str, object] | None = None,
-        ref_point: Sequence[float] | None = None,
-        eum_weights: torch.Tensor | np.ndarray | None = None,
-        chunk_size: int | None = None,
-        exploration_type: ExplorationType = ExplorationType.DETERMINISTIC,
-        device: torch.device | str = "cpu",
-        seed: int = 0,
-        reset_finished: bool = True,
-        preference_key: str = "preference",
-        max_steps: int | None = None,
-        true_fronts: Mapping[str, object] | None = None,
-        sorl_key: str | tuple[str, ...] | None = "original_reward",
-    ) -> None:
+    def __init__(self, policy: Policy | str, contexts: str | Sequence[str] | Mapping[str, object] | None = None,
+                 weights: torch.Tensor | np.ndarray | int | None = None, *, episodes: int = 1,
+                 gamma: float | None = None, env_factory: EnvFactory | None = None, reference=None,
+                 bounds: Mapping[str, object] | None = None, ref_point: Sequence[float] | None = None,
+                 eum_weights: torch.Tensor | np.ndarray | None = None, chunk_size: int | None = None,
+                 exploration_type: ExplorationType = ExplorationType.DETERMINISTIC, device: torch.device | str = "cpu",
+                 seed: int = 0, reset_finished: bool = True, preference_key: str = "preference",
+                 max_steps: int | None = None, true_fronts: Mapping[str, object] | None = None,
+                 sorl_key: str | tuple[str, ...] | None = "original_reward") -> None:
         if not (callable(policy) or policy == "random"):
             raise ValueError(f"policy must be a callable TensorDict -> TensorDict or 'random', got {policy!r}")
         self.policy = policy
@@ -256,11 +195,8 @@ class MultiContextEvaluator:
             names = _static(probe, "objective_names") or ()
             self.objective_names = tuple(names) if len(names) == k else tuple(f"objective_{i}" for i in range(k))
         space = _static(probe, "context_space") if probe is not None else None
-        self.context_parameters = (
-            tuple(self.domain.context_space.names)
-            if self.domain is not None
-            else tuple(getattr(space, "names", ())) if self.contexts is not None else ()
-        )
+        self.context_parameters = (tuple(self.domain.context_space.names) if self.domain is not None
+                                   else tuple(getattr(space, "names", ())) if self.contexts is not None else ())
         k = len(self.objective_names)
 
         if weights is None:
@@ -268,11 +204,8 @@ class MultiContextEvaluator:
         if isinstance(weights, int):
             weights = energy_weights(k, weights)
         self.weights = torch.as_tensor(check_simplex(_as_2d(weights), k, name="weights"), dtype=torch.float64)
-        self.eum_weights = (
-            self.weights
-            if eum_weights is None
-            else torch.as_tensor(check_simplex(_as_2d(eum_weights), k, name="eum_weights"), dtype=torch.float64)
-        )
+        self.eum_weights = (self.weights if eum_weights is None else torch.as_tensor(
+            check_simplex(_as_2d(eum_weights), k, name="eum_weights"), dtype=torch.float64))
 
         if gamma is None:
             if self.domain is None:
@@ -381,30 +314,18 @@ class MultiContextEvaluator:
     def _with_evaluation_transforms(self, env: EnvBase) -> TransformedEnv:
         """``TransformedEnv(env, Compose(PreferenceConditioning(k, mode="given"), DiscountedVectorReturn(gamma)))``."""
         if self.preference_key in env.full_observation_spec.keys(True, True):
-            raise ValueError(
-                f"the env from env_factory already writes {self.preference_key!r} (a training "
-                "PreferenceConditioning?); leave it out: the evaluator adds PreferenceConditioning(mode='given') "
-                "with its weights"
-            )
+            raise ValueError(f"the env from env_factory already writes {self.preference_key!r} (a training "
+                             "PreferenceConditioning?); leave it out: the evaluator adds "
+                             "PreferenceConditioning(mode='given') with its weights")
         reward = env.full_reward_spec[env.reward_key]
         if reward.ndim < 2:
             raise ValueError(f"the env's reward has shape {tuple(reward.shape)}; the evaluator needs a vector reward [*B, k]")
         k = int(reward.shape[-1])
-        return TransformedEnv(
-            env,
-            Compose(
-                PreferenceConditioning(k, mode="given", preference_key=self.preference_key),
-                DiscountedVectorReturn(
-                    getattr(self, "gamma", 1.0),
-                    in_key=env.reward_key,
-                    return_key=_RETURN,
-                    discounted_key=_DISCOUNTED,
-                    discount_key=_DISCOUNT,
-                    dtype=torch.float64,
-                ),
-            ),
-            auto_unwrap=False,  # keep the factory's env whole: the loop steps it
-        )
+        return TransformedEnv(env, Compose(
+            PreferenceConditioning(k, mode="given", preference_key=self.preference_key),
+            DiscountedVectorReturn(getattr(self, "gamma", 1.0), in_key=env.reward_key, return_key=_RETURN,
+                                   discounted_key=_DISCOUNTED, discount_key=_DISCOUNT, dtype=torch.float64)),
+            auto_unwrap=False)  # keep the factory's env whole: the loop steps it
 
     # ------------------------------------------------------------------ running
     def evaluate(self, policy: Policy | str | None = None, *, weights: torch.Tensor | np.ndarray | None = None,
@@ -455,16 +376,13 @@ class MultiContextEvaluator:
             ok = ~off.any(-1)
             i = int((~ok).nonzero()[0, 0])
             name = self.context_names[int(rows[i]) // rows_per_context]
-            raise ValueError(
-                f"the env from env_factory reset a sub-env to context {got[i].tolist()} where the evaluator "
-                f"gave {name!r} = {wanted[i].tolist()} in the reset TensorDict: something in its stack "
-                "draws its own contexts at reset (e.g. a DomainRandomization transform). Build the "
-                "evaluation env without it (a context given at reset must be used); results would "
-                "otherwise be labelled with contexts they did not run"
-            )
+            raise ValueError(f"the env from env_factory reset a sub-env to context {got[i].tolist()} where the "
+                             f"evaluator gave {name!r} = {wanted[i].tolist()} in the reset TensorDict: something in "
+                             "its stack draws its own contexts at reset (e.g. a DomainRandomization transform). "
+                             "Build the evaluation env without it (a context given at reset must be used); results "
+                             "would otherwise be labelled with contexts they did not run")
 
-    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor,
-                  seed: int):
+    def _run_pool(self, policy, env: TransformedEnv, ctx_rows: torch.Tensor | None, pref_rows: torch.Tensor, seed: int):
         """Run every row as one episode on the pool ``env`` (``chunk_size`` sub-envs).
 
         Sub-env ``i`` starts on row ``i``; whenever a sub-env finishes its episode it is
@@ -552,11 +470,8 @@ class MultiContextEvaluator:
                 done = nxt.get("done").reshape(m).cpu()
                 cut = active & (run_len >= horizon) & ~done
                 if bool(cut.any()):
-                    warnings.warn(
-                        f"{int(cut.sum())} episodes were still running after max_steps={horizon}; "
-                        "their returns are cut there",
-                        stacklevel=3,
-                    )
+                    warnings.warn(f"{int(cut.sum())} episodes were still running after max_steps={horizon}; "
+                                  "their returns are cut there", stacklevel=3)
                 finished = active & (done | cut)
                 td_next = env.step_mdp(td)
                 resetting = done.clone() if self.reset_finished else torch.zeros_like(done)
@@ -608,13 +523,9 @@ class MultiContextEvaluator:
         for i, name in enumerate(self.context_names):
             front = pareto_front(values[i])
             m: dict[str, float | int | None] = {
-                "hypervolume": None
-                if self.ref_point is None
-                else hypervolume(front, self.ref_point, drop_unbounded=True),
-                "eum": eum(front, eum_w),
-                "sparsity": sparsity(front),
-                "cardinality": cardinality(front),
-            }
+                "hypervolume": None if self.ref_point is None else hypervolume(front, self.ref_point,
+                                                                                drop_unbounded=True),
+                "eum": eum(front, eum_w), "sparsity": sparsity(front), "cardinality": cardinality(front)}
             b = self.bounds.get(name)
             if b is not None:
                 m["normalized_hypervolume"] = normalized_hypervolume(front, b.lower, b.upper)
@@ -645,18 +556,11 @@ class MultiContextEvaluator:
         return EvaluationResult(
             context_names=self.context_names,
             contexts=torch.zeros(len(self.context_names), 0) if self.contexts is None else self.contexts.clone(),
-            context_parameters=self.context_parameters,
-            objective_names=self.objective_names,
-            weights=(self.weights if weights is None else weights).clone(),
-            returns=disc,
-            undiscounted_returns=und,
-            lengths=lengths,
-            gamma=self.gamma,
-            per_context=per_context,
-            aggregate=aggregate,
+            context_parameters=self.context_parameters, objective_names=self.objective_names,
+            weights=(self.weights if weights is None else weights).clone(), returns=disc, undiscounted_returns=und,
+            lengths=lengths, gamma=self.gamma, per_context=per_context, aggregate=aggregate,
             sorl_returns=None if sorl is None else sorl[..., 0].clone(),
-            sorl_discounted_returns=None if sorl is None else sorl[..., 1].clone(),
-        )
+            sorl_discounted_returns=None if sorl is None else sorl[..., 1].clone())
 
     def close(self) -> None:
         """Close the environments built so far."""

@@ -4,9 +4,8 @@
 * :func:`run_grid` (:mod:`morl_trl.grid.runner`): each cell a ``morl-trl train`` run, as a Ray Tune
   trial (resources per run, retries, clusters), resumed from our checkpoints;
 * :func:`grid_status` (:mod:`morl_trl.grid.status`): where each cell stands, from the files;
-* :func:`grid_report` (:mod:`morl_trl.grid.report`): the paper's table from the finished cells
-  (the code of ``morl-trl reference-table``), beside the paper's values and the floors, and
-  learning curves per domain.
+* :func:`grid_report` (:mod:`morl_trl.grid.report`): the paper's table from the finished cells (the code of
+  ``morl-trl reference-table``), beside the paper's values and the floors, and learning curves per domain.
 
 ``morl-trl grid`` is the command line. Ray is the ``grid`` extra (``pip install "morl-trl[grid]"``).
 

@@ -1,15 +1,13 @@
 """The grid's report: the paper's table from our runs, beside the paper's values and the floors,
 and the learning curves per domain (``morl-trl grid report DIR``).
 
-The table is :mod:`morl_trl.reporting.table`'s (the code of ``morl-trl reference-table``):
-each finished cell's last front per evaluation context is scored against the domain's frozen
-bounds and specialist fronts (NHGR mean ± population std over seeds × contexts, IQM,
-optimality gap, EUGR on the runs' energy weights), one row per algorithm and domain, with the
-paper's value where the paper has that algorithm. Each domain ends with its floor (the best
-trivial policy): the shipped ``floors.json`` when the runs used the paper's number of
-evaluation weights, else the trivial policies evaluated here at the runs' number of weights
-and contexts (cached in ``report/floors.json``), since a floor is only comparable at the same
-weights.
+The table is :mod:`morl_trl.reporting.table`'s (the code of ``morl-trl reference-table``): each finished cell's
+last front per evaluation context is scored against the domain's frozen bounds and specialist fronts (NHGR mean ±
+population std over seeds × contexts, IQM, optimality gap, EUGR on the runs' energy weights), one row per algorithm
+and domain, with the paper's value where the paper has that algorithm. Each domain ends with its floor (the best
+trivial policy): the shipped ``floors.json`` when the runs used the paper's number of evaluation weights, else the
+trivial policies evaluated here at the runs' number of weights and contexts (cached in ``report/floors.json``),
+since a floor is only comparable at the same weights.
 
 Written into the grid directory: ``report.md``, ``report/table.txt``, ``report/table.csv`` and
 ``report/curves_<domain>.png`` (NHGR, mean over contexts, against frames: mean over seeds with
@@ -30,17 +28,14 @@ __all__ = ["grid_report", "grid_rows", "paper_label", "run_fronts"]
 
 # our algorithm names -> the paper's labels (reporting.table.PAPER_NHGR's keys), by their
 # letters only (so "gpi_ls", "gpi-ls" and "GPILS" all match)
-_PAPER_LABELS = {
-    "envelope": "Envelope", "capql": "CAPQL", "pcn": "PCN", "pgmorl": "PGMORL", "gpils": "GPI-LS",
-    "gpipd": "GPI-PD", "sac": "SAC", "morld": "MORL/D SB", "morldsb": "MORL/D SB", "morldsbpsa": "MORL/D SB+PSA",
-    "morldpsa": "MORL/D SB+PSA",
-}
+_PAPER_LABELS = {"envelope": "Envelope", "capql": "CAPQL", "pcn": "PCN", "pgmorl": "PGMORL", "gpils": "GPI-LS",
+                 "gpipd": "GPI-PD", "sac": "SAC", "morld": "MORL/D SB", "morldsb": "MORL/D SB",
+                 "morldsbpsa": "MORL/D SB+PSA", "morldpsa": "MORL/D SB+PSA"}
 
 
 def paper_label(algo: str) -> str:
-    """The paper's name of one of our algorithms (``"envelope"`` -> ``"Envelope"``); the name
-    itself when the paper has no such algorithm (MOSAC alone is not the paper's SAC baseline,
-    which ignores the preference, nor MORL/D).
+    """The paper's name of one of our algorithms (``"envelope"`` -> ``"Envelope"``); the name itself when the paper
+    has no such algorithm (MOSAC alone is not the paper's SAC baseline, which ignores the preference, nor MORL/D).
 
     Example:
         >>> paper_label("envelope"), paper_label("gpi_ls"), paper_label("mosac")

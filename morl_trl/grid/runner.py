@@ -1,13 +1,12 @@
 """Run a grid on Ray Tune: one trial per unfinished cell, each a ``morl-trl train`` run.
 
-Ray Tune does the scheduling (resources per trial, CPUs and fractional GPUs, so several small
-runs share one GPU), the retries (a trial whose worker dies is started again, up to
-``max_failures`` times) and the cluster (``address``); our checkpoints do the rest: a trial
-resumes its cell's run from the newest intact checkpoint (``train(cfg, resume=run_dir)``), so
-a killed worker loses at most the frames since that checkpoint. Running the same grid again
-skips the finished cells and resumes the others. A cell whose run raises (a non-finite loss,
-a bad config) is recorded as failed with its error and the grid goes on; it is not retried in
-the same invocation (the next one tries it again, from its checkpoint).
+Ray Tune does the scheduling (resources per trial, CPUs and fractional GPUs, so several small runs share one GPU),
+the retries (a trial whose worker dies is started again, up to ``max_failures`` times) and the cluster
+(``address``); our checkpoints do the rest: a trial resumes its cell's run from the newest intact checkpoint
+(``train(cfg, resume=run_dir)``), so a killed worker loses at most the frames since that checkpoint. Running the
+same grid again skips the finished cells and resumes the others. A cell whose run raises (a non-finite loss, a bad
+config) is recorded as failed with its error and the grid goes on; it is not retried in the same invocation (the
+next one tries it again, from its checkpoint).
 
 On a cluster, the grid directory must be on a filesystem every node sees (each trial writes its
 run directory there).
@@ -126,8 +125,7 @@ class GridProgress:
         states = self.states()
         atomic_write_text(self.grid_dir / "status.json", json.dumps([s.as_dict() for s in states], indent=1))
         if self.stream is not False:
-            print(format_status(states, time.perf_counter() - self.t0, per_cell=per_cell), file=self.stream,
-                  flush=True)
+            print(format_status(states, time.perf_counter() - self.t0, per_cell=per_cell), file=self.stream, flush=True)
         self._last = time.perf_counter()
 
     @staticmethod
@@ -142,8 +140,7 @@ class GridProgress:
         name = self._name(trial)
         self.running.discard(name)
         if self.stream is not False:
-            print(f"grid: {name}: its worker failed; retrying from its newest checkpoint", file=self.stream,
-                  flush=True)
+            print(f"grid: {name}: its worker failed; retrying from its newest checkpoint", file=self.stream, flush=True)
 
     def on_trial_complete(self, iteration, trials, trial, **info):
         self.running.discard(self._name(trial))
@@ -181,9 +178,8 @@ _EVENTS = ("on_trial_start", "on_trial_recover", "on_trial_complete", "on_trial_
 
 def check_grid_options(cells: list[Cell], *, address=None, num_cpus=None, num_gpus=None, max_concurrent=None,
                        max_failures=2, progress_interval=30.0) -> None:
-    """``ValueError`` (naming the option and what is valid) before anything is written or started:
-    negative counts, and cells that reserve more than an embedded Ray has (they would wait as
-    pending forever)."""
+    """``ValueError`` (naming the option and what is valid) before anything is written or started: negative counts,
+    and cells that reserve more than an embedded Ray has (they would wait as pending forever)."""
     def _count(name, value, low, optional=True):
         if value is None and optional:
             return
@@ -229,27 +225,17 @@ def _init_ray(address: str | None, num_cpus: int | None, num_gpus: float | None)
     return True
 
 
-def run_grid(
-    spec: GridSpec,
-    grid_dir: str | Path,
-    *,
-    address: str | None = None,
-    num_cpus: int | None = None,
-    num_gpus: float | None = None,
-    max_concurrent: int | None = None,
-    max_failures: int = 2,
-    progress_interval: float = 30.0,
-    stream=None,
-    run_cell: Callable[[Cell, Path], dict] | None = None,
-) -> list[CellState]:
+def run_grid(spec: GridSpec, grid_dir: str | Path, *, address: str | None = None, num_cpus: int | None = None,
+             num_gpus: float | None = None, max_concurrent: int | None = None, max_failures: int = 2,
+             progress_interval: float = 30.0, stream=None,
+             run_cell: Callable[[Cell, Path], dict] | None = None) -> list[CellState]:
     """Run every unfinished cell of ``spec`` under ``grid_dir`` on Ray Tune; returns every cell's state.
 
-    ``address``: an existing Ray cluster (``"auto"`` or ``"ray://host:port"``); default an
-    embedded Ray started here (``num_cpus`` / ``num_gpus`` cap what it sees; default the
-    machine's), shut down at the end. ``max_concurrent``: at most this many runs at once
-    (default: as many as the resources allow). ``max_failures``: retries of a trial whose worker
-    died. ``stream=False`` prints nothing. ``run_cell(cell, run_dir)`` replaces :func:`run_cell`
-    (it must be importable by the workers).
+    ``address``: an existing Ray cluster (``"auto"`` or ``"ray://host:port"``); default an embedded Ray started
+    here (``num_cpus`` / ``num_gpus`` cap what it sees; default the machine's), shut down at the end.
+    ``max_concurrent``: at most this many runs at once (default: as many as the resources allow). ``max_failures``:
+    retries of a trial whose worker died. ``stream=False`` prints nothing. ``run_cell(cell, run_dir)`` replaces
+    :func:`run_cell` (it must be importable by the workers).
     """
     os.environ.setdefault("TUNE_DISABLE_AUTO_CALLBACK_LOGGERS", "1")  # our runs log themselves: no TensorBoard/CSV
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
@@ -288,19 +274,14 @@ def run_grid(
         progress = GridProgress(grid_dir, cells, targets, interval=progress_interval, stream=out if stream is not False
                                 else False)
         tuner = tune.Tuner(
-            trainable,
-            param_space=param_space,
+            trainable, param_space=param_space,
             tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent, reuse_actors=True,
                                         trial_dirname_creator=lambda t: t.trial_id,
                                         trial_name_creator=lambda t: Cell(**t.config["cell"]).name),
             run_config=tune.RunConfig(
-                name=f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}",
-                storage_path=str(grid_dir / "tune"),
+                name=f"{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}", storage_path=str(grid_dir / "tune"),
                 failure_config=tune.FailureConfig(max_failures=max_failures),
-                callbacks=[progress.as_callback(), JsonLoggerCallback()],  # (Tune reads its result.json)
-                verbose=0,
-            ),
-        )
+                callbacks=[progress.as_callback(), JsonLoggerCallback()], verbose=0))  # (Tune reads its result.json)
         tuner.fit()
     finally:
         if started:

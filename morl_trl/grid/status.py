@@ -92,16 +92,12 @@ def read_cell_record(grid_dir: str | Path, name: str) -> dict:
         return {}
     if not isinstance(record, dict):
         return {}
-    checks = {
-        "status": lambda v: v in STATUSES,
-        "attempts": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
-        "wall_s": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
-        "error": lambda v: isinstance(v, str),
-        "traceback": lambda v: isinstance(v, str),
-        "pid": lambda v: isinstance(v, int) and not isinstance(v, bool),
-        "host": lambda v: isinstance(v, str),
-        "updated": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
-    }
+    checks = {"status": lambda v: v in STATUSES,
+              "attempts": lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
+              "wall_s": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
+              "error": lambda v: isinstance(v, str), "traceback": lambda v: isinstance(v, str),
+              "pid": lambda v: isinstance(v, int) and not isinstance(v, bool), "host": lambda v: isinstance(v, str),
+              "updated": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)}
     return {k: v for k, v in record.items() if k not in checks or v is None or checks[k](v)}
 
 

@@ -20,14 +20,7 @@ Example:
 """
 
 from morl_trl.metrics._arrays import as_points
-from morl_trl.metrics.aggregate import (
-    interquartile_mean,
-    iqm,
-    mean,
-    median,
-    optimality_gap,
-    stratified_bootstrap_ci,
-)
+from morl_trl.metrics.aggregate import interquartile_mean, iqm, mean, median, optimality_gap, stratified_bootstrap_ci
 from morl_trl.metrics.bounds import Bounds
 from morl_trl.metrics.distance import igd
 from morl_trl.metrics.front_stats import cardinality, sparsity
@@ -36,24 +29,6 @@ from morl_trl.metrics.hypervolume import hypervolume, normalize, normalized_hype
 from morl_trl.metrics.pareto import is_nondominated, pareto_front
 from morl_trl.metrics.utility import eum
 
-__all__ = [
-    "pareto_front",
-    "is_nondominated",
-    "hypervolume",
-    "normalize",
-    "normalized_hypervolume",
-    "eum",
-    "nhgr",
-    "eugr",
-    "igd",
-    "sparsity",
-    "cardinality",
-    "interquartile_mean",
-    "iqm",
-    "optimality_gap",
-    "mean",
-    "median",
-    "stratified_bootstrap_ci",
-    "Bounds",
-    "as_points",
-]
+__all__ = ["pareto_front", "is_nondominated", "hypervolume", "normalize", "normalized_hypervolume", "eum", "nhgr",
+           "eugr", "igd", "sparsity", "cardinality", "interquartile_mean", "iqm", "optimality_gap", "mean", "median",
+           "stratified_bootstrap_ci", "Bounds", "as_points"]

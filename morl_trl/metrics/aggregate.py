@@ -13,14 +13,7 @@ import numpy as np
 
 from morl_trl.metrics._arrays import to_numpy
 
-__all__ = [
-    "interquartile_mean",
-    "iqm",
-    "optimality_gap",
-    "mean",
-    "median",
-    "stratified_bootstrap_ci",
-]
+__all__ = ["interquartile_mean", "iqm", "optimality_gap", "mean", "median", "stratified_bootstrap_ci"]
 
 
 def _scores(scores) -> np.ndarray:
@@ -91,14 +84,8 @@ def _vectorized(name: str) -> Callable[[np.ndarray], np.ndarray]:
     raise ValueError(f"unknown statistic {name!r}; valid: 'iqm', 'optimality_gap', 'mean', 'median' or a callable")
 
 
-def stratified_bootstrap_ci(
-    scores,
-    statistic: str | Callable[[np.ndarray], float] = "iqm",
-    *,
-    reps: int = 50_000,
-    confidence: float = 0.95,
-    seed: int | None = 0,
-) -> tuple[float, float, float]:
+def stratified_bootstrap_ci(scores, statistic: str | Callable[[np.ndarray], float] = "iqm", *, reps: int = 50_000,
+                            confidence: float = 0.95, seed: int | None = 0) -> tuple[float, float, float]:
     """Point estimate and percentile confidence interval from a stratified bootstrap.
 
     Each bootstrap replicate resamples, for every task (column) independently, as many runs

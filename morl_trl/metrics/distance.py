@@ -10,10 +10,9 @@ __all__ = ["igd"]
 
 
 def igd(front, true_front) -> float:
-    """Inverted generational distance: the mean, over the points of ``true_front`` ``[m, k]``,
-    of the Euclidean distance to the nearest point of ``front`` ``[n, k]`` (lower is better;
-    0 when ``front`` holds every true point). The definition of pymoo's ``IGD``, which
-    MORL-Baselines reports.
+    """Inverted generational distance: the mean, over the points of ``true_front`` ``[m, k]``, of the Euclidean
+    distance to the nearest point of ``front`` ``[n, k]`` (lower is better; 0 when ``front`` holds every true
+    point). The definition of pymoo's ``IGD``, which MORL-Baselines reports.
 
     Example:
         >>> igd([[1.0, 0.0]], [[1.0, 0.0], [0.0, 1.0]])   # (0 + sqrt(2)) / 2

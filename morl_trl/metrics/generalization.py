@@ -12,9 +12,8 @@ __all__ = ["nhgr", "eugr"]
 def nhgr(front, optimal_front, lower, upper) -> float:
     """Normalized Hypervolume Generalization Ratio of ``front`` in one context.
 
-    ``min(HV_norm(front) / HV_norm(optimal_front), 1)``, both normalized with the same frozen
-    bounds (clipping, origin reference). The cap handles a front that beats the (approximate)
-    optimal one.
+    ``min(HV_norm(front) / HV_norm(optimal_front), 1)``, both normalized with the same frozen bounds (clipping,
+    origin reference). The cap handles a front that beats the (approximate) optimal one.
 
     Raises ``ValueError`` if the optimal front has zero normalized hypervolume (the ratio is
     undefined), besides the usual checks on the inputs.

@@ -19,10 +19,9 @@ def hypervolume(points, ref_point, *, drop_unbounded: bool = False) -> float:
     Args:
         points: ``[n, k]`` (or a single ``[k]`` point); torch or numpy.
         ref_point: ``[k]`` (or a scalar for every objective).
-        drop_unbounded: by default a point below ``ref_point`` in some objective is an error
-            (the reference point must bound the set). With ``True`` such points are ignored,
-            which is the convention of pymoo and of the paper's logged hypervolumes (an
-            unreachable reference point then gives 0).
+        drop_unbounded: by default a point below ``ref_point`` in some objective is an error (the reference point
+            must bound the set). With ``True`` such points are ignored, which is the convention of pymoo and of the
+            paper's logged hypervolumes (an unreachable reference point then gives 0).
 
     Example:
         >>> hypervolume([[1.0, 2.0], [2.0, 1.0]], ref_point=[0.0, 0.0])
@@ -70,9 +69,8 @@ def normalize(points, lower, upper) -> np.ndarray:
 def normalized_hypervolume(points, lower, upper) -> float:
     """Hypervolume after clipping to ``[lower, upper]`` and scaling to the unit box, origin as reference.
 
-    This is the paper's :math:`HV_{norm}` (§4): in ``[0, 1]`` for any input, and comparable
-    across contexts whose returns live on different scales. Points at or below ``lower`` in
-    some objective add nothing.
+    This is the paper's :math:`HV_{norm}` (§4): in ``[0, 1]`` for any input, and comparable across contexts whose
+    returns live on different scales. Points at or below ``lower`` in some objective add nothing.
 
     Example:
         >>> normalized_hypervolume([[5.0, 10.0], [10.0, 5.0]], lower=[0.0, 0.0], upper=[10.0, 10.0])

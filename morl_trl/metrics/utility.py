@@ -13,8 +13,7 @@ def eum(front, weights) -> float:
 
     Args:
         front: ``[n, k]`` value vectors (dominated points do not change the result).
-        weights: ``[m, k]`` preference weights on the simplex
-            (:func:`morl_trl.preferences.check_simplex`), e.g.
+        weights: ``[m, k]`` preference weights on the simplex (:func:`morl_trl.preferences.check_simplex`), e.g.
             :func:`~morl_trl.preferences.energy_weights`.
 
     Example:

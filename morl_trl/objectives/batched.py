@@ -1,8 +1,7 @@
 """Batched networks: ``E`` members (a population, an ensemble, a set of critics) as ONE module.
 
-The one home of the batched layers every population and ensemble uses (MORL/D's and PGMORL's
-populations, the GPI Q ensembles and critics, GPI-PD's dynamics ensemble): no Python loop over
-members, one batched matmul per layer.
+The one home of the batched layers every population and ensemble uses (MORL/D's and PGMORL's populations, the GPI Q
+ensembles and critics, GPI-PD's dynamics ensemble): no Python loop over members, one batched matmul per layer.
 
 * :class:`BatchedLinear`: ``E`` independent ``Linear(in, out)``; ``weight [E, in, out]``,
   ``bias [E, 1, out]`` (member ``e`` is ``nn.Linear`` with ``weight[e].T`` and ``bias[e, 0]``).
@@ -14,9 +13,8 @@ members, one batched matmul per layer.
 * :class:`BatchedMLP`: ``E`` MLPs of :class:`BatchedLinear` layers (``mlp`` holds them at the
   indices of :class:`~morl_trl.objectives.networks.PreferenceConditionedMLP`'s ``mlp``).
 
-Inputs are member-major: ``[E, *B, in]``, or ``[E * N, in]`` (rows ``e * N .. (e + 1) * N - 1``
-belong to member ``e``, as a ``[P * N]`` training env's sub-envs); the output keeps the input's
-leading shape.
+Inputs are member-major: ``[E, *B, in]``, or ``[E * N, in]`` (rows ``e * N .. (e + 1) * N - 1`` belong to member
+``e``, as a ``[P * N]`` training env's sub-envs); the output keeps the input's leading shape.
 
 Initialisations (``init``): ``"orthogonal"`` (each member's ``[out, in]`` weight orthogonal with
 ``gain``, zero bias: the authors' ``layer_init``) or ``"torch"`` (each member as ``nn.Linear``:
@@ -70,8 +68,7 @@ class BatchedLinear(nn.Module):
         init: ``"orthogonal"`` (default; ``gain``, zero bias) or ``"torch"`` (``nn.Linear``'s); see the module.
         gain: the orthogonal init's gain.
 
-    ``forward(x, members=None)``: ``members`` (a slice) runs only those members (``x`` then has
-    their count first).
+    ``forward(x, members=None)``: ``members`` (a slice) runs only those members (``x`` then has their count first).
 
     Example:
         >>> lin = BatchedLinear(2, 3, 4, init="torch")
@@ -162,16 +159,14 @@ def _affine(normed: Tensor, w: Tensor, b: Tensor) -> Tensor:
 def _dropout_mask(like: Tensor, p: float, of_rows: int | None = None) -> Tensor:
     """The inverted-dropout mask ``keep / (1 - p)`` of ``like``'s shape: iid ``keep ~ Bernoulli(1 - p)``.
 
-    CUDA: ``U[0, 1) >= p`` from one ``uniform_`` of ``like``'s size (the values of
-    ``(torch.rand_like(like) >= p).to(dtype) / (1 - p)``). CPU: the dropped positions from
-    geometric gaps (:func:`dropped_positions`): the same distribution from ``~n p`` draws
-    instead of ``n`` (torch's CPU generator draws one number at a time: at the GPI networks'
-    ``p = 0.01`` the uniform draws were ~15% of an update).
+    CUDA: ``U[0, 1) >= p`` from one ``uniform_`` of ``like``'s size (the values of ``(torch.rand_like(like) >=
+    p).to(dtype) / (1 - p)``). CPU: the dropped positions from geometric gaps (:func:`dropped_positions`): the same
+    distribution from ``~n p`` draws instead of ``n`` (torch's CPU generator draws one number at a time: at the GPI
+    networks' ``p = 0.01`` the uniform draws were ~15% of an update).
 
-    ``of_rows``: ``like`` ``[E, N, d]`` holds the first ``N`` rows of each member of an
-    ``[E, of_rows, d]`` activation: the mask is drawn for that whole activation (the same
-    draws) and its first ``N`` rows are returned, so rows computed alone get the values they
-    get computed with the rest.
+    ``of_rows``: ``like`` ``[E, N, d]`` holds the first ``N`` rows of each member of an ``[E, of_rows, d]``
+    activation: the mask is drawn for that whole activation (the same draws) and its first ``N`` rows are returned,
+    so rows computed alone get the values they get computed with the rest.
     """
     if of_rows is not None and of_rows != like.shape[-2]:
         e, n, d = like.shape
@@ -193,11 +188,10 @@ def _dropout_mask(like: Tensor, p: float, of_rows: int | None = None) -> Tensor:
 def dropped_positions(n: int, p: float, *, chunk: int | None = None) -> Tensor:
     """The positions in ``range(n)`` that dropout at rate ``p`` zeroes, from geometric gaps (CPU).
 
-    Gaps ``G_i ~ Geometric(p)`` on ``{1, 2, ...}`` (``Tensor.geometric_``) put a drop at
-    ``G_1 + ... + G_j - 1``: every position is dropped independently with probability ``p``
-    (a Bernoulli process). Gaps are drawn ``chunk`` at a time (default ``n p + 6 sqrt(n p) + 16``)
-    until they pass ``n``, one generator stream whatever the chunk; positions ``>= n`` are returned
-    as ``n`` (callers keep a spare slot there). ``0 < p < 1``.
+    Gaps ``G_i ~ Geometric(p)`` on ``{1, 2, ...}`` (``Tensor.geometric_``) put a drop at ``G_1 + ... + G_j - 1``:
+    every position is dropped independently with probability ``p`` (a Bernoulli process). Gaps are drawn ``chunk``
+    at a time (default ``n p + 6 sqrt(n p) + 16``) until they pass ``n``, one generator stream whatever the chunk;
+    positions ``>= n`` are returned as ``n`` (callers keep a spare slot there). ``0 < p < 1``.
 
     Example:
         >>> _ = torch.manual_seed(0)
@@ -248,8 +242,7 @@ def linear_dropout_norm_relu(x: Tensor, linear: BatchedLinear, norm: BatchedLaye
         True
     """
     norm_params = None if norm is None else (_members(norm.weight, members), _members(norm.bias, members), norm.eps)
-    return hidden_block(x, _members(linear.weight, members), _members(linear.bias, members), norm_params, p,
-                        training)
+    return hidden_block(x, _members(linear.weight, members), _members(linear.bias, members), norm_params, p, training)
 
 
 def hidden_block(x: Tensor, weight: Tensor, bias: Tensor, norm: tuple[Tensor, Tensor, float] | None, p: float,
@@ -280,8 +273,7 @@ class BatchedMLP(nn.Module):
         num_cells: hidden widths.
         activation: the hidden activation class (e.g. ``nn.ReLU``, ``nn.Tanh``).
         init: ``"torch"`` (default, ``nn.Linear``'s) or ``"orthogonal"``; see the module.
-        gain: the orthogonal gain of the hidden layers; ``out_gain``: the output layer's
-            (default: ``gain``).
+        gain: the orthogonal gain of the hidden layers; ``out_gain``: the output layer's (default: ``gain``).
 
     ``member_state(e)`` / ``load_member_state(e, state)`` copy one member's parameters out and in.
 

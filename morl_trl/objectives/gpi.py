@@ -25,13 +25,8 @@ from torch import nn
 from torch.nn import functional as F
 
 from morl_trl._torchrl_compat import clear_weakrefs
-from morl_trl.objectives.batched import (
-    BatchedLayerNorm,
-    BatchedLinear,
-    batched_linear,
-    hidden_block,
-    linear_dropout_norm_relu,
-)
+from morl_trl.objectives.batched import (BatchedLayerNorm, BatchedLinear, batched_linear, hidden_block,
+                                         linear_dropout_norm_relu)
 from morl_trl.objectives.common import MultiObjectiveLossModule, argmin_along
 from morl_trl.objectives.envelope import action_index
 from morl_trl.objectives.networks import NatureCNN, orthogonal_init_
@@ -224,22 +219,19 @@ def thresholded_huber(x: torch.Tensor, threshold: float) -> torch.Tensor:
 class GPILoss(MultiObjectiveLossModule):
     r"""The GPI-LS / GPI-PD loss on a batch of transitions with ``[*B, k]`` rewards.
 
-    The weights come from the loss's state (set them with :meth:`set_weights` at each
-    weight-support iteration), not from the batch, as in the authors' ``update(weight)``:
-    with a support of ``M > 1`` weights the batch is doubled, the first half under the
-    current weight ``w``, the second under weights drawn uniformly from the support. Target:
-    :math:`r + \gamma (1 - d)\, Q^-_{e^*}(s', a^*, w)` with :math:`e^*` the member of the
-    target ensemble with the lowest :math:`w \cdot Q^-_e(s', a, w)` (per action) and
-    :math:`a^*` its greedy action. Loss: the mean over members of
-    :func:`thresholded_huber` of :math:`|Q_e(s, a, w) - y|` (threshold ``min_priority``).
+    The weights come from the loss's state (set them with :meth:`set_weights` at each weight-support iteration),
+    not from the batch, as in the authors' ``update(weight)``: with a support of ``M > 1`` weights the batch is
+    doubled, the first half under the current weight ``w``, the second under weights drawn uniformly from the
+    support. Target: :math:`r + \gamma (1 - d)\, Q^-_{e^*}(s', a^*, w)` with :math:`e^*` the member of the target
+    ensemble with the lowest :math:`w \cdot Q^-_e(s', a, w)` (per action) and :math:`a^*` its greedy action. Loss:
+    the mean over members of :func:`thresholded_huber` of :math:`|Q_e(s, a, w) - y|` (threshold ``min_priority``).
 
-    The priority written under ``"td_error"`` for the first ``B`` rows (the real batch) is
-    :math:`\max(|w \cdot \max_e |Q_e - y||, \text{min\_priority})`; with ``gpi_pd=True`` the
-    target is the GPI target :math:`y^{GPI}`: the best (support weight, action) pair under
-    ``w`` over ``w`` and 4 support weights drawn at random (the whole support when it has at
-    most 5), with the same minimum over target members. The prioritized sampler raises it to
-    its ``alpha`` (the authors store ``priority ** alpha``). Importance weights are not applied
-    (the authors' PER buffer has none).
+    The priority written under ``"td_error"`` for the first ``B`` rows (the real batch) is :math:`\max(|w \cdot
+    \max_e |Q_e - y||, \text{min\_priority})`; with ``gpi_pd=True`` the target is the GPI target :math:`y^{GPI}`:
+    the best (support weight, action) pair under ``w`` over ``w`` and 4 support weights drawn at random (the whole
+    support when it has at most 5), with the same minimum over target members. The prioritized sampler raises it to
+    its ``alpha`` (the authors store ``priority ** alpha``). Importance weights are not applied (the authors' PER
+    buffer has none).
 
     Args:
         value_network: a :class:`GPIQNetwork`.
@@ -340,9 +332,8 @@ class GPILoss(MultiObjectiveLossModule):
             return net(obs, w, members=members)
 
     def _q_first_rows(self, params, obs: torch.Tensor, w: torch.Tensor, rows: int) -> torch.Tensor:
-        """``_q(params, obs, w)[:, :rows]`` (rows of ``obs``'s first dim), each row as the whole
-        batch's run gives it (the same dropout draws), computing only those rows where the network
-        takes given parameters."""
+        """``_q(params, obs, w)[:, :rows]`` (rows of ``obs``'s first dim), each row as the whole batch's run gives it
+        (the same dropout draws), computing only those rows where the network takes given parameters."""
         net = self.value_network.module
         if rows >= obs.shape[0]:
             return self._q(params, obs, w)
@@ -531,11 +522,10 @@ class GPIContinuousPolicy(TensorDictModuleBase):
     ``w . Q_0(s, a_j, w_i)``, the best ``(i, j)`` acting (the authors' ``eval``; the critic's dropout
     stays as its mode is: the authors never switch it off).
 
-    ``context_table`` ``[E, c]`` (the evaluation contexts, in the evaluator's order) reproduces the
-    authors' vectorised evaluator (``gpi_pd_continuous_action.py:510-526``): for a row whose
-    ``"context"`` is evaluation context ``e`` of ``E``, the critic's conditioning weight of
-    candidate row ``i`` is ``w_floor((e * M + i) / E)`` instead of ``w_i`` (their
-    ``repeat_interleave(M * num_envs)``; a slip, SPEC §6). Without it (or a ``"context"``
+    ``context_table`` ``[E, c]`` (the evaluation contexts, in the evaluator's order) reproduces the authors'
+    vectorised evaluator (``gpi_pd_continuous_action.py:510-526``): for a row whose ``"context"`` is evaluation
+    context ``e`` of ``E``, the critic's conditioning weight of candidate row ``i`` is ``w_floor((e * M + i) / E)``
+    instead of ``w_i`` (their ``repeat_interleave(M * num_envs)``; a slip, SPEC §6). Without it (or a ``"context"``
     entry) every row uses ``w_i``, as their single-env path.
 
     Example:

@@ -1,16 +1,13 @@
 """Multi-objective soft actor-critic losses (continuous and discrete actions).
 
-Vector critics ``Q(s, a[, w]) -> [*B, k]``, an actor and a temperature trained
-on the preference-scalarised objective. With a fixed preference per policy this
-is MORL/D's MOSAC building block; with ``k = 1`` it is plain SAC. The formulas
-are the functions of :mod:`morl_trl.objectives.actor_critic_parts`, shared with
-:class:`~morl_trl.objectives.capql.CAPQLLoss` and MORL/D's population
-(:mod:`morl_trl.objectives.population`); ``critic_min`` and ``critic_loss``
-pick among them.
+Vector critics ``Q(s, a[, w]) -> [*B, k]``, an actor and a temperature trained on the preference-scalarised
+objective. With a fixed preference per policy this is MORL/D's MOSAC building block; with ``k = 1`` it is plain
+SAC. The formulas are the functions of :mod:`morl_trl.objectives.actor_critic_parts`, shared with
+:class:`~morl_trl.objectives.capql.CAPQLLoss` and MORL/D's population (:mod:`morl_trl.objectives.population`);
+``critic_min`` and ``critic_loss`` pick among them.
 
-The paper's SAC baseline (trained on the scalar ``original_reward``) is
-``MOSACLoss(actor, critic, num_objectives=1, preference=torch.ones(1))`` after
-``loss.set_keys(reward="original_reward")``.
+The paper's SAC baseline (trained on the scalar ``original_reward``) is ``MOSACLoss(actor, critic,
+num_objectives=1, preference=torch.ones(1))`` after ``loss.set_keys(reward="original_reward")``.
 """
 
 from __future__ import annotations
@@ -25,23 +22,12 @@ from tensordict.utils import NestedKey
 from torch import Tensor
 from torchrl.data import Composite, TensorSpec
 
-from morl_trl.objectives.actor_critic_parts import (
-    ALPHA_LOSS_FORMS,
-    ContinuousSoftActorCriticBase,
-    SoftActorCriticBase,
-    check_alpha_loss_form,
-    draw,
-    elementwise_min,
-    expected_log_prob,
-    expected_soft_actor_objective,
-    expected_soft_next_value,
-    scalarized_critic_loss,
-    scalarized_min,
-    soft_actor_objective,
-    soft_next_value,
-    temperature_objective,
-    vector_critic_loss,
-)
+from morl_trl.objectives.actor_critic_parts import (ALPHA_LOSS_FORMS, ContinuousSoftActorCriticBase,
+                                                    SoftActorCriticBase, check_alpha_loss_form, draw, elementwise_min,
+                                                    expected_log_prob, expected_soft_actor_objective,
+                                                    expected_soft_next_value, scalarized_critic_loss, scalarized_min,
+                                                    soft_actor_objective, soft_next_value, temperature_objective,
+                                                    vector_critic_loss)
 from morl_trl.objectives.envelope import action_index
 
 __all__ = ["DiscreteMOSACLoss", "MOSACLoss", "ALPHA_LOSS_FORMS", "check_alpha_loss_form", "temperature_objective"]
@@ -64,35 +50,29 @@ def check_choice(name: str, value: str, choices) -> None:
 class MOSACLoss(ContinuousSoftActorCriticBase):
     r"""Multi-objective SAC for continuous actions: vector critics, scalarised actor.
 
-    For each transition with preference :math:`w`, the ``num_qvalue_nets`` vector
-    critics regress onto
+    For each transition with preference :math:`w`, the ``num_qvalue_nets`` vector critics regress onto
 
     .. math::
 
         y = r + \gamma (1 - d) \big(Q^-_{\min}(s', a', w) - \alpha \log\pi(a' | s', w)\,\mathbf 1\big),
         \quad a' \sim \pi(\cdot | s', w)
 
-    and the actor minimises :math:`\alpha \log\pi(a|s,w) - w^\top Q_{\min}(s, a, w)`.
-    :math:`Q_{\min}` is the vector of the critic with the lowest :math:`w^\top Q`
-    (``critic_min="scalarized"``, MORL/D) or the per-objective minimum
-    (``"elementwise"``, CAPQL). The critic loss is the squared error of the
-    scalarised values (``critic_loss="scalarized"``, MORL/D) or of the vectors
-    (``"vector"``, CAPQL). :math:`\alpha` is tuned towards ``target_entropy``
-    unless ``fixed_alpha``.
+    and the actor minimises :math:`\alpha \log\pi(a|s,w) - w^\top Q_{\min}(s, a, w)`. :math:`Q_{\min}` is the
+    vector of the critic with the lowest :math:`w^\top Q` (``critic_min="scalarized"``, MORL/D) or the
+    per-objective minimum (``"elementwise"``, CAPQL). The critic loss is the squared error of the scalarised values
+    (``critic_loss="scalarized"``, MORL/D) or of the vectors (``"vector"``, CAPQL). :math:`\alpha` is tuned towards
+    ``target_entropy`` unless ``fixed_alpha``.
 
-    Where the preference comes from: a fixed ``preference`` (one MORL/D policy;
-    change it with :meth:`set_preference`), fresh draws per sample
-    (``resample_preferences=True``) or the batch's ``"preference"`` entry.
-    Networks that do not read the preference (MORL/D's) are fine: the
-    preference then only scalarises.
+    Where the preference comes from: a fixed ``preference`` (one MORL/D policy; change it with
+    :meth:`set_preference`), fresh draws per sample (``resample_preferences=True``) or the batch's ``"preference"``
+    entry. Networks that do not read the preference (MORL/D's) are fine: the preference then only scalarises.
 
     Args:
         actor_network (ProbabilisticTensorDictSequential): stochastic actor, e.g.
             :func:`~morl_trl.objectives.networks.make_gaussian_actor`.
-        qvalue_network (TensorDictModule): vector critic writing ``"state_action_value"``
-            ``[*B, k]``, e.g. :func:`~morl_trl.objectives.networks.make_vector_critic`.
-            Its parameters are expanded to ``num_qvalue_nets`` independently
-            initialised copies, as in TorchRL's SAC.
+        qvalue_network (TensorDictModule): vector critic writing ``"state_action_value"`` ``[*B, k]``, e.g.
+            :func:`~morl_trl.objectives.networks.make_vector_critic`. Its parameters are expanded to
+            ``num_qvalue_nets`` independently initialised copies, as in TorchRL's SAC.
 
     Keyword Args:
         num_objectives (int, optional): ``k``; read from networks made by the builders.
@@ -142,52 +122,23 @@ class MOSACLoss(ContinuousSoftActorCriticBase):
         ['alpha', 'entropy', 'loss_actor', 'loss_alpha', 'loss_qvalue']
     """
 
-    def __init__(
-        self,
-        actor_network: ProbabilisticTensorDictSequential,
-        qvalue_network: TensorDictModule,
-        *,
-        num_objectives: int | None = None,
-        num_qvalue_nets: int = 2,
-        preference: Tensor | None = None,
-        resample_preferences: bool = False,
-        preference_distribution: str = "dirichlet",
-        critic_min: str = "scalarized",
-        critic_loss: str = "scalarized",
-        loss_function: str = "l2",
-        alpha_init: float = 1.0,
-        min_alpha: float | None = None,
-        max_alpha: float | None = None,
-        fixed_alpha: bool = False,
-        target_entropy: float | str = "auto",
-        action_spec: TensorSpec | None = None,
-        delay_qvalue: bool = True,
-        reduction: str = "mean",
-        use_prioritized_weights: str | bool = "auto",
-        deactivate_vmap: bool = False,
-        alpha_loss_form: str = "log_alpha",
-    ) -> None:
+    def __init__(self, actor_network: ProbabilisticTensorDictSequential, qvalue_network: TensorDictModule, *,
+                 num_objectives: int | None = None, num_qvalue_nets: int = 2, preference: Tensor | None = None,
+                 resample_preferences: bool = False, preference_distribution: str = "dirichlet",
+                 critic_min: str = "scalarized", critic_loss: str = "scalarized", loss_function: str = "l2",
+                 alpha_init: float = 1.0, min_alpha: float | None = None, max_alpha: float | None = None,
+                 fixed_alpha: bool = False, target_entropy: float | str = "auto", action_spec: TensorSpec | None = None,
+                 delay_qvalue: bool = True, reduction: str = "mean", use_prioritized_weights: str | bool = "auto",
+                 deactivate_vmap: bool = False, alpha_loss_form: str = "log_alpha") -> None:
         check_choice("critic_min", critic_min, PESSIMISTIC_VALUES)
         check_choice("critic_loss", critic_loss, CRITIC_LOSSES)
-        super().__init__(
-            actor_network,
-            qvalue_network,
-            num_objectives=num_objectives,
-            num_qvalue_nets=num_qvalue_nets,
-            preference=preference,
-            resample_preferences=resample_preferences,
-            preference_distribution=preference_distribution,
-            loss_function=loss_function,
-            alpha_init=alpha_init,
-            min_alpha=min_alpha,
-            max_alpha=max_alpha,
-            fixed_alpha=fixed_alpha,
-            delay_qvalue=delay_qvalue,
-            reduction=reduction,
-            use_prioritized_weights=use_prioritized_weights,
-            deactivate_vmap=deactivate_vmap,
-            alpha_loss_form=alpha_loss_form,
-        )
+        super().__init__(actor_network, qvalue_network, num_objectives=num_objectives, num_qvalue_nets=num_qvalue_nets,
+                         preference=preference, resample_preferences=resample_preferences,
+                         preference_distribution=preference_distribution, loss_function=loss_function,
+                         alpha_init=alpha_init, min_alpha=min_alpha, max_alpha=max_alpha, fixed_alpha=fixed_alpha,
+                         delay_qvalue=delay_qvalue, reduction=reduction,
+                         use_prioritized_weights=use_prioritized_weights, deactivate_vmap=deactivate_vmap,
+                         alpha_loss_form=alpha_loss_form)
         self.critic_min = critic_min
         self.critic_loss = critic_loss
         self.register_buffer(
@@ -306,53 +257,24 @@ class DiscreteMOSACLoss(SoftActorCriticBase):
     default_keys = _AcceptedKeys
     tensor_keys: _AcceptedKeys
 
-    def __init__(
-        self,
-        actor_network: ProbabilisticTensorDictSequential,
-        qvalue_network: TensorDictModule,
-        *,
-        num_actions: int | None = None,
-        num_objectives: int | None = None,
-        num_qvalue_nets: int = 2,
-        preference: Tensor | None = None,
-        resample_preferences: bool = False,
-        preference_distribution: str = "dirichlet",
-        critic_min: str = "scalarized",
-        critic_loss: str = "scalarized",
-        loss_function: str = "l2",
-        alpha_init: float = 1.0,
-        min_alpha: float | None = None,
-        max_alpha: float | None = None,
-        fixed_alpha: bool = False,
-        target_entropy_weight: float = 0.98,
-        target_entropy: float | str = "auto",
-        delay_qvalue: bool = True,
-        reduction: str = "mean",
-        use_prioritized_weights: str | bool = "auto",
-        deactivate_vmap: bool = False,
-        alpha_loss_form: str = "log_alpha",
-    ) -> None:
+    def __init__(self, actor_network: ProbabilisticTensorDictSequential, qvalue_network: TensorDictModule, *,
+                 num_actions: int | None = None, num_objectives: int | None = None, num_qvalue_nets: int = 2,
+                 preference: Tensor | None = None, resample_preferences: bool = False,
+                 preference_distribution: str = "dirichlet", critic_min: str = "scalarized",
+                 critic_loss: str = "scalarized", loss_function: str = "l2", alpha_init: float = 1.0,
+                 min_alpha: float | None = None, max_alpha: float | None = None, fixed_alpha: bool = False,
+                 target_entropy_weight: float = 0.98, target_entropy: float | str = "auto", delay_qvalue: bool = True,
+                 reduction: str = "mean", use_prioritized_weights: str | bool = "auto", deactivate_vmap: bool = False,
+                 alpha_loss_form: str = "log_alpha") -> None:
         check_choice("critic_min", critic_min, PESSIMISTIC_VALUES)
         check_choice("critic_loss", critic_loss, CRITIC_LOSSES)
-        super().__init__(
-            actor_network,
-            qvalue_network,
-            num_objectives=num_objectives,
-            num_qvalue_nets=num_qvalue_nets,
-            preference=preference,
-            resample_preferences=resample_preferences,
-            preference_distribution=preference_distribution,
-            loss_function=loss_function,
-            alpha_init=alpha_init,
-            min_alpha=min_alpha,
-            max_alpha=max_alpha,
-            fixed_alpha=fixed_alpha,
-            delay_qvalue=delay_qvalue,
-            reduction=reduction,
-            use_prioritized_weights=use_prioritized_weights,
-            deactivate_vmap=deactivate_vmap,
-            alpha_loss_form=alpha_loss_form,
-        )
+        super().__init__(actor_network, qvalue_network, num_objectives=num_objectives, num_qvalue_nets=num_qvalue_nets,
+                         preference=preference, resample_preferences=resample_preferences,
+                         preference_distribution=preference_distribution, loss_function=loss_function,
+                         alpha_init=alpha_init, min_alpha=min_alpha, max_alpha=max_alpha, fixed_alpha=fixed_alpha,
+                         delay_qvalue=delay_qvalue, reduction=reduction,
+                         use_prioritized_weights=use_prioritized_weights, deactivate_vmap=deactivate_vmap,
+                         alpha_loss_form=alpha_loss_form)
         self.critic_min = critic_min
         self.critic_loss = critic_loss
         if num_actions is None:

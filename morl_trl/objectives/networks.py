@@ -1,16 +1,13 @@
 """Preference-conditioned networks for the multi-objective losses.
 
-Every network here maps ``[obs, w]`` (and, for critics, the action) to its
-output through one concatenation and a plain MLP, optionally after a pixel
-encoder (:class:`NatureCNN`); the concatenation is at the input by default and
-may come after the first hidden layers (``preference_layer``). They accept any number of leading batch
-dimensions, have no data-dependent control flow and capture as one graph under
-``torch.compile(fullgraph=True)``.
+Every network here maps ``[obs, w]`` (and, for critics, the action) to its output through one concatenation and a
+plain MLP, optionally after a pixel encoder (:class:`NatureCNN`); the concatenation is at the input by default and
+may come after the first hidden layers (``preference_layer``). They accept any number of leading batch dimensions,
+have no data-dependent control flow and capture as one graph under ``torch.compile(fullgraph=True)``.
 
 The ``make_*`` builders wrap them in TensorDict modules with the keys the
-losses read by default (DESIGN.md): ``"observation"``, ``"preference"``,
-``"action"``, ``"action_value"`` (``[*B, |A|, k]``) and
-``"state_action_value"`` (``[*B, k]``).
+losses read by default (DESIGN.md): ``"observation"``, ``"preference"``, ``"action"``, ``"action_value"`` (``[*B,
+|A|, k]``) and ``"state_action_value"`` (``[*B, k]``).
 """
 
 from __future__ import annotations
@@ -25,15 +22,8 @@ from torch import nn
 from torchrl.data import Bounded, Categorical, Composite, OneHot, TensorSpec
 from torchrl.modules import OneHotCategorical, ProbabilisticActor, TanhNormal
 
-__all__ = [
-    "NatureCNN",
-    "PreferenceConditionedMLP",
-    "make_categorical_actor",
-    "make_gaussian_actor",
-    "make_vector_critic",
-    "make_vector_q_network",
-    "orthogonal_init_",
-]
+__all__ = ["NatureCNN", "PreferenceConditionedMLP", "make_categorical_actor", "make_gaussian_actor",
+           "make_vector_critic", "make_vector_q_network", "orthogonal_init_"]
 
 INITS = ("default", "orthogonal")
 SCALE_PARAMETERIZATIONS = ("softplus", "clamped_log_std", "tanh_log_std")
@@ -69,15 +59,9 @@ class NatureCNN(nn.Module):
         self.obs_shape = tuple(int(s) for s in obs_shape)
         self.features_dim = int(features_dim)
         c, h, w = self.obs_shape
-        self.cnn = nn.Sequential(
-            nn.Conv2d(c, 32, kernel_size=8, stride=4),
-            nn.ReLU(),
-            nn.Conv2d(32, 64, kernel_size=4, stride=2),
-            nn.ReLU(),
-            nn.Conv2d(64, 64, kernel_size=3, stride=1),
-            nn.ReLU(),
-            nn.Flatten(),
-        )
+        self.cnn = nn.Sequential(nn.Conv2d(c, 32, kernel_size=8, stride=4), nn.ReLU(),
+                                 nn.Conv2d(32, 64, kernel_size=4, stride=2), nn.ReLU(),
+                                 nn.Conv2d(64, 64, kernel_size=3, stride=1), nn.ReLU(), nn.Flatten())
         with torch.no_grad():
             n_flat = self.cnn(torch.zeros(1, c, h, w)).shape[-1]
         self.linear = nn.Sequential(nn.Linear(n_flat, self.features_dim), nn.ReLU())
@@ -128,15 +112,8 @@ def _check_init(init: str) -> str:
 class PreferenceConditionedMLP(nn.Module):
     """``cat([encoder(obs), *rest], -1) -> MLP -> [*B, *out_shape]``.
 
-    ``rest`` is typically the preference ``w`` (and the action, for a continuous
-    critic). The first input goes through ``encoder`` when one is given (e.g. a
-    :class:`NatureCNN` for pixels); all inputs must share their leading batch
-    shape.
-
-    With ``preference_layer = L > 0`` the first input alone goes through the first
-    ``L`` hidden layers and ``rest`` is concatenated to their output:
-    ``cat([h_L(encoder(obs)), *rest]) -> the remaining layers``
-    (``preference_layer=1``: after the first hidden layer).
+    ``rest`` is typically ``w`` (and the action, for a continuous critic); all inputs share their leading batch
+    shape. With ``preference_layer = L > 0``: ``cat([h_L(encoder(obs)), *rest]) -> the remaining layers``.
 
     Args:
         in_features: width of the concatenated input (encoder output + the rest).
@@ -144,8 +121,7 @@ class PreferenceConditionedMLP(nn.Module):
         num_cells: hidden layer widths. Defaults to four layers of 256, the paper's ``net_arch``.
         activation: activation class. Defaults to ``nn.ReLU``.
         encoder: optional module applied to the first input.
-        preference_layer: hidden layers before the concatenation, in ``[0, len(num_cells)]``.
-            Defaults to 0 (at the input).
+        preference_layer: hidden layers before the concatenation, in ``[0, len(num_cells)]``. Defaults to 0.
         rest_features: total width of ``rest``; required when ``preference_layer > 0``.
 
     Examples:
@@ -157,17 +133,9 @@ class PreferenceConditionedMLP(nn.Module):
         (8, 34)
     """
 
-    def __init__(
-        self,
-        in_features: int,
-        out_shape: int | Sequence[int],
-        *,
-        num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-        activation: type[nn.Module] = nn.ReLU,
-        encoder: nn.Module | None = None,
-        preference_layer: int = 0,
-        rest_features: int | None = None,
-    ) -> None:
+    def __init__(self, in_features: int, out_shape: int | Sequence[int], *,
+                 num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU,
+                 encoder: nn.Module | None = None, preference_layer: int = 0, rest_features: int | None = None) -> None:
         super().__init__()
         self.out_shape = (int(out_shape),) if isinstance(out_shape, int) else tuple(int(s) for s in out_shape)
         self.encoder = encoder
@@ -281,40 +249,25 @@ def encoder_and_width(obs_shape: int | Sequence[int], features_dim: int) -> tupl
     raise ValueError(f"obs_shape must be an int, (obs_dim,) or (C, H, W); got {obs_shape}.")
 
 
-def make_vector_q_network(
-    obs_shape: int | Sequence[int],
-    num_actions: int,
-    num_objectives: int,
-    *,
-    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-    activation: type[nn.Module] = nn.ReLU,
-    features_dim: int = 512,
-    preference_layer: int = 0,
-    init: str = "default",
-    observation_key: NestedKey = "observation",
-    preference_key: NestedKey | None = "preference",
-    out_key: NestedKey = "action_value",
-) -> TensorDictModule:
+def make_vector_q_network(obs_shape: int | Sequence[int], num_actions: int, num_objectives: int, *,
+                          num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU,
+                          features_dim: int = 512, preference_layer: int = 0, init: str = "default",
+                          observation_key: NestedKey = "observation", preference_key: NestedKey | None = "preference",
+                          out_key: NestedKey = "action_value") -> TensorDictModule:
     """Vector Q-network ``Q(s, ., w) -> [*B, num_actions, num_objectives]`` for discrete actions.
 
-    The Envelope Q-network (and, with ``preference_key=None``, MORL/D's
-    unconditioned discrete MOSAC critic). ``obs_shape=(C, H, W)`` puts a
-    :class:`NatureCNN` in front of the MLP.
+    The Envelope Q-network (and, with ``preference_key=None``, MORL/D's unconditioned discrete MOSAC critic).
+    ``obs_shape=(C, H, W)`` puts a :class:`NatureCNN` in front of the MLP.
 
-    Forms of the Envelope network: ``preference_layer=0, init="orthogonal"`` concatenates ``w``
-    at the input with orthogonal weights (gain 1) and zero biases, as the public MORL-Baselines 1.3.0
-    ``QNet`` does (``mlp(obs_dim + k, ...)``, then ``self.apply(layer_init)``; the recipe's
-    ``envelope_network="mb"``); ``init="default"`` keeps PyTorch's init (``"input"``);
-    ``preference_layer=1, init="orthogonal"`` concatenates ``w``
-    after the first hidden layer with orthogonal weights (gain 1) and zero biases, which is
-    what the paper authors' copy of MORL-Baselines does according to the line-by-line
-    comparison of their code (the Envelope recipe's default, ``envelope_network="authors"``).
+    Forms of the Envelope network: ``preference_layer=0, init="orthogonal"``: ``w`` at the input, orthogonal
+    weights (gain 1), zero biases, as the public MORL-Baselines 1.3.0 ``QNet`` (``mlp(obs_dim + k, ...)``, then
+    ``self.apply(layer_init)``; ``envelope_network="mb"``); ``init="default"``: PyTorch's init (``"input"``);
+    ``preference_layer=1, init="orthogonal"``: ``w`` after the first hidden layer, the paper authors' copy of
+    MORL-Baselines per the line-by-line comparison of their code (``envelope_network="authors"``, the default).
 
     Args:
-        preference_layer: hidden layers the observation goes through before ``w`` is
-            concatenated (0: at the input; 1: after the first hidden layer). Defaults to 0.
-        init: ``"default"`` (PyTorch's) or ``"orthogonal"`` (every ``nn.Linear``: orthogonal
-            weights with gain 1, zero biases; :func:`orthogonal_init_`).
+        preference_layer: hidden layers before ``w`` is concatenated (0: at the input). Defaults to 0.
+        init: ``"default"`` (PyTorch's) or ``"orthogonal"`` (:func:`orthogonal_init_`).
 
     Examples:
         >>> from tensordict import TensorDict
@@ -343,18 +296,11 @@ def make_vector_q_network(
     return TensorDictModule(net, in_keys=in_keys, out_keys=[out_key])
 
 
-def make_vector_critic(
-    obs_dim: int,
-    action_dim: int,
-    num_objectives: int,
-    *,
-    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-    activation: type[nn.Module] = nn.ReLU,
-    observation_key: NestedKey = "observation",
-    action_key: NestedKey = "action",
-    preference_key: NestedKey | None = "preference",
-    out_key: NestedKey = "state_action_value",
-) -> TensorDictModule:
+def make_vector_critic(obs_dim: int, action_dim: int, num_objectives: int, *,
+                       num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU,
+                       observation_key: NestedKey = "observation", action_key: NestedKey = "action",
+                       preference_key: NestedKey | None = "preference",
+                       out_key: NestedKey = "state_action_value") -> TensorDictModule:
     """Vector critic ``Q(s, a, w) -> [*B, num_objectives]`` for continuous actions (CAPQL, MOSAC).
 
     Examples:
@@ -425,19 +371,11 @@ class _LocTanhLogStd(_LocClampedLogStd):
         return loc, (lo + 0.5 * (hi - lo) * (torch.tanh(x) + 1)).exp()
 
 
-def make_gaussian_actor(
-    obs_dim: int,
-    action_spec: Bounded,
-    num_objectives: int,
-    *,
-    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-    activation: type[nn.Module] = nn.ReLU,
-    scale: str = "softplus",
-    log_std_bounds: tuple[float, float] | None = None,
-    observation_key: NestedKey = "observation",
-    preference_key: NestedKey | None = "preference",
-    action_key: NestedKey = "action",
-) -> ProbabilisticActor:
+def make_gaussian_actor(obs_dim: int, action_spec: Bounded, num_objectives: int, *,
+                        num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU,
+                        scale: str = "softplus", log_std_bounds: tuple[float, float] | None = None,
+                        observation_key: NestedKey = "observation", preference_key: NestedKey | None = "preference",
+                        action_key: NestedKey = "action") -> ProbabilisticActor:
     """Preference-conditioned tanh-Gaussian actor ``pi(a | s, w)`` within ``action_spec``'s bounds.
 
     Args:
@@ -495,30 +433,18 @@ def gaussian_head(net: nn.Module, scale: str, log_std_bounds: tuple[float, float
 
 def tanh_normal_actor(net: nn.Module, in_keys, action_spec: Bounded, action_key: NestedKey) -> ProbabilisticActor:
     """``ProbabilisticActor``: ``net`` writes ``(loc, scale)``, a ``TanhNormal`` within ``action_spec``'s bounds."""
-    return ProbabilisticActor(
-        TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"]),
-        in_keys=["loc", "scale"],
-        out_keys=[action_key],
-        spec=Composite({action_key: action_spec}),
-        distribution_class=TanhNormal,
-        distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high},
-        return_log_prob=False,
-    )
+    return ProbabilisticActor(TensorDictModule(net, in_keys=in_keys, out_keys=["loc", "scale"]),
+                              in_keys=["loc", "scale"], out_keys=[action_key],
+                              spec=Composite({action_key: action_spec}), distribution_class=TanhNormal,
+                              distribution_kwargs={"low": action_spec.space.low, "high": action_spec.space.high},
+                              return_log_prob=False)
 
 
-def make_categorical_actor(
-    obs_shape: int | Sequence[int],
-    num_actions: int,
-    num_objectives: int,
-    *,
-    num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-    activation: type[nn.Module] = nn.ReLU,
-    features_dim: int = 512,
-    observation_key: NestedKey = "observation",
-    preference_key: NestedKey | None = "preference",
-    action_key: NestedKey = "action",
-    action_spec: TensorSpec | None = None,
-) -> ProbabilisticActor:
+def make_categorical_actor(obs_shape: int | Sequence[int], num_actions: int, num_objectives: int, *,
+                           num_cells: Sequence[int] = DEFAULT_NUM_CELLS, activation: type[nn.Module] = nn.ReLU,
+                           features_dim: int = 512, observation_key: NestedKey = "observation",
+                           preference_key: NestedKey | None = "preference", action_key: NestedKey = "action",
+                           action_spec: TensorSpec | None = None) -> ProbabilisticActor:
     """Preference-conditioned categorical actor ``pi(. | s, w)`` writing an integer action.
 
     Examples:
@@ -541,14 +467,9 @@ def make_categorical_actor(
 
 def categorical_actor(net: nn.Module, in_keys, action_spec: TensorSpec, action_key: NestedKey) -> ProbabilisticActor:
     """``ProbabilisticActor``: ``net`` writes ``logits``, the categorical matching ``action_spec`` (one-hot or index)."""
-    return ProbabilisticActor(
-        TensorDictModule(net, in_keys=in_keys, out_keys=["logits"]),
-        in_keys=["logits"],
-        out_keys=[action_key],
-        spec=Composite({action_key: action_spec}),
-        distribution_class=_discrete_distribution(action_spec),
-        return_log_prob=False,
-    )
+    return ProbabilisticActor(TensorDictModule(net, in_keys=in_keys, out_keys=["logits"]), in_keys=["logits"],
+                              out_keys=[action_key], spec=Composite({action_key: action_spec}),
+                              distribution_class=_discrete_distribution(action_spec), return_log_prob=False)
 
 
 def _discrete_distribution(spec: TensorSpec) -> type:

@@ -1,13 +1,12 @@
 """Pareto Conditioned Networks (Reymond et al. 2022): the command-conditioned policy and its supervised loss.
 
-The network is the authors' (their ``algos/multi_policy/pcn/pcn.py:52-112``): the command
-``c = [desired_return, desired_horizon] * scaling_factor`` and the observation are embedded
-(``Linear + Sigmoid`` each, width ``hidden[0]``), multiplied element-wise, then ``Linear, ReLU``
-for each further width of ``hidden`` and a last ``Linear`` give log-probabilities (discrete
-actions, ``LogSoftmax``) or the action itself (continuous). The paper's ``net_arch`` is
-``[256] * 4``: a 256-wide embedding and three 256 layers.
-The loss is the cross-entropy of the stored action (discrete) or the mean squared error to it
-(continuous), on steps of the best episodes (:class:`~morl_trl.data.episode_replay.EpisodeReplay`).
+The network is the authors' (their ``algos/multi_policy/pcn/pcn.py:52-112``): the command ``c = [desired_return,
+desired_horizon] * scaling_factor`` and the observation are embedded (``Linear + Sigmoid`` each, width
+``hidden[0]``), multiplied element-wise, then ``Linear, ReLU`` for each further width of ``hidden`` and a last
+``Linear`` give log-probabilities (discrete actions, ``LogSoftmax``) or the action itself (continuous). The paper's
+``net_arch`` is ``[256] * 4``: a 256-wide embedding and three 256 layers. The loss is the cross-entropy of the
+stored action (discrete) or the mean squared error to it (continuous), on steps of the best episodes
+(:class:`~morl_trl.data.episode_replay.EpisodeReplay`).
 """
 
 from __future__ import annotations
@@ -30,10 +29,9 @@ __all__ = ["PCNNetwork", "PCNLoss", "make_pcn_network"]
 class PCNNetwork(nn.Module):
     """``(observation, desired_return [k], desired_horizon [1]) -> log-probs [A]`` or ``action [A]``.
 
-    ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first).
-    ``hidden``: the widths (the authors' ``net_arch``): the embeddings are ``hidden[0]`` wide and
-    each further width adds a ``Linear, ReLU``; an int ``h`` is ``(h, h)`` (MORL-Baselines'
-    ``hidden_dim``: one hidden layer).
+    ``obs_dim``: an int (vector observations) or ``(C, H, W)`` (images: the Nature CNN first). ``hidden``: the
+    widths (the authors' ``net_arch``): the embeddings are ``hidden[0]`` wide and each further width adds a
+    ``Linear, ReLU``; an int ``h`` is ``(h, h)`` (MORL-Baselines' ``hidden_dim``: one hidden layer).
 
     Example:
         >>> net = PCNNetwork(obs_dim=4, action_dim=3, num_objectives=2, scaling_factor=[0.1] * 3, hidden=(8, 8, 8))

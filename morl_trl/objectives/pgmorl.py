@@ -1,10 +1,9 @@
 """PGMORL's building blocks (Xu et al. 2020): a population of PPO agents as ONE batched module,
 and the vector GAE its scalarized PPO loss needs.
 
-The authors (MORL-Baselines ``single_policy/ser/mo_ppo.py``) train each member with PPO whose
-critic predicts a vector value ``V(s) [k]``; GAE runs per objective and the advantage is
-scalarized with the member's weight, ``A = A_vec . w``, before TorchRL's :class:`ClipPPOLoss`
-(which takes a scalar advantage) sees it.
+The authors (MORL-Baselines ``single_policy/ser/mo_ppo.py``) train each member with PPO whose critic predicts a
+vector value ``V(s) [k]``; GAE runs per objective and the advantage is scalarized with the member's weight, ``A =
+A_vec . w``, before TorchRL's :class:`ClipPPOLoss` (which takes a scalar advantage) sees it.
 
 * :func:`ppo_population_mlp`: ``P`` independent MLPs (a :class:`~morl_trl.objectives.batched.BatchedMLP`:
   tanh, orthogonal init with gains sqrt(2) and the output's: 1 for the critic, 0.01 for the actor

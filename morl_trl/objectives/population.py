@@ -1,16 +1,15 @@
 """A population of MOSAC policies as ONE batched module (MORL/D's population, trained in one pass).
 
-MORL-Baselines' MORL/D keeps a Python list of ``MOSAC`` agents and steps them one at a time.
-Here the ``P`` members' networks are stacked: every linear layer holds ``[P, in, out]``
-weights and runs as one ``baddbmm`` (:class:`~morl_trl.objectives.batched.BatchedMLP`), so one
-forward, one backward and one optimizer step update all ``P`` members.
-:class:`PopulationMOSACLoss` is, member by member, exactly :class:`~morl_trl.objectives.MOSACLoss`
-(continuous) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (discrete) with a fixed preference
-``w_p`` and networks that do not read the preference (MORL/D's): the batch is ``[P, B]`` (member
-``p`` learns from row ``p``), each member has its own temperature, and the losses are summed over
-members (each member's gradient is that of its own loss; Adam is elementwise, so one Adam over the
-stacked parameters is ``P`` independent Adams). ``tests/objectives/test_population.py`` checks one
-batched update against ``P`` separate ``MOSACLoss`` updates from the same state.
+MORL-Baselines' MORL/D keeps a Python list of ``MOSAC`` agents and steps them one at a time. Here the ``P``
+members' networks are stacked: every linear layer holds ``[P, in, out]`` weights and runs as one ``baddbmm``
+(:class:`~morl_trl.objectives.batched.BatchedMLP`), so one forward, one backward and one optimizer step update all
+``P`` members. :class:`PopulationMOSACLoss` is, member by member, exactly :class:`~morl_trl.objectives.MOSACLoss`
+(continuous) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (discrete) with a fixed preference ``w_p`` and
+networks that do not read the preference (MORL/D's): the batch is ``[P, B]`` (member ``p`` learns from row ``p``),
+each member has its own temperature, and the losses are summed over members (each member's gradient is that of its
+own loss; Adam is elementwise, so one Adam over the stacked parameters is ``P`` independent Adams).
+``tests/objectives/test_population.py`` checks one batched update against ``P`` separate ``MOSACLoss`` updates from
+the same state.
 
 Example:
     >>> import torch
@@ -50,35 +49,16 @@ from torchrl.objectives.sac import compute_rsample_log_prob, rsample_and_log_pro
 
 from morl_trl._torchrl_compat import cache_values, clear_weakrefs
 from morl_trl.objectives.batched import BatchedMLP
-from morl_trl.objectives.actor_critic_parts import (
-    check_alpha_loss_form,
-    expected_log_prob,
-    expected_soft_actor_objective,
-    expected_soft_next_value,
-    scalarized_min,
-    soft_actor_objective,
-    soft_next_value,
-    temperature_objective,
-)
+from morl_trl.objectives.actor_critic_parts import (check_alpha_loss_form, expected_log_prob,
+                                                    expected_soft_actor_objective, expected_soft_next_value,
+                                                    scalarized_min, soft_actor_objective, soft_next_value,
+                                                    temperature_objective)
 from morl_trl.objectives.common import MultiObjectiveLossModule, check_preference
 from morl_trl.objectives.envelope import action_index
-from morl_trl.objectives.networks import (
-    DEFAULT_NUM_CELLS,
-    categorical_actor,
-    gaussian_head,
-    tanh_normal_actor,
-)
+from morl_trl.objectives.networks import DEFAULT_NUM_CELLS, categorical_actor, gaussian_head, tanh_normal_actor
 
-__all__ = [
-    "PopulationMOSACLoss",
-    "MemberRouter",
-    "NearestMemberRouter",
-    "make_population_gaussian_actor",
-    "make_population_categorical_actor",
-    "make_population_critic",
-    "make_population_q_network",
-    "nearest_member",
-]
+__all__ = ["PopulationMOSACLoss", "MemberRouter", "NearestMemberRouter", "make_population_gaussian_actor",
+           "make_population_categorical_actor", "make_population_critic", "make_population_q_network", "nearest_member"]
 
 
 # ---------------------------------------------------------------------- routing of sub-envs to members
@@ -119,9 +99,8 @@ class NearestMemberRouter(nn.Module):
     """Acting under a given preference (the evaluator's): each row is driven by the member whose
     weight is nearest to its ``preference`` (the authors' MORL/D evaluation).
 
-    All members run on all rows (``[P, *B, ...]``) and each row keeps its member's output.
-    ``weights`` is the population's ``[P, k]`` weight buffer (shared with the loss, so weight
-    adaptation is seen at once).
+    All members run on all rows (``[P, *B, ...]``) and each row keeps its member's output. ``weights`` is the
+    population's ``[P, k]`` weight buffer (shared with the loss, so weight adaptation is seen at once).
     """
 
     def __init__(self, net: nn.Module, weights: Tensor) -> None:
@@ -153,9 +132,8 @@ def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: B
                                    action_key: NestedKey = "action") -> ProbabilisticActor:
     """``P`` tanh-Gaussian actors ``pi_p(a | s)`` reading ``[P, *B, obs]`` (the loss's view).
 
-    The population network is ``actor.module[0].module.net`` (see :func:`population_policies`
-    for the acting views). Parameter names match :func:`~morl_trl.objectives.make_gaussian_actor`'s
-    with ``preference_key=None``.
+    The population network is ``actor.module[0].module.net`` (see :func:`population_policies` for the acting
+    views). Parameter names match :func:`~morl_trl.objectives.make_gaussian_actor`'s with ``preference_key=None``.
     """
     mlp = BatchedMLP(population, obs_dim, 2 * action_spec.shape[-1], num_cells=num_cells)
     return tanh_normal_actor(gaussian_head(mlp, scale, log_std_bounds), [observation_key], action_spec, action_key)
@@ -163,8 +141,7 @@ def make_population_gaussian_actor(population: int, obs_dim: int, action_spec: B
 
 def make_population_categorical_actor(population: int, obs_dim: int, num_actions: int, *,
                                       num_cells: Sequence[int] = DEFAULT_NUM_CELLS,
-                                      action_spec: TensorSpec | None = None,
-                                      observation_key: NestedKey = "observation",
+                                      action_spec: TensorSpec | None = None, observation_key: NestedKey = "observation",
                                       action_key: NestedKey = "action") -> ProbabilisticActor:
     """``P`` categorical actors ``pi_p(. | s)`` reading ``[P, *B, obs]``."""
     mlp = BatchedMLP(population, obs_dim, num_actions, num_cells=num_cells)
@@ -194,9 +171,8 @@ def make_population_q_network(population: int, obs_dim: int, num_actions: int, n
 def population_policies(actor: ProbabilisticActor, weights: Tensor) -> tuple[ProbabilisticActor, ProbabilisticActor]:
     """``(explore, evaluate)`` views of a population actor sharing its parameters.
 
-    ``explore`` acts in a ``[P * N]`` training env (sub-env ``i``: member ``i // N``,
-    :class:`MemberRouter`); ``evaluate`` reads ``"preference"`` and lets the nearest member act
-    (:class:`NearestMemberRouter`).
+    ``explore`` acts in a ``[P * N]`` training env (sub-env ``i``: member ``i // N``, :class:`MemberRouter`);
+    ``evaluate`` reads ``"preference"`` and lets the nearest member act (:class:`NearestMemberRouter`).
     """
     tdm = actor.module[0]
     head = tdm.module
@@ -218,10 +194,9 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
     the losses of :class:`~morl_trl.objectives.MOSACLoss` (``num_actions=None``: a tanh-Gaussian
     actor, critics ``Q(s, a)``) or :class:`~morl_trl.objectives.DiscreteMOSACLoss` (``num_actions``
     given: a categorical actor, critics ``Q(s, .)``) with ``critic_min="scalarized"``,
-    ``critic_loss="scalarized"``, L2: critics regress ``w^T Q_i`` onto
-    ``w^T (r + gamma (1 - term) (Q^-_min(s', a') - alpha_p log pi_p(a'|s')))``, the actor
-    minimises ``alpha_p log pi_p(a|s) - w^T Q_min(s, a)`` and ``alpha_p`` follows the target
-    entropy. Each output ``loss_*`` is the sum over members of the member's batch mean;
+    ``critic_loss="scalarized"``, L2: critics regress ``w^T Q_i`` onto ``w^T (r + gamma (1 - term) (Q^-_min(s', a') -
+    alpha_p log pi_p(a'|s')))``, the actor minimises ``alpha_p log pi_p(a|s) - w^T Q_min(s, a)`` and ``alpha_p``
+    follows the target entropy. Each output ``loss_*`` is the sum over members of the member's batch mean;
     ``alpha`` is ``[P]``. :meth:`set_weights` changes the weights (MORL/D's weight adaptation).
 
     Args:
@@ -250,10 +225,9 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
 
     @dataclass
     class _AcceptedKeys:
-        """Configurable tensordict keys (``loss.set_keys(name=key)``): ``action``,
-        ``state_action_value`` (continuous critic output), ``action_value`` (discrete critic
-        output), ``value_target``, ``priority``, ``preference`` (unused: the weights are the
-        members'), ``reward``, ``done``, ``terminated``."""
+        """Configurable tensordict keys (``loss.set_keys(name=key)``): ``action``, ``state_action_value`` (continuous
+        critic output), ``action_value`` (discrete critic output), ``value_target``, ``priority``, ``preference``
+        (unused: the weights are the members'), ``reward``, ``done``, ``terminated``."""
 
         action: NestedKey = "action"
         state_action_value: NestedKey = "state_action_value"
@@ -277,9 +251,8 @@ class PopulationMOSACLoss(MultiObjectiveLossModule):
 
     def __init__(self, actor_network: ProbabilisticActor, qvalue_network: TensorDictModule, *, weights: Tensor,
                  num_actions: int | None = None, num_qvalue_nets: int = 2, alpha_init: float = 1.0,
-                 fixed_alpha: bool = False, target_entropy: float | str = "auto",
-                 target_entropy_weight: float = 0.98, action_spec: TensorSpec | None = None,
-                 alpha_loss_form: str = "log_alpha") -> None:
+                 fixed_alpha: bool = False, target_entropy: float | str = "auto", target_entropy_weight: float = 0.98,
+                 action_spec: TensorSpec | None = None, alpha_loss_form: str = "log_alpha") -> None:
         self._in_keys = None
         super().__init__()
         self.alpha_loss_form = check_alpha_loss_form(alpha_loss_form)

@@ -1,15 +1,13 @@
 """Our defaults beside the authors' record, one row per setting (``morl-trl config ALGO ENV --compare-authors``).
 
-The record is ``hyperparameters.toml`` (every effective setting of every (method, domain) the
-authors ran, with its source), shipped as ``morl_trl/recipes/data/authors_hyperparameters.toml``
-(a verbatim copy of the project's ``reference/hyperparameters.toml``). Each setting maps to one
-rule, here and nowhere else:
+The record is ``hyperparameters.toml`` (every effective setting of every (method, domain) the authors ran, with its
+source), shipped as ``morl_trl/recipes/data/authors_hyperparameters.toml`` (a verbatim copy of the project's
+``reference/hyperparameters.toml``). Each setting maps to one rule, here and nowhere else:
 
 * :class:`Same`: a config key that must hold the authors' value (else the row says ``differs``,
   which the all-pairs test refuses);
 * :class:`Deliberate`: a key whose default differs on purpose, with the reason;
-* :class:`NotApplicable`: a setting with no counterpart here (logging identity, unused arguments),
-  with the reason;
+* :class:`NotApplicable`: a setting with no counterpart here (logging identity, unused arguments), with the reason;
 * :class:`Code`: a mechanism our code implements (where); ``open`` names a difference that is
   known and not fixed yet: the row says ``differs: <what>`` and :func:`open_differences` lists it.
 

@@ -1,11 +1,10 @@
 """A trained policy, ready to act: :func:`load_policy` (from a run directory) and
 :func:`train_policy` (``morl_trl.train``: train, then hand back the policy with the results).
 
-A run directory holds everything to rebuild its policy: ``config.json`` (the algorithm, the
-domain, the networks and the history length) and verified checkpoints (the trained weights).
-:func:`load_policy` rebuilds the run's eval policy from the config, loads the weights of the
-newest intact checkpoint (:func:`morl_trl.runs.find_checkpoint`: damaged ones are skipped)
-and returns a :class:`TrainedPolicy`, a TorchRL policy module that also knows the env
+A run directory holds everything to rebuild its policy: ``config.json`` (the algorithm, the domain, the networks
+and the history length) and verified checkpoints (the trained weights). :func:`load_policy` rebuilds the run's eval
+policy from the config, loads the weights of the newest intact checkpoint (:func:`morl_trl.runs.find_checkpoint`:
+damaged ones are skipped) and returns a :class:`TrainedPolicy`, a TorchRL policy module that also knows the env
 composition it was trained with (:meth:`TrainedPolicy.make_env`).
 
 Example:
@@ -52,11 +51,10 @@ EXPORT_FORMAT = "morl_trl_policy_export"
 class TrainedPolicy(TensorDictModuleBase):
     """A run's eval policy with its trained weights, and the env composition it acts in.
 
-    Called on a TensorDict holding ``"observation"`` (what :meth:`make_env` gives: the
-    domain's observation, with the run's state–action history) and ``"preference"`` (``[*B,
-    k]`` on the simplex), it writes ``"action"``, under the run's evaluation exploration type
-    (greedy / the mean action; sampled for discrete MOSAC), so ``env.rollout(n, policy)`` and
-    TorchRL collectors use it as they are.
+    Called on a TensorDict holding ``"observation"`` (what :meth:`make_env` gives: the domain's observation, with
+    the run's state–action history) and ``"preference"`` (``[*B, k]`` on the simplex), it writes ``"action"``,
+    under the run's evaluation exploration type (greedy / the mean action; sampled for discrete MOSAC), so
+    ``env.rollout(n, policy)`` and TorchRL collectors use it as they are.
 
     Attributes:
         module: the eval policy module itself (``Agent.eval_policy``).
@@ -119,11 +117,8 @@ class TrainedPolicy(TensorDictModuleBase):
         if domain_of(env_id).train_id != domain_of(self.env_id).train_id:
             raise ValueError(f"{env_id!r} is not of the domain this policy was trained on "
                              f"({domain_of(self.env_id).name}, {self.env_id!r})")
-        env = compose_policy_env(
-            _make_env(env_id, num_envs=num_envs, device=self.device if device is None else device, seed=seed,
-                      **context_overrides),
-            history_len=self.history_len,
-        )
+        env = compose_policy_env(_make_env(env_id, num_envs=num_envs, device=self.device if device is None else device,
+                                           seed=seed, **context_overrides), history_len=self.history_len)
         k = len(self.objective_names)
         if preference is None:
             pref = PreferenceConditioning(k, mode="given", preference_key=self.preference_key)
@@ -135,10 +130,9 @@ class TrainedPolicy(TensorDictModuleBase):
         return env
 
     def save(self, path: str | Path) -> Path:
-        """Write this policy as an export: what acting needs (the agent's networks and acting
-        state, no optimizer state, no replay buffer), the run's config and the preference
-        spec, as tensors and plain data (read with ``torch.load(weights_only=True)``), atomically.
-        :func:`load_policy` reads it back.
+        """Write this policy as an export: what acting needs (the agent's networks and acting state, no optimizer
+        state, no replay buffer), the run's config and the preference spec, as tensors and plain data (read with
+        ``torch.load(weights_only=True)``), atomically. :func:`load_policy` reads it back.
 
         Example:
             >>> policy = load_policy("runs/my_run")  # doctest: +SKIP
@@ -168,10 +162,9 @@ class TrainedPolicy(TensorDictModuleBase):
 
 
 def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
-    """The verified checkpoint: ``None`` -> the newest intact one; a frame count or a name or
-    path of a checkpoint directory -> that one (``ValueError`` if it is missing or damaged).
-    Only ``state.pt`` is verified: acting never needs the replay buffer, and a running training
-    may be pruning an older checkpoint's buffer meanwhile."""
+    """The verified checkpoint: ``None`` -> the newest intact one; a frame count or a name or path of a checkpoint
+    directory -> that one (``ValueError`` if it is missing or damaged). Only ``state.pt`` is verified: acting never
+    needs the replay buffer, and a running training may be pruning an older checkpoint's buffer meanwhile."""
     if checkpoint is None:
         ckpt, skipped = find_checkpoint(run_dir, only=("state.pt",))
         if ckpt is None:
@@ -251,9 +244,8 @@ def export_policy(run_dir: str | Path, out: str | Path, checkpoint: str | Path |
     return load_policy(run_dir, checkpoint, trust_pickle=trust_pickle, trust_code=trust_code).save(out)
 
 
-def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None,
-                device: str | torch.device = "cpu", *, trust_pickle: bool = False,
-                trust_code: bool | list[str] = False) -> TrainedPolicy:
+def load_policy(run_dir: str | Path, checkpoint: str | Path | int | None = None, device: str | torch.device = "cpu", *,
+                trust_pickle: bool = False, trust_code: bool | list[str] = False) -> TrainedPolicy:
     """The trained eval policy of a run directory, or of a policy export (see the module docstring).
 
     Args:
@@ -336,11 +328,10 @@ def train_policy(algo: str | TrainConfig | None = None, env_id: str | None = Non
     a ready :class:`TrainConfig`); ``resume=run_dir`` continues a run (the other arguments
     then are optional and may change only what a resume may change).
 
-    ``env=`` may replace ``env_id``: an id (ours, or any Gymnasium / MO-Gymnasium id with a
-    vector reward), a callable returning a TorchRL ``EnvBase`` with a vector reward, or an
-    ``EnvBase`` (registered under ``env_name``, default its function or class name; see
-    :func:`morl_trl.envs.register_env`). A callable or instance lives in this process only: to
-    resume such a run, register it again under the same name first.
+    ``env=`` may replace ``env_id``: an id (ours, or any Gymnasium / MO-Gymnasium id with a vector reward), a
+    callable returning a TorchRL ``EnvBase`` with a vector reward, or an ``EnvBase`` (registered under
+    ``env_name``, default its function or class name; see :func:`morl_trl.envs.register_env`). A callable or
+    instance lives in this process only: to resume such a run, register it again under the same name first.
     """
     if env is not None:
         if env_id is not None:

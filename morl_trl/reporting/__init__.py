@@ -2,8 +2,7 @@
 
 * :class:`DomainReference`, :func:`load_domain_reference`, :func:`load_generalist_fronts`,
   :func:`read_front_csv`, :func:`write_front_csv` (:mod:`morl_trl.reporting.reference`);
-* the paper's NHGR table recomputed from fronts (:mod:`morl_trl.reporting.table`,
-  ``morl-trl reference-table``);
+* the paper's NHGR table recomputed from fronts (:mod:`morl_trl.reporting.table`, ``morl-trl reference-table``);
 * the end-of-run ``report.md`` (:mod:`morl_trl.reporting.report`).
 
 Built on :mod:`morl_trl.metrics` (the mathematics) and :mod:`morl_trl.preferences`.
@@ -15,26 +14,9 @@ Example:
     0.25
 """
 
-from morl_trl.reporting.reference import (
-    PACKAGED_REFERENCE,
-    DomainReference,
-    list_reference_domains,
-    load_domain_reference,
-    load_generalist_fronts,
-    load_reference,
-    pack_reference,
-    read_front_csv,
-    write_front_csv,
-)
+from morl_trl.reporting.reference import (PACKAGED_REFERENCE, DomainReference, list_reference_domains,
+                                          load_domain_reference, load_generalist_fronts, load_reference, pack_reference,
+                                          read_front_csv, write_front_csv)
 
-__all__ = [
-    "PACKAGED_REFERENCE",
-    "DomainReference",
-    "list_reference_domains",
-    "load_domain_reference",
-    "load_generalist_fronts",
-    "load_reference",
-    "pack_reference",
-    "read_front_csv",
-    "write_front_csv",
-]
+__all__ = ["PACKAGED_REFERENCE", "DomainReference", "list_reference_domains", "load_domain_reference",
+           "load_generalist_fronts", "load_reference", "pack_reference", "read_front_csv", "write_front_csv"]

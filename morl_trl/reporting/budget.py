@@ -1,9 +1,8 @@
 """Which budget a NHGR was measured at, written beside it: a run's report never puts an 8-weight,
 60k-frame run beside the paper's 100-weight, 3M-frame values without saying so.
 
-:func:`budget_label` names a column by its budget, :func:`same_budget` says whether a run's
-numbers may share a table and a chart with the paper's (the same evaluation weights and at least
-the paper's frames).
+:func:`budget_label` names a column by its budget, :func:`same_budget` says whether a run's numbers may share a
+table and a chart with the paper's (the same evaluation weights and at least the paper's frames).
 
 Example:
     >>> count_label(60_032), count_label(3_000_000), count_label(2_000)

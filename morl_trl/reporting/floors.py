@@ -2,11 +2,10 @@
 
 Under the paper's NHGR protocol (SPEC §2: energy weights, one episode each, the front of the
 discounted returns, normalised by the frozen bounds and divided by the specialist's) a policy
-that ignores everything can already score well: the spread of a random policy's (or a
-constant action's) returns over 100 episodes is itself a front, and the frozen bounds were
-fitted on weak runs. On MO-LunarLander the always-noop policy scores about 0.43, above the
-paper's Envelope (0.18). A learned policy's NHGR says little until it is read against these
-floors.
+that ignores everything can already score well: the spread of a random policy's (or a constant action's) returns
+over 100 episodes is itself a front, and the frozen bounds were fitted on weak runs. On MO-LunarLander the
+always-noop policy scores about 0.43, above the paper's Envelope (0.18). A learned policy's NHGR says little until
+it is read against these floors.
 
 For every domain with published reference data this module evaluates the trivial policies —
 ``"random"`` (uniform samples of the action spec) and each constant action (discrete domains:
@@ -40,28 +39,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-__all__ = [
-    "FLOORS_FILE",
-    "Floor",
-    "trivial_policies",
-    "constant_policy",
-    "evaluate_floor",
-    "load_floors",
-    "best_floor",
-    "floor_entries",
-    "update_floors_file",
-    "floors_markdown",
-    "floors_main",
-    "floor_at_weights",
-]
+__all__ = ["FLOORS_FILE", "Floor", "trivial_policies", "constant_policy", "evaluate_floor", "load_floors", "best_floor",
+           "floor_entries", "update_floors_file", "floors_markdown", "floors_main", "floor_at_weights"]
 
 FLOORS_FILE = "floors.json"
 
 # the actions' names where the domain's env does not carry them (SPEC §1.1, §1.3)
-_ACTION_NAMES = {
-    "MOLunarLanderDR-v0": ("noop", "left", "main", "right"),
-    "MOLavaGridDR-v0": ("left", "right", "forward"),
-}
+_ACTION_NAMES = {"MOLunarLanderDR-v0": ("noop", "left", "main", "right"),
+                 "MOLavaGridDR-v0": ("left", "right", "forward")}
 
 
 def _default_path() -> Path:
@@ -141,15 +126,8 @@ class Floor:
         return float(self.values.std())  # ddof=0, as the paper's ±
 
 
-def evaluate_floor(
-    train_id: str,
-    policy: str,
-    reference,
-    *,
-    weights: int | None = None,
-    seed: int = 0,
-    contexts: Sequence[str] | None = None,
-) -> Floor:
+def evaluate_floor(train_id: str, policy: str, reference, *, weights: int | None = None, seed: int = 0,
+                   contexts: Sequence[str] | None = None) -> Floor:
     """Evaluate one trivial policy (a name from :func:`trivial_policies`) on the domain's suite.
 
     ``weights`` defaults to the paper's count (``DomainSpec.eval_weights``: 100, Mario 32); the
@@ -165,13 +143,9 @@ def evaluate_floor(
         raise ValueError(f"unknown trivial policy {policy!r} for {train_id}; valid: {list(policies)}")
     target = policies[policy]
     fn = "random" if isinstance(target, str) else constant_policy(target)
-    ev = MultiContextEvaluator(
-        fn,
-        list(contexts) if contexts is not None else train_id,
-        weights=int(weights if weights is not None else spec.eval_weights),
-        reference=reference,
-        seed=seed,
-    )
+    ev = MultiContextEvaluator(fn, list(contexts) if contexts is not None else train_id,
+                               weights=int(weights if weights is not None else spec.eval_weights), reference=reference,
+                               seed=seed)
     try:
         result = ev.evaluate()
     finally:
@@ -222,14 +196,8 @@ def update_floors_file(path: str | Path, floor: Floor, *, weights: int, seed: in
     dom["gamma"] = gamma
     dom["episodes_per_weight"] = 1
     pols = dom.setdefault("policies", {})
-    pols[floor.policy] = {
-        "nhgr": floor.nhgr,
-        "mean": floor.mean,
-        "std": floor.std,
-        "seconds": round(seconds, 1),
-        "command": command,
-        "computed": datetime.date.today().isoformat(),
-    }
+    pols[floor.policy] = {"nhgr": floor.nhgr, "mean": floor.mean, "std": floor.std, "seconds": round(seconds, 1),
+                          "command": command, "computed": datetime.date.today().isoformat()}
     dom["not_computed"] = [p for p in all_policies if p not in pols]
     best = max(pols, key=lambda p: pols[p]["mean"])
     dom["best"] = best
@@ -246,25 +214,17 @@ def _restricted(reference, contexts: Sequence[str]):
                            {c: reference.specialist_fronts[c] for c in contexts})
 
 
-def floor_at_weights(
-    train_id: str,
-    weights: int,
-    contexts: Sequence[str],
-    reference,
-    *,
-    cache: str | Path | None = None,
-    known: dict[str, dict[str, float]] | None = None,
-    shipped: dict | None = None,
-) -> tuple[Floor | None, str]:
+def floor_at_weights(train_id: str, weights: int, contexts: Sequence[str], reference, *,
+                     cache: str | Path | None = None, known: dict[str, dict[str, float]] | None = None,
+                     shipped: dict | None = None) -> tuple[Floor | None, str]:
     """The best trivial policy of ``train_id`` at ``weights`` evaluation weights on ``contexts``,
     and a sentence saying where it comes from.
 
     A floor is only comparable with a NHGR at the same number of weights (a front of 8 episodes
-    is not a front of 100). In order: the shipped ``floors.json`` when it was computed at
-    ``weights`` and covers ``contexts``; the ``cache`` file (same layout) when it holds them;
-    otherwise every trivial policy is evaluated here (seed 0) and written to ``cache``.
-    ``known``: NHGR per context already evaluated at this protocol (e.g. ``{"random": ...}``
-    from the run's own random-policy evaluation), used instead of evaluating them again.
+    is not a front of 100). In order: the shipped ``floors.json`` when it was computed at ``weights`` and covers
+    ``contexts``; the ``cache`` file (same layout) when it holds them; otherwise every trivial policy is evaluated
+    here (seed 0) and written to ``cache``. ``known``: NHGR per context already evaluated at this protocol (e.g.
+    ``{"random": ...}`` from the run's own random-policy evaluation), used instead of evaluating them again.
     ``None`` (and the reason) when the domain has no reference data.
     """
     contexts = list(contexts)
@@ -379,10 +339,8 @@ def floors_markdown(floors: dict | None = None) -> str:
 
     floors = load_floors() if floors is None else floors
     doms = floors.get("domains", {})
-    lines = [
-        "| domain | weights | random | best constant action | paper's best algorithm | not computed |",
-        "|---|---|---|---|---|---|",
-    ]
+    lines = ["| domain | weights | random | best constant action | paper's best algorithm | not computed |",
+             "|---|---|---|---|---|---|"]
     for d in [d for d in PAPER_ORDER if d in doms] + sorted(d for d in doms if d not in PAPER_ORDER):
         entries = {f.policy: f for f in floor_entries(floors, d)}
         rnd = entries.get("random")
@@ -390,14 +348,11 @@ def floors_markdown(floors: dict | None = None) -> str:
         best_const = max(consts, key=lambda f: f.mean) if consts else None
         paper = PAPER_NHGR.get(d, {})
         top = max(paper, key=lambda a: paper[a][0]) if paper else None
-        cells = [
-            domain_name(d),
-            str(doms[d].get("weights", "")),
-            "n/a" if rnd is None else f"{rnd.mean:.2f} ± {rnd.std:.2f}",
-            "n/a" if best_const is None else f"{best_const.mean:.2f} ± {best_const.std:.2f} ({best_const.policy})",
-            "n/a" if top is None else f"{paper[top][0]:.2f} ± {paper[top][1]:.2f} ({top})",
-            ", ".join(doms[d].get("not_computed", [])) or "-",
-        ]
+        cells = [domain_name(d), str(doms[d].get("weights", "")),
+                 "n/a" if rnd is None else f"{rnd.mean:.2f} ± {rnd.std:.2f}",
+                 "n/a" if best_const is None else f"{best_const.mean:.2f} ± {best_const.std:.2f} ({best_const.policy})",
+                 "n/a" if top is None else f"{paper[top][0]:.2f} ± {paper[top][1]:.2f} ({top})",
+                 ", ".join(doms[d].get("not_computed", [])) or "-"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

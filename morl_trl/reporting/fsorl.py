@@ -1,20 +1,18 @@
 """The paper's "Scalar reward is not enough" analysis: f_SORL in run and grid reports.
 
-f_SORL is a domain's original scalar reward (the one its SAC baseline trains on; the env's
-``"original_reward"``, :class:`~morl_trl.envs.SORLReward` says what it is in terms of the
-vector reward). At every evaluation the evaluator records, per context, the f_SORL return of
-every evaluation weight's episode, the max over weights and the weight that gave it (the
-run's ``eval/sorl.csv`` and the ``sorl_*`` columns of ``eval/metrics.csv``). This module
-turns those files into:
+f_SORL is a domain's original scalar reward (the one its SAC baseline trains on; the env's ``"original_reward"``,
+:class:`~morl_trl.envs.SORLReward` says what it is in terms of the vector reward). At every evaluation the
+evaluator records, per context, the f_SORL return of every evaluation weight's episode, the max over weights and
+the weight that gave it (the run's ``eval/sorl.csv`` and the ``sorl_*`` columns of ``eval/metrics.csv``). This
+module turns those files into:
 
 * the run report's section (:func:`run_section`): f_SORL-max against frames per evaluation
   context (``report_fsorl.png``) and the table of best weights per context at the last
   evaluation (the paper's Fig. 4 table);
-* the grid report's section (:func:`grid_section`): per domain, one panel per context with
-  every method's f_SORL-max against frames (mean ± standard error over seeds) and SAC beside
-  them (``report/fsorl_<domain>.png``, the paper's appendix figures), and the table of which
-  methods beat SAC at the end and by how much (paired over seeds, bootstrap CI;
-  ``report/fsorl_summary.csv``, :func:`sac_comparison`).
+* the grid report's section (:func:`grid_section`): per domain, one panel per context with every method's
+  f_SORL-max against frames (mean ± standard error over seeds) and SAC beside them (``report/fsorl_<domain>.png``,
+  the paper's appendix figures), and the table of which methods beat SAC at the end and by how much (paired over
+  seeds, bootstrap CI; ``report/fsorl_summary.csv``, :func:`sac_comparison`).
 
 An env without an original scalar reward has no f_SORL: its section says so, once.
 
@@ -39,16 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = [
-    "SacComparison",
-    "grid_runs",
-    "grid_section",
-    "ignores_weights",
-    "plot_domain",
-    "run_section",
-    "sac_comparison",
-    "sorl_curves",
-]
+__all__ = ["SacComparison", "grid_runs", "grid_section", "ignores_weights", "plot_domain", "run_section",
+           "sac_comparison", "sorl_curves"]
 
 #: why a context's discounted f_SORL max can exceed its undiscounted one (the run report says it under the table)
 DISCOUNTED_NOTE = ("The discounted row can be the larger: γ^t shrinks late rewards, and where an episode ends in "
@@ -280,10 +270,9 @@ def sac_comparison(finals: dict[str, dict[int, dict[str, float]]], *, reps: int 
     """Which methods beat SAC on f_SORL, per context, and by how much.
 
     ``finals`` is ``{algo: {seed: {context: final f_SORL max}}}``. For every context and every
-    method but SAC: its mean ± standard error over seeds, SAC's, and the difference paired by
-    seed (the grid runs every method with the same seeds, and the seed also drives the
-    evaluation) with a percentile bootstrap interval of its mean over the seeds both have
-    (:func:`~morl_trl.metrics.stratified_bootstrap_ci`, one task).
+    method but SAC: its mean ± standard error over seeds, SAC's, and the difference paired by seed (the grid runs
+    every method with the same seeds, and the seed also drives the evaluation) with a percentile bootstrap interval
+    of its mean over the seeds both have (:func:`~morl_trl.metrics.stratified_bootstrap_ci`, one task).
     """
     from morl_trl.metrics import stratified_bootstrap_ci
 
@@ -313,8 +302,7 @@ def sac_comparison(finals: dict[str, dict[int, dict[str, float]]], *, reps: int 
                 if len(common) < 2:
                     verdict = "1 paired seed: no interval"
                 else:
-                    _, lo, hi = stratified_bootstrap_ci(d[:, None], "mean", reps=reps, confidence=confidence,
-                                                        seed=seed)
+                    _, lo, hi = stratified_bootstrap_ci(d[:, None], "mean", reps=reps, confidence=confidence, seed=seed)
                     ci = (lo, hi)
                     verdict = "beats SAC" if lo > 0 else "below SAC" if hi < 0 else "no clear difference"
             out.append(SacComparison(c, algo, mean, se, len(vals), sac_mean, sac_se, len(sac_vals), diff, ci,
@@ -403,8 +391,7 @@ def _contexts_of(by_seed: dict[int, Path]) -> list[str]:
     return list(dict.fromkeys(c for d in by_seed.values() for c in sorl_curves(d)))
 
 
-def grid_section(runs: dict[str, dict[str, dict[int, Path]]], out_dir: str | Path, *,
-                 reps: int = 10_000) -> list[str]:
+def grid_section(runs: dict[str, dict[str, dict[int, Path]]], out_dir: str | Path, *, reps: int = 10_000) -> list[str]:
     """The f_SORL section of the grid's ``report.md`` (Markdown lines); writes
     ``fsorl_<domain>.png`` and ``fsorl_summary.csv`` into ``out_dir`` (the grid's ``report/``).
 

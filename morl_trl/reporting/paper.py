@@ -11,14 +11,8 @@ from __future__ import annotations
 __all__ = ["PAPER_ORDER", "PAPER_NHGR", "PAPER_BUDGET", "paper_budget", "domain_name"]
 
 # the paper's order of the domains (their names come from the registry's DomainSpec)
-PAPER_ORDER = (
-    "MOLunarLanderDR-v0",
-    "MOHopperDR-v5",
-    "MOHalfCheetahDR-v5",
-    "MOHumanoidDR-v5",
-    "MOSuperMarioBrosZeroShot-v2",
-    "MOLavaGridDR-v0",
-)
+PAPER_ORDER = ("MOLunarLanderDR-v0", "MOHopperDR-v5", "MOHalfCheetahDR-v5", "MOHumanoidDR-v5",
+               "MOSuperMarioBrosZeroShot-v2", "MOLavaGridDR-v0")
 
 # SPEC §3 "All results" (the paper's Table 3 NHGR row and Fig. 3-4): mean, pooled std
 PAPER_NHGR: dict[str, dict[str, tuple[float, float]]] = {

@@ -6,19 +6,17 @@ The published data of the paper (SPEC §3) lies in a folder with this layout::
     <root>/specialist_fronts/<DomainId>/<context>.csv         header objective_1..objective_k
     <root>/generalist_fronts/<DomainId>/<algo>/seed_<s>/<context>.csv
 
-:func:`load_domain_reference` reads one domain into a :class:`DomainReference` (the frozen
-bounds and the specialist front of every evaluation context) and :func:`load_generalist_fronts`
-the final fronts of the published runs. The same types are built from our own runs
-(:meth:`DomainReference.from_fronts`) and written back in the same layout
-(:meth:`DomainReference.save`), so new domains get reference data the same way.
+:func:`load_domain_reference` reads one domain into a :class:`DomainReference` (the frozen bounds and the
+specialist front of every evaluation context) and :func:`load_generalist_fronts` the final fronts of the published
+runs. The same types are built from our own runs (:meth:`DomainReference.from_fronts`) and written back in the same
+layout (:meth:`DomainReference.save`), so new domains get reference data the same way.
 
-Every file the loaders read is checked: a malformed file raises a ``ValueError`` naming the
-file and what is wrong, and a file whose path (relative to the folder) is listed in the
-reference manifest (``reference_manifest.json``, shipped with the package: the row count and
-SHA-256 of every published file, made by ``morl-trl reference-manifest DIR --write``) must
-have the listed row count and content, so a truncated or altered copy of the published data
-is an error rather than a silently different table. Pass ``manifest=None`` to read other data
-in the same layout without that check.
+Every file the loaders read is checked: a malformed file raises a ``ValueError`` naming the file and what is wrong,
+and a file whose path (relative to the folder) is listed in the reference manifest (``reference_manifest.json``,
+shipped with the package: the row count and SHA-256 of every published file, made by ``morl-trl reference-manifest
+DIR --write``) must have the listed row count and content, so a truncated or altered copy of the published data is
+an error rather than a silently different table. Pass ``manifest=None`` to read other data in the same layout
+without that check.
 """
 
 from __future__ import annotations
@@ -40,21 +38,9 @@ from morl_trl.metrics import Bounds, as_points, normalized_hypervolume, pareto_f
 from morl_trl.metrics.generalization import eugr as _eugr
 from morl_trl.metrics.generalization import nhgr as _nhgr
 
-__all__ = [
-    "DomainReference",
-    "read_front_csv",
-    "write_front_csv",
-    "list_reference_domains",
-    "load_domain_reference",
-    "load_reference",
-    "load_generalist_fronts",
-    "pack_reference",
-    "PACKAGED_REFERENCE",
-    "MANIFEST_PATH",
-    "build_manifest",
-    "load_manifest",
-    "verify_reference",
-]
+__all__ = ["DomainReference", "read_front_csv", "write_front_csv", "list_reference_domains", "load_domain_reference",
+           "load_reference", "load_generalist_fronts", "pack_reference", "PACKAGED_REFERENCE", "MANIFEST_PATH",
+           "build_manifest", "load_manifest", "verify_reference"]
 
 #: the manifest of the published reference data, shipped with the package
 MANIFEST_PATH = Path(__file__).with_name("reference_manifest.json")
@@ -123,8 +109,7 @@ class DomainReference:
 
     Args:
         domain: the domain's id, e.g. ``"MOLunarLanderDR-v0"``.
-        bounds: evaluation context id -> :class:`Bounds`. Its keys, in order, are the
-            domain's evaluation contexts.
+        bounds: evaluation context id -> :class:`Bounds`. Its keys, in order, are the domain's evaluation contexts.
         specialist_fronts: context id -> ``[n, k]`` front (one for every context in ``bounds``).
 
     Example:
@@ -150,9 +135,8 @@ class DomainReference:
             raise ValueError(f"{self.domain}: contexts {missing} have bounds but no specialist front")
         fronts = {}
         for c in self.bounds:
-            fronts[c] = as_points(
-                self.specialist_fronts[c], f"specialist front of {c}", dim=self.bounds[c].num_objectives
-            )
+            fronts[c] = as_points(self.specialist_fronts[c], f"specialist front of {c}",
+                                  dim=self.bounds[c].num_objectives)
         self.specialist_fronts = fronts
 
     @property
@@ -187,12 +171,8 @@ class DomainReference:
 
     # ---------------------------------------------------------------- from our own runs
     @classmethod
-    def from_fronts(
-        cls,
-        domain: str,
-        specialist_fronts: Mapping[str, object],
-        other_fronts: Iterable[Mapping[str, object]] = (),
-    ) -> "DomainReference":
+    def from_fronts(cls, domain: str, specialist_fronts: Mapping[str, object],
+                    other_fronts: Iterable[Mapping[str, object]] = ()) -> "DomainReference":
         """Build a reference from specialist runs (and, optionally, the fronts of the methods compared).
 
         ``specialist_fronts`` maps each context to one front or a list of fronts (one per
@@ -399,16 +379,14 @@ def _load_front(root: Path, path: Path, manifest: dict | None) -> np.ndarray:
     return front
 
 
-def load_domain_reference(
-    root: str | Path | None, domain: str | None = None, *, manifest=_PUBLISHED
-) -> DomainReference:
+def load_domain_reference(root: str | Path | None, domain: str | None = None, *,
+                          manifest=_PUBLISHED) -> DomainReference:
     """Read the frozen bounds and specialist fronts of ``domain`` from ``root``.
 
-    ``load_domain_reference(domain)`` (or ``root=None``) reads the copies shipped with the
-    package (:data:`PACKAGED_REFERENCE`), so NHGR works on any install. The evaluation
-    contexts are the keys of the bounds file, in its order (the specialist folder may hold
-    extra contexts, e.g. LunarLander's StartLow, which are not loaded). Files listed in
-    ``manifest`` (default: the published data's) are checked against it.
+    ``load_domain_reference(domain)`` (or ``root=None``) reads the copies shipped with the package
+    (:data:`PACKAGED_REFERENCE`), so NHGR works on any install. The evaluation contexts are the keys of the bounds
+    file, in its order (the specialist folder may hold extra contexts, e.g. LunarLander's StartLow, which are not
+    loaded). Files listed in ``manifest`` (default: the published data's) are checked against it.
 
     Example:
         >>> ref = load_domain_reference("MOLunarLanderDR-v0")      # the shipped constants
@@ -465,15 +443,13 @@ def load_reference(root: str | Path, *, manifest=_PUBLISHED) -> dict[str, Domain
 _SEED = re.compile(r"^seed_(\d+)$")
 
 
-def load_generalist_fronts(
-    root: str | Path, domain: str, contexts: Iterable[str] | None = None, *, manifest=_PUBLISHED
-) -> dict[str, dict[int, dict[str, np.ndarray]]]:
+def load_generalist_fronts(root: str | Path, domain: str, contexts: Iterable[str] | None = None, *,
+                           manifest=_PUBLISHED) -> dict[str, dict[int, dict[str, np.ndarray]]]:
     """Final fronts of the published runs: ``{algorithm: {seed: {context: [n, k] front}}}``.
 
-    Only the top-level algorithm folders are read (the paper's data; e.g. MuJoCo's
-    ``no_history/`` folder holds other runs). ``contexts`` restricts (and orders) the
-    contexts; by default every CSV found is read. Files listed in ``manifest`` (default: the
-    published data's) are checked against it.
+    Only the top-level algorithm folders are read (the paper's data; e.g. MuJoCo's ``no_history/`` folder holds
+    other runs). ``contexts`` restricts (and orders) the contexts; by default every CSV found is read. Files listed
+    in ``manifest`` (default: the published data's) are checked against it.
     """
     root = _root(root)
     manifest = load_manifest(manifest)

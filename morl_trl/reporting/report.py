@@ -547,7 +547,7 @@ def write_report(log, summary: dict, fps: float | None) -> Path:
             lines.append(f"No floor: {floor_where}.")
             lines.append("")
         if paper_cols and not comparable and paper_budget(spec.train_id) is not None:
-            lines += _nhgr_table(f"## The paper's generalists (not this run's budget)", paper_cols, contexts)
+            lines += _nhgr_table("## The paper's generalists (not this run's budget)", paper_cols, contexts)
             paper_frames, paper_weights = paper_budget(spec.train_id)
             lines.append(f"The paper's runs: {paper_weights} weights, {count_label(paper_frames)} frames each, "
                          f"mean over 5 seeds; this run: {weights} weights, {count_label(frames)} frames. NHGR grows "

@@ -1,10 +1,9 @@
 """The paper's NHGR table recomputed from published (or our own) fronts (``morl-trl reference-table``).
 
-For every domain under a reference folder (layout in :mod:`morl_trl.reporting.reference`) and
-every algorithm with final fronts there, build the ``[seeds, contexts]`` matrix of NHGR
-(frozen bounds with clipping, origin reference, specialist combined front as denominator,
-capped at 1) and report its mean ± population std over all entries, IQM and optimality gap
-(rliable's definitions), optionally stratified-bootstrap CIs, and EUGR on the energy weights.
+For every domain under a reference folder (layout in :mod:`morl_trl.reporting.reference`) and every algorithm with
+final fronts there, build the ``[seeds, contexts]`` matrix of NHGR (frozen bounds with clipping, origin reference,
+specialist combined front as denominator, capped at 1) and report its mean ± population std over all entries, IQM
+and optimality gap (rliable's definitions), optionally stratified-bootstrap CIs, and EUGR on the energy weights.
 Each domain's block ends with its floor: the best trivial policy's NHGR (mean ± std over the
 contexts, one seed) from the shipped ``floors.json`` (:mod:`morl_trl.reporting.floors`).
 
@@ -23,26 +22,15 @@ import numpy as np
 from morl_trl.metrics import interquartile_mean, optimality_gap, stratified_bootstrap_ci
 from morl_trl.preferences import energy_weights
 from morl_trl.reporting.paper import PAPER_NHGR, PAPER_ORDER, domain_name
-from morl_trl.reporting.reference import (
-    DomainReference,
-    list_reference_domains,
-    load_domain_reference,
-    load_generalist_fronts,
-)
+from morl_trl.reporting.reference import (DomainReference, list_reference_domains, load_domain_reference,
+                                          load_generalist_fronts)
 
 __all__ = ["TableRow", "PAPER_ORDER", "PAPER_NHGR", "domain_name", "domain_rows", "reference_table", "format_table"]
 
-_ALGO_LABELS = {
-    "MORL-D(MOSACDiscrete)-SB": "MORL/D SB",
-    "MORL-D(MOSACDiscrete)-SB+PSA": "MORL/D SB+PSA",
-    "MORL-D(MOSAC)-SB": "MORL/D SB",
-    "MORL-D(MOSAC)-SB+PSA": "MORL/D SB+PSA",
-    "GPI-LS Continuous Action": "GPI-LS",
-    "GPI-PD Continuous Action": "GPI-PD",
-    "PCN continuous action": "PCN",
-    "SAC Discrete Action": "SAC",
-    "SAC Continuous Action": "SAC",
-}
+_ALGO_LABELS = {"MORL-D(MOSACDiscrete)-SB": "MORL/D SB", "MORL-D(MOSACDiscrete)-SB+PSA": "MORL/D SB+PSA",
+                "MORL-D(MOSAC)-SB": "MORL/D SB", "MORL-D(MOSAC)-SB+PSA": "MORL/D SB+PSA",
+                "GPI-LS Continuous Action": "GPI-LS", "GPI-PD Continuous Action": "GPI-PD",
+                "PCN continuous action": "PCN", "SAC Discrete Action": "SAC", "SAC Continuous Action": "SAC"}
 
 
 
@@ -94,20 +82,13 @@ class TableRow:
         return f"{self.mean:.2f} ± {self.std:.2f}" == f"{p[0]:.2f} ± {p[1]:.2f}"
 
     def as_dict(self) -> dict[str, object]:
-        d = {
-            "domain": self.domain,
-            "algorithm": self.algorithm,
-            "label": self.label,
-            "entries": int(self.nhgr.size),
-            "nhgr_mean": self.mean,
-            "nhgr_std": self.std,
-            "nhgr_iqm": self.iqm,
-            "nhgr_optimality_gap": self.optimality_gap,
-            "eugr_mean": None if self.eugr is None else float(self.eugr.mean()),
-            "eugr_std": None if self.eugr is None else float(self.eugr.std()),
-            "paper_nhgr_mean": None if self.paper is None else self.paper[0],
-            "paper_nhgr_std": None if self.paper is None else self.paper[1],
-        }
+        d = {"domain": self.domain, "algorithm": self.algorithm, "label": self.label, "entries": int(self.nhgr.size),
+             "nhgr_mean": self.mean, "nhgr_std": self.std, "nhgr_iqm": self.iqm,
+             "nhgr_optimality_gap": self.optimality_gap,
+             "eugr_mean": None if self.eugr is None else float(self.eugr.mean()),
+             "eugr_std": None if self.eugr is None else float(self.eugr.std()),
+             "paper_nhgr_mean": None if self.paper is None else self.paper[0],
+             "paper_nhgr_std": None if self.paper is None else self.paper[1]}
         if self.iqm_ci is not None:
             d.update(iqm_ci_low=self.iqm_ci[0], iqm_ci_high=self.iqm_ci[1])
         if self.og_ci is not None:
@@ -130,15 +111,8 @@ def _eval_weights(domain: str) -> int:
         return 100
 
 
-def domain_rows(
-    ref: DomainReference,
-    runs: dict[str, dict[int, dict[str, np.ndarray]]],
-    *,
-    num_weights: int | None = None,
-    eugr: bool = True,
-    ci_reps: int = 0,
-    seed: int = 0,
-) -> list[TableRow]:
+def domain_rows(ref: DomainReference, runs: dict[str, dict[int, dict[str, np.ndarray]]], *,
+                num_weights: int | None = None, eugr: bool = True, ci_reps: int = 0, seed: int = 0) -> list[TableRow]:
     """The table rows of one domain from its reference and ``{algo: {seed: {context: front}}}``."""
     n_w = num_weights or _eval_weights(ref.domain)
     weights = energy_weights(ref.num_objectives, n_w).numpy() if eugr else None
@@ -169,21 +143,13 @@ def domain_rows(
     return rows
 
 
-def reference_table(
-    root: str | Path,
-    domains: list[str] | None = None,
-    *,
-    eugr: bool = True,
-    ci_reps: int = 0,
-    seed: int = 0,
-    manifest="published",
-) -> list[TableRow]:
+def reference_table(root: str | Path, domains: list[str] | None = None, *, eugr: bool = True, ci_reps: int = 0,
+                    seed: int = 0, manifest="published") -> list[TableRow]:
     """Recompute the NHGR table from the reference folder ``root`` (see the module docstring).
 
-    Raises a ``ValueError`` when there is nothing to show (no domain with generalist fronts),
-    and for any malformed file or (``manifest``, see
-    :func:`~morl_trl.reporting.reference.load_domain_reference`) a published file that is
-    truncated or altered.
+    Raises a ``ValueError`` when there is nothing to show (no domain with generalist fronts), and for any malformed
+    file or (``manifest``, see :func:`~morl_trl.reporting.reference.load_domain_reference`) a published file that
+    is truncated or altered.
 
     Example:
         >>> rows = reference_table("../shared/reference", ["MOLunarLanderDR-v0"])   # doctest: +SKIP

@@ -16,17 +16,15 @@ the env, its modules and the collector, then the loop inside :meth:`Run.session`
             ...the algorithm's per-frame work (it may raise StopRun, e.g. a non-finite loss)...
             run.step(losses, updates, epsilon=eps)    # log, progress; evaluate / checkpoint when due; Ctrl-C
 
-:mod:`morl_trl.runs.session` says what the session does on entry, on exit and on each way a
-run can stop.
+:mod:`morl_trl.runs.session` says what the session does on entry, on exit and on each way a run can stop.
 
 Every write to the run directory goes through this object (and the :class:`RunLog` it holds),
 so run-wide policies (locks, atomic writes, Ctrl-C) have one place to live: :meth:`start`,
 :meth:`checkpoint`, :meth:`stop` and :meth:`__exit__`.
 
-The config is any object with ``to_dict()``, ``save(path)``, ``validate()``, ``run_dir``,
-``frames``, ``eval_interval``, ``checkpoint_interval``, ``keep_checkpoints``, ``progress``,
-``logger``, ``algo``, ``env_id``, ``seed`` and, optionally, ``eval_random_baseline`` (the recipes'
-``TrainConfig``).
+The config is any object with ``to_dict()``, ``save(path)``, ``validate()``, ``run_dir``, ``frames``,
+``eval_interval``, ``checkpoint_interval``, ``keep_checkpoints``, ``progress``, ``logger``, ``algo``, ``env_id``,
+``seed`` and, optionally, ``eval_random_baseline`` (the recipes' ``TrainConfig``).
 
 Example:
     >>> from types import SimpleNamespace
@@ -46,17 +44,8 @@ from typing import Any, Callable
 from tqdm.auto import tqdm
 
 from morl_trl.runs.estimate import DurationEstimate, hms
-from morl_trl.runs.checkpoint import (
-    RUN_STATE,
-    check_rng_state,
-    damaged,
-    checkpoint_buffer,
-    checkpoint_frames,
-    find_checkpoint,
-    load_checkpoint,
-    rng_state,
-    save_checkpoint,
-)
+from morl_trl.runs.checkpoint import (RUN_STATE, check_rng_state, damaged, checkpoint_buffer, checkpoint_frames,
+                                      find_checkpoint, load_checkpoint, rng_state, save_checkpoint)
 from morl_trl.runs.interrupt import RunInterrupted
 from morl_trl.runs.plain import first_line
 from morl_trl.runs.lock import RunLock
@@ -115,10 +104,9 @@ BAR_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, {rate_fmt}{postfix}]
 class Run:
     """One training run: its directory, config, logs, schedules, checkpoints, progress and report.
 
-    Make one with :meth:`open` (it validates and reads, writes nothing), then :meth:`restore`
-    (a resumed run's checkpoint) and ``with run.session(...)`` around the loop (see the module
-    docstring; :meth:`start` alone opens the run directory and logs without the session's
-    first evaluation, resume, stop and Ctrl-C handling).
+    Make one with :meth:`open` (it validates and reads, writes nothing), then :meth:`restore` (a resumed run's
+    checkpoint) and ``with run.session(...)`` around the loop (see the module docstring; :meth:`start` alone opens
+    the run directory and logs without the session's first evaluation, resume, stop and Ctrl-C handling).
 
     Attributes:
         cfg: the config the run runs with (a resumed run's saved one, with what a resume may change).
@@ -237,8 +225,7 @@ class Run:
         Args:
             spec: the run's domain (its objectives, for the logs and report).
             reference: the domain's reference data (NHGR), or ``None``.
-            evaluator: evaluated (``evaluator.evaluate()``) at the start of a new run, when due
-                and at the end.
+            evaluator: evaluated (``evaluator.evaluate()``) at the start of a new run, when due and at the end.
             snapshot: ``snapshot() -> dict``, the recipe's own state for a checkpoint (modules,
                 optimizers, env, collector, device); the run adds its counters, RNG and config.
             buffer: the replay buffer checkpointed with it (``None``: none).
@@ -252,10 +239,9 @@ class Run:
 
     # ------------------------------------------------------------------ the run directory
     def start(self, spec, reference=None, *, notes: list[str] = ()) -> "Run":
-        """Create (or, with ``overwrite``, replace) the run directory, save ``config.json``, open
-        the logs, write the notes, cut a resumed run's logs back to its checkpoint, show the
-        progress bar. A failed start leaves no new run directory behind. Use as ``with run.start(...)``.
-        ``notes`` go to log.txt after :meth:`open`'s own."""
+        """Create (or, with ``overwrite``, replace) the run directory, save ``config.json``, open the logs, write the
+        notes, cut a resumed run's logs back to its checkpoint, show the progress bar. A failed start leaves no new
+        run directory behind. Use as ``with run.start(...)``. ``notes`` go to log.txt after :meth:`open`'s own."""
         cfg = self.cfg
         if self.resume_from is None:  # everything is built: the directory swaps in (an old run is set aside)
             self._starting = NewRunDir(self.dir, self.overwrite)
@@ -357,9 +343,8 @@ class Run:
         self._bar.set_postfix_str(", ".join(parts), refresh=refresh)
 
     def collected(self, batch, frames: int | None = None, *, log: bool = True) -> int:
-        """A collected ``batch`` (inside :meth:`session`): count its ``frames`` (default
-        ``batch.numel()``; PGMORL counts one member's) and log its finished episodes' returns
-        (``log``). Returns the run's frames so far."""
+        """A collected ``batch`` (inside :meth:`session`): count its ``frames`` (default ``batch.numel()``; PGMORL
+        counts one member's) and log its finished episodes' returns (``log``). Returns the run's frames so far."""
         self._batch_frames = batch.numel() if frames is None else frames
         self.frames += self._batch_frames
         if log:

@@ -2,21 +2,18 @@
 
 Everything a training run does besides learning happens here, the same for every algorithm:
 
-* entering: the run directory, ``config.json``, the logs and the progress bar
-  (:meth:`~morl_trl.runs.Run.start`); a new run evaluates its untrained policy and writes a
-  first checkpoint to resume from (if either fails the run directory is removed and a run
-  it replaced is put back); a resumed run puts its env and collector back where the
-  checkpoint left them (exactly where the domain can snapshot its simulator, else with fresh
-  episodes and a note saying so) and, last, the global random generators;
-* per batch (:meth:`~morl_trl.runs.Run.collected`, :meth:`~morl_trl.runs.Run.step`): the
-  frame count, the episodes' returns, the losses, the progress bar, evaluations and
-  checkpoints when due, and a first Ctrl-C: checkpoint, say how to resume, stop
-  (:class:`~morl_trl.runs.interrupt.RunInterrupted`);
+* entering: the run directory, ``config.json``, the logs and the progress bar (:meth:`~morl_trl.runs.Run.start`); a
+  new run evaluates its untrained policy and writes a first checkpoint to resume from (if either fails the run
+  directory is removed and a run it replaced is put back); a resumed run puts its env and collector back where the
+  checkpoint left them (exactly where the domain can snapshot its simulator, else with fresh episodes and a note
+  saying so) and, last, the global random generators;
+* per batch (:meth:`~morl_trl.runs.Run.collected`, :meth:`~morl_trl.runs.Run.step`): the frame count, the episodes'
+  returns, the losses, the progress bar, evaluations and checkpoints when due, and a first Ctrl-C: checkpoint, say
+  how to resume, stop (:class:`~morl_trl.runs.interrupt.RunInterrupted`);
 * leaving: at the end of the loop the last evaluation, the report and the final checkpoint
-  (:meth:`~morl_trl.runs.Run.finish`); on a :class:`StopRun` from the loop (e.g. a
-  non-finite loss) a checkpoint of the last good state and why, in ``log.txt`` and
-  ``report.md``; on an ``OSError`` (a full disk) a message naming the last good checkpoint and
-  how to resume; on a second Ctrl-C an immediate exit naming the same; always the
+  (:meth:`~morl_trl.runs.Run.finish`); on a :class:`StopRun` from the loop (e.g. a non-finite loss) a checkpoint of
+  the last good state and why, in ``log.txt`` and ``report.md``; on an ``OSError`` (a full disk) a message naming
+  the last good checkpoint and how to resume; on a second Ctrl-C an immediate exit naming the same; always the
   collector's shutdown.
 
 The recipe passes in what only it knows: ``snapshot()`` (its own state for a checkpoint:

@@ -3,58 +3,41 @@
 A population of ``P`` MOSAC learners (continuous or discrete actions), member ``p`` with its own
 scalarization weight ``w_p`` (the authors: pymoo's energy weights for ``P``, ``seed`` = the run's
 seed), all trained from ONE shared replay buffer (SB). Every ``exchange_every`` frames the members'
-recent returns go into a Pareto archive and, with ``weight_adaptation="psa"`` (SB+PSA), each weight
-moves by Pareto simulated annealing away from its nearest archived neighbour. Evaluation as the
-authors': for each evaluation weight the Pareto archive's snapshot whose weight is nearest acts
-(:class:`ArchiveSnapshotRouter`), with sampled actions.
+returns go into a Pareto archive and, with ``weight_adaptation="psa"`` (SB+PSA), each weight moves by
+Pareto simulated annealing away from its nearest archived neighbour. Evaluation: for each evaluation
+weight the archive's snapshot of nearest weight acts (:class:`ArchiveSnapshotRouter`), sampling actions.
 
-:func:`train_morld` is the recipe, read top to bottom (env -> the population, its loss and optimizers ->
-the shared replay buffer and collector -> the loop), for both schedules and both variants. What lives
-between batches and in checkpoints is a :class:`MORLDAgent` (the population, the archive, the turn and the
-counters). The loop hands each batch to :func:`on_batch` (record the returns, store, the updates, the
-exchange), the one per-batch step, which :func:`update` (one gradient update, the only one) serves:
-round robin, :func:`own_updates` (the acting member's updates at the frames of :func:`update_clocks`),
-:func:`catch_up_updates`, :meth:`~MORLDAgent.exchange`, :meth:`~MORLDAgent.next_turn`; concurrent,
-:meth:`~MORLDAgent.concurrent_updates_due`, :func:`updates_at` and :meth:`~MORLDAgent.exchanges_due`.
-Driving an agent batch by batch outside the recipe (tests, benchmarks) calls the same
-``on_batch(agent, batch, buffer, frames)``.
+:func:`train_morld` is the recipe (env -> population, loss, optimizers -> shared buffer and collector ->
+the loop); a :class:`MORLDAgent` holds what lives between batches and in checkpoints. The loop, and
+anything driving an agent batch by batch, calls ``on_batch(agent, batch, buffer, frames)`` (record the
+returns, store, the updates, the exchange), whose one gradient update is :func:`update`.
 
 The population is ONE batched module (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`:
 every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_schedule``):
 
 * ``"round_robin"`` (default, the authors' ``MORLD.train``, ``morld.py:421-431,559-567``): member
-  ``p = e mod P`` acts alone for the ``e``-th turn of ``exchange_every`` frames on the training
-  env (``num_envs`` sub-envs; the authors one), with one update of ITS parameters per
-  ``update_frequency`` frames once the shared frame counter passed ``init_random_frames`` (its
+  ``p = e mod P`` acts alone for the ``e``-th turn of ``exchange_every`` frames, one update of ITS
+  parameters per ``update_frequency`` frames once the shared frame counter passed ``init_random_frames`` (its
   actor steps and target copies on the shared counter's clock, as the authors' ``global_step``).
-  At the end of the turn (the exchange) every other member gets ``morld_update_passes`` (10)
-  catch-up updates, the members are evaluated and archived (and PSA adapts the weights), and
-  the env is reset (:meth:`MORLDAgent.env_reset_due`: the training loop restarts every episode, as
-  each member's ``train()`` starts with ``env.reset()``). An update steps only the members it is for:
-  :class:`~morl_trl.training.optim.MemberAdam` (each member's own Adam moments and step count)
-  and :class:`MemberTargetUpdate` (each member's own target critics); the others' parameters,
-  moments and targets stay bit for bit. The acting member's own updates compute that member
+  At the end of the turn every other member gets ``morld_update_passes`` (10) catch-up updates, the
+  members are evaluated and archived (PSA adapts the weights) and the env is reset
+  (:meth:`MORLDAgent.env_reset_due`: each member's ``train()`` starts with ``env.reset()``). An update
+  steps only its members (:class:`~morl_trl.training.optim.MemberAdam`, :class:`MemberTargetUpdate`);
+  the others' parameters, moments and targets stay bit for bit. The acting member's updates compute it
   alone (:meth:`PopulationMOSACLoss.only_member
-  <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`: its slices of the stacked
-  networks on a ``[1, batch_size]`` sample, ``1 / P`` of the work), with the parameters and Adam
-  state, to float rounding, of an update of every member with the others masked out
-  (``MORLDAgent.slice_acting_member = False``; the two are compared in
-  ``tests/recipes/test_morld_round_robin.py``); the catch-up updates step all the others at once. ``frames``
-  counts the acting member's frames and the
-  run ends after the turn that reaches it: ``ceil(frames / exchange_every)`` turns
-  (:func:`round_robin_turns`).
-* ``"concurrent"`` (our earlier scheme, faster, most of all on a GPU; not the authors'): the
-  training env holds ``P * num_envs`` sub-envs, member ``p`` acting in sub-envs ``p * num_envs ..
-  (p + 1) * num_envs - 1``; one optimizer step updates all ``P`` members, each one update per
-  ``update_frequency`` of its own frames (``updates_per_batch = 0``), with no catch-up updates
-  and no reset at an exchange.
+  <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`, ``1 / P`` of the work), equal to
+  float rounding to a masked update of all (``MORLDAgent.slice_acting_member = False``; compared in
+  ``tests/recipes/test_morld_round_robin.py``). ``frames`` counts the acting member's frames: the run
+  takes ``ceil(frames / exchange_every)`` turns (:func:`round_robin_turns`).
+* ``"concurrent"`` (faster, most of all on a GPU; not the authors'): ``P * num_envs`` sub-envs, member
+  ``p`` acting in block ``p``; one optimizer step updates all members, one update per
+  ``update_frequency`` of its own frames, with no catch-up updates and no reset at an exchange.
 
 After every exchange each member is evaluated as the authors': the mean discounted vector return
 of ``morld_eval_episodes`` (5) episodes with sampled actions on a DR env of its own
-(:meth:`MORLDAgent.evaluate_members`, not training frames); ``morld_eval_episodes=0`` archives the
-mean return of its training episodes since the last exchange instead. The PSA rule, its
-``delta = 0.1``, the archive's distance threshold (0.01) and the weights' L1 renormalisation are
-MORL-Baselines 1.3.0's.
+(:meth:`MORLDAgent.evaluate_members`); ``0`` archives the mean return of its training episodes since
+the last exchange instead. The PSA rule, ``delta = 0.1``, the archive's distance threshold (0.01) and
+the weights' L1 renormalisation are MORL-Baselines 1.3.0's.
 
 Example:
     >>> from morl_trl.recipes import resolve_config
@@ -87,41 +70,17 @@ from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.batched import BatchedLinear
 from morl_trl.objectives.networks import categorical_actor, tanh_normal_actor
 from morl_trl.algorithms.actor_critic.recipe import gradient_step, orthogonal_critic_copies_
-from morl_trl.objectives.population import (
-    PopulationMOSACLoss,
-    nearest_member,
-    make_population_categorical_actor,
-    make_population_critic,
-    make_population_gaussian_actor,
-    make_population_q_network,
-    population_policies,
-)
+from morl_trl.objectives.population import (PopulationMOSACLoss, nearest_member, make_population_categorical_actor,
+                                            make_population_critic, make_population_gaussian_actor,
+                                            make_population_q_network, population_policies)
 from morl_trl.preferences import energy_weights
-from morl_trl.training.agent import (
-    Agent,
-    NonFiniteLossError,
-    action_spec,
-    actor_critic_optimizers,
-    eval_exploration,
-    is_discrete,
-    num_objectives,
-    obs_shape,
-    target_updater,
-)
+from morl_trl.training.agent import (Agent, NonFiniteLossError, action_spec, actor_critic_optimizers, eval_exploration,
+                                     is_discrete, num_objectives, obs_shape, target_updater)
 from morl_trl.training.allocator import tune_malloc
 from morl_trl.training.optim import MemberAdam, fused_choice
-from morl_trl.training.parts import (
-    load_agent_state,
-    checkpoint_snapshot,
-    check_buffer_memory,
-    load_reference,
-    make_collector,
-    make_evaluator,
-    make_replay_buffer,
-    run_discount,
-    run_domain,
-    start_notes,
-)
+from morl_trl.training.parts import (load_agent_state, checkpoint_snapshot, check_buffer_memory, load_reference,
+                                     make_collector, make_evaluator, make_replay_buffer, run_discount, run_domain,
+                                     start_notes)
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
@@ -139,12 +98,11 @@ def psa_weights(weights: torch.Tensor, evaluations: torch.Tensor, archive: torch
                 min_distance: float = PSA_MIN_DISTANCE) -> torch.Tensor:
     """Pareto simulated annealing (Czyżak & Jaszkiewicz, 1998) as MORL/D adapts its weights.
 
-    For each member (row of ``weights`` ``[P, k]`` with evaluation ``evaluations[p]`` ``[k]``), the
-    nearest archived evaluation ``c`` (squared distance above ``min_distance``) is found; objective
-    ``i`` where the member is at least as good as ``c`` gets ``w_i * (1 + delta)``, the others
-    ``w_i / (1 + delta)``; the result is renormalised to sum 1 (below: the member itself, at
-    distance 0, is skipped and (0, 1) is its neighbour). A member with no such neighbour
-    (or a NaN evaluation: not evaluated) keeps its weight.
+    For each member (row of ``weights`` ``[P, k]`` with evaluation ``evaluations[p]`` ``[k]``), the nearest
+    archived evaluation ``c`` (squared distance above ``min_distance``) is found; objective ``i`` where the member
+    is at least as good as ``c`` gets ``w_i * (1 + delta)``, the others ``w_i / (1 + delta)``; the result is
+    renormalised to sum 1 (below: the member itself, at distance 0, is skipped and (0, 1) is its neighbour). A
+    member with no such neighbour (or a NaN evaluation: not evaluated) keeps its weight.
 
     Example:
         >>> w = torch.tensor([[0.5, 0.5]])
@@ -168,9 +126,8 @@ def psa_weights(weights: torch.Tensor, evaluations: torch.Tensor, archive: torch
 
 def round_robin_turns(frames: int, exchange_every: int, pop_size: int) -> list[int]:
     """Turns of ``exchange_every`` frames each member gets in a round-robin run of ``frames``
-    frames: ``ceil(frames / exchange_every)`` turns, member ``e mod P`` taking the ``e``-th (the
-    authors' loop runs whole turns while ``global_step < total_timesteps``; the record's
-    ``derived.exchanges_per_member``).
+    frames: ``ceil(frames / exchange_every)`` turns, member ``e mod P`` taking the ``e``-th (the authors' loop runs
+    whole turns while ``global_step < total_timesteps``; the record's ``derived.exchanges_per_member``).
 
     Example:
         >>> round_robin_turns(5_000_000, 10_000, 6)  # Half-Cheetah: 500 turns
@@ -267,10 +224,8 @@ def member_optimizers(cfg, loss: PopulationMOSACLoss) -> dict:
         kw["eps"] = cfg.adam_eps
     q_lr = cfg.lr if cfg.q_lr is None else cfg.q_lr
     p = loss.population
-    opts = {
-        "actor": MemberAdam(loss.actor_network_params.values(True, True), cfg.lr, population=p, **kw),
-        "qvalue": MemberAdam(loss.qvalue_network_params.values(True, True), q_lr, population=p, member_dim=1, **kw),
-    }
+    opts = {"actor": MemberAdam(loss.actor_network_params.values(True, True), cfg.lr, population=p, **kw),
+            "qvalue": MemberAdam(loss.qvalue_network_params.values(True, True), q_lr, population=p, member_dim=1, **kw)}
     if isinstance(getattr(loss, "log_alpha", None), nn.Parameter):
         alpha_lr = cfg.lr if cfg.alpha_lr is None else cfg.alpha_lr
         opts["alpha"] = MemberAdam([loss.log_alpha], alpha_lr, population=p, **kw)
@@ -377,11 +332,10 @@ class MORLDAgent(Agent):
     """The MORL/D population and what lives between batches (see the module docstring): the members'
     returns, the archive, the exchanges, the turn and the counters. Its updates are :func:`update`'s.
 
-    Round robin: :attr:`active` is the member whose turn it is, :attr:`members` the ``[P]`` mask
-    of the members the current update steps, :attr:`clock` that update's frame on the shared
-    counter; :attr:`member_updates` / :attr:`member_frames` count, per member, the updates it
-    received (its own and the catch-up ones) and the frames it collected, :attr:`env_resets`
-    the resets at exchanges.
+    Round robin: :attr:`active` is the member whose turn it is, :attr:`members` the ``[P]`` mask of the members the
+    current update steps, :attr:`clock` that update's frame on the shared counter; :attr:`member_updates` /
+    :attr:`member_frames` count, per member, the updates it received (its own and the catch-up ones) and the frames
+    it collected, :attr:`env_resets` the resets at exchanges.
     """
 
     #: round robin: the acting member's own updates compute that member alone (``False``: every
@@ -636,28 +590,15 @@ def update(agent: MORLDAgent, buffer, *, catch_up: bool = False) -> TensorDictBa
     shared ``buffer`` (:func:`sample_members`); returns its losses. ``catch_up``: a round robin's catch-up
     update of the other members at an exchange.
 
-    The authors' MOSAC order (``mosac_continuous_action.py:460-482``, ``mosac_discrete_action.py:480-492``),
-    each loss computed alone (:class:`~morl_trl.objectives.population.PopulationMOSACLoss`'s ``qvalue_loss`` /
-    ``actor_loss`` / ``temperature_loss``), the actor-critics' own step
-    (:func:`~morl_trl.algorithms.actor_critic.recipe.gradient_step`):
-
-    1. the critic step: ``qvalue_loss`` (targets, critics) and the ``qvalue`` optimizer;
-    2. on an actor turn (:func:`count_update`), ``policy_freq`` times: ``actor_loss`` (fresh actions, the
-       updated critics) and the ``actor`` optimizer, then, with a learned temperature, ``temperature_loss`` and
-       the ``alpha`` optimizer, on a fresh sample of the just-updated actor (continuous,
-       ``fresh_temperature_sample``) or on the actor step's log-probabilities (discrete);
-    3. the target critics (:class:`MemberTargetUpdate` in the round robin: the stepped members' only).
-
-    ``joint_update=true``: one step of the summed losses instead of 1-2. With ``cfg.max_grad_norm`` each
-    optimizer's gradient norm is clipped first. A non-finite loss is never applied:
-    :class:`~morl_trl.training.optim.NonFiniteLossError` is raised before its step (the steps before it in
-    the update stay applied). On a critic-only update the actor's and temperature's losses are those of the
-    last actor turn (NaN before the first).
+    The step is the actor-critics' (:func:`~morl_trl.algorithms.actor_critic.recipe.gradient_step`), in the
+    authors' MOSAC order (``mosac_continuous_action.py:460-482``, ``mosac_discrete_action.py:480-492``): the
+    critic step; on an actor turn (:func:`count_update`) ``policy_freq`` actor steps, each followed by the
+    temperature's; then the target critics (round robin: :class:`MemberTargetUpdate`, the stepped members'
+    only). A non-finite loss raises :class:`~morl_trl.training.optim.NonFiniteLossError` before its step.
 
     The acting member's own update (round robin, ``slice_acting_member``, not ``catch_up``) runs inside
     :meth:`PopulationMOSACLoss.only_member <morl_trl.objectives.population.PopulationMOSACLoss.only_member>`
-    (that member alone on a ``[1, batch_size]`` sample); its ``entropy`` is reported at its row of a ``[P]``
-    vector, NaN for the others.
+    (a ``[1, batch_size]`` sample); its ``entropy`` is reported at its row of a ``[P]`` vector, NaN for the others.
     """
     loss = agent.loss
     member = agent.active if agent.round_robin and agent.slice_acting_member and not catch_up else None

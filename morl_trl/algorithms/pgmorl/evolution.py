@@ -4,14 +4,13 @@ performance buffer and the prediction-guided task selection.
 Facts from MORL-Baselines' ``multi_policy/pgmorl/pgmorl.py`` (the authors' code), written again:
 
 * :func:`generate_weights` -- every weight vector on the grid of step ``delta`` summing to 1.
-* :class:`PerformancePredictor` -- for a policy with evaluation ``F``: the stored
-  (weight, before, after) samples whose ``before`` lies within ``threshold * |F|`` of ``F`` (the
-  threshold and the kernel width doubled until at least 4 distinct samples are found), weighted
-  by ``exp(-(|after - F| / |F|)^2 / (2 sigma^2))``; per objective ``j`` a robust (soft-L1,
-  ``f_scale`` 20) least-squares fit of ``delta_j = A tanh(a (w_j - b) / 2) + c`` (written
-  ``A (e^{a(x-b)} - 1) / (e^{a(x-b)} + 1) + c``) with bounds ``A in [0, clip(range, 1, 500)]``,
-  ``a in [0.1, 20]``, ``b in [-5, 5]``, ``c in [-500, 500]``, from ``(1, 1, 1, 1)``.
-  The fit depends on ``F`` only, so it is made once per policy and evaluated at every weight.
+* :class:`PerformancePredictor` -- for a policy with evaluation ``F``: the stored (weight, before, after) samples
+  whose ``before`` lies within ``threshold * |F|`` of ``F`` (the threshold and the kernel width doubled until at
+  least 4 distinct samples are found), weighted by ``exp(-(|after - F| / |F|)^2 / (2 sigma^2))``; per objective
+  ``j`` a robust (soft-L1, ``f_scale`` 20) least-squares fit of ``delta_j = A tanh(a (w_j - b) / 2) + c`` (written
+  ``A (e^{a(x-b)} - 1) / (e^{a(x-b)} + 1) + c``) with bounds ``A in [0, clip(range, 1, 500)]``, ``a in [0.1, 20]``,
+  ``b in [-5, 5]``, ``c in [-500, 500]``, from ``(1, 1, 1, 1)``. The fit depends on ``F`` only, so it is made once
+  per policy and evaluated at every weight.
 * :class:`PerformanceBuffer` -- 2 objectives: ``num_bins`` angular bins of the quarter plane;
   3 objectives: one bin per direction of ``generate_weights(1 / (num_bins - 1), 3)``
   (normalised), the bin of largest dot product. Evaluations are centred on ``origin`` and

@@ -1,63 +1,49 @@
 """PGMORL (Xu et al. 2020): ``morl-trl train pgmorl``, read top to bottom.
 
-:func:`train_pgmorl` is the recipe (env -> modules and loss -> collector -> the loop); with
-TorchRL's ``ClipPPOLoss`` and :func:`~morl_trl.objectives.pgmorl.vector_gae` it is everything PGMORL
-does per iteration. What it keeps between iterations and checkpoints is a :class:`PGMORLAgent` (the
-population, the weights, the performance buffer, the Pareto archive, the prediction model, the
-``VecNorm`` statistics; its data and evolution steps :meth:`PGMORLAgent.prepare_batch`,
-:meth:`PGMORLAgent.evaluate_members`, :meth:`PGMORLAgent.generation_ends`,
-:meth:`PGMORLAgent.select_tasks`, :meth:`PGMORLAgent.reseed_env`). The learning is module functions,
-the one definition the loop runs and anything driving an agent batch by batch calls:
-:func:`on_batch` (one iteration on one collected batch: :func:`advantages`, :func:`minibatches`,
-:func:`update`, the evolution when due); the frame budget is :func:`counted_frames` and
-:func:`frames_to_collect`.
+:func:`train_pgmorl` is the recipe (env -> modules and loss -> collector -> the loop). A :class:`PGMORLAgent` holds
+what lives between iterations and in checkpoints (the population, the weights, the performance buffer, the Pareto
+archive, the prediction model, the ``VecNorm`` statistics). The loop and anything driving an agent batch by batch
+call :func:`on_batch` (:func:`advantages`, :func:`minibatches`, :func:`update`, the evolution when due); the frame
+budget is :func:`counted_frames` and :func:`frames_to_collect`.
 
-A population of ``P`` PPO agents with vector critics, run as ONE batched module
-(:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p``
-owns sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration: every member
-collects ``frames_per_batch / num_envs`` steps (the authors: 4 envs x 2048 steps). As the
-authors, an iteration counts ONE member's frames
-(``E x 2048`` = 8192) against ``frames``, and the run ends after the warm-up and the whole
-generation that reaches the budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 iterations,
-3.28M counted frames; every member collected them, 19.7M env steps in all):
+A population of ``P`` PPO agents with vector critics, ONE batched module
+(:mod:`morl_trl.objectives.pgmorl`) on ``P x pgmorl_envs_per_member`` sub-envs (member ``p`` owns
+sub-envs ``p*E .. p*E+E-1``). One collector batch is one iteration of ``frames_per_batch / num_envs``
+steps per member (the authors: 4 envs x 2048 steps); an iteration counts ONE member's frames (``E x 2048``
+= 8192) against ``frames``, and the run ends after the warm-up and the whole generation that reaches the
+budget (:func:`pgmorl_iterations`: Hopper 3M -> 400 iterations, 3.28M counted frames, 19.7M env steps):
 
-1. per-objective GAE on the normalised rewards (TorchRL's ``generalized_advantage_estimate``,
-   :func:`~morl_trl.objectives.pgmorl.vector_gae`), the advantage scalarised with the member's
-   weight and standardised per member and minibatch;
-2. ``pgmorl_epochs`` epochs of ``pgmorl_minibatches`` minibatches per member with TorchRL's
-   ``ClipPPOLoss`` (ratio and value clip ``pgmorl_clip``, no entropy bonus, value loss
-   ``0.5 * 0.5 * max(unclipped, clipped)``), the loss scaled by ``P`` so each member's gradient
-   is its own, each member's gradient norm clipped to ``max_grad_norm`` (0.5), Adam (eps 1e-5);
+1. per-objective GAE on the normalised rewards (:func:`~morl_trl.objectives.pgmorl.vector_gae`), the
+   advantage scalarised with the member's weight and standardised per member and minibatch;
+2. ``pgmorl_epochs`` x ``pgmorl_minibatches`` minibatches per member with TorchRL's ``ClipPPOLoss``
+   (ratio and value clip ``pgmorl_clip``, no entropy bonus, value loss ``0.5 * 0.5 * max(unclipped,
+   clipped)``), the loss scaled by ``P`` so each member's gradient is its own, each member's gradient
+   norm clipped to ``max_grad_norm`` (0.5), Adam (eps 1e-5);
 3. after ``pgmorl_warmup`` iterations and then every ``pgmorl_evo_iterations``: every member's
-   evaluation enters the performance buffer, the Pareto archive and the prediction model, and
-   the prediction-guided task selection (:mod:`morl_trl.algorithms.pgmorl.evolution`) gives each
-   slot a (policy of the buffer, weight) pair: the slot takes a copy of that policy (its Adam
-   moments reset: our choice, the record does not say what the authors' copy keeps) and trains
-   it with that weight.
+   evaluation enters the performance buffer, the Pareto archive and the prediction model, and the task
+   selection (:mod:`morl_trl.algorithms.pgmorl.evolution`) gives each slot a (policy, weight) pair: the
+   slot copies that policy (Adam moments reset: our choice, the record does not say what the authors'
+   copy keeps) and trains it with that weight.
 
-The initial weights are the first ``P`` of the authors' grid ``generate_weights(delta_weight)``.
-Training observations are normalised by TorchRL's ``VecNorm`` (running mean and variance over
-all sub-envs) and clipped at +-10; each objective's reward is normalised by ``VecNorm`` into
-``"reward_norm"`` and clipped at +-10 (on the collected batch, statistics updated with it first) (the authors' ``NormalizeObservation`` /
-``MONormalizeReward`` / clip wrappers of ``mo_ppo.make_env``).
+The initial weights are the first ``P`` of the authors' ``generate_weights(delta_weight)``. Observations
+and each objective's reward are normalised by TorchRL's ``VecNorm`` and clipped at +-10 (rewards into
+``"reward_norm"``, statistics updated with the batch first): the authors' ``NormalizeObservation`` /
+``MONormalizeReward`` / clip wrappers of ``mo_ppo.make_env``.
 
-Evaluation acts, for each weight, with the snapshot of nearest weight in the Pareto archive of
-every member evaluation so far (the authors' ``PGMORL.eval`` over their ``ParetoArchive``;
-the population member of nearest weight before the first evaluation), sampling its actions. ``pgmorl_eval_obs="raw"`` (default) feeds it raw
-observations as the authors' evaluation did (SPEC §5, 12), ``"normalized"`` applies the
-training normalisation (frozen) first.
+Evaluation acts, for each weight, with the Pareto archive's snapshot of nearest weight (the authors'
+``PGMORL.eval``; the population member of nearest weight before the first evaluation), sampling its
+actions. ``pgmorl_eval_obs="raw"`` (default) feeds it raw
+observations as the authors' evaluation did (SPEC §5, 12), ``"normalized"`` the frozen training normalisation.
 
-Known differences from the authors (named, documented): a member's evaluation is the mean
-discounted (raw-reward) return of its episodes that ended in the iteration's rollout (its
-policy before that iteration's update) instead of a separate evaluation episode; TorchRL's
-``VecNorm`` standardises the rewards (mean and std of the reward) where gym's
-``NormalizeReward`` scales them by the std of the discounted return; every iteration starts from a
-reset of all sub-envs as the authors' (``pgmorl_reset_each_iteration``; false: episodes continue
-across iterations), the simulators re-seeded at that reset with the member's seed as the authors'
-``envs.reset(seed=member.seed)`` (``pgmorl_reseed_each_iteration``: member ``p``'s sub-env ``i`` with
-``seed + i``, 42 + i once the task selection made the member a copy; false: one stream per
-sub-env for the whole run); truncation bootstraps; the sparsity
-of the task selection is computed on the non-dominated subset (:func:`morl_trl.metrics.sparsity`).
+Known differences from the authors: a member's evaluation is the mean discounted raw-reward return of its
+episodes that ended in the iteration's rollout, not a separate evaluation episode; ``VecNorm`` standardises
+the rewards where gym's ``NormalizeReward`` scales them by the std of the discounted return; truncation
+bootstraps; the task selection's sparsity is computed on the non-dominated subset
+(:func:`morl_trl.metrics.sparsity`). Every iteration starts from a
+reset of all sub-envs as the authors' (``pgmorl_reset_each_iteration``), the simulators re-seeded
+at that reset with the member's seed as the authors' ``envs.reset(seed=member.seed)``
+(``pgmorl_reseed_each_iteration``: member ``p``'s sub-env ``i`` with ``seed + i``, 42 + i once the member
+is a copy).
 
 Example:
     >>> from morl_trl.recipes import resolve_config
@@ -82,32 +68,15 @@ from torchrl.objectives import ClipPPOLoss
 from morl_trl._torchrl_compat import VecNormNonNegativeVar, transform_step
 from morl_trl.envs import domain_of, make_env
 from morl_trl.metrics import is_nondominated
-from morl_trl.objectives.pgmorl import (
-    make_population_ppo_actor,
-    make_population_value_network,
-    scalarize_advantage,
-    vector_gae,
-)
+from morl_trl.objectives.pgmorl import (make_population_ppo_actor, make_population_value_network, scalarize_advantage,
+                                        vector_gae)
 from morl_trl.training.agent import Agent, action_spec, eval_exploration, is_discrete, num_objectives, obs_shape
 from morl_trl.training.allocator import tune_malloc
 from morl_trl.training.optim import NonFiniteLossError, adam, fused_choice, optimizer_step
-from morl_trl.algorithms.pgmorl.evolution import (
-    PerformanceBuffer,
-    PerformancePredictor,
-    generate_weights,
-    nondominated,
-    select_tasks,
-)
-from morl_trl.training.parts import (
-    load_agent_state,
-    checkpoint_snapshot,
-    load_reference,
-    make_collector,
-    make_evaluator,
-    run_discount,
-    run_domain,
-    start_notes,
-)
+from morl_trl.algorithms.pgmorl.evolution import (PerformanceBuffer, PerformancePredictor, generate_weights,
+                                                  nondominated, select_tasks)
+from morl_trl.training.parts import (load_agent_state, checkpoint_snapshot, load_reference, make_collector,
+                                     make_evaluator, run_discount, run_domain, start_notes)
 from morl_trl.runs.run import Run
 from morl_trl.transforms import DiscountedVectorReturn, compose_policy_env
 
