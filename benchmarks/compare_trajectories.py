@@ -34,6 +34,7 @@ _COMMON = dict(num_envs=2, frames_per_batch=32, hidden=(16, 16), progress=False,
                eval_weights=3, eval_random_baseline=False)
 _OFF = dict(init_random_frames=32, updates_per_batch=2, batch_size=16, buffer_size=512)
 _LAVA = dict(eval_contexts=("MOLavaGridRoom-v0", "MOLavaGridSnake-v0"))
+_ONE = dict(_OFF, num_envs=1, frames_per_batch=1, eval_contexts=None, eval_episodes=1)
 _HOP = dict(eval_contexts=("MOHopperDefault-v5",), eval_episodes=1)
 
 #: case -> (algorithm, env id, overrides)
@@ -61,6 +62,11 @@ CASES = {
                                                pgmorl_pop=2, pgmorl_envs_per_member=1, pgmorl_warmup=1,
                                                pgmorl_evo_iterations=1, pgmorl_minibatches=2, pgmorl_epochs=1,
                                                hidden=(8,), num_envs=2)),
+    # one env, one frame a batch, a MO-Gymnasium id (the one-env path of issue 47: the lean env step)
+    "envelope_one_env": ("envelope", "deep-sea-treasure-v0", dict(**_ONE, frames=400, eval_interval=400)),
+    "gpi_ls_one_env": ("gpi_ls", "deep-sea-treasure-v0", dict(**_ONE, frames=400, eval_interval=400,
+                                                           gpi_iteration_frames=200)),
+    "capql_one_env": ("capql", "mo-mountaincarcontinuous-v0", dict(**_ONE, frames=300, eval_interval=300)),
     # round robin: 3 members, turns of 64 frames (2 catch-up passes at each exchange)
     "morld": ("morld", "MOHopperDR-v5", dict(**{**_OFF, "updates_per_batch": 0}, **_HOP, num_envs=1, pop_size=3,
                                              exchange_every=64, frames=224, eval_interval=96)),

@@ -33,7 +33,7 @@ __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNor
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
            "module_kwargs", "SUBCLASS_INTERNALS", "collate_id", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
            "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params", "hook_first_steps",
-           "drop_step_hook"]
+           "drop_step_hook", "env_step", "step_mdp_of"]
 
 #: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
 cache_values = _cache_values
@@ -119,6 +119,16 @@ def transform_reset(transform, tensordict: TensorDictBase, tensordict_reset: Ten
 def transform_step(transform, tensordict: TensorDictBase, next_tensordict: TensorDictBase) -> TensorDictBase:
     """``transform._step(tensordict, next_tensordict)``: a transform's step on data outside its env."""
     return transform._step(tensordict, next_tensordict)
+
+
+def env_step(env: EnvBase, tensordict: TensorDictBase) -> TensorDictBase:
+    """``env._step(tensordict)``: an env's own step (the ``"next"`` TensorDict), without ``step``'s checks."""
+    return env._step(tensordict)
+
+
+def step_mdp_of(env: EnvBase):
+    """``env._step_mdp``: TorchRL's ``_StepMDP`` of ``env`` (its ``exclude_from_root`` / ``keys_from_next``)."""
+    return env._step_mdp
 
 
 def replay_sample_unit(buffer):

@@ -9,9 +9,11 @@ indices), the same ``storage.get``, the same ``"priority_weight"`` / ``"index"``
 same ``sampler.update_priority`` -- without TorchRL's wrappers around them (the delayed-init
 and pin-memory decorators, the ``return_info`` round trip through ``tree_map``, the entry-by-entry
 metadata copy, the priority vector's reshape and reduction over one column): about a fifth of a
-one-transition-per-frame run's sampling (``benchmarks/torchrl_overheads.py``). Any other case is
-TorchRL's own method, as is ``extend`` (its empty transform's clone of a one-transition batch costs
-what a shallow copy would).
+one-transition-per-frame run's sampling (``benchmarks/torchrl_overheads.py``). Its :meth:`extend`
+of a batch without priorities likewise calls the writer's ``extend`` and the sampler's ``extend``
+(the same indices, the same storage write and the same ``"index"`` entry in the batch) without the
+wrappers, the consuming-sampler and priority checks around them. Any other case is TorchRL's own
+method.
 
 Example:
     >>> from tensordict import TensorDict
@@ -31,13 +33,18 @@ from __future__ import annotations
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.data import TensorDictReplayBuffer
+from torchrl.data import ConsumingSampler, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import PrioritizedSampler
+from torchrl.data.replay_buffers.writers import RoundRobinWriter, TensorDictRoundRobinWriter
 from torchrl.data.replay_buffers.storages import TensorStorage
 
 from morl_trl._torchrl_compat import collate_id
 
 __all__ = ["LeanTensorDictReplayBuffer"]
+
+# the writers whose extend sets the batch's "index" as TensorDictReplayBuffer.extend does afterwards
+# (and any sampler but a consuming one: TorchRL's _extend then is the writer's and the sampler's extend)
+_ROUND_ROBIN = (RoundRobinWriter, TensorDictRoundRobinWriter)
 
 
 class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
@@ -55,6 +62,18 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 and not self._writer.tracks_generations and isinstance(storage, TensorStorage)
                 and storage.initialized and storage.ndim == 1 and self.dim_extend == 0
                 and self._collate_fn is collate_id)
+
+    def extend(self, tensordicts: TensorDictBase, *, update_priority: bool | None = None) -> torch.Tensor:
+        if (not isinstance(tensordicts, TensorDictBase) or self.priority_key in tensordicts.keys()
+                or type(self._writer) not in _ROUND_ROBIN or isinstance(self._sampler, ConsumingSampler)
+                or not self._lean()):
+            return super().extend(tensordicts, update_priority=update_priority)
+        if self._transform is not None:  # (TorchRL's empty transform's inv: a shallow copy gets the "index")
+            tensordicts = tensordicts.copy()
+        with self._replay_lock, self._write_lock:  # (TorchRL's _extend: no consuming sampler, a round-robin writer)
+            index = self._writer.extend(tensordicts)  # (it sets the batch's "index", as _set_index_in_td would)
+            self._sampler.extend(index)
+        return index
 
     def sample(self, batch_size: int | None = None, return_info: bool = False,
                include_info: bool | None = None) -> TensorDictBase:

@@ -50,6 +50,7 @@ from torchrl.envs import EnvBase
 from morl_trl._torchrl_compat import new_tensordict_unsafe
 from morl_trl.envs.context import ContextSpace
 from morl_trl.envs.sampler import ContextSampler, check_seed
+from morl_trl.envs.step_mdp import merge_reset, spec_cached, step_mdp_entries
 
 __all__ = ["ContextualMOEnv", "NonFiniteStepError", "check_num_envs"]
 
@@ -383,18 +384,7 @@ class ContextualMOEnv(EnvBase):
                     if key in entries and key not in reset:
                         entries[key] = torch.zeros_like(entries[key])
                 return tensordict, new_tensordict_unsafe(entries, batch_size=self.batch_size, device=self.device)
-            conds = {}
-            for key, old in entries.items():
-                new = reset.get(key, None)
-                if new is old:  # e.g. contexts that the reset kept
-                    continue
-                cond = conds.get(old.ndim)
-                if cond is None:
-                    cond = conds[old.ndim] = mask.view(-1, *(1,) * (old.ndim - 1))
-                entries[key] = old.masked_fill(cond, 0) if new is None else torch.where(cond, new, old)
-            for key, new in reset.items():
-                if key not in entries:
-                    entries[key] = new.masked_fill(~mask.view(-1, *(1,) * (new.ndim - 1)), 0)
+            merge_reset(entries, reset, mask)
         return tensordict, new_tensordict_unsafe(entries, batch_size=self.batch_size, device=self.device)
 
     def _auto_reset(self, mask: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -433,43 +423,14 @@ class ContextualMOEnv(EnvBase):
     def _reset_request(self, done: torch.Tensor) -> TensorDictBase:
         return new_tensordict_unsafe({"_reset": done}, batch_size=self.batch_size, device=self.device)
 
-    def _make_step_mdp_plan(self):
-        step_mdp = self._step_mdp  # TorchRL's own key lists (observations, states, done flags)
-        flat = all(v is None for v in step_mdp.exclude_from_root.values()) and all(
-            v is None for v in step_mdp.keys_from_next.values()
-        )
-        return (frozenset(step_mdp.exclude_from_root), frozenset(step_mdp.keys_from_next)) if flat else False
-
     def _cached(self, name: str, compute):
-        """``compute()``, remembered in TorchRL's spec cache while the specs are locked (TorchRL
-        clears that cache whenever a spec changes)."""
-        if not self.is_spec_locked:
-            return compute()
-        cache = self.__dict__.setdefault("_cache", {})
-        value = cache.get(name)
-        if value is None:
-            value = cache[name] = compute()
-        return value
+        """``compute()``, remembered in TorchRL's spec cache while the specs are locked."""
+        return spec_cached(self, name, compute)
 
     def _step_mdp_entries(self, tensordict: TensorDictBase, next_td: TensorDictBase) -> dict | None:
         """The entries ``step_mdp(tensordict)`` would hold, as a dict; ``None`` if any is
         not a plain tensor (then TorchRL's ``step_mdp`` handles it)."""
-        plan = self._cached("step_mdp_plan", self._make_step_mdp_plan)
-        if not plan:
-            return None
-        exclude, from_next = plan
-        entries = {}
-        for key, value in tensordict.items():
-            if key not in exclude:
-                if type(value) is not torch.Tensor:
-                    return None
-                entries[key] = value
-        for key, value in next_td.items():
-            if key in from_next:
-                if type(value) is not torch.Tensor:
-                    return None
-                entries[key] = value
-        return entries
+        return step_mdp_entries(self, tensordict, next_td)
 
     def _make_output(self, obs, reward, original, terminated, truncated) -> TensorDictBase:
         out = dict(obs)

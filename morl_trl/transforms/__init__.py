@@ -46,6 +46,7 @@ from morl_trl.transforms.compose import compose_policy_env, compose_training_env
 from morl_trl.transforms.context_observation import ContextObservation
 from morl_trl.transforms.domain_randomization import DomainRandomization
 from morl_trl.transforms.history import StateActionHistory
+from morl_trl.transforms.lean_env import LeanTransformedEnv
 from morl_trl.transforms.preference import PreferenceConditioning
 from morl_trl.transforms.returns import DiscountedVectorReturn
 from morl_trl.transforms.scalarization import LinearScalarization
@@ -54,6 +55,7 @@ __all__ = [
     "ContextObservation",
     "DiscountedVectorReturn",
     "DomainRandomization",
+    "LeanTransformedEnv",
     "LinearScalarization",
     "PreferenceConditioning",
     "StateActionHistory",

@@ -7,6 +7,10 @@ A run builds two stacks from one description, so training and evaluation cannot 
   envs with this stack and adds the preferences and returns itself.
 * the **training stack** (:func:`compose_training_env`): the policy stack plus a preference
   per sub-env and episode and the episode's vector returns.
+
+An env that is not a ``TransformedEnv`` yet is wrapped in a
+:class:`~morl_trl.transforms.lean_env.LeanTransformedEnv` (TorchRL's, with a short
+``step_and_maybe_reset`` over our envs and transforms); a ``TransformedEnv`` given is extended as it is.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 from torchrl.envs import EnvBase, TransformedEnv
 
 from morl_trl.transforms.history import StateActionHistory
+from morl_trl.transforms.lean_env import LeanTransformedEnv
 from morl_trl.transforms.preference import PreferenceConditioning
 from morl_trl.transforms.returns import DiscountedVectorReturn
 
@@ -21,7 +26,7 @@ __all__ = ["compose_policy_env", "compose_training_env"]
 
 
 def _as_transformed(env: EnvBase) -> TransformedEnv:
-    return env if isinstance(env, TransformedEnv) else TransformedEnv(env)
+    return env if isinstance(env, TransformedEnv) else LeanTransformedEnv(env)
 
 
 def compose_policy_env(env: EnvBase, *, history_len: int = 0) -> TransformedEnv:

@@ -20,7 +20,17 @@ def _transition(g: torch.Generator, n: int = 1) -> TensorDict:
 
 
 @pytest.mark.parametrize("sampler", [RunningMaxPrioritizedSampler, TorchPrioritizedSampler, None])
-def test_lean_buffer_is_torchrls(sampler):
+def test_lean_buffer_is_torchrls(sampler, monkeypatch):
+    generic_extends = []
+    original = TensorDictReplayBuffer.extend
+
+    def counted(self, *args, **kwargs):
+        if type(self) is LeanTensorDictReplayBuffer:
+            generic_extends.append(len(self))
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(TensorDictReplayBuffer, "extend", counted)
+
     def build(cls):
         kw = {} if sampler is None else dict(sampler=sampler(500, alpha=0.6, beta=0.4), priority_key="td_error")
         return cls(storage=LazyTensorStorage(500), batch_size=16, **kw)
@@ -47,6 +57,7 @@ def test_lean_buffer_is_torchrls(sampler):
             ours.update_tensordict_priority(a)
             theirs.update_tensordict_priority(b)
     assert ours._lean()  # (the short paths were the ones compared)
+    assert generic_extends == [0]  # (TorchRL's extend only for the first batch, which initialises the storage)
     n = len(theirs)
     assert len(ours) == n and ours._writer._cursor == theirs._writer._cursor
     assert (ours.storage._storage[:n] == theirs.storage._storage[:n]).all()
