@@ -30,7 +30,8 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
-from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, result_path,  # noqa: E402
+                    write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -87,12 +88,16 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     eval_seconds = [0.0]
     evaluate = MultiContextEvaluator.evaluate
 
+    qlog = QEstimateLog() if case["algo"] == "envelope" else None
+
     def timed(self, *args, **kwargs):  # training time = wall time minus the evaluations
         t = time.perf_counter()
         try:
             return evaluate(self, *args, **kwargs)
         finally:
             eval_seconds[0] += time.perf_counter() - t
+            if qlog is not None:
+                qlog.mark(-1)  # (the frames are the curve's, filled in below)
 
     from morl_trl.runs.run import Run
 
@@ -104,7 +109,19 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         started[0] = time.perf_counter()
         return out
 
+    from morl_trl.objectives.envelope import EnvelopeQLoss
+
+    q_values = EnvelopeQLoss._q_values
+
+    def logged_q_values(self, data, w, params):  # the online forward the loss's gradient goes through
+        q = q_values(self, data, w, params)
+        if params is self.value_network_params and torch.is_grad_enabled():
+            qlog.record(w, q)
+        return q
+
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
+    if qlog is not None:
+        EnvelopeQLoss._q_values = logged_q_values
     try:
         with tempfile.TemporaryDirectory() as tmp:
             frames, eval_every, scale = ours_budget(case)
@@ -119,13 +136,19 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
             for point in curve:
                 point["frames"] *= scale
     finally:
-        MultiContextEvaluator.evaluate, Run.start = evaluate, start
+        MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     frames = int(curve[-1]["frames"])
+    extra = {}
+    if qlog is not None:
+        if len(qlog.points) == len(curve):
+            for point, row in zip(qlog.points, curve):
+                point["frames"] = int(row["frames"])
+        extra["q_check"] = qlog.result(case["env"], case["gamma"])
     write_result(out, dict(case=case_name, lib="ours", seed=seed, version=f"morl_trl {morl_trl.__version__}",
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_seconds[0],
                            train_fps=frames / train_s,
-                           eval_episodes=EVAL_EPISODES))
+                           eval_episodes=EVAL_EPISODES, **extra))
 
 
 # ---------------------------------------------------------------------- the report
