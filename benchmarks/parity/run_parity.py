@@ -271,6 +271,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
+        body += q_check_lines(runs)
         png = out.parent / f"{case}.png"
         _plot(case, runs, png)
         body += [f"![{case}]({png.name})", ""]
@@ -305,6 +306,32 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def q_check_lines(runs: dict[str, list[dict]]) -> list[str]:
+    """The Q-estimate check of a case's Envelope runs (``q_check``, issue 48): per library and seed the largest
+    greedy ``w . Q`` estimate of its updates' batches and the largest batch mean, beside the env's bound."""
+    checked = {lib: sorted((r for r in rs if r.get("q_check")), key=lambda r: r["seed"]) for lib, rs in runs.items()}
+    checked = {lib: rs for lib, rs in checked.items() if rs}
+    if not checked:
+        return []
+    first = next(iter(checked.values()))[0]["q_check"]
+    if first.get("bound_any_state") is None:
+        return []
+    lines = [f"Q estimates (issue 48): the largest greedy w.Q of any update's batch / the largest batch mean, against "
+             f"the largest discounted return the env allows, {first['bound_any_state']:.2f} from any state "
+             f"({first['bound_start']:.2f} from the start state; `common.q_bounds`):", "",
+             "| library | seed | max w.Q | max batch-mean w.Q | above the bound | final HV ratio |", "|---|---|---|---|---|---|"]
+    for lib, rs in sorted(checked.items()):
+        for r in rs:
+            q = r["q_check"]
+            lines.append(f"| {lib} | {r['seed']} | {q['max_scalarized_q']:.1f} | {q['max_mean_scalarized_q']:.1f} | "
+                         f"{'max' if q['exceeds_bound'] else 'no'}{', mean' if q.get('mean_exceeds_bound') else ''} | "
+                         f"{r['curve'][-1].get('hv_ratio', float('nan')):.3f} |")
+        above = sum(bool(r["q_check"]["exceeds_bound"]) for r in rs)
+        lines_mean = sum(bool(r["q_check"].get("mean_exceeds_bound")) for r in rs)
+        lines.append(f"| {lib} | seeds above | {above} of {len(rs)} | {lines_mean} of {len(rs)} | | |")
+    return lines + [""]
 
 
 def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
