@@ -427,7 +427,7 @@ def test_envelope_per_applies_no_importance_weights_when_told_as_the_authors():
     assert not torch.allclose(plain, weighted)
 
 
-class _TableQ(nn.Module):
+class _LinearInWQ(nn.Module):
     """``Q(s, a, w) = P[s, a] + w_0 R[s, a]`` for an integer state ``s`` (the observation's first entry)."""
 
     def __init__(self, p, r):
@@ -452,7 +452,7 @@ def test_envelope_target_by_hand(end):
     Q(s, a, w) = 0 at s = 0, so the vector loss is mean(y^2) and the scalarised one mean((w_i . y_i)^2)."""
     p = [[[0.0, 0.0], [0.0, 0.0]], [[1.0, 0.0], [0.0, 1.0]]]
     r = [[[0.0, 0.0], [0.0, 0.0]], [[2.0, 0.0], [0.0, 1.0]]]
-    loss = EnvelopeQLoss(_TableQ(p, r), num_objectives=2, num_preference_samples=2)
+    loss = EnvelopeQLoss(_LinearInWQ(p, r), num_objectives=2, num_preference_samples=2)
     loss.make_value_estimator(gamma=0.5)
     with torch.no_grad():
         for v in loss.target_value_network_params.values(True, True):
