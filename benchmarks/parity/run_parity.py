@@ -396,11 +396,11 @@ def main(argv: list[str] | None = None) -> int:
         libs = args.libs.split(",")
         rounds = [seeds[i:i + args.round_seeds] for i in range(0, len(seeds), args.round_seeds)]
         nice = ["nice", "-n", str(args.nice)] if args.nice else []
-        for round_seeds in rounds:
+        for seeds_now in rounds:
             for case in cases:
                 procs = []
                 for lib in libs:
-                    todo = [s for s in round_seeds if not result_path(args.out, case, lib, s).exists()]
+                    todo = [s for s in seeds_now if not result_path(args.out, case, lib, s).exists()]
                     if not todo:
                         continue
                     arg = ",".join(map(str, todo))
