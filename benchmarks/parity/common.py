@@ -38,6 +38,14 @@ CASES: dict[str, dict] = {
         env="deep-sea-treasure-v0", algo="gpi_ls", frames=30_000, eval_every=5_000, gamma=0.99,
         ours=dict(_SMALL_GPI[0]), mb=dict(_SMALL_GPI[1]), mb_train=dict(),
     ),
+    # Envelope on Deep Sea Treasure at MB's defaults ([256]*4, batch 256, 4 sampled weights, target copied
+    # every 200 steps, homotopy 0, PER, eps 0.01) for 20,000 frames: issue 48's divergence check. Ours diverged
+    # here on seed 11 (w.Q far above the largest discounted return, HV ratio 0.047); every run records its
+    # largest Q estimate beside the env's bound (q_check, below)
+    "envelope-dst-mb": dict(
+        env="deep-sea-treasure-v0", algo="envelope", frames=20_000, eval_every=2_500, gamma=0.99,
+        ours=dict(), mb=dict(), mb_train=dict(),
+    ),
     # Envelope on Deep Sea Treasure, networks and batch cut as for GPI-LS (MB: [256]*4, batch 256)
     "envelope-dst": dict(
         env="deep-sea-treasure-v0", algo="envelope", frames=2_000, eval_every=1_000, gamma=0.99,
@@ -150,6 +158,90 @@ def evaluate_policy(policy, env_id: str, gamma: float, seed: int) -> dict[str, f
     metrics = ev.evaluate().per_context[env_id].metrics
     ev.close()
     return {k: (None if v is None else float(v)) for k, v in metrics.items()}
+
+
+# ---------------------------------------------------------------------- the Q estimates' bound (issue 48)
+def dst_value_bounds(gamma: float) -> dict[str, float]:
+    """Deep Sea Treasure's largest discounted return per objective, by value iteration over its grid with its
+    own ``step`` (each objective maximised on its own, every state, every policy): for ``w`` on the simplex,
+    ``w . Q(s, a, w) <= max_i max_{s, pi} G_i``, attained at a vertex of the simplex. ``any_state``: that bound
+    over every state (a true Q value can be no higher anywhere: 23.7, the deepest treasure one step away);
+    ``start``: from the start state (19.78 at gamma 0.99: the deepest treasure's 23.7 discounted over its 19 steps,
+    the largest entry of ``pareto_front(gamma)``)."""
+    import mo_gymnasium as mo_gym
+
+    env = mo_gym.make("deep-sea-treasure-v0").unwrapped
+    env.reset(seed=0)
+    start = tuple(int(x) for x in env.current_state)
+    rows, cols = env.sea_map.shape
+    states = [(r, c) for r in range(rows) for c in range(cols) if env._is_valid_state(np.array([r, c]))
+              and env._get_map_value(np.array([r, c])) in (0, 0.0)]  # (a treasure cell ends the episode)
+    model = {}
+    for s in states:
+        for a in range(env.action_space.n):
+            env.current_state = np.array(s)
+            _, r, term, _, _ = env.step(a)
+            model[s, a] = (np.asarray(r, dtype=np.float64), bool(term), tuple(int(x) for x in env.current_state))
+    k = len(next(iter(model.values()))[0])
+    v = {s: np.zeros(k) for s in states}
+    for _ in range(1_000):
+        new = {s: np.max([r + (0.0 if t else gamma) * v.get(n, np.zeros(k)) for (r, t, n) in
+                          (model[s, a] for a in range(env.action_space.n))], axis=0) for s in states}
+        done = max(float(np.abs(new[s] - v[s]).max()) for s in states) < 1e-10
+        v = new
+        if done:
+            break
+    return dict(any_state=float(max(v[s].max() for s in states)), start=float(v[start].max()))
+
+
+#: the bound per env id (``None``: not known for that env, nothing checked)
+Q_BOUNDS = {"deep-sea-treasure-v0": dst_value_bounds}
+
+
+def q_bounds(env_id: str, gamma: float) -> dict[str, float] | None:
+    fn = Q_BOUNDS.get(env_id)
+    return None if fn is None else fn(gamma)
+
+
+class QEstimateLog:
+    """The largest scalarized Q estimates an Envelope run's updates produced, from the online network's forward
+    that the loss's gradient goes through (every state of the batch under every sampled ``w``): per update the
+    greedy values ``max_a w . Q(s, a, w)``, their maximum (``max_scalarized_q``: the largest single estimate) and
+    their mean over the batch (``max_mean_scalarized_q``: the largest batch mean, what the issue saw rise to
+    100-200), running maxima, with their values at each evaluation point (``mark(frames)``)."""
+
+    def __init__(self) -> None:
+        self.max = self.max_mean = float("-inf")
+        self.updates = 0
+        self.points: list[dict] = []
+
+    def record(self, w, q) -> None:
+        """``w`` ``[..., k]``, ``q`` ``[..., |A|, k]`` with the same leading dims."""
+        import torch
+
+        with torch.no_grad():
+            greedy = torch.einsum("...k,...ak->...a", w.detach().float(), q.detach().float()).max(-1).values
+            top, mean = float(greedy.max()), float(greedy.mean())
+        self.updates += 1
+        self.max, self.max_mean = max(self.max, top), max(self.max_mean, mean)
+
+    def _values(self) -> dict:
+        seen = self.updates > 0
+        return dict(max_scalarized_q=self.max if seen else None, max_mean_scalarized_q=self.max_mean if seen else None)
+
+    def mark(self, frames: int) -> None:
+        self.points.append(dict(frames=int(frames), updates=self.updates, **self._values()))
+
+    def result(self, env_id: str, gamma: float) -> dict:
+        bounds = q_bounds(env_id, gamma)
+        out = dict(**self._values(), updates=self.updates, points=self.points,
+                   bound_any_state=None if bounds is None else bounds["any_state"],
+                   bound_start=None if bounds is None else bounds["start"])
+        seen = bounds is not None and self.updates > 0
+        # (a true Q value is at most bound_any_state anywhere, so either estimate above it is an overestimate)
+        out["exceeds_bound"] = bool(self.max > bounds["any_state"] + 1e-4) if seen else None
+        out["mean_exceeds_bound"] = bool(self.max_mean > bounds["any_state"] + 1e-4) if seen else None
+        return out
 
 
 def result_path(out: Path, case: str, lib: str, seed: int) -> Path:

@@ -24,7 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 
-from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, evaluate_policy, write_result  # noqa: E402
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, QEstimateLog, evaluate_policy,  # noqa: E402
+                    write_result)
 
 
 def _row_act(act_one, space=None):
@@ -158,7 +159,11 @@ def run(case_name: str, seed: int, out: Path) -> None:
     eval_s = [0.0]
     agent = None
 
+    qlog = QEstimateLog() if case["algo"] == "envelope" else None
+
     def evaluate(frames: int) -> None:
+        if qlog is not None:
+            qlog.mark(frames)
         t = time.perf_counter()
         m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
@@ -210,6 +215,16 @@ def run(case_name: str, seed: int, out: Path) -> None:
         evaluate_after_archive_updates(agent, evaluate, case["eval_every"])
     else:
         agent = cls(env=env, **kw)
+    if qlog is not None:  # MB's update: q_net(b_obs, w) is its one forward with gradients (targets: no_grad)
+        forward = agent.q_net.forward
+
+        def logged_forward(obs, w):
+            q = forward(obs, w)
+            if torch.is_grad_enabled():
+                qlog.record(w, q)
+            return q
+
+        agent.q_net.forward = logged_forward
     if algo in ("envelope", "capql", "gpi_ls", "gpi_pd", "morld"):  # untrained policies act: frame 0 as ours
         evaluate(0)
     t, e0 = time.perf_counter(), eval_s[0]
@@ -223,7 +238,8 @@ def run(case_name: str, seed: int, out: Path) -> None:
     eval_s_total = eval_s[0]
     write_result(out, dict(case=case_name, lib="mb", seed=seed, version=f"morl-baselines {MB_VERSION}",
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_s_total,
-                           train_fps=frames / train_s if train_s > 0 else None, eval_episodes=EVAL_EPISODES))
+                           train_fps=frames / train_s if train_s > 0 else None, eval_episodes=EVAL_EPISODES,
+                           **({} if qlog is None else {"q_check": qlog.result(case["env"], case["gamma"])})))
 
 
 if __name__ == "__main__":  # several seeds in one process: the imports are paid once

@@ -30,7 +30,8 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
-from common import CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, result_path, write_result  # noqa: E402
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, result_path,  # noqa: E402
+                    write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -87,12 +88,16 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     eval_seconds = [0.0]
     evaluate = MultiContextEvaluator.evaluate
 
+    qlog = QEstimateLog() if case["algo"] == "envelope" else None
+
     def timed(self, *args, **kwargs):  # training time = wall time minus the evaluations
         t = time.perf_counter()
         try:
             return evaluate(self, *args, **kwargs)
         finally:
             eval_seconds[0] += time.perf_counter() - t
+            if qlog is not None:
+                qlog.mark(-1)  # (the frames are the curve's, filled in below)
 
     from morl_trl.runs.run import Run
 
@@ -104,7 +109,19 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         started[0] = time.perf_counter()
         return out
 
+    from morl_trl.objectives.envelope import EnvelopeQLoss
+
+    q_values = EnvelopeQLoss._q_values
+
+    def logged_q_values(self, data, w, params):  # the online forward the loss's gradient goes through
+        q = q_values(self, data, w, params)
+        if params is self.value_network_params and torch.is_grad_enabled():
+            qlog.record(w, q)
+        return q
+
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
+    if qlog is not None:
+        EnvelopeQLoss._q_values = logged_q_values
     try:
         with tempfile.TemporaryDirectory() as tmp:
             frames, eval_every, scale = ours_budget(case)
@@ -119,13 +136,19 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
             for point in curve:
                 point["frames"] *= scale
     finally:
-        MultiContextEvaluator.evaluate, Run.start = evaluate, start
+        MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     frames = int(curve[-1]["frames"])
+    extra = {}
+    if qlog is not None:
+        if len(qlog.points) == len(curve):
+            for point, row in zip(qlog.points, curve):
+                point["frames"] = int(row["frames"])
+        extra["q_check"] = qlog.result(case["env"], case["gamma"])
     write_result(out, dict(case=case_name, lib="ours", seed=seed, version=f"morl_trl {morl_trl.__version__}",
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_seconds[0],
                            train_fps=frames / train_s,
-                           eval_episodes=EVAL_EPISODES))
+                           eval_episodes=EVAL_EPISODES, **extra))
 
 
 # ---------------------------------------------------------------------- the report
@@ -248,6 +271,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
+        body += q_check_lines(runs)
         png = out.parent / f"{case}.png"
         _plot(case, runs, png)
         body += [f"![{case}]({png.name})", ""]
@@ -282,6 +306,32 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def q_check_lines(runs: dict[str, list[dict]]) -> list[str]:
+    """The Q-estimate check of a case's Envelope runs (``q_check``, issue 48): per library and seed the largest
+    greedy ``w . Q`` estimate of its updates' batches and the largest batch mean, beside the env's bound."""
+    checked = {lib: sorted((r for r in rs if r.get("q_check")), key=lambda r: r["seed"]) for lib, rs in runs.items()}
+    checked = {lib: rs for lib, rs in checked.items() if rs}
+    if not checked:
+        return []
+    first = next(iter(checked.values()))[0]["q_check"]
+    if first.get("bound_any_state") is None:
+        return []
+    lines = [f"Q estimates (issue 48): the largest greedy w.Q of any update's batch / the largest batch mean, against "
+             f"the largest discounted return the env allows, {first['bound_any_state']:.2f} from any state "
+             f"({first['bound_start']:.2f} from the start state; `common.q_bounds`):", "",
+             "| library | seed | max w.Q | max batch-mean w.Q | above the bound | final HV ratio |", "|---|---|---|---|---|---|"]
+    for lib, rs in sorted(checked.items()):
+        for r in rs:
+            q = r["q_check"]
+            lines.append(f"| {lib} | {r['seed']} | {q['max_scalarized_q']:.1f} | {q['max_mean_scalarized_q']:.1f} | "
+                         f"{'max' if q['exceeds_bound'] else 'no'}{', mean' if q.get('mean_exceeds_bound') else ''} | "
+                         f"{r['curve'][-1].get('hv_ratio', float('nan')):.3f} |")
+        above = sum(bool(r["q_check"]["exceeds_bound"]) for r in rs)
+        lines_mean = sum(bool(r["q_check"].get("mean_exceeds_bound")) for r in rs)
+        lines.append(f"| {lib} | seeds above | {above} of {len(rs)} | {lines_mean} of {len(rs)} | | |")
+    return lines + [""]
 
 
 def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
@@ -346,11 +396,11 @@ def main(argv: list[str] | None = None) -> int:
         libs = args.libs.split(",")
         rounds = [seeds[i:i + args.round_seeds] for i in range(0, len(seeds), args.round_seeds)]
         nice = ["nice", "-n", str(args.nice)] if args.nice else []
-        for round_seeds in rounds:
+        for seeds_now in rounds:
             for case in cases:
                 procs = []
                 for lib in libs:
-                    todo = [s for s in round_seeds if not result_path(args.out, case, lib, s).exists()]
+                    todo = [s for s in seeds_now if not result_path(args.out, case, lib, s).exists()]
                     if not todo:
                         continue
                     arg = ",".join(map(str, todo))

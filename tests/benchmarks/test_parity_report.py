@@ -192,3 +192,36 @@ def test_results_from_several_commits_are_flagged_and_a_run_without_frame0_is_sa
     assert ("Results made by: `aaa` (2 files), `bbb` (2 files) -- **more than one commit: regenerate from one "
             "commit's runs before quoting**") in text
     assert "| gpi_ls-dst | 2 / 2 |" in text and "| no frame-0 evaluation |" in text
+
+
+def test_dst_bound_is_the_deepest_treasure_and_its_discounted_value_from_the_start(parity):
+    pytest.importorskip("mo_gymnasium")
+    from common import q_bounds
+
+    bounds = q_bounds("deep-sea-treasure-v0", 0.99)
+    # 23.7 one step from the deepest treasure; from the start it is 19 steps away: 23.7 * 0.99 ** 18
+    assert bounds["any_state"] == pytest.approx(23.7, abs=1e-5)
+    assert bounds["start"] == pytest.approx(23.7 * 0.99 ** 18, abs=1e-4)  # 19.778
+    assert q_bounds("minecart-v0", 0.98) is None
+
+
+def test_q_estimate_log_keeps_the_largest_greedy_estimate_and_batch_mean(parity, tmp_path):
+    import torch
+    from common import QEstimateLog, result_path, write_result
+
+    log = QEstimateLog()
+    log.mark(0)
+    w = torch.tensor([[1.0, 0.0], [0.5, 0.5]])
+    q = torch.tensor([[[30.0, -1.0], [1.0, -1.0]], [[2.0, 0.0], [4.0, 2.0]]])  # greedy w.Q: 30 and 3
+    log.record(w, q)
+    log.record(w, q * 0.1)
+    log.mark(100)
+    assert log.points == [dict(frames=0, updates=0, max_scalarized_q=None, max_mean_scalarized_q=None),
+                          dict(frames=100, updates=2, max_scalarized_q=30.0, max_mean_scalarized_q=16.5)]
+    check = log.result("deep-sea-treasure-v0", 0.99)
+    assert check["exceeds_bound"] and not check["mean_exceeds_bound"]  # 30 > 23.7 > 16.5
+    curve = [dict(frames=0, hypervolume=1.0, hv_ratio=0.1), dict(frames=100, hypervolume=2.0, hv_ratio=0.5)]
+    write_result(result_path(tmp_path / "results", "envelope-dst-mb", "ours", 100),
+                 dict(case="envelope-dst-mb", lib="ours", seed=100, curve=curve, frames=100, q_check=check))
+    text = parity.write_results(tmp_path / "results", [100], "cmd").read_text()
+    assert "| ours | 100 | 30.0 | 16.5 | max | 0.500 |" in text and "| ours | seeds above | 1 of 1 | 0 of 1 | | |" in text

@@ -425,3 +425,55 @@ def test_envelope_per_applies_no_importance_weights_when_told_as_the_authors():
     weighted = make_loss()(data.clone())["loss_qvalue"]
     torch.testing.assert_close(plain, unweighted)
     assert not torch.allclose(plain, weighted)
+
+
+class _LinearInWQ(nn.Module):
+    """``Q(s, a, w) = P[s, a] + w_0 R[s, a]`` for an integer state ``s`` (the observation's first entry)."""
+
+    def __init__(self, p, r):
+        super().__init__()
+        self.p, self.r = nn.Parameter(torch.tensor(p)), nn.Parameter(torch.tensor(r))
+
+    def forward(self, obs, w):
+        s = obs[..., 0].long()
+        return self.p[s] + w[..., 0, None, None] * self.r[s]
+
+
+@pytest.mark.parametrize("end", ["alive", "truncated", "terminated"])
+def test_envelope_target_by_hand(end):
+    """One transition s=0 -> s'=1, two actions, two objectives, the sampled preferences pinned to
+    w1 = (1, 0) and w2 = (0, 1), gamma 0.5, reward (1, -1). Online Q at s' (P + w_0 R):
+    Q(s', a0, w1) = (3, 0), Q(s', a1, w1) = (0, 2), Q(s', a0, w2) = (1, 0), Q(s', a1, w2) = (0, 1).
+    The envelope picks, for each w_i, the (w', a') maximising w_i . Q_online(s', a', w'):
+    w1 -> (w1, a0) (score 3), w2 -> (w1, a1) (score 2: another preference's value, the envelope
+    max over the sampled set). The value is the target network's there (twice the online: 2P, 2R):
+    (6, 0) and (0, 4). Targets y1 = (1, -1) + 0.5 (6, 0) = (4, -1), y2 = (1, -1) + 0.5 (0, 4) = (1, 1);
+    a time-limit truncation bootstraps the same, a termination gives y = r for both.
+    Q(s, a, w) = 0 at s = 0, so the vector loss is mean(y^2) and the scalarised one mean((w_i . y_i)^2)."""
+    p = [[[0.0, 0.0], [0.0, 0.0]], [[1.0, 0.0], [0.0, 1.0]]]
+    r = [[[0.0, 0.0], [0.0, 0.0]], [[2.0, 0.0], [0.0, 1.0]]]
+    loss = EnvelopeQLoss(_LinearInWQ(p, r), num_objectives=2, num_preference_samples=2)
+    loss.make_value_estimator(gamma=0.5)
+    with torch.no_grad():
+        for v in loss.target_value_network_params.values(True, True):
+            v.mul_(2.0)
+    w = torch.tensor([[[1.0, 0.0], [0.0, 1.0]]])
+    loss._preferences = lambda _: w
+    done, terminated = end != "alive", end == "terminated"
+    data = TensorDict({
+        "observation": torch.tensor([[0.0]]), "action": torch.tensor([1]),
+        ("next", "observation"): torch.tensor([[1.0]]), ("next", "reward"): torch.tensor([[1.0, -1.0]]),
+        ("next", "done"): torch.tensor([[done]]), ("next", "terminated"): torch.tensor([[terminated]]),
+    }, [1])
+    y = torch.tensor([[1.0, -1.0], [1.0, -1.0]]) if terminated else torch.tensor([[4.0, -1.0], [1.0, 1.0]])
+    torch.testing.assert_close(loss._envelope_next_value(data["next"], w)[0],
+                               torch.tensor([[6.0, 0.0], [0.0, 4.0]]))
+    loss.homotopy_lambda = 0.0
+    expected_vector = (y ** 2).mean()  # alive: (16 + 1 + 1 + 1) / 4 = 4.75
+    torch.testing.assert_close(loss(data)["loss_qvalue"], expected_vector)
+    scalar_y = (w[0] * y).sum(-1)  # alive: (4, 1)
+    assert data["td_error"].item() == pytest.approx(abs(scalar_y[0].item()))  # |w1 . (0 - y1)|: the first w
+    loss.homotopy_lambda = 0.5
+    torch.testing.assert_close(loss(data)["loss_qvalue"], 0.5 * expected_vector + 0.5 * (scalar_y ** 2).mean())
+    if end == "alive":
+        assert expected_vector.item() == pytest.approx(4.75) and data["td_error"].item() == pytest.approx(4.0)
