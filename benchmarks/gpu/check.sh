@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # One-command GPU check (issue 31): the `gpu` tests, the learners' updates/s (eager vs captured),
-# end-to-end training frames/s; ONE table at the end. Every stage has its own time limit and
-# writes its rows as it goes, so a hang or a failure leaves the others' results.
+# end-to-end training frames/s, and (issue 47) one-env end-to-end frames/s on MO-Gymnasium cases (the
+# machine's CPU; MORL-Baselines beside it where its venv exists); ONE table at the end. Every stage has
+# its own time limit and writes its rows as it goes, so a hang or a failure leaves the others' results.
+# The one-env cases need mo-gymnasium among the carried wheels:
+#   ../shared/tools/device-wheels.sh mo-gymnasium==1.3.2
 #
-#   benchmarks/gpu/check.sh                      # on a machine with one NVIDIA GPU (<= 8 min wall)
+#   benchmarks/gpu/check.sh                      # on a machine with one NVIDIA GPU (<= 9 min wall)
 #   benchmarks/gpu/check.sh --device cpu --tiny  # the CPU dry run the test suite runs (tests/gpu)
 #
 # Output: the table on stdout and, with every log, under $OUT if set, else ./gpu-check-out/
@@ -19,7 +22,7 @@ while [ $# -gt 0 ]; do
     --device) DEVICE="$2"; shift 2 ;;
     --device=*) DEVICE="${1#*=}"; shift ;;
     --tiny) TINY=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,15p' "$0"; exit 0 ;;
     *) echo "check.sh: unknown argument '$1' (valid: --device cpu|cuda, --tiny)" >&2; exit 2 ;;
   esac
 done
@@ -47,19 +50,22 @@ fi
 if [ "$TINY" = 1 ]; then
   # hang guards, not speed limits: each stage is a few CPU-seconds of work (2 x 16 networks, batches
   # of 16, one thread) plus imports, ~30 s in all on a free CPU and ~2 min on a loaded 2-core one
-  T_TESTS=600 T_LOSSES=600 T_TRAIN=600
+  T_TESTS=600 T_LOSSES=600 T_TRAIN=600 T_ONE_ENV=600
   TEST_SELECT=(-k "cpu-envelope")            # one learner and one capture case prove the stage runs
   LOSS_ARGS=(--tiny --peer none)
   TRAIN_ARGS=(--tiny --peer none)
   PAIRS=(envelope:MOLavaGridDR-v0)
+  ONE_ENV_ARGS=(envelope-dst --one-env-frames 30 --peer none)
 else
   # measured on one H200 (2026-11-27): tests 23 s, losses 21 s, a train pair 20 s eager+graphs plus
   # ~30 s per compiled variant, the compiled losses ~35 s per method
-  T_TESTS=60 T_LOSSES=45 T_LOSSES_COMPILED=90 T_TRAIN_PAIR=80
+  T_TESTS=60 T_LOSSES=45 T_LOSSES_COMPILED=90 T_TRAIN_PAIR=80 T_ONE_ENV=90
   if [ "$DEVICE" = cuda ]; then TEST_SELECT=(-k cuda); else TEST_SELECT=(); fi
   LOSS_ARGS=(--updates 100 --rounds 2 --min-round-seconds 0 --peer none)   # a GPU update takes ms: time enough of them (a fixed count: the stage has its time limit)
   TRAIN_ARGS=(--frames 512 --peer none)
   PAIRS=(envelope:MOLunarLanderDR-v0 envelope:MOLavaGridDR-v0 capql:MOHopperDR-v5)
+  # the two methods furthest below MB on one env (docs/speed.md), 1,000 frames each, process CPU time
+  ONE_ENV_ARGS=(envelope-dst gpi_ls-dst --one-env-frames 1000 --clock cpu)
 fi
 if [ "$DEVICE" = cuda ]; then
   # captured rows in order of interest; "whole": sampling + update + priority writes in one graph
@@ -125,7 +131,11 @@ for pair in "${PAIRS[@]}"; do
     "$PY" benchmarks/bench_train.py --device "$DEVICE" --pairs "$pair" "${TRAIN_ARGS[@]}" $(train_capture "$pair") --table "$TABLE"
 done
 
-# 4. the compiled updates last: compiling takes tens of seconds per variant
+# 4. end to end on one MO-Gymnasium env (issue 47): the loop a new user runs first, on this machine's CPU
+stage "train one-env" "$T_ONE_ENV" "$OUTDIR/train.log" \
+  "$PY" benchmarks/bench_train.py --one-env "${ONE_ENV_ARGS[@]}" --table "$TABLE"
+
+# 5. the compiled updates last: compiling takes tens of seconds per variant
 if [ "$DEVICE" = cuda ] && [ "$TINY" = 0 ]; then
   stage "losses compiled" "$T_LOSSES_COMPILED" "$OUTDIR/losses.log" \
     "$PY" benchmarks/bench_losses.py --device "$DEVICE" --updates 200 --rounds 1 --min-round-seconds 0 --peer none --capture whole+compile both --table "$TABLE"

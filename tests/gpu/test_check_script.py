@@ -17,13 +17,15 @@ def test_the_gpu_check_runs_every_stage_on_the_cpu(tmp_path):
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
     rows = [line.split("\t") for line in (tmp_path / "table.tsv").read_text().splitlines()]
     stages = {r[1]: r[5] for r in rows if r[0] == "stage"}
-    assert stages == {"tests": "ok", "losses": "ok", "train envelope:MOLavaGridDR-v0": "ok"}
+    assert stages == {"tests": "ok", "losses": "ok", "train envelope:MOLavaGridDR-v0": "ok", "train one-env": "ok"}
     tests = [r[5] for r in rows if r[0] == "tests"]
     assert any("2 passed" in t for t in tests) and not any("failed" in t for t in tests), tests
     losses = {r[1]: float(r[5]) for r in rows if r[0] == "losses" and r[3] == "eager"}
     assert set(losses) >= {"Envelope", "CAPQL"} and all(v > 0 for v in losses.values()), losses
     train = [float(r[5]) for r in rows if r[0] == "train"]
     assert len(train) == 1 and train[0] > 0
+    one_env = [r for r in rows if r[0] == "train-one-env"]  # (issue 47: one MO-Gymnasium env, end to end)
+    assert [r[1] for r in one_env] == ["envelope-dst"] and float(one_env[0][5]) > 0, one_env
     summary = (tmp_path / "summary.txt").read_text()
     assert summary.startswith("benchmarks/gpu/check.sh --device cpu") and "Envelope" in summary
     assert summary in done.stdout  # the one table, printed at the end
