@@ -32,8 +32,9 @@ Example:
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDictBase
-from torchrl.data import ConsumingSampler, TensorDictReplayBuffer
+from tensordict import TensorDict, TensorDictBase, is_tensor_collection
+from tensordict.utils import unravel_key
+from torchrl.data import ConsumingSampler, LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import PrioritizedSampler
 from torchrl.data.replay_buffers.writers import RoundRobinWriter, TensorDictRoundRobinWriter
 from torchrl.data.replay_buffers.storages import TensorStorage
@@ -45,6 +46,60 @@ __all__ = ["LeanTensorDictReplayBuffer"]
 # the writers whose extend sets the batch's "index" as TensorDictReplayBuffer.extend does afterwards
 # (and any sampler but a consuming one: TorchRL's _extend then is the writer's and the sampler's extend)
 _ROUND_ROBIN = (RoundRobinWriter, TensorDictRoundRobinWriter)
+# storages whose get(index) is the stored tensordict indexed (a memmap one's leaves are memory maps)
+_PLAIN_STORAGES = (TensorStorage, LazyTensorStorage)
+
+
+def tensordict_layout(td) -> dict | None:
+    """``{name: None (a tensor) or the sub-tensordict's layout}`` of a plain nested :class:`TensorDict`
+    (``None`` for anything else: lazy stacks, tensorclasses, non-tensor data)."""
+    if type(td) is not TensorDict:
+        return None
+    out = {}
+    for name, value in td._tensordict.items():
+        if isinstance(value, torch.Tensor) and not is_tensor_collection(value):
+            out[name] = None
+        else:
+            sub = tensordict_layout(value)
+            if sub is None:
+                return None
+            out[name] = sub
+    return out
+
+
+def gather_leaves(td, layout: dict, index: torch.Tensor, batch_size: torch.Size):
+    """``td[index]`` of a plain nested tensordict: each leaf indexed, the tree rebuilt as is."""
+    src = td._tensordict
+    out = {name: src[name][index] if sub is None else gather_leaves(src[name], sub, index, batch_size)
+           for name, sub in layout.items()}
+    return TensorDict._new_unsafe(out, batch_size=batch_size, device=td.device)
+
+
+def leaf_pairs(td, layout: dict, batch, dims: int, *, target_dims: int = 1, skip_index: bool = True) -> list | None:
+    """``[(td's leaf, batch's leaf)]`` for every leaf of ``td`` (but its root ``"index"`` with
+    ``skip_index``); ``None`` when ``batch`` lacks one or holds one of another shape (after its first
+    ``dims`` dims, against ``td``'s leaf after its first ``target_dims``)."""
+    pairs = []
+
+    def collect(dst, lay, src) -> bool:
+        for name, sub in lay.items():
+            if skip_index and name == "index" and dst is td:
+                continue
+            value = src._tensordict.get(name) if type(src) is TensorDict else None
+            if value is None:
+                return False
+            if sub is None:
+                if type(value) is not torch.Tensor:  # (a plain tensor: anything else takes TorchRL's path)
+                    return False
+                target = dst._tensordict[name]
+                if value.shape[dims:] != target.shape[target_dims:]:
+                    return False
+                pairs.append((target, value))
+            elif not collect(dst._tensordict[name], sub, value):
+                return False
+        return True
+
+    return pairs if collect(td, layout, batch) else None
 
 
 class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
@@ -75,6 +130,75 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
             self._sampler.extend(index)
         return index
 
+    def extend_from(self, batch: TensorDictBase, keys) -> torch.Tensor:
+        """``extend(batch.select(*keys, strict=False).reshape(-1))``: the same indices, storage write and
+        sampler update, without building the selected, reshaped copy when the storage is an initialized
+        plain tensordict holding exactly the ``keys`` that ``batch`` has (then each of its leaves is
+        written from ``batch``'s, a slice where the write does not wrap) -- a one-env run stores a
+        transition per frame."""
+        plan = self._write_plan(batch, keys)
+        if plan is None:
+            return self.extend(batch.select(*keys, strict=False).reshape(-1))
+        storage, layout = plan
+        dims = batch.batch_dims
+        pairs = leaf_pairs(storage._storage, layout, batch, dims)
+        if pairs is None:
+            return self.extend(batch.select(*keys, strict=False).reshape(-1))
+        writer = self._writer
+        n = batch.batch_size.numel()
+        with self._replay_lock, self._write_lock:
+            start = writer._cursor
+            capacity = storage.max_size
+            index = torch.arange(start, start + n, dtype=torch.long, device=batch.device or "cpu") % capacity
+            where = slice(start, start + n) if start + n <= capacity else index
+            for target, value in pairs:
+                target[where] = value.reshape(-1, *value.shape[dims:])
+            # (what RoundRobinWriter.extend and TensorStorage.set do around the write)
+            writer._cursor = (start + n) % capacity
+            writer._write_count += n
+            storage._storage._tensordict["index"][where] = index.to(storage._storage._tensordict["index"].device)
+            storage._set_last_cursor(index)
+            storage._len = min(storage._len + n, capacity)
+            storage._bump_mutation_revision()
+            writer._mark_update_entities(index)
+            self._sampler.extend(index)
+        return index
+
+    def _write_plan(self, batch, keys):
+        """``(storage, layout)`` when :meth:`extend_from` may write ``batch`` leaf by leaf, else ``None``."""
+        if (type(batch) is not TensorDict or type(self._writer) not in _ROUND_ROBIN
+                or isinstance(self._sampler, ConsumingSampler) or self.priority_key in batch.keys()
+                or not self._lean()):
+            return None
+        writer, storage = self._writer, self._storage
+        if (writer._track_generations or writer._generation is not None or storage._storage_keys is not None
+                or type(storage._storage) is not TensorDict or type(storage) not in _PLAIN_STORAGES):
+            return None
+        cached = self.__dict__.get("_plan_cache")
+        td = storage._storage
+        if cached is None or cached[0] is not td or cached[1] != keys:
+            layout = tensordict_layout(td)
+            wanted = {unravel_key(k) for k in keys}
+            held = set()
+
+            def leaves(lay, prefix=()):
+                for name, sub in lay.items():
+                    if sub is None:
+                        held.add(prefix + (name,))
+                    else:
+                        leaves(sub, prefix + (name,))
+
+            if layout is not None:
+                leaves(layout)
+            held = {k[0] if len(k) == 1 else k for k in held}
+            ok = layout is not None and "index" in layout and layout["index"] is None and held - {"index"} <= wanted
+            absent = [k for k in wanted if k not in held]  # (keys the batch must lack, as the first write did)
+            cached = self._plan_cache = (td, list(keys), layout if ok else None, absent)
+        layout, absent = cached[2], cached[3]
+        if layout is None or any(batch.get(k, None) is not None for k in absent):
+            return None
+        return storage, layout
+
     def sample(self, batch_size: int | None = None, return_info: bool = False,
                include_info: bool | None = None) -> TensorDictBase:
         if return_info or include_info is not None or not self._lean():
@@ -87,7 +211,7 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
             return super().sample(batch_size)  # (TorchRL's error)
         with self._replay_lock, self._write_lock:
             index, info = self._sampler.sample(self._storage, batch_size)
-            data = self._storage.get(index)
+            data = self._get(index)
         info["index"] = index
         device = data.device
         for key, val in info.items():  # (as TensorDictReplayBuffer.sample: the sampler's entries, then "index")
@@ -100,6 +224,19 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 val = torch.as_tensor(val, device=device)
             data.set(key, val)
         return data
+
+    def _get(self, index: torch.Tensor) -> TensorDictBase:
+        """``storage.get(index)``: of a plain nested tensordict, each leaf indexed and the tree rebuilt
+        (the same values; TorchRL's tensordict indexing costs more than the gathers in a one-env run)."""
+        storage = self._storage
+        td = storage._storage
+        layout = self.__dict__.get("_get_layout")
+        if layout is None or layout[0] is not td:
+            layout = self._get_layout = (td, tensordict_layout(td) if type(storage) in _PLAIN_STORAGES else None)
+        if (layout[1] is None or not isinstance(index, torch.Tensor) or index.ndim != 1
+                or index.dtype != torch.long):
+            return storage.get(index)
+        return gather_leaves(td, layout[1], index, torch.Size([index.shape[0]]))
 
     def update_tensordict_priority(self, data: TensorDictBase) -> None:
         if not isinstance(self._sampler, PrioritizedSampler):

@@ -23,7 +23,7 @@ from torchrl.data.replay_buffers.storages import Storage
 from torchrl.data.replay_buffers.utils import unravel_index
 
 from morl_trl._torchrl_compat import sampler_generator
-from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree
+from morl_trl.data.segment_tree import MinSegmentTree, SumSegmentTree, assign_unchecked_all
 
 __all__ = ["TorchPrioritizedSampler", "RunningMaxPrioritizedSampler", "native_prioritized_sampler_available", "normalize_device", "prioritized_sampler"]
 
@@ -218,8 +218,7 @@ class TorchPrioritizedSampler(PrioritizedSampler):
         priority = priority.detach().reshape(-1)
         top.copy_(torch.maximum(priority.max().to(top.dtype), top))
         value = torch.pow(priority + self._eps, self._alpha)
-        self._sum_tree.assign_unchecked(index, value)
-        self._min_tree.assign_unchecked(index, value)
+        assign_unchecked_all((self._sum_tree, self._min_tree), index, value)
 
     def _pinned_max_priority(self) -> torch.Tensor:
         """The largest priority as one persistent 0-d tensor on the trees' device (what a
@@ -353,6 +352,8 @@ class RunningMaxPrioritizedSampler(TorchPrioritizedSampler):
         if index.ndim > 1:
             raise ValueError(f"{type(self).__name__} takes a 1-d storage, got index of shape {tuple(index.shape)}")
         index = index.reshape(-1)
+        if index.device.type == "cpu" and (index.numel() == 0 or int(index.min()) >= 0):
+            return index  # (nothing to drop: one reduction instead of a masked copy)
         return index[index >= 0]  # (TorchRL's MaxValueWriter marks items it keeps with -1)
 
     @torch.no_grad()
@@ -375,8 +376,7 @@ class RunningMaxPrioritizedSampler(TorchPrioritizedSampler):
 
     def write_priorities_unchecked(self, index: torch.Tensor, priority: torch.Tensor, top: torch.Tensor) -> None:
         value = torch.pow(priority.detach().reshape(-1).to(top.dtype) + top, self._alpha)
-        self._sum_tree.assign_unchecked(index, value)
-        self._min_tree.assign_unchecked(index, value)
+        assign_unchecked_all((self._sum_tree, self._min_tree), index, value)
         top.copy_(torch.maximum(value.max(), top))
 
     def _retransform_priority_trees(self, old_alpha: float, new_alpha: float) -> None:

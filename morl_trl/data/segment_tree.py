@@ -19,7 +19,7 @@ import math
 import numpy as np
 import torch
 
-__all__ = ["MinSegmentTree", "SumSegmentTree"]
+__all__ = ["MinSegmentTree", "SumSegmentTree", "assign_unchecked_all"]
 
 
 class _SegmentTree:
@@ -101,6 +101,17 @@ class _SegmentTree:
         pairs, reduce = tree.reshape(-1, 2), self._combine_np.reduce
         node = index + self._size
         tree[node] = value
+        if (1 << m) <= 4096 * m:
+            # a subtree of up to 2 ** 16 leaves: every node of it recombined, one strided ufunc call per
+            # level (32 indices: 22 us over 2,000 written leaves, 37 us over 30,000, against 57 and ~130 us
+            # for the indices' ancestors level by level; even at 2 ** 17); a node is the same function
+            # of its children either way, so the tree is the same bit for bit
+            combine = self._combine_np
+            for depth in range(m - 1, -1, -1):
+                lo, hi = top << depth, (top + 1) << depth
+                combine(tree[2 * lo:2 * hi:2], tree[2 * lo + 1:2 * hi:2], out=tree[lo:hi])
+            self._copy_up(tree, top)
+            return
         for _ in range(m):
             node >>= 1  # repeated parents receive identical values: duplicates are harmless
             tree[node] = reduce(pairs[node], axis=1)
@@ -327,3 +338,16 @@ class MinSegmentTree(_SegmentTree):
 
     def _combine(self, left, right):
         return torch.minimum(left, right)
+
+
+def assign_unchecked_all(trees, index: torch.Tensor, value: torch.Tensor) -> None:
+    """``tree.assign_unchecked(index, value)`` for each of ``trees`` (a prioritized sampler's sum and min
+    trees take the same writes); on CPU trees of one dtype the repeated indices are resolved once for all."""
+    hosts = [tree._host() for tree in trees]
+    if any(host is None for host in hosts) or len({tree.dtype for tree in trees}) != 1:
+        for tree in trees:
+            tree.assign_unchecked(index, value)
+        return
+    idx, val = _SegmentTree._last_writes(index.numpy().reshape(-1), value.detach().reshape(-1).to(trees[0].dtype).numpy())
+    for tree, host in zip(trees, hosts):
+        tree._write_host(host, idx, val)

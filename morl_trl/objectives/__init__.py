@@ -32,6 +32,7 @@ from morl_trl.objectives.dynamics import DynamicsLoss, ProbabilisticEnsemble, fi
 from morl_trl.objectives.envelope import EnvelopeQLoss
 from morl_trl.objectives.gpi import GPILoss, GPIPolicy, GPIQNetwork, gpi_action
 from morl_trl.objectives.mosac import DiscreteMOSACLoss, MOSACLoss
+from morl_trl.objectives.sequential import LeanSequential
 from morl_trl.objectives.networks import (
     NatureCNN,
     PreferenceConditionedMLP,
@@ -60,6 +61,7 @@ __all__ = [
     "DiscreteMOSACLoss",
     "EnvelopeQLoss",
     "MOQValueModule",
+    "LeanSequential",
     "MOSACLoss",
     "MultiObjectiveLossModule",
     "NatureCNN",

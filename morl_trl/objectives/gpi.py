@@ -199,12 +199,18 @@ class GPIPolicy(TensorDictModuleBase):
             support = torch.cat([support, w.unsqueeze(-2).float()], -2)
         m = support.shape[-2]
         obs_m = obs.unsqueeze(len(lead)).expand(*lead, m, *obs.shape[len(lead):])
-        was = self.qnet.training
-        self.qnet.train(self.dropout)
-        try:
+        modules = self.__dict__.get("_qnet_modules")
+        if modules is None or modules[0] is not self.qnet:
+            modules = self.__dict__["_qnet_modules"] = [self.qnet, *self.qnet.modules()]
+        if all(m.training == self.dropout for m in modules[1:]):  # (already in the mode: no switch and back)
             q = self.qnet(obs_m, support, members=slice(0, 1))[0]  # [*B, M, A, k]
-        finally:
-            self.qnet.train(was)
+        else:
+            was = self.qnet.training
+            self.qnet.train(self.dropout)
+            try:
+                q = self.qnet(obs_m, support, members=slice(0, 1))[0]
+            finally:
+                self.qnet.train(was)
         action, policy = gpi_action(q, w)
         tensordict.set(self.out_keys[0], action)
         tensordict.set(self.out_keys[1], policy)

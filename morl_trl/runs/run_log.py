@@ -206,10 +206,16 @@ class RunLog:
         done = nxt.get("done").squeeze(-1)
         if not done.any() or "episode_return" not in nxt.keys():
             return
-        ret = nxt["episode_return"][done].cpu()
-        disc = nxt["episode_discounted_return"][done].cpu()
-        pref = batch.get("preference")[done].cpu() if "preference" in batch.keys() else None
-        ctx = batch.get("context")[done].cpu() if "context" in batch.keys() else None
+        if bool(done.all()):  # (x[done] of every row: the rows as they are, without a masked copy)
+            def ended(x):
+                return x.reshape(done.numel(), *x.shape[done.ndim:]).cpu()
+        else:
+            def ended(x):
+                return x[done].cpu()
+        ret = ended(nxt["episode_return"])
+        disc = ended(nxt["episode_discounted_return"])
+        pref = ended(batch.get("preference")) if "preference" in batch.keys() else None
+        ctx = ended(batch.get("context")) if "context" in batch.keys() else None
         columns = []  # (names, rows of values) per group of columns, in the file's order
         if ctx is not None:
             columns.append(([f"context_{n}" for n in self.spec.context_space.names], ctx.tolist()))
@@ -224,8 +230,9 @@ class RunLog:
             self._episode_rows.append(row)
         if time.monotonic() - self._flushed_at >= self.FLUSH_SECONDS:
             self.flush()
+        one = columns[-2][1][0] if ret.shape[0] == 1 else None  # (one episode: the mean is its value, exactly)
         for j, o in enumerate(self.objectives):
-            self._scalar(f"train/episode_return/{o}", float(ret[:, j].mean()), frames)
+            self._scalar(f"train/episode_return/{o}", float(ret[:, j].mean()) if one is None else one[j], frames)
 
     def flush(self) -> None:
         """Append the training episodes held in memory to ``train/episodes.csv``."""

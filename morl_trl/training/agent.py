@@ -96,7 +96,11 @@ class Agent:
     def store(self, buffer, batch: TensorDictBase) -> None:
         """Write ``batch``'s transitions into ``buffer``, :attr:`replay_keys` only (an entry that a
         transition lacks, e.g. ``"preference"`` of an env without one, is left out)."""
-        buffer.extend(batch.select(*self.replay_keys, strict=False).reshape(-1))  # (select first: fewer leaves to reshape)
+        extend_from = getattr(buffer, "extend_from", None)  # (LeanTensorDictReplayBuffer: no selected copy)
+        if extend_from is not None:
+            extend_from(batch, self.replay_keys)
+        else:
+            buffer.extend(batch.select(*self.replay_keys, strict=False).reshape(-1))  # (select first: fewer leaves to reshape)
 
     @property
     def epsilon(self) -> float | None:

@@ -28,7 +28,9 @@ Example:
 
 from __future__ import annotations
 
-from tensordict import TensorDictBase
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Composite
 from torchrl.envs import Compose, TransformedEnv
 
 from morl_trl._torchrl_compat import env_step, new_tensordict_unsafe, step_mdp_of, transform_step
@@ -42,6 +44,19 @@ __all__ = ["LeanTransformedEnv", "LEAN_TRANSFORMS"]
 
 #: the transforms the short path runs (exact types: a subclass may add an inverse or a hook)
 LEAN_TRANSFORMS = (PreferenceConditioning, DiscountedVectorReturn, StateActionHistory)
+
+
+def _done_shapes(env) -> list | None:
+    """``[(key, shape)]`` of the env's done entries (``None`` for nested ones): a reset output holding
+    each with its shape is what ``_complete_done`` leaves as it is."""
+    spec = env.full_done_spec
+    lead = tuple(env.batch_size)[: len(env.batch_size) - spec.ndim] if spec.ndim else tuple(env.batch_size)
+    out = []
+    for key, item in spec.items():
+        if not isinstance(key, str) or isinstance(item, Composite):
+            return None
+        out.append((key, torch.Size((*lead, *item.shape))))
+    return out
 
 
 class LeanTransformedEnv(TransformedEnv):
@@ -70,6 +85,35 @@ class LeanTransformedEnv(TransformedEnv):
     def step_mdp_keys(self, tensordict: TensorDictBase) -> list:
         """The keys of the TensorDict ``step_mdp`` makes of ``tensordict`` (a stepped one, with ``"next"``)."""
         return list(step_mdp_of(self)(tensordict).keys())
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs):
+        """TorchRL's ``TransformedEnv._reset``; over our env and transforms, the same calls (the input's
+        reset and state entries selected, each transform's ``_reset_env_preprocess`` last to first, the
+        env's ``_reset``, TorchRL's completion of missing done entries, each transform's ``_reset``) with
+        the spec walks done once (the state keys; the done entries' shapes, against which a reset that
+        holds them all needs no completion) -- a one-env run resets every few frames."""
+        base = self.base_env
+        if (tensordict is None or kwargs or not isinstance(base, ContextualMOEnv) or self.run_type_checks
+                or not spec_cached(self, "lean_transforms", self._lean_transforms)):
+            return super()._reset(tensordict, **kwargs)
+        state_keys = spec_cached(self, "state_keys", lambda: list(self.state_spec.keys(True, True)))
+        tensordict = tensordict.select(*self.reset_keys, *state_keys, strict=False)
+        transforms = self._transform_list()
+        for t in reversed(transforms):
+            tensordict = t._reset_env_preprocess(tensordict)
+        reset = base._reset(tensordict)
+        done_shapes = spec_cached(self, "done_shapes", lambda: _done_shapes(base))
+        entries = reset._tensordict if type(reset) is TensorDict else {}
+        if done_shapes is None or not all(
+                isinstance(entries.get(key), torch.Tensor) and entries[key].shape == shape for key, shape in done_shapes):
+            base._complete_done(base.full_done_spec, reset)
+        for t in transforms:
+            reset = t._reset(tensordict, reset)
+        return reset
+
+    def _transform_list(self) -> list:
+        transform = self.transform
+        return list(transform.transforms) if isinstance(transform, Compose) else [transform]
 
     def _step_and_maybe_reset(self, tensordict: TensorDictBase) -> tuple[TensorDictBase, TensorDictBase]:
         if not self.lean_step_applies(tensordict):

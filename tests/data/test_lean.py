@@ -10,7 +10,7 @@ from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
 from morl_trl.data import MinSegmentTree, RunningMaxPrioritizedSampler, SumSegmentTree, TorchPrioritizedSampler
-from morl_trl.data.lean import LeanTensorDictReplayBuffer
+from morl_trl.data.lean import LeanTensorDictReplayBuffer, leaf_pairs
 
 
 def _transition(g: torch.Generator, n: int = 1) -> TensorDict:
@@ -66,6 +66,49 @@ def test_lean_buffer_is_torchrls(sampler, monkeypatch):
         assert torch.equal(ours._sampler._min_tree._tree, theirs._sampler._min_tree._tree)
 
 
+@pytest.mark.parametrize("rows", [1, 3])
+def test_extend_from_writes_what_extend_of_the_selection_writes(rows):
+    """``extend_from(batch, keys)`` (a collector's ``[envs, 1]`` batch with entries the loss does not read)
+    stores, indexes and marks exactly what ``extend(batch.select(*keys).reshape(-1))`` does, across the
+    buffer's wrap-around; a batch that lacks a stored key or has another shape takes TorchRL's path."""
+    keys = ["observation", "action", ("next", "reward"), ("next", "done"), "preference"]  # ("preference": absent)
+
+    def build(cls):
+        return cls(storage=LazyTensorStorage(37), batch_size=8, priority_key="td_error",
+                   sampler=RunningMaxPrioritizedSampler(37, alpha=0.6, beta=0.4))
+
+    ours, theirs = build(LeanTensorDictReplayBuffer), build(LeanTensorDictReplayBuffer)
+    g = torch.Generator().manual_seed(3)
+    for step in range(40):
+        x = _transition(g, rows).unsqueeze(-1)  # [rows, 1], as TorchRL's collector
+        x["episode_return"] = torch.randn(rows, 1, 2, generator=g)  # (not a replay key: left out)
+        before = sorted(map(str, x.keys(True, True)))
+        assert torch.equal(ours.extend_from(x, keys), theirs.extend(x.select(*keys, strict=False).reshape(-1)))
+        assert sorted(map(str, x.keys(True, True))) == before
+        if step > 2:
+            torch.manual_seed(step)
+            a = ours.sample()
+            torch.manual_seed(step)
+            b = theirs.sample()
+            assert (a == b).all() and torch.equal(a["index"], b["index"])
+            a["td_error"] = b["td_error"] = torch.rand(8, generator=g)
+            ours.update_tensordict_priority(a)
+            theirs.update_tensordict_priority(b)
+    assert ours._write_plan(x, keys) is not None  # (the leaf-by-leaf write was the one compared)
+    assert ours._writer._cursor == theirs._writer._cursor == (40 * rows) % 37 and len(ours) == len(theirs) == 37
+    assert ours._writer._write_count == theirs._writer._write_count == 40 * rows
+    assert (ours.storage._storage == theirs.storage._storage).all()
+    assert torch.equal(ours._sampler._sum_tree._tree, theirs._sampler._sum_tree._tree)
+    # a batch with a stored key missing, or with a key the storage lacks: TorchRL's extend (which refuses
+    # or adds as it does)
+    missing = _transition(g, 1).unsqueeze(-1).exclude("action")
+    storage, layout = ours._write_plan(missing, keys)
+    assert leaf_pairs(storage._storage, layout, missing, 2) is None
+    x = _transition(g, 1).unsqueeze(-1)
+    x["preference"] = torch.ones(1, 1, 2)
+    assert ours._write_plan(x, keys) is None
+
+
 def test_lean_buffer_other_cases_are_torchrls():
     """With a transform the buffer is TorchRL's own (extend, sample)."""
     from torchrl.envs import RenameTransform
@@ -77,13 +120,19 @@ def test_lean_buffer_other_cases_are_torchrls():
 
 
 @pytest.mark.parametrize("cls", [SumSegmentTree, MinSegmentTree])
-@pytest.mark.parametrize("capacity", [1, 3, 1000, 1 << 16])
-def test_host_tree_walks_only_the_written_subtree_exactly(cls, capacity, monkeypatch):
-    """The CPU tree (writes and searches over the written leaves' subtree, its value copied up) holds
-    the same tree, and finds the same leaves, as the full-depth torch walk."""
+@pytest.mark.parametrize("capacity, prefill", [(1, 0), (3, 0), (1000, 0), (1 << 16, 0), (1 << 16, 40_000),
+                                               (1 << 18, 200_000)])
+def test_host_tree_walks_only_the_written_subtree_exactly(cls, capacity, prefill, monkeypatch):
+    """The CPU tree (writes and searches over the written leaves' subtree, its value copied up; a batch
+    written into a subtree of up to 2 ** 16 leaves by recombining the whole subtree, into a larger one
+    along the indices' ancestors) holds the same tree, and finds the same leaves, as the full-depth torch walk."""
     host, full = cls(capacity), cls(capacity)
     g = torch.Generator().manual_seed(capacity)
-    cursor = 0
+    cursor = prefill
+    if prefill:
+        first = torch.rand(prefill, generator=g)
+        host[torch.arange(prefill)] = first
+        full.set_leaves(torch.cat([first, torch.full((capacity - prefill,), cls.neutral)]))
     for step in range(150):
         n = 1 if step % 3 else int(torch.randint(1, 20, (1,), generator=g))
         if step % 2:

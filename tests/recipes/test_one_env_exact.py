@@ -87,3 +87,38 @@ def test_the_collector_copies_weights_only_when_it_acts_with_a_copy(single_threa
     weights = TensorDict.from_module(agent.explore_policy).data.clone().apply(torch.ones_like)
     collector.update_policy_weights_(weights)  # given weights are still copied in
     assert all(bool((p == 1).all()) for p in agent.explore_policy.parameters())
+
+
+def test_one_step_batches_are_torchrls(single_thread, monkeypatch):
+    """RecipeCollector's one-step rollout and post-processing (a one-env run's every batch) yield TorchRL's
+    Collector's batches, entry for entry, random frames and ε-greedy draws included."""
+    from torchrl.collectors import Collector
+
+    from morl_trl.recipes import build_agent, build_training_env, resolve_config
+    from morl_trl.training.parts import RecipeCollector, make_collector
+
+    def build(collector_cls):
+        torch.manual_seed(11)
+        cfg = resolve_config("envelope", "deep-sea-treasure-v0", hidden=[8], frames=80, init_random_frames=20, seed=4)
+        env = build_training_env(cfg, torch.device("cpu"))
+        agent = build_agent(cfg, env, gamma=0.99, device=torch.device("cpu"))
+        agent.exploration_module.eps.fill_(0.5)
+        with monkeypatch.context() as m:
+            m.setattr("morl_trl.training.parts.RecipeCollector", collector_cls)
+            return make_collector(cfg, env, agent.explore_policy, torch.device("cpu"), return_same_td=True)
+
+    lean, generic = build(RecipeCollector), build(Collector)
+    torchrl_rollouts = []
+    original = Collector.rollout
+    monkeypatch.setattr(Collector, "rollout", lambda self: (torchrl_rollouts.append(self is lean), original(self))[1])
+    torch.manual_seed(12)
+    a = [b.clone() for b in lean]
+    state = torch.get_rng_state()
+    torch.manual_seed(12)
+    b = [b.clone() for b in generic]
+    assert torch.equal(torch.get_rng_state(), state)
+    assert len(a) == len(b) == 80 and not any(torchrl_rollouts)  # (every lean batch by the one-step path)
+    for i, (x, y) in enumerate(zip(a, b)):
+        assert sorted(map(str, x.keys(True, True))) == sorted(map(str, y.keys(True, True))), i
+        assert (x == y).all(), i
+    assert sum(int(x["next", "done"].sum()) for x in a) >= 3  # (resets inside the compared frames)

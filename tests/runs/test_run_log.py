@@ -46,3 +46,24 @@ def test_a_checkpoint_finds_every_episode_up_to_its_frame_on_disk(tmp_path, monk
     run.frames = 5
     run.checkpoint({})
     assert [r["frames"] for r in csv.DictReader((tmp_path / "train" / "episodes.csv").open())] == ["5"]
+
+
+def test_the_rows_and_scalars_of_ended_episodes_whether_every_row_or_some_ended(tmp_path):
+    """A batch whose every row ended (a one-env ``[1, 1]`` batch, here with a context of width 0) and one where
+    some did give the rows of the ended sub-envs and, per objective, the mean return over them."""
+    log = RunLog(tmp_path, SimpleNamespace(logger="none"), domain_of("deep-sea-treasure-v0"))
+    logged = []
+    log.logger = SimpleNamespace(log_scalar=lambda name, value, step: logged.append((name, value, step)))
+    one = _batch([True], 0.1).unsqueeze(-1)  # [1, 1]
+    one["context"] = torch.zeros(1, 1, 0)
+    log.training_episodes(1, one)
+    some = _batch([True, False, True], 0.0)
+    some["next", "episode_return"] = torch.tensor([[1.0, -1.0], [5.0, 5.0], [2.0, -3.0]])
+    log.training_episodes(2, some)
+    log.flush()
+    rows = list(csv.DictReader((tmp_path / "train" / "episodes.csv").open()))
+    assert [(r["frames"], r["return_treasure"], r["return_time_penalty"]) for r in rows] == [
+        ("1", str(float(torch.tensor(0.1))), str(float(torch.tensor(0.1)))), ("2", "1.0", "-1.0"), ("2", "2.0", "-3.0")]
+    assert logged == [("train/episode_return/treasure", float(torch.tensor(0.1)), 1),
+                      ("train/episode_return/time_penalty", float(torch.tensor(0.1)), 1),
+                      ("train/episode_return/treasure", 1.5, 2), ("train/episode_return/time_penalty", -2.0, 2)]

@@ -31,9 +31,8 @@ from __future__ import annotations
 
 import torch
 from tensordict import TensorDictBase
-from tensordict.nn import TensorDictSequential
 
-from morl_trl.objectives import EnvelopeQLoss, MOQValueModule, make_vector_q_network
+from morl_trl.objectives import EnvelopeQLoss, LeanSequential, MOQValueModule, make_vector_q_network
 from morl_trl.training.agent import (Agent, action_spec, adam, captured_update, counted_update, epsilon,
                                      epsilon_greedy, eval_exploration, fused_choice, is_discrete, num_objectives,
                                      obs_shape, target_updater, updates_due)
@@ -60,7 +59,7 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
                                  # MORL-Baselines 1.3.0 ("mb") at the input (after the CNN), both with orthogonal init
                                  preference_layer=1 if form == "authors" and len(obs_shape(env)) == 1 else 0,
                                  init="default" if form == "input" else "orthogonal").to(device)
-    greedy = TensorDictSequential(qnet, MOQValueModule())
+    greedy = LeanSequential(qnet, MOQValueModule())  # (TensorDictSequential's result, less plumbing per call)
     egreedy = epsilon_greedy(cfg, env)
     anneal = cfg.homotopy_final is not None
     loss = EnvelopeQLoss(
@@ -73,7 +72,7 @@ def make_envelope_agent(cfg, env, *, gamma: float, device: torch.device) -> Agen
     )
     loss.make_value_estimator(gamma=gamma)
     optimizers = {"qvalue": adam(loss.parameters(), cfg.lr, fused=fused_choice(cfg))}
-    return Agent(cfg, loss, TensorDictSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
+    return Agent(cfg, loss, LeanSequential(greedy, egreedy), greedy, optimizers, target_updater(cfg, loss),
                  device=device, exploration_module=egreedy, eval_exploration=eval_exploration(cfg), capturable=True)
 
 

@@ -62,12 +62,12 @@ import warnings
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
 from morl_trl.envs import domain_of
 from morl_trl.evaluation import MultiContextEvaluator, suite_contexts
-from morl_trl.objectives import DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, ProbabilisticEnsemble, fit_dynamics
+from morl_trl.objectives import (DynamicsLoss, GPILoss, GPIPolicy, GPIQNetwork, LeanSequential, ProbabilisticEnsemble,
+                                 fit_dynamics)
 from morl_trl.objectives.dynamics import MODEL_TERMINATION, model_inputs, model_termination
 from morl_trl.objectives.gpi import GPIActor, GPIContinuousLoss, GPIContinuousPolicy, GPIVectorCritic, gpi_action
 from morl_trl.objectives.updaters import PeriodicHardUpdate, polyak_
@@ -345,7 +345,7 @@ def make_gpi_agent(cfg, env, *, gamma: float, device: torch.device) -> GPIAgent:
     loss.make_value_estimator(gamma=gamma)
     greedy = GPIPolicy(qnet, include_preference=True)  # dropout on while acting, as the authors
     egreedy = epsilon_greedy(cfg, env)
-    explore = TensorDictSequential(greedy, egreedy)
+    explore = LeanSequential(greedy, egreedy)  # (TensorDictSequential's result, less plumbing per call)
     eval_policy = GPIPolicy(qnet, dropout=False)  # the authors' q_net.eval() at evaluation
     dynamics = None
     if pd:
