@@ -20,6 +20,8 @@ from typing import Any
 import torch
 from torch import Tensor
 from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictSequential
+from torchrl.collectors import Collector
 from torchrl.data import ReplayBuffer
 from torchrl.data.replay_buffers.samplers import PrioritizedSampler
 from torchrl.data.replay_buffers.storages.utils import _collate_id
@@ -33,7 +35,9 @@ __all__ = ["collector_state", "load_collector_state", "reset_collector", "VecNor
            "ENV_BASE_INTERNALS", "replay_sample_unit", "storage_data", "sampler_generator",
            "module_kwargs", "SUBCLASS_INTERNALS", "collate_id", "priority_weight", "reduce_loss", "clear_weakrefs", "default_device",
            "target_updater_params", "sac_alpha", "sac_vmap_qvalue", "sac_detached_qvalue_params", "hook_first_steps",
-           "drop_step_hook", "env_step", "step_mdp_of"]
+           "drop_step_hook", "env_step", "step_mdp_of", "tensordict_entries", "tensordict_params_data",
+           "env_reset", "transform_reset_preprocess", "complete_done", "plain_round_robin", "writer_cursor",
+           "record_round_robin_write"]
 
 #: ``torchrl.objectives.utils._cache_values``: caches a loss's property (e.g. detached params) per call
 cache_values = _cache_values
@@ -76,6 +80,14 @@ SUBCLASS_INTERNALS: dict[type, tuple[str, ...]] = {
     ReplayBuffer: ("_delayed_init", "_init", "_transform", "_storage", "_sampler", "_writer", "_prefetch",
                    "_sample_unit", "_pin_memory", "_sample_dependency", "_service_shutdown", "_collate_fn",
                    "_batch_size", "_replay_lock", "_write_lock"),
+    # what morl_trl.training.parts.RecipeCollector's one-step rollout reads and calls (the parts of TorchRL's
+    # rollout it keeps) and checks (the features that send a batch back to TorchRL's rollout)
+    Collector: ("_postproc", "_exclude_private_keys", "_use_buffers", "_compact_next_keys", "_truncated_keys",
+                "_cast_to_policy_device", "_cast_to_env_device", "_carrier", "_should_use_random_frames",
+                "_wrapped_policy", "_policy_output_keys", "_sync_storage", "_final_rollout", "_carrier_has_no_device",
+                "_maybe_set_truncated"),
+    # morl_trl.objectives.sequential.LeanSequential's short call: what TensorDictSequential's forward checks and walks
+    TensorDictSequential: ("_select_before_return", "_module_iter"),
 }
 
 
@@ -139,6 +151,56 @@ def replay_sample_unit(buffer):
 def storage_data(storage) -> TensorDictBase:
     """``storage._storage``: the TensorDict of a ``LazyTensorStorage``'s rows (full capacity), indexed without its checks."""
     return storage._storage
+
+
+def tensordict_entries(td: TensorDict) -> dict:
+    """``td._tensordict``: a plain ``TensorDict``'s own name -> tensor / sub-tensordict dict (the one-env
+    paths read and index it directly; a caller checks ``type(td) is TensorDict`` first)."""
+    return td._tensordict
+
+
+def tensordict_params_data(params) -> TensorDict | None:
+    """``params._param_td``: the ``TensorDict`` behind a ``TensorDictParams`` whose ``get`` returns its entries as
+    they are (no get hook), else ``None``."""
+    return None if params._get_post_hook else params._param_td
+
+
+def env_reset(env: EnvBase, tensordict: TensorDictBase) -> TensorDictBase:
+    """``env._reset(tensordict)``: an env's own reset (under a transformed env), without ``reset``'s bookkeeping."""
+    return env._reset(tensordict)
+
+
+def transform_reset_preprocess(transform, tensordict: TensorDictBase) -> TensorDictBase:
+    """``transform._reset_env_preprocess(tensordict)``: a transform's look at the reset input before the env's reset."""
+    return transform._reset_env_preprocess(tensordict)
+
+
+def complete_done(env: EnvBase, tensordict: TensorDictBase) -> TensorDictBase:
+    """``env._complete_done(env.full_done_spec, tensordict)``: the done entries a reset or step output lacks, filled in."""
+    return env._complete_done(env.full_done_spec, tensordict)
+
+
+def plain_round_robin(writer, storage) -> bool:
+    """Whether a round-robin ``writer`` and its ``storage`` write nothing but the rows: no generation stamps
+    (``writer._track_generations`` / ``_generation``) and no key filter of a locked storage (``storage._storage_keys``)."""
+    return not writer._track_generations and writer._generation is None and storage._storage_keys is None
+
+
+def writer_cursor(writer) -> int:
+    """``writer._cursor``: where a round-robin writer writes next."""
+    return writer._cursor
+
+
+def record_round_robin_write(writer, storage, index: Tensor, n: int) -> None:
+    """What ``RoundRobinWriter.extend`` and ``TensorStorage.set`` do around writing ``n`` rows at ``index``
+    (written by the caller): the cursor and write count advanced, the storage's last cursor, length and
+    mutation revision, the attached samplers told (``mark_update``)."""
+    writer._cursor = (writer._cursor + n) % storage.max_size
+    writer._write_count += n
+    storage._set_last_cursor(index)
+    storage._len = min(storage._len + n, storage.max_size)
+    storage._bump_mutation_revision()
+    writer._mark_update_entities(index)
 
 
 def sampler_generator(sampler) -> torch.Generator | None:

@@ -39,9 +39,10 @@ from torchrl.data.replay_buffers.samplers import PrioritizedSampler
 from torchrl.data.replay_buffers.writers import RoundRobinWriter, TensorDictRoundRobinWriter
 from torchrl.data.replay_buffers.storages import TensorStorage
 
-from morl_trl._torchrl_compat import collate_id
+from morl_trl._torchrl_compat import (collate_id, new_tensordict_unsafe, plain_round_robin, record_round_robin_write,
+                                      storage_data, tensordict_entries, writer_cursor)
 
-__all__ = ["LeanTensorDictReplayBuffer"]
+__all__ = ["LeanTensorDictReplayBuffer", "extend_selected"]
 
 # the writers whose extend sets the batch's "index" as TensorDictReplayBuffer.extend does afterwards
 # (and any sampler but a consuming one: TorchRL's _extend then is the writer's and the sampler's extend)
@@ -56,7 +57,7 @@ def tensordict_layout(td) -> dict | None:
     if type(td) is not TensorDict:
         return None
     out = {}
-    for name, value in td._tensordict.items():
+    for name, value in tensordict_entries(td).items():
         if isinstance(value, torch.Tensor) and not is_tensor_collection(value):
             out[name] = None
         else:
@@ -69,10 +70,10 @@ def tensordict_layout(td) -> dict | None:
 
 def gather_leaves(td, layout: dict, index: torch.Tensor, batch_size: torch.Size):
     """``td[index]`` of a plain nested tensordict: each leaf indexed, the tree rebuilt as is."""
-    src = td._tensordict
+    src = tensordict_entries(td)
     out = {name: src[name][index] if sub is None else gather_leaves(src[name], sub, index, batch_size)
            for name, sub in layout.items()}
-    return TensorDict._new_unsafe(out, batch_size=batch_size, device=td.device)
+    return new_tensordict_unsafe(out, batch_size=batch_size, device=td.device)
 
 
 def leaf_pairs(td, layout: dict, batch, dims: int, *, target_dims: int = 1, skip_index: bool = True) -> list | None:
@@ -85,17 +86,17 @@ def leaf_pairs(td, layout: dict, batch, dims: int, *, target_dims: int = 1, skip
         for name, sub in lay.items():
             if skip_index and name == "index" and dst is td:
                 continue
-            value = src._tensordict.get(name) if type(src) is TensorDict else None
+            value = tensordict_entries(src).get(name) if type(src) is TensorDict else None
             if value is None:
                 return False
             if sub is None:
                 if type(value) is not torch.Tensor:  # (a plain tensor: anything else takes TorchRL's path)
                     return False
-                target = dst._tensordict[name]
+                target = tensordict_entries(dst)[name]
                 if value.shape[dims:] != target.shape[target_dims:]:
                     return False
                 pairs.append((target, value))
-            elif not collect(dst._tensordict[name], sub, value):
+            elif not collect(tensordict_entries(dst)[name], sub, value):
                 return False
         return True
 
@@ -141,26 +142,21 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
             return self.extend(batch.select(*keys, strict=False).reshape(-1))
         storage, layout = plan
         dims = batch.batch_dims
-        pairs = leaf_pairs(storage._storage, layout, batch, dims)
+        pairs = leaf_pairs(storage_data(storage), layout, batch, dims)
         if pairs is None:
             return self.extend(batch.select(*keys, strict=False).reshape(-1))
         writer = self._writer
         n = batch.batch_size.numel()
         with self._replay_lock, self._write_lock:
-            start = writer._cursor
+            start = writer_cursor(writer)
             capacity = storage.max_size
             index = torch.arange(start, start + n, dtype=torch.long, device=batch.device or "cpu") % capacity
             where = slice(start, start + n) if start + n <= capacity else index
             for target, value in pairs:
                 target[where] = value.reshape(-1, *value.shape[dims:])
-            # (what RoundRobinWriter.extend and TensorStorage.set do around the write)
-            writer._cursor = (start + n) % capacity
-            writer._write_count += n
-            storage._storage._tensordict["index"][where] = index.to(storage._storage._tensordict["index"].device)
-            storage._set_last_cursor(index)
-            storage._len = min(storage._len + n, capacity)
-            storage._bump_mutation_revision()
-            writer._mark_update_entities(index)
+            stored_index = tensordict_entries(storage_data(storage))["index"]
+            stored_index[where] = index.to(stored_index.device)
+            record_round_robin_write(writer, storage, index, n)  # (RoundRobinWriter.extend's and TensorStorage.set's rest)
             self._sampler.extend(index)
         return index
 
@@ -171,11 +167,11 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 or not self._lean()):
             return None
         writer, storage = self._writer, self._storage
-        if (writer._track_generations or writer._generation is not None or storage._storage_keys is not None
-                or type(storage._storage) is not TensorDict or type(storage) not in _PLAIN_STORAGES):
+        if (type(storage) not in _PLAIN_STORAGES or not plain_round_robin(writer, storage)
+                or type(storage_data(storage)) is not TensorDict):
             return None
         cached = self.__dict__.get("_plan_cache")
-        td = storage._storage
+        td = storage_data(storage)
         if cached is None or cached[0] is not td or cached[1] != keys:
             layout = tensordict_layout(td)
             wanted = {unravel_key(k) for k in keys}
@@ -229,7 +225,7 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
         """``storage.get(index)``: of a plain nested tensordict, each leaf indexed and the tree rebuilt
         (the same values; TorchRL's tensordict indexing costs more than the gathers in a one-env run)."""
         storage = self._storage
-        td = storage._storage
+        td = storage_data(storage)
         layout = self.__dict__.get("_get_layout")
         if layout is None or layout[0] is not td:
             layout = self._get_layout = (td, tensordict_layout(td) if type(storage) in _PLAIN_STORAGES else None)
@@ -251,3 +247,12 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 return
         return super().update_tensordict_priority(data)
 
+
+def extend_selected(buffer, batch: TensorDictBase, keys) -> torch.Tensor:
+    """``buffer.extend(batch.select(*keys, strict=False).reshape(-1))``: a
+    :class:`LeanTensorDictReplayBuffer`'s :meth:`~LeanTensorDictReplayBuffer.extend_from` (no selected copy),
+    any other buffer's ``extend`` of the selection (select first: fewer leaves to reshape)."""
+    extend_from = getattr(buffer, "extend_from", None)
+    if extend_from is not None:
+        return extend_from(batch, keys)
+    return buffer.extend(batch.select(*keys, strict=False).reshape(-1))

@@ -62,7 +62,7 @@ class _SegmentTree:
         """``_combine_np`` of two Python floats (the same value once stored in the tree's dtype)."""
         raise NotImplementedError
 
-    def _host(self) -> np.ndarray | None:
+    def _host_array(self) -> np.ndarray | None:
         """A NumPy view of the tree when it lives on the CPU and no graph is being traced (else ``None``)."""
         if self._tree.device.type != "cpu" or torch.compiler.is_compiling():
             return None
@@ -168,7 +168,7 @@ class _SegmentTree:
         self._written = max(self._written, hi + 1)
 
     def __setitem__(self, index, value) -> None:
-        host = self._host()
+        host = self._host_array()
         if host is not None:
             self._set_host(host, index, value)
             return
@@ -200,7 +200,7 @@ class _SegmentTree:
         last one's value (an ``[n, n]`` comparison instead of ``torch.unique``, whose output size
         the host would have to read). Parents are recombined level by level, as there.
         """
-        host = self._host()
+        host = self._host_array()
         if host is not None:
             idx, val = self._last_writes(index.numpy().reshape(-1), value.detach().reshape(-1).to(self.dtype).numpy())
             self._write_host(host, idx, val)
@@ -294,7 +294,7 @@ class SumSegmentTree(_SegmentTree):
 
         Leaves with zero value are never returned while the total is positive.
         """
-        host = self._host()
+        host = self._host_array()
         if host is not None:
             mass_np = torch.as_tensor(mass, dtype=self.dtype).reshape(-1).numpy().copy()
             m, top = self._written_subtree(self._written)  # (from the root: left, mass unchanged, down to top)
@@ -343,7 +343,7 @@ class MinSegmentTree(_SegmentTree):
 def assign_unchecked_all(trees, index: torch.Tensor, value: torch.Tensor) -> None:
     """``tree.assign_unchecked(index, value)`` for each of ``trees`` (a prioritized sampler's sum and min
     trees take the same writes); on CPU trees of one dtype the repeated indices are resolved once for all."""
-    hosts = [tree._host() for tree in trees]
+    hosts = [tree._host_array() for tree in trees]
     if any(host is None for host in hosts) or len({tree.dtype for tree in trees}) != 1:
         for tree in trees:
             tree.assign_unchecked(index, value)

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 from tensordict.utils import NestedKey
 from torchrl.objectives.common import LossModule
 from torchrl.objectives.utils import ValueEstimators
 from torchrl.objectives.value import ValueEstimatorBase
 
-from morl_trl._torchrl_compat import default_device, module_kwargs
+from morl_trl._torchrl_compat import default_device, module_kwargs, new_tensordict_unsafe
 from morl_trl.objectives.value import VectorTD0Estimator
 from morl_trl.preferences import PREFERENCE_DISTRIBUTIONS, check_simplex, sample_preferences
 
@@ -195,3 +195,29 @@ class MultiObjectiveLossModule(LossModule):
     @in_keys.setter
     def in_keys(self, values):
         self._in_keys = values
+
+
+def expanded_selection(data: TensorDictBase, keys, batch: int, n: int) -> TensorDictBase:
+    """``data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)``: the same views of the same
+    entries, the tensordict built directly (per update, the selection's apply cost more than the arithmetic)."""
+    if type(data) is not TensorDict or data.batch_dims != 1:
+        return data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)
+    tree: dict = {}
+    for key in keys:
+        path = (key,) if isinstance(key, str) else tuple(key)
+        value = data.get(key, None)
+        if value is None:
+            continue
+        if type(value) is not torch.Tensor:
+            return data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)
+        node = tree
+        for name in path[:-1]:
+            node = node.setdefault(name, {})
+        node[path[-1]] = value.unsqueeze(1).expand(batch, n, *value.shape[1:])
+    size, device = torch.Size([batch, n]), data.device
+
+    def build(node: dict) -> TensorDict:
+        return new_tensordict_unsafe({k: build(v) if isinstance(v, dict) else v for k, v in node.items()},
+                                     batch_size=size, device=device)
+
+    return build(tree)

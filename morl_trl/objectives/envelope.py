@@ -12,7 +12,7 @@ from torch import nn
 from torchrl.objectives.utils import distance_loss
 
 from morl_trl._torchrl_compat import clear_weakrefs, priority_weight, reduce_loss
-from morl_trl.objectives.common import MultiObjectiveLossModule, module_output
+from morl_trl.objectives.common import MultiObjectiveLossModule, expanded_selection, module_output
 from morl_trl.objectives.fast_path import FunctionalNetwork
 
 __all__ = ["EnvelopeQLoss"]
@@ -276,7 +276,7 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         next_value = self._envelope_next_value(data.get("next"), w)
         target_keys = [("next", key) for key in (self.tensor_keys.reward, self.tensor_keys.done, self.tensor_keys.terminated)]
         target_keys.append(self.value_estimator.tensor_keys.steps_to_next_obs)  # n-step returns (MultiStep)
-        target_data = _expanded(data, target_keys, batch, n)
+        target_data = expanded_selection(data, target_keys, batch, n)
         target = self.value_estimator.value_estimate(target_data, next_value=next_value).detach()
 
         vector_loss = distance_loss(q_taken, target, self.loss_function).mean(-1)
@@ -304,28 +304,3 @@ class EnvelopeQLoss(MultiObjectiveLossModule):
         clear_weakrefs(self, tensordict, out, "value_network_params", "target_value_network_params")
         return out
 
-
-def _expanded(data: TensorDictBase, keys, batch: int, n: int) -> TensorDictBase:
-    """``data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)``: the same views of the same
-    entries, the tensordict built directly (per update, the selection's apply cost more than the arithmetic)."""
-    if type(data) is not TensorDict or data.batch_dims != 1:
-        return data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)
-    tree: dict = {}
-    for key in keys:
-        path = (key,) if isinstance(key, str) else tuple(key)
-        value = data.get(key, None)
-        if value is None:
-            continue
-        if type(value) is not torch.Tensor:
-            return data.select(*keys, strict=False).unsqueeze(1).expand(batch, n)
-        node = tree
-        for name in path[:-1]:
-            node = node.setdefault(name, {})
-        node[path[-1]] = value.unsqueeze(1).expand(batch, n, *value.shape[1:])
-    size, device = torch.Size([batch, n]), data.device
-
-    def build(node: dict) -> TensorDict:
-        return TensorDict._new_unsafe({k: build(v) if isinstance(v, dict) else v for k, v in node.items()},
-                                      batch_size=size, device=device)
-
-    return build(tree)

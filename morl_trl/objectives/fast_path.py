@@ -22,7 +22,7 @@ from tensordict.nn import ProbabilisticTensorDictModule, TensorDictModule, Tenso
 from tensordict.utils import NestedKey
 from torch import Tensor
 
-from morl_trl._torchrl_compat import module_kwargs
+from morl_trl._torchrl_compat import module_kwargs, tensordict_entries, tensordict_params_data
 from morl_trl.objectives.networks import PreferenceConditionedMLP
 
 __all__ = ["FunctionalNetwork", "GaussianActorPlan"]
@@ -78,14 +78,15 @@ class FunctionalNetwork:
         """``[params.get(key) for key in keys]``; of a ``TensorDictParams`` without get hooks (a loss's
         parameters), read from its tensordict's entries directly (the same tensors: its ``get`` is a nested
         lookup through two wrappers per leaf, which cost as much as a small network's layer, three times an update)."""
-        if type(params) is TensorDictParams and not params._get_post_hook:
+        data = tensordict_params_data(params) if type(params) is TensorDictParams else None
+        if data is not None:
             out = []
             for key in self.keys:
-                node = params._param_td
+                node = data
                 for name in key:
                     if type(node) is not TensorDict:
                         return [params.get(k) for k in self.keys]
-                    node = node._tensordict.get(name)
+                    node = tensordict_entries(node).get(name)
                 if node is None or not isinstance(node, Tensor):
                     return [params.get(k) for k in self.keys]
                 out.append(node)

@@ -27,6 +27,8 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential, skip_existing
 from torch.nn.modules import module as _module
 
+from morl_trl._torchrl_compat import module_kwargs
+
 __all__ = ["LeanSequential"]
 
 
@@ -41,8 +43,8 @@ def _global_hooks() -> bool:
 
 def _plain_module(m) -> bool:
     """A ``TensorDictModule`` whose call is ``module(*entries)`` written to its ``out_keys``."""
-    return (type(m) is TensorDictModule and m._kwargs is None and m.method is None and not m.method_kwargs
-            and not m._get_kwargs and m.inplace is True and not m.strict and list(m.out_keys) == list(m.out_keys_source)
+    return (type(m) is TensorDictModule and module_kwargs(m) is None and m.method is None and not m.method_kwargs
+            and not getattr(m, "_get_kwargs", None) and m.inplace is True and not m.strict and list(m.out_keys) == list(m.out_keys_source)
             and "_" not in m.out_keys and not _hooked(m))
 
 

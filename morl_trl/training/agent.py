@@ -17,6 +17,7 @@ from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import ExplorationType
 from torchrl.modules import EGreedyModule
 
+from morl_trl.data.lean import extend_selected
 from morl_trl.objectives import PolyakUpdate
 from morl_trl.objectives.networks import orthogonal_init_
 from morl_trl.objectives.updaters import PeriodicHardUpdate
@@ -96,11 +97,7 @@ class Agent:
     def store(self, buffer, batch: TensorDictBase) -> None:
         """Write ``batch``'s transitions into ``buffer``, :attr:`replay_keys` only (an entry that a
         transition lacks, e.g. ``"preference"`` of an env without one, is left out)."""
-        extend_from = getattr(buffer, "extend_from", None)  # (LeanTensorDictReplayBuffer: no selected copy)
-        if extend_from is not None:
-            extend_from(batch, self.replay_keys)
-        else:
-            buffer.extend(batch.select(*self.replay_keys, strict=False).reshape(-1))  # (select first: fewer leaves to reshape)
+        extend_selected(buffer, batch, self.replay_keys)
 
     @property
     def epsilon(self) -> float | None:

@@ -20,7 +20,7 @@ from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from morl_trl._torchrl_compat import collector_state
+from morl_trl._torchrl_compat import collector_state, tensordict_entries
 from morl_trl.data import RunningMaxPrioritizedSampler, prioritized_sampler
 from morl_trl.data.lean import LeanTensorDictReplayBuffer, leaf_pairs, tensordict_layout
 from morl_trl.runs.checkpoint import DamagedCheckpointError
@@ -83,7 +83,7 @@ def _may_hold_private_keys(td) -> bool:
     name (at any depth) starts with ``"_"`` -- what TorchRL's collector excludes from its batches."""
     if type(td) is not TensorDict:
         return True
-    for name, value in td._tensordict.items():
+    for name, value in tensordict_entries(td).items():
         if name.startswith("_"):
             return True
         if not isinstance(value, torch.Tensor) or is_tensor_collection(value):

@@ -33,7 +33,8 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Composite
 from torchrl.envs import Compose, TransformedEnv
 
-from morl_trl._torchrl_compat import env_step, new_tensordict_unsafe, step_mdp_of, transform_step
+from morl_trl._torchrl_compat import (complete_done, env_reset, env_step, new_tensordict_unsafe, step_mdp_of,
+                                      tensordict_entries, transform_reset, transform_reset_preprocess, transform_step)
 from morl_trl.envs import ContextualMOEnv
 from morl_trl.envs.step_mdp import merge_reset, spec_cached, step_mdp_entries
 from morl_trl.transforms.history import StateActionHistory
@@ -100,15 +101,15 @@ class LeanTransformedEnv(TransformedEnv):
         tensordict = tensordict.select(*self.reset_keys, *state_keys, strict=False)
         transforms = self._transform_list()
         for t in reversed(transforms):
-            tensordict = t._reset_env_preprocess(tensordict)
-        reset = base._reset(tensordict)
+            tensordict = transform_reset_preprocess(t, tensordict)
+        reset = env_reset(base, tensordict)
         done_shapes = spec_cached(self, "done_shapes", lambda: _done_shapes(base))
-        entries = reset._tensordict if type(reset) is TensorDict else {}
+        entries = tensordict_entries(reset) if type(reset) is TensorDict else {}
         if done_shapes is None or not all(
                 isinstance(entries.get(key), torch.Tensor) and entries[key].shape == shape for key, shape in done_shapes):
-            base._complete_done(base.full_done_spec, reset)
+            complete_done(base, reset)
         for t in transforms:
-            reset = t._reset(tensordict, reset)
+            reset = transform_reset(t, tensordict, reset)
         return reset
 
     def _transform_list(self) -> list:

@@ -143,12 +143,12 @@ def test_host_tree_walks_only_the_written_subtree_exactly(cls, capacity, prefill
         value = torch.rand(n, generator=g)
         host[index] = value
         with monkeypatch.context() as m:
-            m.setattr(cls, "_host", lambda self: None)
+            m.setattr(cls, "_host_array", lambda self: None)
             full[index] = value
         assert torch.equal(host._tree, full._tree) and host._written == full._written
         if cls is SumSegmentTree:
             mass = torch.rand(32, generator=g) * host._tree[1]
             with monkeypatch.context() as m:
-                m.setattr(cls, "_host", lambda self: None)
+                m.setattr(cls, "_host_array", lambda self: None)
                 expected = full.scan_lower_bound(mass)
             assert torch.equal(host.scan_lower_bound(mass), expected)

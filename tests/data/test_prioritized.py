@@ -233,7 +233,7 @@ def test_cpu_host_path_equals_the_torch_ops_bit_for_bit(dtype, monkeypatch):
     fast = [SumSegmentTree(cap, dtype=dtype), MinSegmentTree(cap, dtype=dtype)]
     slow = [SumSegmentTree(cap, dtype=dtype), MinSegmentTree(cap, dtype=dtype)]
     for t in slow:
-        monkeypatch.setattr(t, "_host", lambda: None)
+        monkeypatch.setattr(t, "_host_array", lambda: None)
     for step in range(60):
         n = 1 if step % 3 == 0 else 32
         idx = torch.randint(cap, (n,), generator=g)
@@ -249,7 +249,7 @@ def test_cpu_host_path_equals_the_torch_ops_bit_for_bit(dtype, monkeypatch):
             assert a._written == b._written
         mass = torch.rand(64, generator=g, dtype=dtype) * fast[0].query(0, cap)
         assert torch.equal(fast[0].scan_lower_bound(mass), slow[0].scan_lower_bound(mass))
-    assert fast[0]._host() is not None and float(fast[0].query(0, cap)) > 0
+    assert fast[0]._host_array() is not None and float(fast[0].query(0, cap)) > 0
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -259,7 +259,7 @@ def test_cpu_host_writes_take_every_index_and_value_form(dtype, monkeypatch):
     fast = [SumSegmentTree(100, dtype=dtype), MinSegmentTree(100, dtype=dtype)]
     slow = [SumSegmentTree(100, dtype=dtype), MinSegmentTree(100, dtype=dtype)]
     for t in slow:
-        monkeypatch.setattr(t, "_host", lambda: None)
+        monkeypatch.setattr(t, "_host_array", lambda: None)
     writes = [(3, 0.25), ([1, 2, 2], [0.5, 1.5, 3.0]), (torch.tensor([7, 9]), torch.tensor(2.0)),
               (torch.tensor([99]), torch.tensor([1e-7], dtype=torch.float64)), (np.array([4, 5]), 0.125)]
     for index, value in writes:
