@@ -225,3 +225,90 @@ def test_q_estimate_log_keeps_the_largest_greedy_estimate_and_batch_mean(parity,
                  dict(case="envelope-dst-mb", lib="ours", seed=100, curve=curve, frames=100, q_check=check))
     text = parity.write_results(tmp_path / "results", [100], "cmd").read_text()
     assert "| ours | 100 | 30.0 | 16.5 | max | 0.500 |" in text and "| ours | seeds above | 1 of 1 | 0 of 1 | | |" in text
+
+
+def test_mb_evaluation_leaves_the_global_rng_streams_as_they_were(monkeypatch):
+    """The MB runner's evaluations (frame 0 and every eval_every frames inside MB's loop) run under
+    preserved_rng: Python's, NumPy's and torch's global streams continue as if nothing had drawn from them."""
+    import random
+
+    import numpy as np
+    import torch
+
+    mb_runner = _load_mb_runner(monkeypatch)
+    random.seed(1), np.random.seed(1), torch.manual_seed(1)
+    expected = random.random(), float(np.random.rand()), float(torch.rand(1))
+    random.seed(1), np.random.seed(1), torch.manual_seed(1)
+    with mb_runner.preserved_rng():
+        random.random(), np.random.rand(5), torch.rand(7), torch.manual_seed(99)
+    assert (random.random(), float(np.random.rand()), float(torch.rand(1))) == expected
+    sys.modules.pop("common", None)
+
+
+def test_mb_pcn_frame0_commands_and_a_replay_left_as_it_was(monkeypatch):
+    """MB's PCN at frame 0 (no episode yet) gets ours' frame-0 commands (zeros, horizon 1); later, the commands
+    come from MB's _nlargest, whose in-place re-pricing of the replay is undone (it decides MB's evictions)."""
+    import numpy as np
+    import torch
+
+    mb_runner = _load_mb_runner(monkeypatch)
+
+    class Step:
+        def __init__(self, reward):
+            self.reward = np.float32(reward)
+
+    class FakePCN:
+        reward_dim = 2
+        env = type("E", (), {"action_space": type("S", (), {"n": 4})()})()
+        experience_replay: list = []
+
+        def model(self, obs, desired, horizon):
+            return torch.zeros(obs.shape[0], 4)
+
+        def _nlargest(self, n):  # as MB's: re-prices every entry, re-heapifies in place, returns the best n
+            self.experience_replay[:] = [(-1.0, e[1], e[2]) for e in self.experience_replay][::-1]
+            return sorted(self.experience_replay, key=lambda e: -e[2][0].reward.sum())[:n]
+
+    agent = FakePCN()
+    policy = mb_runner._pcn_policy(agent, 2)
+    returns, horizons = policy._commands()
+    assert returns.shape == (16, 2) and not returns.any() and bool((horizons == 1).all())
+    agent.experience_replay = [(1, 3, [Step([1.0, 2.0])] * 3), (1, 5, [Step([4.0, 0.0])] * 5)]
+    before = list(agent.experience_replay)
+    returns, horizons = policy._commands()
+    assert agent.experience_replay == before  # same entries, same order, same priorities
+    assert returns[:2].tolist() == [[4.0, 0.0], [1.0, 2.0]] and horizons[:2].tolist() == [5.0, 3.0]
+    sys.modules.pop("common", None)
+
+
+def _mb_python():
+    import os
+
+    for venv in (os.environ.get("PARITY_MB_VENV"), "/tmp/mbvenv", str(Path.home() / ".cache/morl_trl/mb-1.3.0")):
+        if venv and (Path(venv) / "bin" / "python").exists():
+            return Path(venv) / "bin" / "python"
+    return None
+
+
+@pytest.mark.parametrize("case", ["pcn-dst", pytest.param("gpi_ls-dst", marks=pytest.mark.slow),
+                                  pytest.param("gpi_pd-dst", marks=pytest.mark.slow),
+                                  pytest.param("envelope-dst", marks=pytest.mark.slow),
+                                  pytest.param("pcn-fruit-tree", marks=pytest.mark.slow),
+                                  pytest.param("capql-mountaincar", marks=pytest.mark.slow),
+                                  pytest.param("morld-mountaincar", marks=pytest.mark.slow)])
+def test_mb_runner_evaluates_the_untrained_agent_at_frame0(case, tmp_path):
+    """PARITY_SMOKE=1 (200 frames): MB's run of a case starts its curve at frame 0, as ours. Needs MB's venv
+    (PARITY_MB_VENV, /tmp/mbvenv or run_parity's default): skipped without it. pcn-dst ~10 s; the others slow."""
+    import json
+    import os
+    import subprocess
+
+    python = _mb_python()
+    if python is None:
+        pytest.skip("no MORL-Baselines venv (PARITY_MB_VENV, /tmp/mbvenv)")
+    env = {**os.environ, "PARITY_SMOKE": "1", "PYTHONPATH": str(PARITY.parents[1])}
+    subprocess.run([str(python), str(PARITY / "mb_runner.py"), case, "0", str(tmp_path)], env=env, check=True,
+                   timeout=600, capture_output=True)
+    curve = json.loads((tmp_path / case / "mb_s0.json").read_text())["curve"]
+    assert [p["frames"] for p in curve][:3] == [0, 100, 200]
+    assert curve[0]["hypervolume"] is not None
