@@ -308,7 +308,7 @@ def test_mb_runner_evaluates_the_untrained_agent_at_frame0(case, tmp_path):
         pytest.skip("no MORL-Baselines venv (PARITY_MB_VENV, /tmp/mbvenv)")
     env = {**os.environ, "PARITY_SMOKE": "1", "PYTHONPATH": str(PARITY.parents[1])}
     subprocess.run([str(python), str(PARITY / "mb_runner.py"), case, "0", str(tmp_path)], env=env, check=True,
-                   timeout=600, capture_output=True)
+                   timeout=600, capture_output=True, cwd=tmp_path)  # (MB's PCN saves weights/ in the cwd)
     curve = json.loads((tmp_path / case / "mb_s0.json").read_text())["curve"]
     assert [p["frames"] for p in curve][:3] == [0, 100, 200]
     assert curve[0]["hypervolume"] is not None
