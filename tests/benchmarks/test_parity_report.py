@@ -51,8 +51,10 @@ def test_summary_row_compares_cis_and_frames_per_second(parity, tmp_path):
     text = parity.write_results(out, [0, 1, 2], "cmd").read_text()
     # both learn from frame 0, ours beyond MB (Welch p < 0.05, 31 above a margin of 9); half MB's frames/s
     assert "| pcn-dst | 3 / 3 | 121.00 [" in text
-    assert "| 90.00 [90.00, 90.00] | both learn, ours better | 30 | 60 | 0.50x |" in text
-    assert "| pcn | pcn-dst: both learn, ours better | pcn-dst: both learn, ours better |" in text  # per method
+    assert ("| 90.00 [90.00, 90.00] | both learn, ours better (seeds 0-2) | learns (gain 90, p 0) | 30 | 60 | 0.50x |"
+            in text)
+    assert ("| pcn | pcn-dst: both learn, ours better (seeds 0-2) | pcn-dst | pcn-dst: both learn, ours better "
+            "(seeds 0-2) |") in text  # per method, with the cases where the reference learns
     assert f"Results made by: `{current_commit()}` (6 files)\n" in text  # each file records its commit
     assert "| gpi_ls-dst | 0 / 0 | - |" in text  # a case without results is listed, not dropped
 
@@ -191,7 +193,29 @@ def test_results_from_several_commits_are_flagged_and_a_run_without_frame0_is_sa
     text = parity.write_results(out, [0, 1], "cmd").read_text()
     assert ("Results made by: `aaa` (2 files), `bbb` (2 files) -- **more than one commit: regenerate from one "
             "commit's runs before quoting**") in text
-    assert "| gpi_ls-dst | 2 / 2 |" in text and "| no frame-0 evaluation |" in text
+    assert "| gpi_ls-dst | 2 / 2 |" in text and "| no frame-0 evaluation (seeds 0-1) | no frame-0 evaluation |" in text
+
+
+def test_the_verdict_is_on_the_rounds_seeds_where_both_libraries_have_them(parity, tmp_path):
+    """Round 1's MB runs lack frame 0 (made before the runner had it): with round 2's seeds 100-102 run on both
+    sides, the verdict and MB's own learning are computed on those; every seed stays in the tables."""
+    from common import result_path, write_result
+
+    out = tmp_path / "results"
+    for lib in ("ours", "mb"):
+        for seed in (0, 1):  # round 1: MB's curve starts after frame 0
+            curve = [dict(frames=0 if lib == "ours" else 50, hypervolume=1.0), dict(frames=100, hypervolume=5.0)]
+            write_result(result_path(out, "gpi_ls-dst", lib, seed),
+                         dict(case="gpi_ls-dst", lib=lib, seed=seed, curve=curve, frames=100))
+        for seed, v in zip((100, 101, 102), (100.0, 101.0, 102.0)):
+            curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=v)]
+            write_result(result_path(out, "gpi_ls-dst", lib, seed),
+                         dict(case="gpi_ls-dst", lib=lib, seed=seed, curve=curve, frames=100))
+    text = parity.write_results(out, [100, 101, 102], "cmd").read_text()
+    assert "Seeds done: mb [0, 1, 100, 101, 102], ours [0, 1, 100, 101, 102]" in text
+    assert "| gpi_ls-dst | 5 / 5 |" in text and "| both learn, at parity (seeds 100-102) | learns (gain 101, p " in text
+    text = parity.write_results(out, [200, 201], "cmd").read_text()  # a round not run: every seed, said
+    assert "| no frame-0 evaluation (seeds 0, 1, 100, 101, 102) | no frame-0 evaluation |" in text
 
 
 def test_dst_bound_is_the_deepest_treasure_and_its_discounted_value_from_the_start(parity):
