@@ -181,12 +181,15 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.2), squeeze=False)
     for ax, (metric, label) in zip(axes.flat, metrics):
         for i, (lib, rs) in enumerate(sorted(runs.items())):
-            frames = [p["frames"] for p in rs[0]["curve"]]
-            ys = np.array([[p[metric] for p in r["curve"][: len(frames)]] for r in rs if len(r["curve"]) >= len(frames)],
-                          dtype=float)
+            # each evaluation point over the runs that have it, by its frame count (runs made before MB's
+            # frame-0 evaluation start at the first evaluation: matched by frames, not by position)
+            frames = sorted({p["frames"] for r in rs for p in r["curve"]})
+            at = [[p[metric] for r in rs for p in r["curve"] if p["frames"] == f and p.get(metric) is not None]
+                  for f in frames]
+            frames, at = [f for f, v in zip(frames, at) if v], [np.asarray(v, dtype=float) for v in at if v]
             name = "morl_trl (ours)" if lib == "ours" else f"MORL-Baselines {MB_VERSION}"
-            ax.plot(frames, ys.mean(0), color=f"C{i}", label=f"{name} ({len(ys)} seeds)")
-            ax.fill_between(frames, ys.min(0), ys.max(0), color=f"C{i}", alpha=0.2)
+            ax.plot(frames, [v.mean() for v in at], color=f"C{i}", label=f"{name} ({len(rs)} seeds)")
+            ax.fill_between(frames, [v.min() for v in at], [v.max() for v in at], color=f"C{i}", alpha=0.2)
         ax.set_xlabel("frames")
         ax.set_ylabel(label)
     axes.flat[0].legend(fontsize=7)
@@ -365,8 +368,8 @@ def verdict_runs(runs: dict[str, list[dict]], seeds: list[int]) -> tuple[dict[st
     if all(len(chosen.get(lib, [])) >= 2 for lib in ("ours", "mb")):
         runs = chosen
     used = sorted({r["seed"] for rs in runs.values() for r in rs})
-    text = (f"{used[0]}-{used[-1]}" if used == list(range(used[0], used[-1] + 1)) else ", ".join(map(str, used))
-            ) if used else "none"
+    text = ("none" if not used else str(used[0]) if len(used) == 1 else f"{used[0]}-{used[-1]}"
+            if used == list(range(used[0], used[-1] + 1)) else ", ".join(map(str, used)))
     return runs, text
 
 
