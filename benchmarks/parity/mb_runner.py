@@ -15,6 +15,7 @@ command of the nearest evaluation weight.
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 import sys
 import time
@@ -69,8 +70,18 @@ def _pcn_policy(agent, k: int):
             return agent.model(obs.float(), desired.float(), horizon.float())
 
     def commands():
+        if not len(agent.experience_replay):  # before any episode (frame 0): ours' eval_commands, zeros and 1
+            return torch.zeros(EVAL_WEIGHTS, k), torch.ones(EVAL_WEIGHTS)
         n = min(EVAL_WEIGHTS, len(agent.experience_replay))
-        episodes = agent._nlargest(n)
+        # MB's _nlargest re-prices every stored episode and re-heapifies the replay in place; MB's training
+        # evicts the heap's smallest entry when it adds an episode, and gives the episodes added since its
+        # last _choose_commands priority 1 (kept). The evaluation, hooked on env steps mid-round, would
+        # re-price those too and change which episodes MB's training evicts: the replay is put back as it was.
+        saved = list(agent.experience_replay)
+        try:
+            episodes = agent._nlargest(n)
+        finally:
+            agent.experience_replay[:] = saved
         returns = torch.as_tensor(np.float32([e[2][0].reward for e in episodes]))
         horizons = torch.as_tensor(np.float32([len(e[2]) for e in episodes]))
         reps = torch.arange(EVAL_WEIGHTS) % n
@@ -127,6 +138,26 @@ def evaluate_after_archive_updates(agent, evaluate, eval_every: int) -> None:
     agent._PGMORL__eval_all_agents = eval_all_and_evaluate
 
 
+@contextlib.contextmanager
+def preserved_rng():
+    """Python's, NumPy's and torch's global RNG states saved on entry and restored on exit. MB's agents draw
+    from the global streams (``seed_everything``; NumPy's for exploration, torch's for minibatches and
+    dropout), and building the evaluation's env and seeding it need not leave them alone: the shared
+    evaluation, at frame 0 and every ``eval_every`` frames inside MB's loop, must not move MB's training
+    off the trajectory it would follow unevaluated."""
+    import random
+
+    import torch
+
+    state = random.getstate(), np.random.get_state(), torch.get_rng_state()
+    try:
+        yield
+    finally:
+        random.setstate(state[0])
+        np.random.set_state(state[1])
+        torch.set_rng_state(state[2])
+
+
 def _call(fn, **kwargs):
     """``fn(**kwargs)`` keeping only the keyword arguments it takes (MB's train() signatures differ)."""
     names = inspect.signature(fn).parameters
@@ -154,6 +185,11 @@ def run(case_name: str, seed: int, out: Path) -> None:
     seed_everything(seed)
     torch.set_num_threads(1)
     env, eval_env = mo_gym.make(case["env"]), mo_gym.make(case["env"])
+    # MB 1.3.0's loops reset the env unseeded and sample random actions from its action space (PCN's warm-up
+    # episodes, the agents' exploration), both seeded from OS entropy: two runs of one seed differed. Seeded
+    # here once (what MB's own MOPPO does), so that a seed's run can be made again; the draws are as random.
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
     ref_point = np.asarray(MO_GYMNASIUM_REF_POINTS[case["env"]][0], dtype=np.float32)
     curve: list[dict] = []
     eval_s = [0.0]
@@ -165,7 +201,8 @@ def run(case_name: str, seed: int, out: Path) -> None:
         if qlog is not None:
             qlog.mark(frames)
         t = time.perf_counter()
-        m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
+        with preserved_rng():  # (the evaluations leave MB's training trajectory as it would be without them)
+            m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
         eval_s[0] += time.perf_counter() - t
         print(f"[mb {case_name} s{seed}] {frames} frames: {m}", flush=True)
@@ -225,8 +262,8 @@ def run(case_name: str, seed: int, out: Path) -> None:
             return q
 
         agent.q_net.forward = logged_forward
-    if algo in ("envelope", "capql", "gpi_ls", "gpi_pd", "morld"):  # untrained policies act: frame 0 as ours
-        evaluate(0)
+    if algo != "pgmorl":  # frame 0 as ours: the untrained agent, the same evaluator and weights as later
+        evaluate(0)  # (PGMORL's is hooked on its first __eval_all_agents, inside train(), before any update)
     t, e0 = time.perf_counter(), eval_s[0]
     _call(agent.train, total_timesteps=case["frames"], eval_env=eval_env, ref_point=ref_point,
           num_eval_weights_for_front=EVAL_WEIGHTS, eval_freq=10 ** 9, eval_mo_freq=10 ** 9, checkpoints=False,

@@ -32,7 +32,7 @@ sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folde
 
 from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, result_path,  # noqa: E402
                     write_result)
-from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, round_seeds, verdict  # noqa: E402
+from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
 #: what MB's modules import of MB_DEPS, by import name (its GPI-LS / GPI-PD: cdd, cvxpy, seaborn at module level)
@@ -181,12 +181,15 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
     fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.2), squeeze=False)
     for ax, (metric, label) in zip(axes.flat, metrics):
         for i, (lib, rs) in enumerate(sorted(runs.items())):
-            frames = [p["frames"] for p in rs[0]["curve"]]
-            ys = np.array([[p[metric] for p in r["curve"][: len(frames)]] for r in rs if len(r["curve"]) >= len(frames)],
-                          dtype=float)
+            # each evaluation point over the runs that have it, by its frame count (runs made before MB's
+            # frame-0 evaluation start at the first evaluation: matched by frames, not by position)
+            frames = sorted({p["frames"] for r in rs for p in r["curve"]})
+            at = [[p[metric] for r in rs for p in r["curve"] if p["frames"] == f and p.get(metric) is not None]
+                  for f in frames]
+            frames, at = [f for f, v in zip(frames, at) if v], [np.asarray(v, dtype=float) for v in at if v]
             name = "morl_trl (ours)" if lib == "ours" else f"MORL-Baselines {MB_VERSION}"
-            ax.plot(frames, ys.mean(0), color=f"C{i}", label=f"{name} ({len(ys)} seeds)")
-            ax.fill_between(frames, ys.min(0), ys.max(0), color=f"C{i}", alpha=0.2)
+            ax.plot(frames, [v.mean() for v in at], color=f"C{i}", label=f"{name} ({len(rs)} seeds)")
+            ax.fill_between(frames, [v.min() for v in at], [v.max() for v in at], color=f"C{i}", alpha=0.2)
         ax.set_xlabel("frames")
         ax.set_ylabel(label)
     axes.flat[0].legend(fontsize=7)
@@ -224,9 +227,17 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                f"{ALPHA}), and training frames/s "
                "(mean over seeds; ours / MB is issue 31's end-to-end comparison: both libraries' own training "
                "loops on the same env and budget).", "",
-               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | frames/s ours | frames/s MB | ours / MB |",
-               "|---|---|---|---|---|---|---|---|"]
+               "The verdict is computed on the round's seeds "
+               f"({', '.join(map(str, seeds))}: `verdict.round_seeds`) where both libraries have at least 2 of them, "
+               "else on every seed run (the seeds used are named); every seed run is in the case's tables. "
+               "MB learns: whether the reference learns on its own at the case's budget (the same paired test, on "
+               "the verdict's seeds: mean gain of final - frame-0 hypervolume, one-sided p); a case whose reference "
+               "does not learn says nothing about ours.", "",
+               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | MB learns | frames/s ours | frames/s MB "
+               "| ours / MB |",
+               "|---|---|---|---|---|---|---|---|---|"]
     per_method: dict[str, list[tuple[str, str]]] = {}
+    ref_learns_by_case: dict[str, str] = {}
     commits: dict[str, int] = {}
     body = []
     for case in CASES:
@@ -242,7 +253,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
         done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
         if not runs:
             body += ["Not run yet.", ""]
-            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - |")
+            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - | - |")
             continue
         body += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
                  + f" (target: {len(seeds)} per library)", ""]
@@ -278,20 +289,27 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
         if case in NOTES:
             body += [NOTES[case], ""]
         hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
-        said = case_verdict(runs) if "ours" in runs and "mb" in runs else "-"
-        if said != "-" and min(len(done["ours"]), len(done["mb"])) < len(seeds):
-            said += f" (< {len(seeds)} seeds)"
+        judged, used = verdict_runs(runs, seeds)
+        said = case_verdict(judged) if "ours" in runs and "mb" in runs else "-"
+        if said != "-":
+            n_used = min(len(judged["ours"]), len(judged["mb"]))
+            said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
+        ref_learns = library_learning(judged["mb"]) if "mb" in judged else "-"
         per_method.setdefault(spec["algo"], []).append((case, said))
+        ref_learns_by_case[case] = ref_learns
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
         summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get('mb', '-')} | {said} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
+                       f"| {hv.get('mb', '-')} | {said} | {ref_learns} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
                        f"| {ratio} |")
     methods = ["## Verdicts per method", "",
-               "A case counts as evidence of learning only where at least one library learns at its budget.", "",
-               "| method | informative cases | every case |", "|---|---|---|"]
+               "A case counts as evidence of learning only where at least one library learns at its budget; "
+               "the reference learns in the cases listed under \"MB learns\".", "",
+               "| method | informative cases | MB learns | every case |", "|---|---|---|---|"]
     for algo, cases in per_method.items():
-        good = [f"{c}: {v}" for c, v in cases if v.split(" (<")[0] in INFORMATIVE]
-        methods.append(f"| {algo} | {'; '.join(good) or 'none'} | " + "; ".join(f"{c}: {v}" for c, v in cases) + " |")
+        good = [f"{c}: {v}" for c, v in cases if v.split(" (")[0] in INFORMATIVE]
+        ref = [c for c, _ in cases if ref_learns_by_case.get(c, "").startswith("learns")]
+        methods.append(f"| {algo} | {'; '.join(good) or 'none'} | {', '.join(ref) or 'none'} | "
+                       + "; ".join(f"{c}: {v}" for c, v in cases) + " |")
     made = ", ".join(f"`{c}` ({n} files)" for c, n in sorted(commits.items(), key=lambda kv: (-kv[1], kv[0])))
     lines += [f"Results made by: {made or 'none yet'}"
               + (" -- **more than one commit: regenerate from one commit's runs before quoting**"
@@ -334,17 +352,38 @@ def q_check_lines(runs: dict[str, list[dict]]) -> list[str]:
     return lines + [""]
 
 
+def _values(rs: list[dict], metric: str) -> tuple[list[float] | None, list[float]]:
+    """``(frame-0 values or None where a run lacks its frame-0 point, final values)``, by seed."""
+    rs = sorted(rs, key=lambda r: r["seed"])
+    final = [r["curve"][-1][metric] for r in rs]
+    start = [r["curve"][0][metric] for r in rs if r["curve"] and r["curve"][0]["frames"] == 0]
+    return (start if len(start) == len(rs) else None), final
+
+
+def verdict_runs(runs: dict[str, list[dict]], seeds: list[int]) -> tuple[dict[str, list[dict]], str]:
+    """The runs a case's verdict is computed from, and which seeds those are: the round's ``seeds`` where both
+    libraries have at least 2 of them (the seed rule: a round's seeds are fixed before running); otherwise every
+    seed run (a case not run in this round keeps the verdict of the seeds it has). Every seed stays in the tables."""
+    chosen = {lib: [r for r in rs if r["seed"] in seeds] for lib, rs in runs.items()}
+    if all(len(chosen.get(lib, [])) >= 2 for lib in ("ours", "mb")):
+        runs = chosen
+    used = sorted({r["seed"] for rs in runs.values() for r in rs})
+    text = ("none" if not used else str(used[0]) if len(used) == 1 else f"{used[0]}-{used[-1]}"
+            if used == list(range(used[0], used[-1] + 1)) else ", ".join(map(str, used)))
+    return runs, text
+
+
 def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
     """:func:`verdict.verdict` of ours against MB on ``metric``, each seed's frame-0 and final values paired
     (a library without a frame-0 evaluation in every run: "no frame-0 evaluation")."""
-    def values(rs):
-        rs = sorted(rs, key=lambda r: r["seed"])
-        final = [r["curve"][-1][metric] for r in rs]
-        start = [r["curve"][0][metric] for r in rs if r["curve"] and r["curve"][0]["frames"] == 0]
-        return (start if len(start) == len(rs) else None), final
-
-    (o0, o1), (m0, m1) = values(runs["ours"]), values(runs["mb"])
+    (o0, o1), (m0, m1) = _values(runs["ours"], metric), _values(runs["mb"], metric)
     return verdict(o0, o1, m0, m1, higher_is_better=metric != "igd")
+
+
+def library_learning(rs: list[dict], metric: str = "hypervolume") -> str:
+    """:func:`verdict.learning` of one library's runs on ``metric`` (does it learn at this budget on its own)."""
+    start, final = _values(rs, metric)
+    return learning(start, final, higher_is_better=metric != "igd")
 
 
 # ---------------------------------------------------------------------- main

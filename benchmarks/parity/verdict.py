@@ -54,11 +54,12 @@ def _mean_var(x: Sequence[float]) -> tuple[float, float, int]:
     return m, (sum((v - m) ** 2 for v in x) / (n - 1) if n > 1 else 0.0), n
 
 
-def learns(frame0: Sequence[float], final: Sequence[float]) -> bool:
-    """Whether the runs learned: one-sided paired t-test of ``final - frame0`` (same seeds), p < ALPHA.
+def gain_test(frame0: Sequence[float], final: Sequence[float]) -> tuple[float, float]:
+    """``(mean gain, p)``: the mean of ``final - frame0`` over the seeds (each seed's two evaluations paired)
+    and the one-sided paired t-test's p-value for a positive gain (0 or 1 where every seed gained the same).
 
-    >>> learns([0.0, 0.0, 0.0], [0.5, 0.6, 0.55]), learns([0.1, 0.2, 0.1], [0.1, 0.2, 0.1])
-    (True, False)
+    >>> gain_test([0.0, 0.0, 0.0], [0.5, 0.6, 0.55])[0], gain_test([1.0, 1.0], [1.0, 1.0])
+    (0.55, (0.0, 1.0))
     """
     from scipy import stats
 
@@ -68,8 +69,37 @@ def learns(frame0: Sequence[float], final: Sequence[float]) -> bool:
     gains = [b - a for a, b in zip(frame0, final)]
     mean, var, _ = _mean_var(gains)
     if var == 0.0:  # (every seed gained the same)
-        return bool(mean > 0)
-    return bool(mean > 0 and stats.ttest_1samp(gains, 0.0, alternative="greater").pvalue < ALPHA)
+        return mean, 0.0 if mean > 0 else 1.0
+    return mean, float(stats.ttest_1samp(gains, 0.0, alternative="greater").pvalue)
+
+
+def learns(frame0: Sequence[float], final: Sequence[float]) -> bool:
+    """Whether the runs learned: one-sided paired t-test of ``final - frame0`` (same seeds), p < ALPHA
+    (:func:`gain_test`).
+
+    >>> learns([0.0, 0.0, 0.0], [0.5, 0.6, 0.55]), learns([0.1, 0.2, 0.1], [0.1, 0.2, 0.1])
+    (True, False)
+    """
+    mean, p = gain_test(frame0, final)
+    return bool(mean > 0 and p < ALPHA)
+
+
+def learning(frame0: Sequence[float] | None, final: Sequence[float], higher_is_better: bool = True) -> str:
+    """One library's learning on its own, in words: ``"learns (gain G, p P)"``, ``"does not learn (gain G, p P)"``,
+    ``"no frame-0 evaluation"`` or ``"fewer than 2 seeds"``; the gain is final - frame 0, in the metric's
+    direction. What the per-method table says of the reference: a case is informative only where it learns.
+
+    >>> learning([0.0, 0.0, 0.0], [0.5, 0.6, 0.55]), learning(None, [1.0, 2.0])
+    ('learns (gain 0.55, p 0.0014)', 'no frame-0 evaluation')
+    """
+    if frame0 is None:
+        return "no frame-0 evaluation"
+    if len(final) < 2:
+        return "fewer than 2 seeds"
+    sign = 1.0 if higher_is_better else -1.0
+    mean, p = gain_test([sign * v for v in frame0], [sign * v for v in final])
+    said = "learns" if mean > 0 and p < ALPHA else "does not learn"
+    return f"{said} (gain {mean:.3g}, p {p:.2g})"
 
 
 def welch(ours: Sequence[float], ref: Sequence[float]) -> tuple[float, float, float]:

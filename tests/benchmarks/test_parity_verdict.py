@@ -61,3 +61,11 @@ def test_the_seed_rule():
     assert V.round_seeds(3, 10) == list(range(200, 210))
     with pytest.raises(ValueError, match="rounds count from 1"):
         V.round_seeds(0)
+
+
+def test_one_librarys_learning_in_words():
+    assert V.learning(FLAT0, [0.8, 0.9, 0.85, 0.7, 0.95]).startswith("learns (gain 0.84, p ")
+    assert V.learning([3.0] * 3, [3.0, 3.1, 2.9]) == "does not learn (gain 0, p 0.5)"
+    assert V.learning([5.0] * 2, [1.0, 2.0], higher_is_better=False).startswith("learns (gain 3.5")  # IGD falls
+    assert V.learning(None, [1.0, 2.0]) == "no frame-0 evaluation" and V.learning([0.0], [1.0]) == "fewer than 2 seeds"
+    assert V.gain_test([0.0, 0.0], [1.0, 1.0]) == (1.0, 0.0)
