@@ -248,18 +248,26 @@ def result_path(out: Path, case: str, lib: str, seed: int) -> Path:
     return Path(out) / case / f"{lib}_s{seed}.json"
 
 
+def _own_output(path: str) -> bool:
+    """Whether a repository path is what this benchmark writes itself (the page, its plots, its result files)."""
+    return path == "benchmarks/parity/RESULTS.md" or (path.startswith("benchmarks/parity/") and (
+        path.endswith(".png") or path.startswith("benchmarks/parity/results/")))
+
+
 def current_commit() -> str:
-    """The checkout's commit (``+dirty`` with uncommitted changes to tracked files), or ``"unknown"``."""
+    """The checkout's commit (``+dirty`` with uncommitted changes to tracked files other than the benchmark's own
+    outputs: a long run regenerates RESULTS.md and the plots after every round), or ``"unknown"``."""
     import subprocess
 
     here = Path(__file__).resolve().parent
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True,
                              timeout=30).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                               capture_output=True, text=True, timeout=30).stdout.strip()
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+                                capture_output=True, text=True, timeout=30).stdout
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+    dirty = [line[3:] for line in status.splitlines() if line.strip() and not _own_output(line[3:].split(" -> ")[-1])]
     return (sha + ("+dirty" if dirty else "")) if sha else "unknown"
 
 

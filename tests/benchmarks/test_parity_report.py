@@ -336,3 +336,14 @@ def test_mb_runner_evaluates_the_untrained_agent_at_frame0(case, tmp_path):
     curve = json.loads((tmp_path / case / "mb_s0.json").read_text())["curve"]
     assert [p["frames"] for p in curve][:3] == [0, 100, 200]
     assert curve[0]["hypervolume"] is not None
+
+
+def test_the_benchmarks_own_outputs_do_not_mark_a_commit_dirty(parity):
+    """A long run rewrites RESULTS.md and the plots after every round: those (and result files) are not
+    uncommitted code, so the next round's results still name the commit alone."""
+    from common import _own_output
+
+    assert _own_output("benchmarks/parity/RESULTS.md") and _own_output("benchmarks/parity/gpi_ls-dst-30k.png")
+    assert _own_output("benchmarks/parity/results/gpi_ls-dst-30k/ours_s105.json")
+    assert not _own_output("benchmarks/parity/common.py") and not _own_output("morl_trl/data/lean.py")
+    assert not _own_output("docs/figure.png")
