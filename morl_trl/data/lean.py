@@ -68,6 +68,15 @@ def tensordict_layout(td) -> dict | None:
     return out
 
 
+def layout_keys(layout: dict, prefix: tuple = ()):
+    """The leaf keys of a :func:`tensordict_layout`, nested ones as tuples (``unravel_key``'s form)."""
+    for name, sub in layout.items():
+        if sub is None:
+            yield prefix + (name,) if prefix else name
+        else:
+            yield from layout_keys(sub, prefix + (name,))
+
+
 def gather_leaves(td, layout: dict, index: torch.Tensor, batch_size: torch.Size):
     """``td[index]`` of a plain nested tensordict: each leaf indexed, the tree rebuilt as is."""
     src = tensordict_entries(td)
@@ -119,10 +128,25 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
                 and storage.initialized and storage.ndim == 1 and self.dim_extend == 0
                 and self._collate_fn is collate_id)
 
+    def _plain_extend(self, batch) -> bool:
+        """Whether an ``extend`` of ``batch`` is the writer's and the sampler's ``extend`` alone (a batch
+        without priorities, a round-robin writer, no consuming sampler, the short paths' conditions)."""
+        return (isinstance(batch, TensorDictBase) and self.priority_key not in batch.keys()
+                and type(self._writer) in _ROUND_ROBIN and not isinstance(self._sampler, ConsumingSampler)
+                and self._lean())
+
+    def _storage_layout(self) -> dict | None:
+        """:func:`tensordict_layout` of the storage's tensordict (``None``: not a plain one), computed once per
+        storage tensordict."""
+        storage = self._storage
+        td = storage_data(storage)
+        cached = self.__dict__.get("_layout_cache")
+        if cached is None or cached[0] is not td:
+            cached = self._layout_cache = (td, tensordict_layout(td) if type(storage) in _PLAIN_STORAGES else None)
+        return cached[1]
+
     def extend(self, tensordicts: TensorDictBase, *, update_priority: bool | None = None) -> torch.Tensor:
-        if (not isinstance(tensordicts, TensorDictBase) or self.priority_key in tensordicts.keys()
-                or type(self._writer) not in _ROUND_ROBIN or isinstance(self._sampler, ConsumingSampler)
-                or not self._lean()):
+        if not self._plain_extend(tensordicts):
             return super().extend(tensordicts, update_priority=update_priority)
         if self._transform is not None:  # (TorchRL's empty transform's inv: a shallow copy gets the "index")
             tensordicts = tensordicts.copy()
@@ -137,12 +161,9 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
         plain tensordict holding exactly the ``keys`` that ``batch`` has (then each of its leaves is
         written from ``batch``'s, a slice where the write does not wrap) -- a one-env run stores a
         transition per frame."""
-        plan = self._write_plan(batch, keys)
-        if plan is None:
-            return self.extend(batch.select(*keys, strict=False).reshape(-1))
-        storage, layout = plan
-        dims = batch.batch_dims
-        pairs = leaf_pairs(storage_data(storage), layout, batch, dims)
+        layout = self._write_layout(batch, keys)
+        storage, dims = self._storage, batch.batch_dims
+        pairs = None if layout is None else leaf_pairs(storage_data(storage), layout, batch, dims)
         if pairs is None:
             return self.extend(batch.select(*keys, strict=False).reshape(-1))
         writer = self._writer
@@ -160,40 +181,27 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
             self._sampler.extend(index)
         return index
 
-    def _write_plan(self, batch, keys):
-        """``(storage, layout)`` when :meth:`extend_from` may write ``batch`` leaf by leaf, else ``None``."""
-        if (type(batch) is not TensorDict or type(self._writer) not in _ROUND_ROBIN
-                or isinstance(self._sampler, ConsumingSampler) or self.priority_key in batch.keys()
-                or not self._lean()):
+    def _write_layout(self, batch, keys) -> dict | None:
+        """The storage's layout when :meth:`extend_from` may write ``batch`` leaf by leaf: a plain extend
+        into a plain round-robin storage holding the replay ``keys`` (the ones ``batch`` has), else ``None``."""
+        if type(batch) is not TensorDict or not self._plain_extend(batch):
             return None
-        writer, storage = self._writer, self._storage
-        if (type(storage) not in _PLAIN_STORAGES or not plain_round_robin(writer, storage)
-                or type(storage_data(storage)) is not TensorDict):
+        storage = self._storage
+        if not plain_round_robin(self._writer, storage):
             return None
-        cached = self.__dict__.get("_plan_cache")
-        td = storage_data(storage)
-        if cached is None or cached[0] is not td or cached[1] != keys:
-            layout = tensordict_layout(td)
+        layout = self._storage_layout()
+        if layout is None or layout.get("index", 0) is not None:
+            return None
+        cached = self.__dict__.get("_absent_cache")
+        if cached is None or cached[0] is not layout or cached[1] != keys:
+            held = set(layout_keys(layout)) - {"index"}
             wanted = {unravel_key(k) for k in keys}
-            held = set()
-
-            def leaves(lay, prefix=()):
-                for name, sub in lay.items():
-                    if sub is None:
-                        held.add(prefix + (name,))
-                    else:
-                        leaves(sub, prefix + (name,))
-
-            if layout is not None:
-                leaves(layout)
-            held = {k[0] if len(k) == 1 else k for k in held}
-            ok = layout is not None and "index" in layout and layout["index"] is None and held - {"index"} <= wanted
-            absent = [k for k in wanted if k not in held]  # (keys the batch must lack, as the first write did)
-            cached = self._plan_cache = (td, list(keys), layout if ok else None, absent)
-        layout, absent = cached[2], cached[3]
-        if layout is None or any(batch.get(k, None) is not None for k in absent):
+            # (None: the storage holds a leaf the keys lack; else the keys the batch must lack, as the first write did)
+            cached = self._absent_cache = (layout, list(keys), [k for k in wanted if k not in held] if held <= wanted else None)
+        absent = cached[2]
+        if absent is None or any(batch.get(k, None) is not None for k in absent):
             return None
-        return storage, layout
+        return layout
 
     def sample(self, batch_size: int | None = None, return_info: bool = False,
                include_info: bool | None = None) -> TensorDictBase:
@@ -224,15 +232,10 @@ class LeanTensorDictReplayBuffer(TensorDictReplayBuffer):
     def _get(self, index: torch.Tensor) -> TensorDictBase:
         """``storage.get(index)``: of a plain nested tensordict, each leaf indexed and the tree rebuilt
         (the same values; TorchRL's tensordict indexing costs more than the gathers in a one-env run)."""
-        storage = self._storage
-        td = storage_data(storage)
-        layout = self.__dict__.get("_get_layout")
-        if layout is None or layout[0] is not td:
-            layout = self._get_layout = (td, tensordict_layout(td) if type(storage) in _PLAIN_STORAGES else None)
-        if (layout[1] is None or not isinstance(index, torch.Tensor) or index.ndim != 1
-                or index.dtype != torch.long):
-            return storage.get(index)
-        return gather_leaves(td, layout[1], index, torch.Size([index.shape[0]]))
+        layout = self._storage_layout()
+        if layout is None or not isinstance(index, torch.Tensor) or index.ndim != 1 or index.dtype != torch.long:
+            return self._storage.get(index)
+        return gather_leaves(storage_data(self._storage), layout, index, torch.Size([index.shape[0]]))
 
     def update_tensordict_priority(self, data: TensorDictBase) -> None:
         if not isinstance(self._sampler, PrioritizedSampler):

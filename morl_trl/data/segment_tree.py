@@ -95,10 +95,7 @@ class _SegmentTree:
                 tree[node] = combine(item(2 * node), item(2 * node + 1))
             self._copy_up(tree, top)
             return
-        # row p of the pairs view holds the children (2p, 2p + 1) of node p: one gather and one
-        # two-element reduction (a single addition / minimum) per level
         m, top = self._written_subtree(max(self._written, int(index.max()) + 1))
-        pairs, reduce = tree.reshape(-1, 2), self._combine_np.reduce
         node = index + self._size
         tree[node] = value
         if (1 << m) <= 4096 * m:
@@ -112,6 +109,9 @@ class _SegmentTree:
                 combine(tree[2 * lo:2 * hi:2], tree[2 * lo + 1:2 * hi:2], out=tree[lo:hi])
             self._copy_up(tree, top)
             return
+        # a larger one: the indices' ancestors, level by level. Row p of the pairs view holds the children
+        # (2p, 2p + 1) of node p: one gather and one two-element reduction (one addition / minimum) per level
+        pairs, reduce = tree.reshape(-1, 2), self._combine_np.reduce
         for _ in range(m):
             node >>= 1  # repeated parents receive identical values: duplicates are harmless
             tree[node] = reduce(pairs[node], axis=1)

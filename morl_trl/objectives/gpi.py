@@ -199,10 +199,10 @@ class GPIPolicy(TensorDictModuleBase):
             support = torch.cat([support, w.unsqueeze(-2).float()], -2)
         m = support.shape[-2]
         obs_m = obs.unsqueeze(len(lead)).expand(*lead, m, *obs.shape[len(lead):])
-        modules = self.__dict__.get("_qnet_modules")
-        if modules is None or modules[0] is not self.qnet:
-            modules = self.__dict__["_qnet_modules"] = [self.qnet, *self.qnet.modules()]
-        if all(m.training == self.dropout for m in modules[1:]):  # (already in the mode: no switch and back)
+        cached = self.__dict__.get("_qnet_modules")  # (qnet, its modules): the structure is fixed once built
+        if cached is None or cached[0] is not self.qnet:
+            cached = self.__dict__["_qnet_modules"] = (self.qnet, list(self.qnet.modules()))
+        if all(m.training == self.dropout for m in cached[1]):  # (already in the mode: no switch and back)
             q = self.qnet(obs_m, support, members=slice(0, 1))[0]  # [*B, M, A, k]
         else:
             was = self.qnet.training

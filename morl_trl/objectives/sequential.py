@@ -23,7 +23,7 @@ Example:
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDict
 from tensordict.nn import TensorDictModule, TensorDictSequential, skip_existing
 from torch.nn.modules import module as _module
 

@@ -72,16 +72,15 @@ class LeanTransformedEnv(TransformedEnv):
         (True, torch.Size([1, 3, 2]))
     """
 
-    def _lean_transforms(self) -> bool:
-        transform = self.transform
-        return all(type(t) in LEAN_TRANSFORMS for t in (transform if isinstance(transform, Compose) else [transform]))
+    def _lean_stack(self) -> bool:
+        """Our env under our transforms only, without TorchRL's type checks: the short paths' common condition."""
+        return (isinstance(self.base_env, ContextualMOEnv) and not self.run_type_checks
+                and spec_cached(self, "lean_transforms",
+                                lambda: all(type(t) in LEAN_TRANSFORMS for t in self._transform_list())))
 
     def lean_step_applies(self, tensordict: TensorDictBase) -> bool:
         """Whether ``step_and_maybe_reset(tensordict)`` takes the short path."""
-        base = self.base_env
-        return (isinstance(base, ContextualMOEnv) and not self.run_type_checks
-                and spec_cached(self, "lean_transforms", self._lean_transforms)
-                and base._lean_step_applies(tensordict))
+        return self._lean_stack() and self.base_env._lean_step_applies(tensordict)
 
     def step_mdp_keys(self, tensordict: TensorDictBase) -> list:
         """The keys of the TensorDict ``step_mdp`` makes of ``tensordict`` (a stepped one, with ``"next"``)."""
@@ -93,10 +92,9 @@ class LeanTransformedEnv(TransformedEnv):
         env's ``_reset``, TorchRL's completion of missing done entries, each transform's ``_reset``) with
         the spec walks done once (the state keys; the done entries' shapes, against which a reset that
         holds them all needs no completion) -- a one-env run resets every few frames."""
-        base = self.base_env
-        if (tensordict is None or kwargs or not isinstance(base, ContextualMOEnv) or self.run_type_checks
-                or not spec_cached(self, "lean_transforms", self._lean_transforms)):
+        if tensordict is None or kwargs or not self._lean_stack():
             return super()._reset(tensordict, **kwargs)
+        base = self.base_env
         state_keys = spec_cached(self, "state_keys", lambda: list(self.state_spec.keys(True, True)))
         tensordict = tensordict.select(*self.reset_keys, *state_keys, strict=False)
         transforms = self._transform_list()

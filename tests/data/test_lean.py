@@ -94,7 +94,7 @@ def test_extend_from_writes_what_extend_of_the_selection_writes(rows):
             a["td_error"] = b["td_error"] = torch.rand(8, generator=g)
             ours.update_tensordict_priority(a)
             theirs.update_tensordict_priority(b)
-    assert ours._write_plan(x, keys) is not None  # (the leaf-by-leaf write was the one compared)
+    assert ours._write_layout(x, keys) is not None  # (the leaf-by-leaf write was the one compared)
     assert ours._writer._cursor == theirs._writer._cursor == (40 * rows) % 37 and len(ours) == len(theirs) == 37
     assert ours._writer._write_count == theirs._writer._write_count == 40 * rows
     assert (ours.storage._storage == theirs.storage._storage).all()
@@ -102,11 +102,11 @@ def test_extend_from_writes_what_extend_of_the_selection_writes(rows):
     # a batch with a stored key missing, or with a key the storage lacks: TorchRL's extend (which refuses
     # or adds as it does)
     missing = _transition(g, 1).unsqueeze(-1).exclude("action")
-    storage, layout = ours._write_plan(missing, keys)
-    assert leaf_pairs(storage._storage, layout, missing, 2) is None
+    layout = ours._write_layout(missing, keys)
+    assert layout is not None and leaf_pairs(ours.storage._storage, layout, missing, 2) is None
     x = _transition(g, 1).unsqueeze(-1)
     x["preference"] = torch.ones(1, 1, 2)
-    assert ours._write_plan(x, keys) is None
+    assert ours._write_layout(x, keys) is None
 
 
 def test_lean_buffer_other_cases_are_torchrls():

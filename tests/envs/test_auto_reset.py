@@ -15,21 +15,13 @@ from morl_trl.envs import make_env
 from morl_trl.envs import ContextSampler, ContextualMOEnv
 from morl_trl.transforms import StateActionHistory
 from tests.mocks import TOY_CONTEXT, ToyContextEnv
-
-
-def _assert_same(a: TensorDict, b: TensorDict, where: str) -> None:
-    keys_a, keys_b = sorted(a.keys(True, True), key=str), sorted(b.keys(True, True), key=str)
-    assert keys_a == keys_b, where
-    for key in keys_a:
-        x, y = a.get(key), b.get(key)
-        assert x.dtype == y.dtype and x.shape == y.shape, (where, key)
-        assert torch.equal(x, y), (where, key, x, y)
+from tests._tensordicts import assert_same_tensordict
 
 
 def _run_both(make, steps: int, *, nested: bool = False) -> int:
     lean, generic = make(), make()
     td_lean, td_generic = lean.reset(), generic.reset()
-    _assert_same(td_lean, td_generic, "reset")
+    assert_same_tensordict(td_lean, td_generic, "reset")
     gen = torch.Generator().manual_seed(0)
     spec = lean.action_spec
     resets = 0
@@ -46,8 +38,8 @@ def _run_both(make, steps: int, *, nested: bool = False) -> int:
                 td["policy", "hidden"] = extra[:, :1].clone()
         out_lean, td_lean = lean.step_and_maybe_reset(td_lean)
         out_generic, td_generic = EnvBase._step_and_maybe_reset(generic, td_generic)
-        _assert_same(out_lean, out_generic, f"step {t}")
-        _assert_same(td_lean, td_generic, f"step {t}, after the resets")
+        assert_same_tensordict(out_lean, out_generic, f"step {t}")
+        assert_same_tensordict(td_lean, td_generic, f"step {t}, after the resets")
         resets += int(out_lean["next", "done"].sum())
     return resets
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import pytest
 import torch
-from tensordict import TensorDict
 from torchrl.envs import EnvBase, RewardSum, TransformedEnv
 
 from morl_trl.envs import make_env
@@ -23,15 +22,7 @@ from morl_trl.transforms import (
     compose_training_env,
 )
 from tests.mocks import ToyContextEnv
-
-
-def _assert_same(a: TensorDict, b: TensorDict, where: str) -> None:
-    keys_a, keys_b = sorted(a.keys(True, True), key=str), sorted(b.keys(True, True), key=str)
-    assert keys_a == keys_b, where
-    for key in keys_a:
-        x, y = a.get(key), b.get(key)
-        assert x.dtype == y.dtype and x.shape == y.shape, (where, key)
-        assert torch.equal(x, y), (where, key, x, y)
+from tests._tensordicts import assert_same_tensordict
 
 
 def _transforms(history: int = 0, extra=()):
@@ -65,7 +56,7 @@ def _run_both(make_base, steps: int, monkeypatch, *, history: int = 0, extra=lam
 
     monkeypatch.setattr(TransformedEnv, "_reset", counted_reset)
     td_lean, td_generic = lean.reset(), generic.reset()
-    _assert_same(td_lean, td_generic, "reset")
+    assert_same_tensordict(td_lean, td_generic, "reset")
     gen = torch.Generator().manual_seed(0)
     n = lean.batch_size[0]
     ended = full = 0
@@ -77,8 +68,8 @@ def _run_both(make_base, steps: int, monkeypatch, *, history: int = 0, extra=lam
             td["policy_output"] = extra_out.clone()
         out_lean, td_lean = lean.step_and_maybe_reset(td_lean)
         out_generic, td_generic = generic.step_and_maybe_reset(td_generic)
-        _assert_same(out_lean, out_generic, f"step {t}")
-        _assert_same(td_lean, td_generic, f"step {t}, after the resets")
+        assert_same_tensordict(out_lean, out_generic, f"step {t}")
+        assert_same_tensordict(td_lean, td_generic, f"step {t}, after the resets")
         done = out_lean["next", "done"]
         ended += int(done.sum())
         full += int(done.all())
