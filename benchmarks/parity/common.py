@@ -160,6 +160,65 @@ def evaluate_policy(policy, env_id: str, gamma: float, seed: int) -> dict[str, f
     return {k: (None if v is None else float(v)) for k, v in metrics.items()}
 
 
+# ---------------------------------------------------------------------- the floor of trivial policies
+def trivial_policies(env_id: str) -> dict[str, object]:
+    """The env's trivial policies, as ``morl_trl.reporting.floors`` defines them for our domains: ``"random"``
+    (uniform samples of the action space) and every constant action (discrete: each index, ``"action i"``;
+    continuous: the zero action, ``"zero"``), as ``name -> "random" | action tensor``."""
+    import mo_gymnasium as mo_gym
+    import torch
+
+    env = mo_gym.make(env_id)
+    try:
+        space = env.action_space
+    finally:
+        env.close()
+    out: dict[str, object] = {"random": "random"}
+    if hasattr(space, "n"):
+        out.update({f"action {i}": torch.tensor(i, dtype=torch.long) for i in range(int(space.n))})
+    else:
+        out["zero"] = torch.zeros(int(np.prod(space.shape)), dtype=torch.float32)
+    return out
+
+
+def evaluate_floor(env_id: str, gamma: float, seed: int) -> dict[str, dict[str, float]]:
+    """Every trivial policy (:func:`trivial_policies`) through :func:`evaluate_policy`'s protocol at ``seed`` (the
+    evaluation seed a run of that seed uses): ``name -> metrics``. What a run must beat to have learned anything
+    a constant action does not do (``verdict.baseline``)."""
+    from morl_trl.reporting.floors import constant_policy
+
+    return {name: evaluate_policy("random" if isinstance(target, str) else constant_policy(target), env_id, gamma, seed)
+            for name, target in trivial_policies(env_id).items()}
+
+
+def floor_path(out: Path, case: str, seed: int) -> Path:
+    """Where a case's floor at ``seed`` is cached (a subfolder: the runs' loader reads ``<case>/*.json`` only)."""
+    return Path(out) / case / "floor" / f"s{seed}.json"
+
+
+def case_floor(out: Path, case: str, seed: int, compute: bool = True) -> dict | None:
+    """The case's floor at ``seed`` (``{"policies": name -> metrics, "commit": ...}``), from its cache file, else
+    evaluated and cached when ``compute`` (a few seconds: 16 episodes per trivial policy), else ``None``."""
+    import json
+
+    path = floor_path(out, case, seed)
+    if path.exists():
+        return json.loads(path.read_text())
+    if not compute:
+        return None
+    spec = CASES[case]
+    data = dict(case=case, seed=seed, env=spec["env"], gamma=spec["gamma"],
+                policies=evaluate_floor(spec["env"], spec["gamma"], seed))
+    write_result(path, data)
+    return data
+
+
+def best_floor(floor: dict, metric: str = "hypervolume") -> tuple[str, float] | None:
+    """``(policy, value)`` of the trivial policy with the highest ``metric`` in a :func:`case_floor` record."""
+    vals = [(name, m.get(metric)) for name, m in floor["policies"].items() if m.get(metric) is not None]
+    return max(vals, key=lambda nv: nv[1]) if vals else None
+
+
 # ---------------------------------------------------------------------- the Q estimates' bound (issue 48)
 def dst_value_bounds(gamma: float) -> dict[str, float]:
     """Deep Sea Treasure's largest discounted return per objective, by value iteration over its grid with its

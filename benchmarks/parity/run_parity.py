@@ -30,9 +30,9 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
-from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, result_path,  # noqa: E402
-                    write_result)
-from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, learning, round_seeds, verdict  # noqa: E402
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, best_floor,  # noqa: E402
+                    case_floor, result_path, write_result)
+from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, floor_words, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
 #: what MB's modules import of MB_DEPS, by import name (its GPI-LS / GPI-PD: cdd, cvxpy, seaborn at module level)
@@ -119,7 +119,23 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
             qlog.record(w, q)
         return q
 
+    from morl_trl.data.episode_replay import EpisodeReplay
+
+    top_commands = EpisodeReplay.top_commands
+
+    def side_effect_free_top_commands(self, n):
+        # PCN's evaluation ranks the replay's episodes with nlargest, which stores the ranking as the priorities
+        # (as MB's PCN.evaluate -> _nlargest does): an evaluation between two adds then changes which episode the
+        # next add evicts. MB's runner puts MB's replay back after its evaluation (mb_runner._pcn_policy); the same
+        # here, so that neither library's training depends on when the benchmark evaluates it
+        saved = self.priority.clone()
+        try:
+            return top_commands(self, n)
+        finally:
+            self.priority = saved
+
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
+    EpisodeReplay.top_commands = side_effect_free_top_commands
     if qlog is not None:
         EnvelopeQLoss._q_values = logged_q_values
     try:
@@ -137,9 +153,10 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
                 point["frames"] *= scale
     finally:
         MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
+        EpisodeReplay.top_commands = top_commands
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     frames = int(curve[-1]["frames"])
-    extra = {}
+    extra = {"pcn_eval_priorities_restored": True} if case["algo"] == "pcn" else {}
     if qlog is not None:
         if len(qlog.points) == len(curve):
             for point, row in zip(qlog.points, curve):
@@ -203,7 +220,7 @@ def _num(value) -> str:
     return "-" if value is None else f"{value:,.0f}"
 
 
-def write_results(out: Path, seeds: list[int], command: str) -> Path:
+def write_results(out: Path, seeds: list[int], command: str, compute_floors: bool = False) -> Path:
     import platform
 
     import torch
@@ -232,10 +249,17 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                "else on every seed run (the seeds used are named); every seed run is in the case's tables. "
                "MB learns: whether the reference learns on its own at the case's budget (the same paired test, on "
                "the verdict's seeds: mean gain of final - frame-0 hypervolume, one-sided p); a case whose reference "
-               "does not learn says nothing about ours.", "",
-               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | MB learns | frames/s ours | frames/s MB "
-               "| ours / MB |",
-               "|---|---|---|---|---|---|---|---|---|"]
+               "does not learn says nothing about ours. Trivial floor: the best hypervolume of the trivial policies "
+               "(the random policy and every constant action; continuous actions: the zero action) under the same "
+               "evaluation at each verdict seed (`common.case_floor`, cached under `results/<case>/floor/`), "
+               "mean over those seeds, and the policy that gives it most often: under this protocol (16 weights x 1 "
+               "episode, the front of all returns) a random policy's spread of returns is itself a front, and a "
+               "constant action can hold an objective's best value (the zero action's control cost). vs the floor: "
+               f"the same paired test on final - floor per library (`verdict.above_floor`, p < {ALPHA}); a case "
+               "whose reference learns but stays below the floor shows learning, not a useful policy.", "",
+               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | MB learns | trivial floor "
+               "| ours / MB vs the floor | frames/s ours | frames/s MB | ours / MB |",
+               "|---|---|---|---|---|---|---|---|---|---|---|"]
     per_method: dict[str, list[tuple[str, str]]] = {}
     ref_learns_by_case: dict[str, str] = {}
     commits: dict[str, int] = {}
@@ -253,7 +277,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
         done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
         if not runs:
             body += ["Not run yet.", ""]
-            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - | - |")
+            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - | - | - | - |")
             continue
         body += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
                  + f" (target: {len(seeds)} per library)", ""]
@@ -290,20 +314,27 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
             body += [NOTES[case], ""]
         hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds)
+        judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
+        floors = load_floors(out, case, judged_seeds, compute_floors)
         said = case_verdict(judged) if "ours" in runs and "mb" in runs else "-"
         if said != "-":
             n_used = min(len(judged["ours"]), len(judged["mb"]))
             said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
         ref_learns = library_learning(judged["mb"]) if "mb" in judged else "-"
-        per_method.setdefault(spec["algo"], []).append((case, said))
+        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors) or "-" for lib in ("ours", "mb"))
+        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors) for lib in ("ours", "mb"))]
+        per_method.setdefault(spec["algo"], []).append(
+            (case, said + (f" [vs the floor: ours {short[0]}, MB {short[1]}]" if all(short) else "")))
         ref_learns_by_case[case] = ref_learns
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
         summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get('mb', '-')} | {said} | {ref_learns} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
+                       f"| {hv.get('mb', '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds)} "
+                       f"| {vs_floor} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
                        f"| {ratio} |")
     methods = ["## Verdicts per method", "",
                "A case counts as evidence of learning only where at least one library learns at its budget; "
-               "the reference learns in the cases listed under \"MB learns\".", "",
+               "the reference learns in the cases listed under \"MB learns\". In brackets: whether each library's "
+               "final values beat the trivial policies' floor (see the summary).", "",
                "| method | informative cases | MB learns | every case |", "|---|---|---|---|"]
     for algo, cases in per_method.items():
         good = [f"{c}: {v}" for c, v in cases if v.split(" (")[0] in INFORMATIVE]
@@ -373,6 +404,20 @@ def verdict_runs(runs: dict[str, list[dict]], seeds: list[int]) -> tuple[dict[st
     return runs, text
 
 
+def floor_values(rs: list[dict], floors: dict[int, dict] | None, metric: str = "hypervolume") -> list[float] | None:
+    """The trivial policies' best ``metric`` at each run's seed (the runs in seed order, as :func:`_values`), or
+    ``None`` where a seed's floor is not computed (then only frame 0 is the baseline)."""
+    if not floors:
+        return None
+    out = []
+    for r in sorted(rs, key=lambda r: r["seed"]):
+        best = best_floor(floors[r["seed"]], metric) if r["seed"] in floors else None
+        if best is None:
+            return None
+        out.append(best[1])
+    return out
+
+
 def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
     """:func:`verdict.verdict` of ours against MB on ``metric``, each seed's frame-0 and final values paired
     (a library without a frame-0 evaluation in every run: "no frame-0 evaluation")."""
@@ -384,6 +429,29 @@ def library_learning(rs: list[dict], metric: str = "hypervolume") -> str:
     """:func:`verdict.learning` of one library's runs on ``metric`` (does it learn at this budget on its own)."""
     start, final = _values(rs, metric)
     return learning(start, final, higher_is_better=metric != "igd")
+
+
+def library_floor(rs: list[dict], floors: dict[int, dict] | None, metric: str = "hypervolume") -> str:
+    """:func:`verdict.floor_words` of one library's final values against the trivial floor at their seeds."""
+    return floor_words(_values(rs, metric)[1], floor_values(rs, floors, metric)) if rs else ""
+
+
+def load_floors(out: Path, case: str, seeds: list[int], compute: bool) -> dict[int, dict]:
+    """The case's floor records for ``seeds`` (seed -> :func:`common.case_floor`), computed where missing when
+    ``compute``."""
+    got = {s: case_floor(out, case, s, compute=compute) for s in seeds}
+    return {s: f for s, f in got.items() if f is not None}
+
+
+def floor_cell(floors: dict[int, dict], seeds: list[int], metric: str = "hypervolume") -> str:
+    """The floor's mean over ``seeds`` and which trivial policy gives it most often, for the tables."""
+    best = [best_floor(floors[s], metric) for s in seeds if s in floors]
+    best = [b for b in best if b is not None]
+    if not best or len(best) < len(seeds):
+        return "-"
+    names = [n for n, _ in best]
+    top = max(set(names), key=names.count)
+    return f"{sum(v for _, v in best) / len(best):.2f} ({top})"
 
 
 # ---------------------------------------------------------------------- main
@@ -405,6 +473,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=HERE / "results")
     p.add_argument("--mb-venv", type=Path, default=Path.home() / ".cache" / "morl_trl" / f"mb-{MB_VERSION}")
     p.add_argument("--report-only", action="store_true")
+    p.add_argument("--no-floors", action="store_true",
+                   help="do not evaluate the trivial policies' floors missing from the cache (the verdict of a seed "
+                        "without one compares with frame 0 only)")
     p.add_argument("--mb-venv-only", action="store_true",
                    help="make (or complete) MB's venv in --mb-venv and exit: what bench_losses / bench_train use")
     p.add_argument("--round-seeds", type=int, default=2, help="seeds per round (see main)")
@@ -454,8 +525,8 @@ def main(argv: list[str] | None = None) -> int:
                     rc = proc.wait()
                     print(f"  {lib} {case} seeds {todo}: {'done' if rc == 0 else f'FAILED (exit {rc})'} "
                           f"in {time.perf_counter() - t:,.0f} s", flush=True)
-                write_results(args.out, seeds, command)
-    print(write_results(args.out, seeds, command))
+                write_results(args.out, seeds, command, compute_floors=not args.no_floors)
+    print(write_results(args.out, seeds, command, compute_floors=not args.no_floors))
     return 0
 
 

@@ -13,6 +13,12 @@ runs "overlap"; five seeds rarely exclude a difference):
 * **better / worse**: Welch's two-sided t-test on the difference of the final means, p < :data:`ALPHA`;
 * otherwise **inconclusive** (neither shown equal within the margin nor shown different).
 
+Beside the verdict, each library's final values are read against the **floor of trivial policies** (the best of
+the random policy and every constant action under the same evaluation, per seed): :func:`above_floor`, the same
+paired test on ``final - floor``. Learning (above frame 0) is the issue's criterion for an informative case; the
+floor says whether what was learned beats what a constant action or a random policy scores under this protocol
+(on deep-sea-treasure "always down" reaches the first treasure, hypervolume 16.8; 16 random episodes reach ~180).
+
 >>> verdict([0, 0, 0, 0, 0], [80, 84, 82, 81, 83], [0, 0, 0, 0, 0], [82, 80, 83, 81, 84])
 'both learn, at parity'
 >>> verdict([5, 5, 5], [5, 5.1, 4.9], [5, 5, 5], [5.1, 5, 4.9])
@@ -82,6 +88,30 @@ def learns(frame0: Sequence[float], final: Sequence[float]) -> bool:
     """
     mean, p = gain_test(frame0, final)
     return bool(mean > 0 and p < ALPHA)
+
+
+def above_floor(final: Sequence[float], floor: Sequence[float]) -> tuple[bool, float, float]:
+    """``(above, mean gain, p)``: whether the final values beat the trivial policies' floor at their seeds (one value
+    per seed, same order): the one-sided paired t-test of ``final - floor`` (:func:`gain_test`), p < ALPHA.
+
+    >>> above_floor([16.8] * 5, [16.8] * 5), above_floor([300.0, 310.0, 320.0], [178.0, 180.0, 177.0])[0]
+    ((False, 0.0, 1.0), True)
+    """
+    mean, p = gain_test(floor, final)
+    return bool(mean > 0 and p < ALPHA), mean, p
+
+
+def floor_words(final: Sequence[float], floor: Sequence[float] | None) -> str:
+    """:func:`above_floor` in words for the tables: ``"above the floor (+G, p P)"``, ``"not above the floor
+    (G, p P)"``, or ``""`` without a floor (or fewer than 2 seeds).
+
+    >>> floor_words([16.8] * 5, [178.5] * 5), floor_words([1.0], [0.0])
+    ('not above the floor (-162, p 1)', '')
+    """
+    if floor is None or len(final) < 2:
+        return ""
+    above, mean, p = above_floor(final, floor)
+    return f"{'above' if above else 'not above'} the floor ({mean:+.3g}, p {p:.2g})"
 
 
 def learning(frame0: Sequence[float] | None, final: Sequence[float], higher_is_better: bool = True) -> str:

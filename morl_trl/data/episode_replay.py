@@ -201,7 +201,12 @@ class EpisodeReplay:
 
     def top_commands(self, n: int) -> tuple[torch.Tensor, torch.Tensor]:
         """``(returns [n, k], horizons [n])`` of the ``min(n, E)`` best episodes repeated to ``n``
-        (the authors' evaluation commands)."""
+        (the authors' evaluation commands).
+
+        Ranks with :meth:`nlargest`, which stores the ranking as the priorities, as MB's ``PCN.evaluate`` does
+        (``_nlargest`` re-prices its heap in place): an evaluation between two adds decides which episode the
+        next add evicts (training re-ranks at every command, so only evictions within a round can differ). The
+        parity benchmark restores the priorities around both libraries' evaluations."""
         best = self.nlargest(min(n, len(self)))
         reps = best[torch.arange(n) % best.numel()]
         return self.episode_returns[reps].float(), self.length[reps].float()

@@ -51,12 +51,49 @@ def test_summary_row_compares_cis_and_frames_per_second(parity, tmp_path):
     text = parity.write_results(out, [0, 1, 2], "cmd").read_text()
     # both learn from frame 0, ours beyond MB (Welch p < 0.05, 31 above a margin of 9); half MB's frames/s
     assert "| pcn-dst | 3 / 3 | 121.00 [" in text
-    assert ("| 90.00 [90.00, 90.00] | both learn, ours better (seeds 0-2) | learns (gain 90, p 0) | 30 | 60 | 0.50x |"
-            in text)
+    assert ("| 90.00 [90.00, 90.00] | both learn, ours better (seeds 0-2) | learns (gain 90, p 0) | - | - / - | 30 | 60 "
+            "| 0.50x |" in text)  # (no trivial floor computed: "-")
     assert ("| pcn | pcn-dst: both learn, ours better (seeds 0-2) | pcn-dst | pcn-dst: both learn, ours better "
             "(seeds 0-2) |") in text  # per method, with the cases where the reference learns
     assert f"Results made by: `{current_commit()}` (6 files)\n" in text  # each file records its commit
     assert "| gpi_ls-dst | 0 / 0 | - |" in text  # a case without results is listed, not dropped
+
+
+def test_each_librarys_final_values_are_read_against_the_trivial_floor(parity, tmp_path):
+    from common import case_floor, floor_path, result_path, write_result
+
+    out = tmp_path / "results"
+    for lib, hv in (("ours", [120.0, 121.0, 122.0]), ("mb", [90.0, 90.0, 90.0])):
+        for seed, v in enumerate(hv):
+            curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=v)]
+            write_result(result_path(out, "pcn-dst", lib, seed),
+                         dict(case="pcn-dst", lib=lib, seed=seed, curve=curve, frames=100, train_fps=1.0))
+    # the random policy's front reaches 100 (the constant actions less): MB's 90 from 0 is no learning
+    for seed in range(3):
+        write_result(floor_path(out, "pcn-dst", seed), dict(policies={
+            "random": dict(hypervolume=95.0 + 5 * seed), "action 1": dict(hypervolume=16.8), "action 0": dict(hypervolume=0.0)}))
+    assert case_floor(out, "pcn-dst", 2, compute=False)["policies"]["random"]["hypervolume"] == 105.0
+    assert case_floor(out, "pcn-dst", 7, compute=False) is None  # not cached, not computed
+    text = parity.write_results(out, [0, 1, 2], "cmd").read_text()
+    # both learned from frame 0 (the verdict); ours beats the floor at every seed, MB's 90 is below 95-105
+    assert ("| 90.00 [90.00, 90.00] | both learn, ours better (seeds 0-2) | learns (gain 90, p 0) | 100.00 (random) "
+            "| above the floor (+21, p 0.0059) / not above the floor (-10, p 0.96) |") in text
+    assert ("pcn-dst: both learn, ours better (seeds 0-2) [vs the floor: ours above, MB not above]" in text)
+    # the floors live beside the runs, not among them
+    assert sorted(p.name for p in (out / "pcn-dst").glob("*.json")) == [f"{lib}_s{s}.json" for lib in ("mb", "ours")
+                                                                       for s in range(3)]
+
+
+def test_the_floor_of_deep_sea_treasures_constant_actions_is_its_first_treasure(parity):
+    from common import evaluate_floor, trivial_policies
+
+    assert list(trivial_policies("deep-sea-treasure-v0")) == ["random", "action 0", "action 1", "action 2", "action 3"]
+    floor = evaluate_floor("deep-sea-treasure-v0", 0.99, 100)
+    # "down" (action 1) stops on the first treasure: 0.7 at one step, HV 0.7 * (-1 - -25) against (0, -25); the
+    # others never reach a treasure; the random policy's 16 episodes spread over several treasures
+    assert {k: round(m["hypervolume"], 2) for k, m in floor.items() if k != "random"} == {
+        "action 0": 0.0, "action 1": 16.8, "action 2": 0.0, "action 3": 0.0}
+    assert floor["random"]["hypervolume"] > 16.8
 
 
 def test_mb_multi_policy_acts_with_member_of_nearest_weight(monkeypatch):
@@ -143,7 +180,10 @@ def test_smoke_run_of_our_side_writes_a_curve(tmp_path):
     data = json.loads((tmp_path / "results" / "pcn-dst" / "ours_s0.json").read_text())
     assert data["frames"] == data["curve"][-1]["frames"] >= 200
     assert data["train_fps"] > 0 and data["curve"][-1]["hypervolume"] >= 0.0
+    assert data["pcn_eval_priorities_restored"] is True  # the evaluation did not re-rank the training's replay
     assert "pcn-dst" in (tmp_path / "RESULTS.md").read_text()
+    floor = json.loads((tmp_path / "results" / "pcn-dst" / "floor" / "s0.json").read_text())  # the report's floor
+    assert round(floor["policies"]["action 1"]["hypervolume"], 2) == 16.8
 
 
 def test_mb_venv_is_completed_where_a_dependency_is_missing(parity, tmp_path, monkeypatch):

@@ -91,6 +91,20 @@ def test_a_full_replay_drops_the_lowest_ranked_episode():
     assert torch.equal(other.episode_returns, rb.episode_returns) and torch.equal(other.priority, rb.priority)
 
 
+def test_the_evaluations_ranking_is_stored_as_the_priorities_as_mbs_evaluate():
+    # MB's PCN.evaluate ranks with _nlargest, which re-prices the replay in place (pcn.py:363, 250-266): an
+    # evaluation between two adds decides which episode the next add evicts. Ours' top_commands does the same
+    rb = _replay(capacity=5)
+    rb.add(*_episode((1.0, 1.0), 4))  # full: the first (priority 1, oldest) leaves; the new one has priority 1
+    assert rb.priority.tolist() == [1.0] * 5
+    rb.top_commands(3)
+    assert rb.priority.tolist() != [1.0] * 5 and float(rb.priority.min()) < 0  # ranked: a dominated one is below 0
+    dropped = int(torch.argmin(rb.priority))
+    kept = rb.episode_lengths.tolist()
+    rb.add(*_episode((2.0, 2.0), 3))
+    assert sorted(rb.episode_lengths.tolist()) == sorted(kept[:dropped] + kept[dropped + 1:] + [3])
+
+
 def _agent(**kw):
     cfg = resolve_config("pcn", "MOLavaGridDR-v0", quick=True, num_envs=2, pcn_er_episodes=2, pcn_step_episodes=2,
                          pcn_model_updates=3, batch_size=8, **kw)
