@@ -192,7 +192,7 @@ def run(case_name: str, seed: int, out: Path) -> None:
     env.action_space.seed(seed)
     ref_point = np.asarray(MO_GYMNASIUM_REF_POINTS[case["env"]][0], dtype=np.float32)
     curve: list[dict] = []
-    eval_s = [0.0]
+    eval_s, eval_cpu = [0.0], [0.0]
     agent = None
 
     qlog = QEstimateLog() if case["algo"] == "envelope" else None
@@ -200,11 +200,12 @@ def run(case_name: str, seed: int, out: Path) -> None:
     def evaluate(frames: int) -> None:
         if qlog is not None:
             qlog.mark(frames)
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         with preserved_rng():  # (the evaluations leave MB's training trajectory as it would be without them)
             m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
         eval_s[0] += time.perf_counter() - t
+        eval_cpu[0] += time.process_time() - c
         print(f"[mb {case_name} s{seed}] {frames} frames: {m}", flush=True)
 
     steps = [0]
@@ -264,18 +265,20 @@ def run(case_name: str, seed: int, out: Path) -> None:
         agent.q_net.forward = logged_forward
     if algo != "pgmorl":  # frame 0 as ours: the untrained agent, the same evaluator and weights as later
         evaluate(0)  # (PGMORL's is hooked on its first __eval_all_agents, inside train(), before any update)
-    t, e0 = time.perf_counter(), eval_s[0]
+    t, e0, c, ec0 = time.perf_counter(), eval_s[0], time.process_time(), eval_cpu[0]
     _call(agent.train, total_timesteps=case["frames"], eval_env=eval_env, ref_point=ref_point,
           num_eval_weights_for_front=EVAL_WEIGHTS, eval_freq=10 ** 9, eval_mo_freq=10 ** 9, checkpoints=False,
           reset_num_timesteps=False, **case["mb_train"])
     train_s = time.perf_counter() - t - (eval_s[0] - e0)
+    train_cpu = time.process_time() - c - (eval_cpu[0] - ec0)  # (this process's CPU time: one torch thread)
     frames = int(getattr(agent, "global_step", steps[0]) or steps[0])
     if not curve or curve[-1]["frames"] < min(frames, case["frames"]):
         evaluate(min(frames, case["frames"]))
     eval_s_total = eval_s[0]
     write_result(out, dict(case=case_name, lib="mb", seed=seed, version=f"morl-baselines {MB_VERSION}",
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_s_total,
-                           train_fps=frames / train_s if train_s > 0 else None, eval_episodes=EVAL_EPISODES,
+                           train_fps=frames / train_s if train_s > 0 else None, train_cpu_seconds=train_cpu,
+                           train_fps_cpu=frames / train_cpu if train_cpu > 0 else None, eval_episodes=EVAL_EPISODES,
                            **({} if qlog is None else {"q_check": qlog.result(case["env"], case["gamma"])})))
 
 

@@ -85,17 +85,18 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
 
     case = CASES[case_name]
     torch.set_num_threads(1)
-    eval_seconds = [0.0]
+    eval_seconds, eval_cpu = [0.0], [0.0]
     evaluate = MultiContextEvaluator.evaluate
 
     qlog = QEstimateLog() if case["algo"] == "envelope" else None
 
     def timed(self, *args, **kwargs):  # training time = wall time minus the evaluations
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         try:
             return evaluate(self, *args, **kwargs)
         finally:
             eval_seconds[0] += time.perf_counter() - t
+            eval_cpu[0] += time.process_time() - c
             if qlog is not None:
                 qlog.mark(-1)  # (the frames are the curve's, filled in below)
 
@@ -106,7 +107,7 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
 
     def start_clock(self, *args, **kwargs):  # training time starts once env, agent and collector are built
         out = start(self, *args, **kwargs)
-        started[0] = time.perf_counter()
+        started[0] = (time.perf_counter(), time.process_time())
         return out
 
     from morl_trl.objectives.envelope import EnvelopeQLoss
@@ -145,7 +146,7 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
                                  eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
                                  progress=False, run_dir=f"{tmp}/run", **case["ours"])
-            wall = time.perf_counter() - started[0]
+            wall, cpu = time.perf_counter() - started[0][0], time.process_time() - started[0][1]
             with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
                 curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
                          for row in csv.DictReader(fh)]
@@ -155,6 +156,7 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
         EpisodeReplay.top_commands = top_commands
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
+    train_cpu = cpu - eval_cpu[0]  # (this process's CPU time: one torch thread)
     frames = int(curve[-1]["frames"])
     extra = {"pcn_eval_priorities_restored": True} if case["algo"] == "pcn" else {}
     if qlog is not None:
@@ -164,7 +166,8 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         extra["q_check"] = qlog.result(case["env"], case["gamma"])
     write_result(out, dict(case=case_name, lib="ours", seed=seed, version=f"morl_trl {morl_trl.__version__}",
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_seconds[0],
-                           train_fps=frames / train_s,
+                           train_fps=frames / train_s, train_cpu_seconds=train_cpu,
+                           train_fps_cpu=frames / train_cpu if train_cpu > 0 else None,
                            eval_episodes=EVAL_EPISODES, **extra))
 
 
@@ -243,7 +246,8 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                f"{MARGIN_OF_GAIN:g} of MB's mean gain, p < {ALPHA}; better / worse when Welch's t-test gives p < "
                f"{ALPHA}), and training frames/s "
                "(mean over seeds; ours / MB is issue 31's end-to-end comparison: both libraries' own training "
-               "loops on the same env and budget).", "",
+               "loops on the same env and budget; in brackets the same ratio of frames per CPU-second of the training "
+               "process, which the machine's load moves less than wall time, where every run of both recorded it).", "",
                "The verdict is computed on the round's seeds "
                f"({', '.join(map(str, seeds))}: `verdict.round_seeds`) where both libraries have at least 2 of them, "
                "else on every seed run (the seeds used are named); every seed run is in the case's tables. "
@@ -297,15 +301,22 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                 cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
             if any(c != "-" for c in cells):
                 body.append(f"| final {label} | " + " | ".join(cells) + " |")
-        fps = {}
+        fps, fps_cpu = {}, {}
         for lib, rs in sorted(runs.items()):
+            cpu = [r["train_fps_cpu"] for r in rs if r.get("train_fps_cpu")]
+            if cpu and len(cpu) == len(rs):  # (runs made before 2026-12-02's fourth sitting recorded wall time only)
+                fps_cpu[lib] = sum(cpu) / len(cpu)
             # the first runs of ours (marked build_in_train_seconds) also timed building env, agent and
             # collector: left out of the mean when others exist
             timed = ([r for r in rs if r.get("train_fps") and not r.get("build_in_train_seconds")]
                      or [r for r in rs if r.get("train_fps")])
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
-        body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
+        body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |"]
+        if fps_cpu:
+            body += [f"| training frames per CPU-second (mean) | "
+                     + " | ".join(f"{lib} {fps_cpu[lib]:,.0f}" if lib in fps_cpu else "-" for lib in sorted(runs)) + " |"]
+        body += [""]
         body += q_check_lines(runs)
         png = out.parent / f"{case}.png"
         _plot(case, runs, png)
@@ -327,6 +338,8 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             (case, said + (f" [vs the floor: ours {short[0]}, MB {short[1]}]" if all(short) else "")))
         ref_learns_by_case[case] = ref_learns
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
+        if "ours" in fps_cpu and "mb" in fps_cpu:
+            ratio += f" (CPU: {fps_cpu['ours'] / fps_cpu['mb']:.2f}x)"
         summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
                        f"| {hv.get('mb', '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds)} "
                        f"| {vs_floor} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "

@@ -59,6 +59,20 @@ def test_summary_row_compares_cis_and_frames_per_second(parity, tmp_path):
     assert "| gpi_ls-dst | 0 / 0 | - |" in text  # a case without results is listed, not dropped
 
 
+def test_frames_per_cpu_second_beside_wall_frames_per_second(parity, tmp_path):
+    from common import result_path, write_result
+
+    out = tmp_path / "results"
+    for lib, fps, cpu in (("ours", 30.0, 90.0), ("mb", 60.0, 60.0)):
+        for seed in range(2):
+            curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=1.0 + seed)]
+            write_result(result_path(out, "pcn-dst", lib, seed), dict(case="pcn-dst", lib=lib, seed=seed, curve=curve,
+                                                                     frames=100, train_fps=fps, train_fps_cpu=cpu))
+    text = parity.write_results(out, [0, 1], "cmd").read_text()
+    assert "| 30 | 60 | 0.50x (CPU: 1.50x) |" in text  # ours waited for a core: half MB's wall rate, 1.5x per CPU-s
+    assert "| training frames per CPU-second (mean) | mb 60 | ours 90 |" in text
+
+
 def test_each_librarys_final_values_are_read_against_the_trivial_floor(parity, tmp_path):
     from common import case_floor, floor_path, result_path, write_result
 
@@ -180,6 +194,7 @@ def test_smoke_run_of_our_side_writes_a_curve(tmp_path):
     data = json.loads((tmp_path / "results" / "pcn-dst" / "ours_s0.json").read_text())
     assert data["frames"] == data["curve"][-1]["frames"] >= 200
     assert data["train_fps"] > 0 and data["curve"][-1]["hypervolume"] >= 0.0
+    assert data["train_fps_cpu"] > 0 and 0 < data["train_cpu_seconds"] <= 1.5 * data["train_seconds"] + 1
     assert data["pcn_eval_priorities_restored"] is True  # the evaluation did not re-rank the training's replay
     assert "pcn-dst" in (tmp_path / "RESULTS.md").read_text()
     floor = json.loads((tmp_path / "results" / "pcn-dst" / "floor" / "s0.json").read_text())  # the report's floor
