@@ -313,6 +313,12 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |"]
+        cost = {lib: [r["train_seconds"] + r.get("eval_seconds", 0.0) for r in rs if r.get("train_seconds") is not None]
+                for lib, rs in sorted(runs.items())}
+        if any(cost.values()):  # what a seed costs to run (the note's "what each run cost in time")
+            body += ["| a run's time, training + evaluations (mean over seeds [min, max]) | " + " | ".join(
+                f"{lib} {sum(c) / len(c):,.0f} s [{min(c):,.0f}, {max(c):,.0f}]" if c else "-" for lib, c in cost.items())
+                + " |"]
         if fps_cpu:
             body += [f"| training frames per CPU-second (mean) | "
                      + " | ".join(f"{lib} {fps_cpu[lib]:,.0f}" if lib in fps_cpu else "-" for lib in sorted(runs)) + " |"]

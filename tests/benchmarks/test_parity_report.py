@@ -67,8 +67,10 @@ def test_frames_per_cpu_second_beside_wall_frames_per_second(parity, tmp_path):
         for seed in range(2):
             curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=1.0 + seed)]
             write_result(result_path(out, "pcn-dst", lib, seed), dict(case="pcn-dst", lib=lib, seed=seed, curve=curve,
-                                                                     frames=100, train_fps=fps, train_fps_cpu=cpu))
+                                                                     frames=100, train_fps=fps, train_fps_cpu=cpu,
+                                                                     train_seconds=100 / fps, eval_seconds=seed + 1.0))
     text = parity.write_results(out, [0, 1], "cmd").read_text()
+    assert "| a run's time, training + evaluations (mean over seeds [min, max]) | mb 3 s [3, 4] | ours 5 s [4, 5] |" in text
     assert "| 30 | 60 | 0.50x (CPU: 1.50x) |" in text  # ours waited for a core: half MB's wall rate, 1.5x per CPU-s
     assert "| training frames per CPU-second (mean) | mb 60 | ours 90 |" in text
 
