@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 PARITY = Path(__file__).resolve().parents[2] / "benchmarks" / "parity"
-MORLD_CASES = ["morld-hopper-2obj", "morld_psa-hopper-2obj"]
+MORLD_CASES = ["morld-hopper-2obj", "morld_psa-hopper-2obj", "morld-hopper-2obj-6k"]
 
 
 @pytest.fixture
