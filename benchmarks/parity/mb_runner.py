@@ -94,8 +94,17 @@ def _pcn_policy(agent, k: int):
                      max_return=[100.0] * k)  # MB's PCN.train default max_return
 
 
+#: our registry name -> the MB class's (MORL/D SB+PSA is MB's MORLD with weight_adaptation_method="PSA")
+MB_ALGO = {"morld_psa": "morld"}
+
+
+def mb_algo(case: dict) -> str:
+    """The MB method a case's ``algo`` (our registry name) runs."""
+    return MB_ALGO.get(case["algo"], case["algo"])
+
+
 def _policy(case: dict, agent, space):
-    algo = case["algo"]
+    algo = mb_algo(case)
     if algo == "pcn":
         return _pcn_policy(agent, agent.reward_dim)
     if algo == "morld":  # MB's Pareto archive (filled after each exchange), else the population
@@ -122,20 +131,28 @@ def _untrained_gpi_action(agent, obs, w):
     return action
 
 
-def evaluate_after_archive_updates(agent, evaluate, eval_every: int) -> None:
-    """Hooks ``evaluate(frames)`` on MB PGMORL's ``__eval_all_agents`` (the only place its Pareto
-    archive changes): after the call that finds ``global_step`` at or past the next multiple of
-    ``eval_every`` (the first: frame 0, before training)."""
-    eval_all = agent._PGMORL__eval_all_agents
-    next_eval = [0]
+#: the method of each MB multi-policy class that is the only place its Pareto archive changes (PGMORL: deep copies
+#: of the members after the warm-up and every generation; MORL/D: after every exchange, morld.py's train())
+ARCHIVE_UPDATES = {"pgmorl": "_PGMORL__eval_all_agents", "morld": "_MORLD__eval_all_policies"}
+
+
+def evaluate_after_archive_updates(agent, evaluate, eval_every: int, method: str = ARCHIVE_UPDATES["pgmorl"],
+                                   first: int = 0) -> None:
+    """Hooks ``evaluate(frames)`` on ``method`` of an MB agent (:data:`ARCHIVE_UPDATES`: the only place its Pareto
+    archive changes): after the call that finds ``global_step`` at or past the next multiple of ``eval_every``,
+    the first being ``first`` (PGMORL: 0, its first call before training; MORL/D: ``eval_every``, its frame 0 is
+    evaluated before ``train()`` as every other method's)."""
+    eval_all = getattr(agent, method)
+    next_eval = [first]
 
     def eval_all_and_evaluate(*args, **kwargs):
-        eval_all(*args, **kwargs)
+        out = eval_all(*args, **kwargs)
         if agent.global_step >= next_eval[0]:
             evaluate(agent.global_step)
             next_eval[0] = agent.global_step + eval_every
+        return out  # (MORL/D's evaluations feed its weight adaptation, PSA)
 
-    agent._PGMORL__eval_all_agents = eval_all_and_evaluate
+    setattr(agent, method, eval_all_and_evaluate)
 
 
 @contextlib.contextmanager
@@ -211,15 +228,19 @@ def run(case_name: str, seed: int, out: Path) -> None:
     steps = [0]
     step = env.step
 
+    # MORL/D acts with its Pareto archive, which changes only after each exchange: evaluated after that (below);
+    # hooked on env steps, the evaluation at the end of a turn would act with the archive of the exchange before
+    on_steps = mb_algo(case) != "morld"
+
     def counted_step(action):  # the shared evaluation every eval_every frames of MB's own loop
         result = step(action)
         steps[0] += 1
-        if steps[0] % case["eval_every"] == 0 and steps[0] <= case["frames"]:
+        if on_steps and steps[0] % case["eval_every"] == 0 and steps[0] <= case["frames"]:
             evaluate(steps[0])
         return result
 
     env.step = counted_step
-    algo, kw = case["algo"], dict(gamma=case["gamma"], log=False, seed=seed, **case["mb"])
+    algo, kw = mb_algo(case), dict(gamma=case["gamma"], log=False, seed=seed, **case["mb"])
     if algo == "envelope":
         from morl_baselines.multi_policy.envelope.envelope import Envelope as cls
     elif algo in ("gpi_ls", "gpi_pd"):
@@ -250,9 +271,16 @@ def run(case_name: str, seed: int, out: Path) -> None:
         # each iteration's update is done). Hooked after __train_all_agents instead, as before, the
         # evaluation at frame F acted with the archive of the iteration before (one iteration stale).
         agent = cls(env_id=case["env"], origin=ref_point, **kw)
-        evaluate_after_archive_updates(agent, evaluate, case["eval_every"])
+        evaluate_after_archive_updates(agent, evaluate, case["eval_every"], ARCHIVE_UPDATES["pgmorl"])
     else:
         agent = cls(env=env, **kw)
+    if algo == "morld":
+        # MB's MORL/D trains one member for exchange_every steps, then updates the others, evaluates every member
+        # and fills its archive (__eval_all_policies), the one place the archive changes: each evaluation comes
+        # right after the exchange that reaches its frame count, as ours (whose exchange precedes its evaluation
+        # in the same batch). eval_every should be a multiple of exchange_every (CASES' morld cases are).
+        evaluate_after_archive_updates(agent, evaluate, case["eval_every"], ARCHIVE_UPDATES["morld"],
+                                       first=case["eval_every"])
     if qlog is not None:  # MB's update: q_net(b_obs, w) is its one forward with gradients (targets: no_grad)
         forward = agent.q_net.forward
 
