@@ -10,7 +10,8 @@ env, weights, discount and seed as our runs). The evaluation is hooked on the tr
 frame counts as ours; training time is the wall time of ``train()`` minus these evaluations.
 How an MB agent acts for an evaluation weight is what ours does for the same method (see
 ``_policy``): multi-policy methods act with the archived member of nearest weight, PCN with the
-command of the nearest evaluation weight.
+command of the nearest evaluation weight, MOSAC (one fixed weight, the case's ``weight``) with its own
+``eval``, a sampled action whatever the evaluation weight (ours: the same weight, run_parity.fixed_preference).
 """
 
 from __future__ import annotations
@@ -261,6 +262,9 @@ def run(case_name: str, seed: int, out: Path) -> None:
         from morl_baselines.multi_policy.morld.morld import MORLD as cls
     elif algo == "pgmorl":
         from morl_baselines.multi_policy.pgmorl.pgmorl import PGMORL as cls
+    elif algo == "mosac":  # one policy for the case's fixed weight (MOSAC has no default: `weight` is required)
+        from morl_baselines.single_policy.ser.mosac_continuous_action import MOSAC as cls
+        kw["weights"] = np.asarray(case["weight"], dtype=np.float32)
     else:
         raise SystemExit(f"no MB runner for {algo}")
     if algo == "pgmorl":

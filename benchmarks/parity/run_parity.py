@@ -17,6 +17,7 @@ to hours per seed on a 2-core CPU.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import json
 import os
@@ -30,8 +31,8 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
-from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, best_floor,  # noqa: E402
-                    case_floor, result_path, write_result)
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, REFERENCES, QEstimateLog,  # noqa: E402
+                    best_floor, case_floor, reference_of, result_path, write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, floor_words, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -73,6 +74,63 @@ def ours_budget(case: dict) -> tuple[int, int, int]:
     counts one PGMORL member's (the authors' count), ``1 / ours_frame_scale`` of MB's."""
     scale = case.get("ours_frame_scale", 1)
     return case["frames"] // scale, case["eval_every"] // scale, scale
+
+
+class FixedPreferencePolicy:
+    """``policy`` acting with ``weight`` as its preference whatever the evaluation weight (restored in the output):
+    a preference-conditioned policy trained for one fixed weight, evaluated as MB's single-policy learners are
+    (their ``eval(obs, w)`` ignores ``w``)."""
+
+    def __init__(self, policy, weight) -> None:
+        import torch
+
+        self.policy, self.weight = policy, torch.as_tensor(weight, dtype=torch.float32)
+
+    def __call__(self, td):
+        given = td.get("preference")
+        td.set("preference", self.weight.to(given.device).expand_as(given).clone())
+        out = self.policy(td)
+        out.set("preference", given)
+        return out
+
+
+@contextlib.contextmanager
+def fixed_preference(weight):
+    """Our actor-critic loop (``algorithms.actor_critic.recipe``: CAPQL, MOSAC, SAC) trained and evaluated for one
+    fixed ``weight`` (``None``: as it is): the training env's :class:`~morl_trl.transforms.PreferenceConditioning`
+    gives every episode ``weight`` (its ``"cycle"`` mode over the one-row weight set ``[weight]``, instead of a
+    Dirichlet draw), and the evaluator's policy reads ``weight`` (:class:`FixedPreferencePolicy`). What a case with
+    ``weight`` runs, so that ours solves the task of MB's fixed-weight MOSAC; the library has no such key."""
+    if weight is None:
+        yield
+        return
+    import torch
+
+    from morl_trl.algorithms.actor_critic import recipe
+    from morl_trl.preferences import check_simplex
+    from morl_trl.transforms.preference import PreferenceConditioning
+
+    make_env, make_evaluator = recipe.make_training_env, recipe.make_evaluator
+    rows = torch.as_tensor([weight], dtype=torch.float32)
+
+    def fixed_env(cfg, device):
+        env = make_env(cfg, device)
+        found = [t for t in getattr(env.transform, "transforms", [env.transform]) if isinstance(t, PreferenceConditioning)]
+        if len(found) != 1:
+            raise RuntimeError(f"fixed_preference: expected one PreferenceConditioning in the training env, found {found}")
+        found[0].mode, found[0].weights = "cycle", check_simplex(rows, found[0].num_objectives, name="weight set")
+        return env
+
+    def fixed_evaluator(cfg, agent, spec, reference=None):
+        ev = make_evaluator(cfg, agent, spec, reference)
+        ev.policy = FixedPreferencePolicy(ev.policy, rows[0])
+        return ev
+
+    recipe.make_training_env, recipe.make_evaluator = fixed_env, fixed_evaluator
+    try:
+        yield
+    finally:
+        recipe.make_training_env, recipe.make_evaluator = make_env, make_evaluator
 
 
 def run_ours(case_name: str, seed: int, out: Path) -> None:
@@ -140,7 +198,7 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
     if qlog is not None:
         EnvelopeQLoss._q_values = logged_q_values
     try:
-        with tempfile.TemporaryDirectory() as tmp:
+        with tempfile.TemporaryDirectory() as tmp, fixed_preference(case.get("weight")):
             frames, eval_every, scale = ours_budget(case)
             run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=frames,
                                  eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
@@ -207,7 +265,7 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
             at = [[p[metric] for r in rs for p in r["curve"] if p["frames"] == f and p.get(metric) is not None]
                   for f in frames]
             frames, at = [f for f, v in zip(frames, at) if v], [np.asarray(v, dtype=float) for v in at if v]
-            name = "morl_trl (ours)" if lib == "ours" else f"MORL-Baselines {MB_VERSION}"
+            name = "morl_trl (ours)" if lib == "ours" else REFERENCES.get(lib, lib)
             ax.plot(frames, [v.mean() for v in at], color=f"C{i}", label=f"{name} ({len(rs)} seeds)")
             ax.fill_between(frames, [v.min() for v in at], [v.max() for v in at], color=f"C{i}", alpha=0.2)
         ax.set_xlabel("frames")
@@ -251,7 +309,9 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                "The verdict is computed on the round's seeds "
                f"({', '.join(map(str, seeds))}: `verdict.round_seeds`) where both libraries have at least 2 of them, "
                "else on every seed run (the seeds used are named); every seed run is in the case's tables. "
-               "MB learns: whether the reference learns on its own at the case's budget (the same paired test, on "
+               "ref.: the reference, MORL-Baselines unless the case names another (`case (ref.: LIBRARY)`: "
+               + "; ".join(f"`{k}` {v}" for k, v in REFERENCES.items() if k != "mb") + "). "
+               "ref. learns: whether the reference learns on its own at the case's budget (the same paired test, on "
                "the verdict's seeds: mean gain of final - frame-0 hypervolume, one-sided p); a case whose reference "
                "does not learn says nothing about ours. Trivial floor: the best hypervolume of the trivial policies "
                "(the random policy and every constant action; continuous actions: the zero action) under the same "
@@ -261,8 +321,8 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                "constant action can hold an objective's best value (the zero action's control cost). vs the floor: "
                f"the same paired test on final - floor per library (`verdict.above_floor`, p < {ALPHA}); a case "
                "whose reference learns but stays below the floor shows learning, not a useful policy.", "",
-               "| case | seeds ours / MB | final HV ours | final HV MB | verdict | MB learns | trivial floor "
-               "| ours / MB vs the floor | frames/s ours | frames/s MB | ours / MB |",
+               "| case | seeds ours / ref. | final HV ours | final HV ref. | verdict | ref. learns | trivial floor "
+               "| ours / ref. vs the floor | frames/s ours | frames/s ref. | ours / ref. |",
                "|---|---|---|---|---|---|---|---|---|---|---|"]
     per_method: dict[str, list[tuple[str, str]]] = {}
     ref_learns_by_case: dict[str, str] = {}
@@ -274,14 +334,19 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             for r in rs:
                 commits[r.get("commit", "not recorded")] = commits.get(r.get("commit", "not recorded"), 0) + 1
         spec = CASES[case]
+        ref = reference_of(spec)
+        row_name = case if ref == "mb" else f"{case} (ref.: {ref})"
+        theirs = (f"MB: `{spec['mb']}`" + (f", MB train(): `{spec['mb_train']}`" if spec["mb_train"] else "")
+                  if ref == "mb" else f"reference {REFERENCES.get(ref, ref)}: `{spec.get('ref', {})}`")
         body += [f"## {case}", "",
                  f"`{spec['algo']}` on `{spec['env']}`, {spec['frames']:,} frames, evaluated every "
-                 f"{spec['eval_every']:,}, gamma {spec['gamma']}; ours: `{spec['ours']}`, MB: `{spec['mb']}`"
-                 + (f", MB train(): `{spec['mb_train']}`" if spec["mb_train"] else ""), ""]
+                 f"{spec['eval_every']:,}, gamma {spec['gamma']}"
+                 + (f", one fixed weight {[round(w, 4) for w in spec['weight']]}" if spec.get("weight") else "")
+                 + f"; ours: `{spec['ours']}`, {theirs}", ""]
         done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
         if not runs:
             body += ["Not run yet.", ""]
-            summary.append(f"| {case} | 0 / 0 | - | - | - | - | - | - | - | - | - |")
+            summary.append(f"| {row_name} | 0 / 0 | - | - | - | - | - | - | - | - | - |")
             continue
         body += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
                  + f" (target: {len(seeds)} per library)", ""]
@@ -330,31 +395,32 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         if case in NOTES:
             body += [NOTES[case], ""]
         hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
-        judged, used = verdict_runs(runs, seeds)
+        judged, used = verdict_runs(runs, seeds, ref)
         judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
         floors = load_floors(out, case, judged_seeds, compute_floors)
-        said = case_verdict(judged) if "ours" in runs and "mb" in runs else "-"
+        said = case_verdict(judged, ref=ref) if "ours" in runs and ref in runs else "-"
         if said != "-":
-            n_used = min(len(judged["ours"]), len(judged["mb"]))
+            n_used = min(len(judged["ours"]), len(judged[ref]))
             said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
-        ref_learns = library_learning(judged["mb"]) if "mb" in judged else "-"
-        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors) or "-" for lib in ("ours", "mb"))
-        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors) for lib in ("ours", "mb"))]
+        ref_learns = library_learning(judged[ref]) if ref in judged else "-"
+        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors) or "-" for lib in ("ours", ref))
+        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors) for lib in ("ours", ref))]
+        ref_name = "MB" if ref == "mb" else ref
         per_method.setdefault(spec["algo"], []).append(
-            (case, said + (f" [vs the floor: ours {short[0]}, MB {short[1]}]" if all(short) else "")))
+            (case, said + (f" [vs the floor: ours {short[0]}, {ref_name} {short[1]}]" if all(short) else "")))
         ref_learns_by_case[case] = ref_learns
-        ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
-        if "ours" in fps_cpu and "mb" in fps_cpu:
-            ratio += f" (CPU: {fps_cpu['ours'] / fps_cpu['mb']:.2f}x)"
-        summary.append(f"| {case} | {len(done.get('ours', []))} / {len(done.get('mb', []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get('mb', '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds)} "
-                       f"| {vs_floor} | {_num(fps.get('ours'))} | {_num(fps.get('mb'))} "
+        ratio = f"{fps['ours'] / fps[ref]:.2f}x" if "ours" in fps and ref in fps else "-"
+        if "ours" in fps_cpu and ref in fps_cpu:
+            ratio += f" (CPU: {fps_cpu['ours'] / fps_cpu[ref]:.2f}x)"
+        summary.append(f"| {row_name} | {len(done.get('ours', []))} / {len(done.get(ref, []))} | {hv.get('ours', '-')} "
+                       f"| {hv.get(ref, '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds)} "
+                       f"| {vs_floor} | {_num(fps.get('ours'))} | {_num(fps.get(ref))} "
                        f"| {ratio} |")
     methods = ["## Verdicts per method", "",
                "A case counts as evidence of learning only where at least one library learns at its budget; "
-               "the reference learns in the cases listed under \"MB learns\". In brackets: whether each library's "
+               "the reference learns in the cases listed under \"ref. learns\". In brackets: whether each library's "
                "final values beat the trivial policies' floor (see the summary).", "",
-               "| method | informative cases | MB learns | every case |", "|---|---|---|---|"]
+               "| method | informative cases | ref. learns | every case |", "|---|---|---|---|"]
     for algo, cases in per_method.items():
         good = [f"{c}: {v}" for c, v in cases if v.split(" (")[0] in INFORMATIVE]
         ref = [c for c, _ in cases if ref_learns_by_case.get(c, "").startswith("learns")]
@@ -410,12 +476,12 @@ def _values(rs: list[dict], metric: str) -> tuple[list[float] | None, list[float
     return (start if len(start) == len(rs) else None), final
 
 
-def verdict_runs(runs: dict[str, list[dict]], seeds: list[int]) -> tuple[dict[str, list[dict]], str]:
+def verdict_runs(runs: dict[str, list[dict]], seeds: list[int], ref: str = "mb") -> tuple[dict[str, list[dict]], str]:
     """The runs a case's verdict is computed from, and which seeds those are: the round's ``seeds`` where both
     libraries have at least 2 of them (the seed rule: a round's seeds are fixed before running); otherwise every
     seed run (a case not run in this round keeps the verdict of the seeds it has). Every seed stays in the tables."""
     chosen = {lib: [r for r in rs if r["seed"] in seeds] for lib, rs in runs.items()}
-    if all(len(chosen.get(lib, [])) >= 2 for lib in ("ours", "mb")):
+    if all(len(chosen.get(lib, [])) >= 2 for lib in ("ours", ref)):
         runs = chosen
     used = sorted({r["seed"] for rs in runs.values() for r in rs})
     text = ("none" if not used else str(used[0]) if len(used) == 1 else f"{used[0]}-{used[-1]}"
@@ -437,10 +503,11 @@ def floor_values(rs: list[dict], floors: dict[int, dict] | None, metric: str = "
     return out
 
 
-def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume") -> str:
-    """:func:`verdict.verdict` of ours against MB on ``metric``, each seed's frame-0 and final values paired
-    (a library without a frame-0 evaluation in every run: "no frame-0 evaluation")."""
-    (o0, o1), (m0, m1) = _values(runs["ours"], metric), _values(runs["mb"], metric)
+def case_verdict(runs: dict[str, list[dict]], metric: str = "hypervolume", ref: str = "mb") -> str:
+    """:func:`verdict.verdict` of ours against the reference ``ref`` (MB unless the case names another) on
+    ``metric``, each seed's frame-0 and final values paired (a library without a frame-0 evaluation in every run:
+    "no frame-0 evaluation")."""
+    (o0, o1), (m0, m1) = _values(runs["ours"], metric), _values(runs[ref], metric)
     return verdict(o0, o1, m0, m1, higher_is_better=metric != "igd")
 
 
@@ -474,6 +541,23 @@ def floor_cell(floors: dict[int, dict], seeds: list[int], metric: str = "hypervo
 
 
 # ---------------------------------------------------------------------- main
+#: the runner of each reference library other than MB (a script taking CASE SEEDS OUT_DIR, run in our python)
+REFERENCE_RUNNERS = {"torchrl_sac": HERE / "torchrl_sac_runner.py"}
+
+
+def runner_command(lib: str, case: str, seeds: str, out: Path, mb_python: Path | None) -> list[str]:
+    """The command that runs ``lib``'s seeds ``seeds`` (``"100,101"``) of ``case`` into ``out``: ours through
+    ``--one``, MB's runner in its venv, another reference's runner (:data:`REFERENCE_RUNNERS`) in our python."""
+    if lib == "mb":
+        if mb_python is None:
+            raise SystemExit(f"{case}: MB's runs need its venv (--mb-venv)")
+        return [str(mb_python), str(HERE / "mb_runner.py"), case, seeds, str(out)]
+    if lib in REFERENCE_RUNNERS:
+        return [sys.executable, str(REFERENCE_RUNNERS[lib]), case, seeds, str(out)]
+    if lib != "ours":
+        raise SystemExit(f"{case}: no runner for library {lib!r} (ours, mb, {', '.join(REFERENCE_RUNNERS)})")
+    return [sys.executable, str(HERE / "run_parity.py"), "--one", lib, case, seeds, str(out)]
+
 def _seeds(text: str) -> list[int]:
     if "-" in text:
         a, b = text.split("-")
@@ -518,23 +602,25 @@ def main(argv: list[str] | None = None) -> int:
     command = "python benchmarks/parity/run_parity.py " + " ".join(argv if argv is not None else sys.argv[1:])
     if not args.report_only:
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-        mb_python = ensure_mb_venv(args.mb_venv) if "mb" in args.libs.split(",") else None
+        # --libs names "ours" and "mb" (or "ref"): the case's reference, MB unless the case names another
+        # (reference_of: e.g. torchrl_sac, run by its own runner in our python)
+        libs = args.libs.split(",")
+        needs_mb = any(reference_of(CASES[c]) == "mb" for c in cases) and ({"mb", "ref"} & set(libs))
+        mb_python = ensure_mb_venv(args.mb_venv) if needs_mb else None
         # seeds in rounds of --round-seeds, every case in each round before the next round: all cases get
         # their first seeds first. Within a case both libraries run at once, each in one process over the
         # round's seeds, so that their frames/s are measured under the same load.
-        libs = args.libs.split(",")
         rounds = [seeds[i:i + args.round_seeds] for i in range(0, len(seeds), args.round_seeds)]
         nice = ["nice", "-n", str(args.nice)] if args.nice else []
         for seeds_now in rounds:
             for case in cases:
                 procs = []
-                for lib in libs:
+                for lib in dict.fromkeys(reference_of(CASES[case]) if lib in ("mb", "ref") else lib for lib in libs):
                     todo = [s for s in seeds_now if not result_path(args.out, case, lib, s).exists()]
                     if not todo:
                         continue
                     arg = ",".join(map(str, todo))
-                    cmd = nice + ([str(mb_python), str(HERE / "mb_runner.py"), case, arg, str(args.out)] if lib == "mb"
-                                  else [sys.executable, str(HERE / "run_parity.py"), "--one", lib, case, arg, str(args.out)])
+                    cmd = nice + runner_command(lib, case, arg, args.out, mb_python)
                     log = args.out / case / f"{lib}.log"
                     log.parent.mkdir(parents=True, exist_ok=True)
                     print(f"run {lib} {case} seeds {arg} (log {log})", flush=True)

@@ -376,7 +376,8 @@ def _mb_python():
                                   pytest.param("envelope-dst", marks=pytest.mark.slow),
                                   pytest.param("pcn-fruit-tree", marks=pytest.mark.slow),
                                   pytest.param("capql-mountaincar", marks=pytest.mark.slow),
-                                  pytest.param("morld-mountaincar", marks=pytest.mark.slow)])
+                                  pytest.param("morld-mountaincar", marks=pytest.mark.slow),
+                                  pytest.param("mosac-hopper-5k", marks=pytest.mark.slow)])
 def test_mb_runner_evaluates_the_untrained_agent_at_frame0(case, tmp_path):
     """PARITY_SMOKE=1 (200 frames): MB's run of a case starts its curve at frame 0, as ours. Needs MB's venv
     (PARITY_MB_VENV, /tmp/mbvenv or run_parity's default): skipped without it. pcn-dst ~10 s; the others slow."""
