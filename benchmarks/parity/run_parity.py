@@ -30,8 +30,8 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
-from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, result_path,  # noqa: E402
-                    write_result)
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, QEstimateLog, case_eval_weights,  # noqa: E402
+                    case_floor, case_metric, context_means, result_path, write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -39,7 +39,10 @@ MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "sea
 MB_IMPORTS = ["morl_baselines", "wandb", "cvxpy", "cdd", "sortedcontainers", "fire", "seaborn", "moviepy"]
 # per-case findings written under the case's table (what learned, why the libraries differ)
 NOTES: dict[str, str] = {}
-METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"))
+METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"),
+           ("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"))
+#: how a case's metric is named in the summary and the plots (a paper-domain case's: the mean over its contexts)
+METRIC_NAMES = {"hypervolume": "hypervolume", "nhgr": "NHGR (mean over the paper's contexts)"}
 
 
 # ---------------------------------------------------------------------- MB's venv
@@ -119,24 +122,35 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
             qlog.record(w, q)
         return q
 
+    from morl_trl.runs.run_log import RunLog
+
+    report = RunLog.report
+    paper = bool(case.get("paper"))
+
+    def no_report(self, *args, **kwargs):  # (a paper-domain run's report.md computes the floor: the harness does, once)
+        return None
+
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
+    if paper:
+        RunLog.report = no_report
     if qlog is not None:
         EnvelopeQLoss._q_values = logged_q_values
     try:
         with tempfile.TemporaryDirectory() as tmp:
             frames, eval_every, scale = ours_budget(case)
+            extra_cfg = dict(history_len=case["history_len"]) if paper else {}
             run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=frames,
-                                 eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
+                                 eval_interval=eval_every, eval_weights=case_eval_weights(case),
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
-                                 progress=False, run_dir=f"{tmp}/run", **case["ours"])
+                                 progress=False, run_dir=f"{tmp}/run", **extra_cfg, **case["ours"])
             wall = time.perf_counter() - started[0]
             with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
-                curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
-                         for row in csv.DictReader(fh)]
+                curve = curve_from_rows(list(csv.DictReader(fh)))
             for point in curve:
                 point["frames"] *= scale
     finally:
         MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
+        RunLog.report = report
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     frames = int(curve[-1]["frames"])
     extra = {}
@@ -149,6 +163,29 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
                            curve=curve, frames=frames, train_seconds=train_s, eval_seconds=eval_seconds[0],
                            train_fps=frames / train_s,
                            eval_episodes=EVAL_EPISODES, **extra))
+
+
+def curve_from_rows(rows: list[dict]) -> list[dict]:
+    """A run's curve from its ``eval/metrics.csv`` rows: one point per evaluation. A run evaluated on one context
+    (MO-Gymnasium's envs) has one row per evaluation; one evaluated on a domain's suite (a paper-domain case) has a
+    row per context, reduced to their means (``common.context_means``, the same reduction as MB's side)."""
+
+    def num(v):
+        return float(v) if v not in ("", "None", None) else None
+
+    by_frames: dict[float, dict[str, dict]] = {}
+    for row in rows:
+        by_frames.setdefault(num(row["frames"]), {})[row.get("context", "")] = row
+    curve = []
+    for frames, per in by_frames.items():
+        if len(per) == 1:
+            point = {k: num(v) for k, v in next(iter(per.values())).items() if k != "context"}
+        else:
+            point = context_means({c: {k: num(v) for k, v in r.items() if k not in ("context", "frames")}
+                                   for c, r in per.items()})
+        point["frames"] = frames
+        curve.append(point)
+    return curve
 
 
 # ---------------------------------------------------------------------- the report
@@ -169,7 +206,7 @@ def _iqm_ci(values: list[float]) -> tuple[float, float, float]:
     return stratified_bootstrap_ci(scores, "iqm", reps=2000, seed=0)
 
 
-def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
+def _plot(case: str, runs: dict[str, list[dict]], path: Path, floor: dict | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -190,6 +227,8 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
             name = "morl_trl (ours)" if lib == "ours" else f"MORL-Baselines {MB_VERSION}"
             ax.plot(frames, [v.mean() for v in at], color=f"C{i}", label=f"{name} ({len(rs)} seeds)")
             ax.fill_between(frames, [v.min() for v in at], [v.max() for v in at], color=f"C{i}", alpha=0.2)
+        if floor is not None and metric == "nhgr":
+            ax.axhline(floor["mean"], color="k", linestyle="--", linewidth=1, label=f"floor: {floor['policy']}")
         ax.set_xlabel("frames")
         ax.set_ylabel(label)
     axes.flat[0].legend(fontsize=7)
@@ -220,7 +259,9 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
              f"Versions: Python {platform.python_version()}, torch {torch.__version__}, morl-baselines {MB_VERSION}; "
              f"machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (timings are noisy).", ""]
     summary = ["## Summary", "",
-               "Final hypervolume (IQM over seeds, 95 % CI), the case's verdict (`benchmarks/parity/verdict.py`: "
+               "Final hypervolume (IQM over seeds, 95 % CI; a paper-domain case's: its NHGR, the mean over the paper's "
+               "evaluation contexts, beside the floor of trivial policies at the same weights), the case's verdict (`benchmarks/parity/verdict.py`: "
+               "on the case's metric (hypervolume unless the case names another): "
                f"each library learns when a one-sided paired t-test of final - frame 0 over its seeds gives p < {ALPHA}; "
                "both at parity when Welch's two one-sided tests put the difference of final means within "
                f"{MARGIN_OF_GAIN:g} of MB's mean gain, p < {ALPHA}; better / worse when Welch's t-test gives p < "
@@ -260,6 +301,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
         body += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
                  "|---|" + "---|" * len(runs)]
         ci: dict[str, tuple[float, float, float]] = {}
+        metric_of_case = case_metric(spec)
         for metric, label in METRICS:
             cells = []
             for lib in sorted(runs):
@@ -268,7 +310,7 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                     cells.append("-")
                     continue
                 m, lo, hi = _iqm_ci(vals)
-                if metric == "hypervolume":
+                if metric == metric_of_case:
                     ci[lib] = (m, lo, hi)
                 cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
             if any(c != "-" for c in cells):
@@ -283,18 +325,24 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
         body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |", ""]
         body += q_check_lines(runs)
+        floor = case_floor(case, out) if spec.get("paper") else None
+        body += floor_lines(spec, runs, floor)
         png = out.parent / f"{case}.png"
-        _plot(case, runs, png)
+        _plot(case, runs, png, floor)
         body += [f"![{case}]({png.name})", ""]
         if case in NOTES:
             body += [NOTES[case], ""]
-        hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
+        if metric_of_case == "hypervolume":
+            hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
+        else:  # (a paper-domain case: its metric named, beside the floor of trivial policies)
+            beside = f", floor {floor['mean']:.3f}" if floor else ""
+            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {metric_of_case.upper()}{beside}" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds)
-        said = case_verdict(judged) if "ours" in runs and "mb" in runs else "-"
+        said = case_verdict(judged, metric_of_case) if "ours" in runs and "mb" in runs else "-"
         if said != "-":
             n_used = min(len(judged["ours"]), len(judged["mb"]))
             said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
-        ref_learns = library_learning(judged["mb"]) if "mb" in judged else "-"
+        ref_learns = library_learning(judged["mb"], metric_of_case) if "mb" in judged else "-"
         per_method.setdefault(spec["algo"], []).append((case, said))
         ref_learns_by_case[case] = ref_learns
         ratio = f"{fps['ours'] / fps['mb']:.2f}x" if "ours" in fps and "mb" in fps else "-"
@@ -324,6 +372,39 @@ def write_results(out: Path, seeds: list[int], command: str) -> Path:
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def floor_lines(spec: dict, runs: dict[str, list[dict]], floor: dict | None) -> list[str]:
+    """A paper-domain case's metric beside the floor of trivial policies (``common.case_floor``): per library the
+    mean over seeds at frame 0 and at the end, per context the floor and each library's final mean."""
+    if not spec.get("paper"):
+        return []
+    import numpy as np
+
+    metric = case_metric(spec)
+    if floor is None:
+        return [f"Floor: not computed (no reference data for {spec['env']}).", ""]
+    lines = [f"Floor of trivial policies (`morl_trl.reporting.floors.floor_at_weights`, the code of a run's "
+             f"report_floors.json; {case_eval_weights(spec)} weights, the paper's {len(floor['nhgr'])} contexts, seed 0): "
+             f"best **{floor['policy']}**, {metric.upper()} {floor['mean']:.3f} (mean over contexts). Mean over seeds:", "",
+             "| library | frame 0 | final | final above the floor (seeds) |", "|---|---|---|---|"]
+    finals: dict[str, dict[str, float]] = {}
+    for lib, rs in sorted(runs.items()):
+        start = [r["curve"][0].get(metric) for r in rs if r["curve"] and r["curve"][0]["frames"] == 0]
+        final = [r["curve"][-1].get(metric) for r in rs]
+        above = sum(v is not None and v > floor["mean"] for v in final)
+        lines.append(f"| {lib} | {np.mean(start):.3f} | {np.mean(final):.3f} | {above} of {len(final)} |" if start
+                     else f"| {lib} | - | {np.mean(final):.3f} | {above} of {len(final)} |")
+        per = [r["curve"][-1].get("per_context") or {} for r in rs]
+        finals[lib] = {c: float(np.mean([p[c][metric] for p in per if c in p and p[c].get(metric) is not None]))
+                       for c in floor["nhgr"] if any(c in p for p in per)}
+    libs = sorted(finals)
+    lines += ["", "| context | floor | " + " | ".join(f"{lib} final (mean)" for lib in libs) + " |",
+              "|---|---|" + "---|" * len(libs)]
+    for c, v in floor["nhgr"].items():
+        lines.append(f"| {c} | {v:.3f} | " + " | ".join(f"{finals[lib][c]:.3f}" if c in finals[lib] else "-"
+                                                        for lib in libs) + " |")
+    return lines + [""]
 
 
 def q_check_lines(runs: dict[str, list[dict]]) -> list[str]:
@@ -409,6 +490,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="make (or complete) MB's venv in --mb-venv and exit: what bench_losses / bench_train use")
     p.add_argument("--round-seeds", type=int, default=2, help="seeds per round (see main)")
     p.add_argument("--nice", type=int, default=15, help="niceness of each run (0: none)")
+    p.add_argument("--no-report", action="store_true",
+                   help="run only: no RESULTS.md or plots after each case (--report-only makes them later)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.one:  # LIB CASE SEEDS OUT_DIR: several seeds in one process (the imports are paid once)
@@ -454,7 +537,10 @@ def main(argv: list[str] | None = None) -> int:
                     rc = proc.wait()
                     print(f"  {lib} {case} seeds {todo}: {'done' if rc == 0 else f'FAILED (exit {rc})'} "
                           f"in {time.perf_counter() - t:,.0f} s", flush=True)
-                write_results(args.out, seeds, command)
+                if not args.no_report:
+                    write_results(args.out, seeds, command)
+    if args.no_report and not args.report_only:
+        return 0
     print(write_results(args.out, seeds, command))
     return 0
 
