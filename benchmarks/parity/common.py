@@ -196,15 +196,16 @@ PAPER_CASES: dict[str, dict] = {
     ),
     # CAPQL on MO-Hopper, the record's [capql.hopper]: history 2 (obs 39), [256]*4, batch 256, alpha 0.2 fixed,
     # tau 0.005, 2 Q-nets, learning_starts 1000, lr 3e-4, buffer 1M, gamma 0.99; 16 weights on the 6 Hopper
-    # contexts. Cut: frames (3M). SPEC §6's CAPQL list is the same in MB 1.3.0 (a cone weight per step stored with
+    # contexts. Cut: frames (3M): 2,000 updates after the record's 1,000 random frames (learning_starts stays: MB
+    # samples a batch without replacement, so it must be at least the batch, 256). SPEC §6's CAPQL list is the same in MB 1.3.0 (a cone weight per step stored with
     # the transition, deterministic tanh(mean) collection after learning_starts and at evaluation, per-objective
     # min of the target nets minus alpha log pi, one critic + one actor step per env step, no target actor).
     "capql-hopper-paper": dict(
-        env="MOHopperDR-v5", algo="capql", frames=2_000, eval_every=500, gamma=0.99, paper=True,
+        env="MOHopperDR-v5", algo="capql", frames=3_000, eval_every=750, gamma=0.99, paper=True,
         metric="nhgr", history_len=2, eval_weights=16,
-        ours=dict(_ONE_ENV, init_random_frames=250),
+        ours=dict(_ONE_ENV),
         mb=dict(net_arch=[256, 256, 256, 256], batch_size=256, alpha=0.2, tau=0.005, num_q_nets=2,
-                learning_starts=250, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
+                learning_starts=1000, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
         mb_train=dict(),
     ),
 }
