@@ -248,6 +248,217 @@ def reference_of(case: dict) -> str:
     return case.get("reference", "mb")
 
 
+# ---------------------------------------------------------------------- the paper's own domains (issue 48)
+# A paper-domain case (``paper=True``) trains on one of our domain-randomized training ids: ours through
+# ``morl_trl.train``, MB's class on the same env through Gymnasium (``import morl_trl.gym``: ``morl_trl/<id>``,
+# our :class:`~morl_trl.gym.MOGymnasiumEnv`, one env, a context drawn per episode) under the paper's state-action
+# history (``history_len``: ``StateActionHistoryWrapper`` below, the gymnasium twin of our
+# ``StateActionHistory``). Both are evaluated by our evaluator on the domain's evaluation suite (SPEC §1: the
+# paper's contexts) at the same ``eval_weights`` energy weights and seed, exactly as ``morl-trl train`` evaluates a
+# DR training id (``training.parts.make_evaluator``: ``compose_policy_env(make_env(id), history_len)``, the
+# packaged reference bounds and specialist fronts), and judged on ``metric`` (``"nhgr"``: NHGR, the mean over the
+# suite's contexts, SPEC §2) beside the floor of trivial policies at the same weights and contexts
+# (``morl_trl.reporting.floors.floor_at_weights``, what a run's report_floors.json holds; ``paper_floor``).
+# Budgets are cut to fit a 2-core CPU shared with three other jobs; everything else is the authors' record
+# (/work/shared/reference/hyperparameters.toml, [method.domain]) where MB's class takes it, the same on both
+# sides. Ours steps one env with one update per frame (num_envs=1, frames_per_batch=1, updates_per_batch=0: MB's
+# and the authors' loop, SPEC §6 "one env step per loop"; our DR default is 16 envs x 64-frame batches).
+_ONE_ENV = dict(num_envs=1, frames_per_batch=1, updates_per_batch=0)
+PAPER_CASES: dict[str, dict] = {
+    # Envelope on MO-LavaGrid, the record's [envelope.lavagrid]: [256]*4, batch 128, 4 sampled weights ('gaussian',
+    # MB's only sampler), target hard copy every 200 steps, learning_starts 100, eps 1 -> 0.05 over 5M steps (at
+    # this budget eps stays ~1: exploration is random but for the first 0.1 %), homotopy 0.95 never decayed, PER
+    # alpha 0.6 without IS weights, grad norm 1, lr 3e-4, buffer 1M, gamma 0.995; evaluation 16 energy weights
+    # (record: 100) x 1 episode on the 8 LavaGrid contexts. Cut: frames (record 5M) and with them eps's decay,
+    # which spans the whole budget as in the record's run (5M of 5M): 1 -> 0.05 over the case's frames on both
+    # sides (at the record's 5M eps would stay ~1 here: random behaviour throughout). Authors' fork vs MB 1.3.0
+    # (SPEC §6, Envelope) that apply: w enters after the first hidden layer in the fork, at the input in MB (both
+    # sides here use MB's, ours envelope_network="mb"); everything else of SPEC §6's Envelope list is the same in
+    # MB 1.3.0 (gaussian weight per episode, batch repeated per sampled weight, homotopy loss, grad clip 1, PER
+    # priority from the first weight's rows with the running max, epsilon decaying after learning_starts).
+    "envelope-lavagrid": dict(
+        env="MOLavaGridDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.995, paper=True,
+        metric="nhgr", history_len=0, eval_weights=16,
+        ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=1_000),
+        mb=dict(net_arch=[256, 256, 256, 256], batch_size=128, num_sample_w=4, target_net_update_freq=200,
+                learning_starts=100, initial_epsilon=1.0, final_epsilon=0.05, epsilon_decay_steps=1_000,
+                initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0, learning_rate=3e-4,
+                buffer_size=1_000_000, tau=1.0, gradient_updates=1),
+        mb_train=dict(),
+    ),
+    # Envelope on MO-LunarLander, the record's [envelope.lunarlander] (the README's main job's method): history 2
+    # (obs 26), [256]*4, batch 128, 8 sampled weights, target every 1000, eps 1 -> 0.05 over 1M (cut with the
+    # budget, below), homotopy 0.95, PER, gamma 0.99; 16 weights on the 8 LunarLander contexts. Cut: frames (3M)
+    # and, so that exploration ends inside the budget as it does in the record's run (1M of 3M), eps decays over
+    # the first third of the budget on both sides (as the README's --quick: eps_frames 30k of 60k, half).
+    # SPEC §6's Envelope differences: as for LavaGrid (w position; both sides MB's).
+    "envelope-lunarlander": dict(
+        env="MOLunarLanderDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.99, paper=True,
+        metric="nhgr", history_len=2, eval_weights=16,
+        ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=333),
+        mb=dict(net_arch=[256, 256, 256, 256], batch_size=128, num_sample_w=8, target_net_update_freq=1000,
+                learning_starts=100, initial_epsilon=1.0, final_epsilon=0.05, epsilon_decay_steps=333,
+                initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0, learning_rate=3e-4,
+                buffer_size=1_000_000, tau=1.0, gradient_updates=1),
+        mb_train=dict(),
+    ),
+    # CAPQL on MO-Hopper, the record's [capql.hopper]: history 2 (obs 39), [256]*4, batch 256, alpha 0.2 fixed,
+    # tau 0.005, 2 Q-nets, learning_starts 1000, lr 3e-4, buffer 1M, gamma 0.99; 16 weights on the 6 Hopper
+    # contexts. Cut: frames (3M): 2,000 updates after the record's 1,000 random frames (learning_starts stays: MB
+    # samples a batch without replacement, so it must be at least the batch, 256). SPEC §6's CAPQL list is the same in MB 1.3.0 (a cone weight per step stored with
+    # the transition, deterministic tanh(mean) collection after learning_starts and at evaluation, per-objective
+    # min of the target nets minus alpha log pi, one critic + one actor step per env step, no target actor).
+    "capql-hopper-paper": dict(
+        env="MOHopperDR-v5", algo="capql", frames=3_000, eval_every=750, gamma=0.99, paper=True,
+        metric="nhgr", history_len=2, eval_weights=16,
+        ours=dict(_ONE_ENV),
+        mb=dict(net_arch=[256, 256, 256, 256], batch_size=256, alpha=0.2, tau=0.005, num_q_nets=2,
+                learning_starts=1000, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
+        mb_train=dict(),
+    ),
+}
+if os.environ.get("PARITY_SMOKE"):
+    for _c in PAPER_CASES.values():
+        _c.update(frames=200, eval_every=100)
+CASES.update(PAPER_CASES)
+
+
+def case_metric(case: dict) -> str:
+    """The metric a case's verdict and summary use: ``"hypervolume"`` unless the case names one (``"nhgr"``)."""
+    return case.get("metric", "hypervolume")
+
+
+def case_eval_weights(case: dict) -> int:
+    return int(case.get("eval_weights", EVAL_WEIGHTS))
+
+
+def gym_id(env_id: str) -> str:
+    """The Gymnasium id MB's class trains on: ``morl_trl/<id>`` for a paper-domain id (``import morl_trl.gym``)."""
+    from morl_trl.gym import gymnasium_id
+
+    return gymnasium_id(env_id)
+
+
+class StateActionHistoryWrapper:
+    """The paper's state-action history on a Gymnasium env, for MB's classes: observation
+    ``[s_{t-L}, a_{t-L}, ..., s_{t-1}, a_{t-1}, s_t]``, padded at a reset with ``s_0`` and zero actions, discrete
+    actions as their index (float): what our ``morl_trl.transforms.StateActionHistory`` writes (the authors'
+    ``HistoryWrapper(history_len=2, state+action)``, SPEC §1.2 "History"), so that MB trains on what our evaluator
+    (``compose_policy_env(..., history_len)``) shows its policy. ``length`` 0: the env as it is."""
+
+    def __new__(cls, env, length: int):
+        import gymnasium
+
+        if not length:
+            return env
+
+        class _History(gymnasium.Wrapper):
+            def __init__(self, env, length):
+                super().__init__(env)
+                self.length = length
+                self.discrete = isinstance(env.action_space, gymnasium.spaces.Discrete)
+                self.obs_dim = int(np.prod(env.observation_space.shape))
+                self.act_dim = 1 if self.discrete else int(np.prod(env.action_space.shape))
+                n = (length + 1) * self.obs_dim + length * self.act_dim
+                self.observation_space = gymnasium.spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
+
+            def _obs(self):
+                parts = []
+                for s, a in zip(self._states[:-1], self._actions):
+                    parts += [s, a]
+                return np.concatenate(parts + [self._states[-1]]).astype(np.float32)
+
+            def reset(self, **kwargs):
+                obs, info = self.env.reset(**kwargs)
+                s0 = np.asarray(obs, dtype=np.float32).reshape(-1)
+                self._states = [s0] * (self.length + 1)
+                self._actions = [np.zeros(self.act_dim, dtype=np.float32)] * self.length
+                return self._obs(), info
+
+            def step(self, action):
+                obs, reward, terminated, truncated, info = self.env.step(action)
+                a = np.asarray(action, dtype=np.float32).reshape(-1)
+                self._states = self._states[1:] + [np.asarray(obs, dtype=np.float32).reshape(-1)]
+                self._actions = self._actions[1:] + [a]
+                return self._obs(), reward, terminated, truncated, info
+
+        return _History(env, length)
+
+
+def make_paper_gym_env(case: dict):
+    """The Gymnasium env MB's class trains on for a paper-domain case: ``morl_trl/<env>`` under the case's history."""
+    import gymnasium
+
+    import morl_trl.gym  # noqa: F401  (registers morl_trl/<id>)
+
+    return StateActionHistoryWrapper(gymnasium.make(gym_id(case["env"])), case.get("history_len", 0))
+
+
+def context_means(per_context: dict[str, dict]) -> dict:
+    """One curve point's values from the per-context metrics of an evaluation on a suite: each metric's mean over
+    the contexts (what a run's log prints as "mean over contexts" and ``EvaluationResult.aggregate`` holds), and
+    ``per_context`` (context -> NHGR and hypervolume)."""
+    names = sorted({k for m in per_context.values() for k in m})
+    out: dict = {}
+    for k in names:
+        vals = [m.get(k) for m in per_context.values()]
+        vals = [float(v) for v in vals if v is not None and v == v]
+        if len(vals) == len(per_context) and k in ("nhgr", "normalized_hypervolume", "hypervolume", "eum", "eugr",
+                                                    "normalized_eum", "cardinality"):
+            out[k] = float(np.mean(vals))
+    out["per_context"] = {c: {k: (None if m.get(k) is None else float(m[k])) for k in ("nhgr", "hypervolume")}
+                          for c, m in per_context.items()}
+    return out
+
+
+def evaluate_paper_policy(policy, case: dict, seed: int) -> dict:
+    """``policy`` on the case's domain suite with the evaluator ``morl-trl train`` builds for a DR training id
+    (``morl_trl.training.parts``: ``policy_env_factory``, ``load_reference``): the paper's contexts, the case's
+    energy weights, one episode each, the case's discount and history, the run's seed."""
+    from types import SimpleNamespace
+
+    from morl_trl.envs.registry import domain_of
+    from morl_trl.evaluation import MultiContextEvaluator
+    from morl_trl.training.parts import load_reference, policy_env_factory
+
+    spec = domain_of(case["env"])
+    cfg = SimpleNamespace(env_id=case["env"], history_len=case.get("history_len", 0), reference_dir=None)
+    ev = MultiContextEvaluator(policy, spec.train_id, weights=case_eval_weights(case), episodes=EVAL_EPISODES,
+                               gamma=case["gamma"], env_factory=policy_env_factory(cfg, "cpu"),
+                               reference=load_reference(cfg, spec), seed=seed)
+    try:
+        result = ev.evaluate()
+    finally:
+        ev.close()
+    return context_means({c: dict(result.per_context[c].metrics) for c in result.context_names})
+
+
+def paper_floor(case_name: str, out: Path) -> dict | None:
+    """The floor of trivial policies for a paper-domain case: ``floor_at_weights`` (the code that writes a run's
+    report_floors.json) at the case's weights on the domain's evaluation suite, cached in
+    ``out/floors/<case>.json``: ``{"policy", "mean", "nhgr": {context: value}, "where"}``; ``None`` for other
+    cases."""
+    case = CASES[case_name]
+    if not case.get("paper"):
+        return None
+    from types import SimpleNamespace
+
+    from morl_trl.envs.registry import domain_of
+    from morl_trl.evaluation.evaluator import suite_contexts
+    from morl_trl.reporting.floors import floor_at_weights
+    from morl_trl.training.parts import load_reference
+
+    spec = domain_of(case["env"])
+    _, contexts, _ = suite_contexts(spec.train_id)
+    reference = load_reference(SimpleNamespace(reference_dir=None), spec)
+    cache = Path(out) / "floors" / f"{case_name}.json"
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    best, where = floor_at_weights(spec.train_id, case_eval_weights(case), list(contexts), reference, cache=cache)
+    if best is None:
+        return None
+    return dict(policy=best.policy, mean=best.mean, nhgr=dict(best.nhgr), where=where)
+
+
 PENDING: list[str] = []  # every case of issue 29 has a runner
 
 # the shared evaluation protocol: 16 weights (MB's num_eval_weights_for_front is 100: cut for the

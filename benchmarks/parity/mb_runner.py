@@ -26,8 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 
-from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, QEstimateLog, evaluate_policy,  # noqa: E402
-                    write_result)
+from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, QEstimateLog, evaluate_paper_policy,  # noqa: E402
+                    evaluate_policy, make_paper_gym_env, write_result)
 
 
 def _row_act(act_one, space=None):
@@ -119,6 +119,31 @@ def _policy(case: dict, agent, space):
     return _row_act(lambda o, w: agent.eval(o, w), space)
 
 
+def _batched_policy(case: dict, agent):
+    """MB's agent acting for a whole batch of the evaluator's rows at once (a paper-domain case's suite is
+    contexts x weights rows, each up to 1,000 steps): what its ``eval(obs, w)`` does row by row, on the batch.
+    Envelope: ``max_action``, argmax_a w.Q(s, a, w) of its q_net; CAPQL: ``policy.get_action``, tanh(mean)."""
+    import torch as th
+
+    algo = case["algo"]
+    if algo not in ("envelope", "capql"):
+        raise SystemExit(f"no batched MB policy for {algo} (paper-domain cases: envelope, capql)")
+
+    def policy(td):
+        obs, w = td.get("observation").float(), td.get("preference").float()
+        with th.no_grad():
+            if algo == "envelope":
+                q = agent.q_net(obs, w)  # [B, A, k]
+                action = th.einsum("bk,bak->ba", w, q).argmax(-1)
+            else:
+                action = agent.policy.get_action(obs, w)
+        if "action" in td.keys():
+            action = action.to(td.get("action").dtype)
+        return td.set("action", action)
+
+    return policy
+
+
 def _untrained_gpi_action(agent, obs, w):
     """MB's GPI agent before its first iteration: no weight support to take the GPI maximum over, so its
     Q-networks act greedily for ``w`` (``max_action``: the GPI maximum over the support ``{w}``)."""
@@ -200,15 +225,24 @@ def run(case_name: str, seed: int, out: Path) -> None:
     sys.modules.setdefault("mo_gymnasium.deep_sea_treasure.deep_sea_treasure", dst_mod)
 
     case = CASES[case_name]
+    paper = bool(case.get("paper"))
     seed_everything(seed)
     torch.set_num_threads(1)
-    env, eval_env = mo_gym.make(case["env"]), mo_gym.make(case["env"])
+    if paper:  # our domain through Gymnasium (morl_trl/<id>), under the paper's history (common.PAPER_CASES)
+        env, eval_env = make_paper_gym_env(case), make_paper_gym_env(case)
+    else:
+        env, eval_env = mo_gym.make(case["env"]), mo_gym.make(case["env"])
     # MB 1.3.0's loops reset the env unseeded and sample random actions from its action space (PCN's warm-up
     # episodes, the agents' exploration), both seeded from OS entropy: two runs of one seed differed. Seeded
     # here once (what MB's own MOPPO does), so that a seed's run can be made again; the draws are as random.
     env.reset(seed=seed)
     env.action_space.seed(seed)
-    ref_point = np.asarray(MO_GYMNASIUM_REF_POINTS[case["env"]][0], dtype=np.float32)
+    if paper:  # (MB's train() takes one; its own evaluation never runs here: log=False)
+        from morl_trl.envs.registry import domain_of
+
+        ref_point = np.asarray(domain_of(case["env"]).hv_ref_point, dtype=np.float32)
+    else:
+        ref_point = np.asarray(MO_GYMNASIUM_REF_POINTS[case["env"]][0], dtype=np.float32)
     curve: list[dict] = []
     eval_s, eval_cpu = [0.0], [0.0]
     agent = None
@@ -220,11 +254,15 @@ def run(case_name: str, seed: int, out: Path) -> None:
             qlog.mark(frames)
         t, c = time.perf_counter(), time.process_time()
         with preserved_rng():  # (the evaluations leave MB's training trajectory as it would be without them)
-            m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
+            if paper:
+                m = evaluate_paper_policy(_batched_policy(case, agent), case, seed)
+            else:
+                m = evaluate_policy(_policy(case, agent, eval_env.action_space), case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
         eval_s[0] += time.perf_counter() - t
         eval_cpu[0] += time.process_time() - c
-        print(f"[mb {case_name} s{seed}] {frames} frames: {m}", flush=True)
+        print(f"[mb {case_name} s{seed}] {frames} frames: "
+              f"{ {k: v for k, v in m.items() if k != 'per_context'} }", flush=True)
 
     steps = [0]
     step = env.step

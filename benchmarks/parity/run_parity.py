@@ -32,7 +32,8 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
 from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, REFERENCES, QEstimateLog,  # noqa: E402
-                    best_floor, case_floor, reference_of, result_path, write_result)
+                    best_floor, case_eval_weights, case_floor, case_metric, context_means, paper_floor, reference_of,
+                    result_path, write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, floor_words, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -40,7 +41,10 @@ MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "sea
 MB_IMPORTS = ["morl_baselines", "wandb", "cvxpy", "cdd", "sortedcontainers", "fire", "seaborn", "moviepy"]
 # per-case findings written under the case's table (what learned, why the libraries differ)
 NOTES: dict[str, str] = {}
-METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"))
+METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"),
+           ("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"))
+#: how a case's metric is named in the summary and the plots (a paper-domain case's: the mean over its contexts)
+METRIC_NAMES = {"hypervolume": "hypervolume", "nhgr": "NHGR (mean over the paper's contexts)"}
 
 
 # ---------------------------------------------------------------------- MB's venv
@@ -193,26 +197,37 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
         finally:
             self.priority = saved
 
+    from morl_trl.runs.run_log import RunLog
+
+    report = RunLog.report
+    paper = bool(case.get("paper"))
+
+    def no_report(self, *args, **kwargs):  # (a paper-domain run's report.md computes the floor: the harness does, once)
+        return None
+
     MultiContextEvaluator.evaluate, Run.start = timed, start_clock
     EpisodeReplay.top_commands = side_effect_free_top_commands
+    if paper:
+        RunLog.report = no_report
     if qlog is not None:
         EnvelopeQLoss._q_values = logged_q_values
     try:
         with tempfile.TemporaryDirectory() as tmp, fixed_preference(case.get("weight")):
             frames, eval_every, scale = ours_budget(case)
+            extra_cfg = dict(history_len=case["history_len"]) if paper else {}
             run = morl_trl.train(case["algo"], env=case["env"], seed=seed, frames=frames,
-                                 eval_interval=eval_every, eval_weights=EVAL_WEIGHTS,
+                                 eval_interval=eval_every, eval_weights=case_eval_weights(case),
                                  eval_episodes=EVAL_EPISODES, gamma=case["gamma"], eval_random_baseline=False,
-                                 progress=False, run_dir=f"{tmp}/run", **case["ours"])
+                                 progress=False, run_dir=f"{tmp}/run", **extra_cfg, **case["ours"])
             wall, cpu = time.perf_counter() - started[0][0], time.process_time() - started[0][1]
             with open(Path(run.run_dir) / "eval" / "metrics.csv") as fh:
-                curve = [{k: (float(v) if v not in ("", "None") else None) for k, v in row.items() if k != "context"}
-                         for row in csv.DictReader(fh)]
+                curve = curve_from_rows(list(csv.DictReader(fh)))
             for point in curve:
                 point["frames"] *= scale
     finally:
         MultiContextEvaluator.evaluate, Run.start, EnvelopeQLoss._q_values = evaluate, start, q_values
         EpisodeReplay.top_commands = top_commands
+        RunLog.report = report
     train_s = wall - eval_seconds[0]  # (the evaluation at frame 0 runs after start: it is subtracted too)
     train_cpu = cpu - eval_cpu[0]  # (this process's CPU time: one torch thread)
     frames = int(curve[-1]["frames"])
@@ -227,6 +242,29 @@ def run_ours(case_name: str, seed: int, out: Path) -> None:
                            train_fps=frames / train_s, train_cpu_seconds=train_cpu,
                            train_fps_cpu=frames / train_cpu if train_cpu > 0 else None,
                            eval_episodes=EVAL_EPISODES, **extra))
+
+
+def curve_from_rows(rows: list[dict]) -> list[dict]:
+    """A run's curve from its ``eval/metrics.csv`` rows: one point per evaluation. A run evaluated on one context
+    (MO-Gymnasium's envs) has one row per evaluation; one evaluated on a domain's suite (a paper-domain case) has a
+    row per context, reduced to their means (``common.context_means``, the same reduction as MB's side)."""
+
+    def num(v):
+        return float(v) if v not in ("", "None", None) else None
+
+    by_frames: dict[float, dict[str, dict]] = {}
+    for row in rows:
+        by_frames.setdefault(num(row["frames"]), {})[row.get("context", "")] = row
+    curve = []
+    for frames, per in by_frames.items():
+        if len(per) == 1:
+            point = {k: num(v) for k, v in next(iter(per.values())).items() if k != "context"}
+        else:
+            point = context_means({c: {k: num(v) for k, v in r.items() if k not in ("context", "frames")}
+                                   for c, r in per.items()})
+        point["frames"] = frames
+        curve.append(point)
+    return curve
 
 
 # ---------------------------------------------------------------------- the report
@@ -247,7 +285,7 @@ def _iqm_ci(values: list[float]) -> tuple[float, float, float]:
     return stratified_bootstrap_ci(scores, "iqm", reps=2000, seed=0)
 
 
-def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
+def _plot(case: str, runs: dict[str, list[dict]], path: Path, floor: dict | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -268,6 +306,8 @@ def _plot(case: str, runs: dict[str, list[dict]], path: Path) -> None:
             name = "morl_trl (ours)" if lib == "ours" else REFERENCES.get(lib, lib)
             ax.plot(frames, [v.mean() for v in at], color=f"C{i}", label=f"{name} ({len(rs)} seeds)")
             ax.fill_between(frames, [v.min() for v in at], [v.max() for v in at], color=f"C{i}", alpha=0.2)
+        if floor is not None and metric == "nhgr":
+            ax.axhline(floor["mean"], color="k", linestyle="--", linewidth=1, label=f"floor: {floor['policy']}")
         ax.set_xlabel("frames")
         ax.set_ylabel(label)
     axes.flat[0].legend(fontsize=7)
@@ -298,7 +338,9 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
              f"Versions: Python {platform.python_version()}, torch {torch.__version__}, morl-baselines {MB_VERSION}; "
              f"machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (timings are noisy).", ""]
     summary = ["## Summary", "",
-               "Final hypervolume (IQM over seeds, 95 % CI), the case's verdict (`benchmarks/parity/verdict.py`: "
+               "Final hypervolume (IQM over seeds, 95 % CI; a paper-domain case's: its NHGR, the mean over the paper's "
+               "evaluation contexts, beside the floor of trivial policies at the same weights), the case's verdict (`benchmarks/parity/verdict.py`: "
+               "on the case's metric (hypervolume unless the case names another): "
                f"each library learns when a one-sided paired t-test of final - frame 0 over its seeds gives p < {ALPHA}; "
                "both at parity when Welch's two one-sided tests put the difference of final means within "
                f"{MARGIN_OF_GAIN:g} of MB's mean gain, p < {ALPHA}; better / worse when Welch's t-test gives p < "
@@ -353,6 +395,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         body += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
                  "|---|" + "---|" * len(runs)]
         ci: dict[str, tuple[float, float, float]] = {}
+        metric_of_case = case_metric(spec)
         for metric, label in METRICS:
             cells = []
             for lib in sorted(runs):
@@ -361,7 +404,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                     cells.append("-")
                     continue
                 m, lo, hi = _iqm_ci(vals)
-                if metric == "hypervolume":
+                if metric == metric_of_case:
                     ci[lib] = (m, lo, hi)
                 cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
             if any(c != "-" for c in cells):
@@ -389,22 +432,33 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                      + " | ".join(f"{lib} {fps_cpu[lib]:,.0f}" if lib in fps_cpu else "-" for lib in sorted(runs)) + " |"]
         body += [""]
         body += q_check_lines(runs)
+        floor = paper_floor(case, out) if spec.get("paper") else None
+        body += floor_lines(spec, runs, floor)
         png = out.parent / f"{case}.png"
-        _plot(case, runs, png)
+        _plot(case, runs, png, floor)
         body += [f"![{case}]({png.name})", ""]
         if case in NOTES:
             body += [NOTES[case], ""]
-        hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
+        if metric_of_case == "hypervolume":
+            hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
+        else:  # (a paper-domain case: its metric named, beside the floor of trivial policies)
+            beside = f", floor {floor['mean']:.3f}" if floor else ""
+            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {metric_of_case.upper()}{beside}" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds, ref)
         judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
-        floors = load_floors(out, case, judged_seeds, compute_floors)
-        said = case_verdict(judged, ref=ref) if "ours" in runs and ref in runs else "-"
+        if spec.get("paper"):  # (the paper protocol's floor: one per case, the same at every seed)
+            floors = ({} if floor is None else
+                      {s: {"policies": {floor["policy"]: {metric_of_case: floor["mean"]}}} for s in judged_seeds})
+        else:
+            floors = load_floors(out, case, judged_seeds, compute_floors)
+        said = case_verdict(judged, metric_of_case, ref=ref) if "ours" in runs and ref in runs else "-"
         if said != "-":
             n_used = min(len(judged["ours"]), len(judged[ref]))
             said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
-        ref_learns = library_learning(judged[ref]) if ref in judged else "-"
-        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors) or "-" for lib in ("ours", ref))
-        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors) for lib in ("ours", ref))]
+        ref_learns = library_learning(judged[ref], metric_of_case) if ref in judged else "-"
+        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors, metric_of_case) or "-" for lib in ("ours", ref))
+        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors, metric_of_case)
+                                                      for lib in ("ours", ref))]
         ref_name = "MB" if ref == "mb" else ref
         per_method.setdefault(spec["algo"], []).append(
             (case, said + (f" [vs the floor: ours {short[0]}, {ref_name} {short[1]}]" if all(short) else "")))
@@ -413,7 +467,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         if "ours" in fps_cpu and ref in fps_cpu:
             ratio += f" (CPU: {fps_cpu['ours'] / fps_cpu[ref]:.2f}x)"
         summary.append(f"| {row_name} | {len(done.get('ours', []))} / {len(done.get(ref, []))} | {hv.get('ours', '-')} "
-                       f"| {hv.get(ref, '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds)} "
+                       f"| {hv.get(ref, '-')} | {said} | {ref_learns} | {floor_cell(floors, judged_seeds, metric_of_case)} "
                        f"| {vs_floor} | {_num(fps.get('ours'))} | {_num(fps.get(ref))} "
                        f"| {ratio} |")
     methods = ["## Verdicts per method", "",
@@ -440,6 +494,39 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
     path = out.parent / "RESULTS.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def floor_lines(spec: dict, runs: dict[str, list[dict]], floor: dict | None) -> list[str]:
+    """A paper-domain case's metric beside the floor of trivial policies (``common.paper_floor``): per library the
+    mean over seeds at frame 0 and at the end, per context the floor and each library's final mean."""
+    if not spec.get("paper"):
+        return []
+    import numpy as np
+
+    metric = case_metric(spec)
+    if floor is None:
+        return [f"Floor: not computed (no reference data for {spec['env']}).", ""]
+    lines = [f"Floor of trivial policies (`morl_trl.reporting.floors.floor_at_weights`, the code of a run's "
+             f"report_floors.json; {case_eval_weights(spec)} weights, the paper's {len(floor['nhgr'])} contexts, seed 0): "
+             f"best **{floor['policy']}**, {metric.upper()} {floor['mean']:.3f} (mean over contexts). Mean over seeds:", "",
+             "| library | frame 0 | final | final above the floor (seeds) |", "|---|---|---|---|"]
+    finals: dict[str, dict[str, float]] = {}
+    for lib, rs in sorted(runs.items()):
+        start = [r["curve"][0].get(metric) for r in rs if r["curve"] and r["curve"][0]["frames"] == 0]
+        final = [r["curve"][-1].get(metric) for r in rs]
+        above = sum(v is not None and v > floor["mean"] for v in final)
+        lines.append(f"| {lib} | {np.mean(start):.3f} | {np.mean(final):.3f} | {above} of {len(final)} |" if start
+                     else f"| {lib} | - | {np.mean(final):.3f} | {above} of {len(final)} |")
+        per = [r["curve"][-1].get("per_context") or {} for r in rs]
+        finals[lib] = {c: float(np.mean([p[c][metric] for p in per if c in p and p[c].get(metric) is not None]))
+                       for c in floor["nhgr"] if any(c in p for p in per)}
+    libs = sorted(finals)
+    lines += ["", "| context | floor | " + " | ".join(f"{lib} final (mean)" for lib in libs) + " |",
+              "|---|---|" + "---|" * len(libs)]
+    for c, v in floor["nhgr"].items():
+        lines.append(f"| {c} | {v:.3f} | " + " | ".join(f"{finals[lib][c]:.3f}" if c in finals[lib] else "-"
+                                                        for lib in libs) + " |")
+    return lines + [""]
 
 
 def q_check_lines(runs: dict[str, list[dict]]) -> list[str]:
@@ -583,6 +670,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="make (or complete) MB's venv in --mb-venv and exit: what bench_losses / bench_train use")
     p.add_argument("--round-seeds", type=int, default=2, help="seeds per round (see main)")
     p.add_argument("--nice", type=int, default=15, help="niceness of each run (0: none)")
+    p.add_argument("--no-report", action="store_true",
+                   help="run only: no RESULTS.md or plots after each case (--report-only makes them later)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.one:  # LIB CASE SEEDS OUT_DIR: several seeds in one process (the imports are paid once)
@@ -630,7 +719,10 @@ def main(argv: list[str] | None = None) -> int:
                     rc = proc.wait()
                     print(f"  {lib} {case} seeds {todo}: {'done' if rc == 0 else f'FAILED (exit {rc})'} "
                           f"in {time.perf_counter() - t:,.0f} s", flush=True)
-                write_results(args.out, seeds, command, compute_floors=not args.no_floors)
+                if not args.no_report:
+                    write_results(args.out, seeds, command, compute_floors=not args.no_floors)
+    if args.no_report and not args.report_only:
+        return 0
     print(write_results(args.out, seeds, command, compute_floors=not args.no_floors))
     return 0
 
