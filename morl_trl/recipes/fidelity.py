@@ -256,7 +256,7 @@ ENVELOPE = {
     "network.optimizer": Same("lr"  , expect=lambda v, cfg: 3e-4),
     "network.replay_action_dtype": NotApplicable("storage dtype of the action; ours stores the action spec's dtype"),
     "derived.epsilon_schedule": Code("training.agent: random actions before init_random_frames, then epsilon "
-                                     "linear from eps_start to eps_end over eps_frames"),
+                                     "linear from eps_start to eps_end over the eps_frames after it"),
     "derived.homotopy_lambda_effective": Same("homotopy_lambda0"),
     "derived.rows_per_gradient_step": Same("batch_size * num_sampled_prefs",
                                            ours=lambda cfg: cfg.batch_size * cfg.num_sampled_prefs),
@@ -590,7 +590,7 @@ GPI = {
     "network.eval_action": Code("algorithms.gpi: greedy GPI action"),
     "network.weight_input": Code("objectives.gpi: the weight is an input of every Q-network (and actor)"),
     "derived.epsilon_schedule": Code("training.agent: random actions before init_random_frames, then epsilon linear "
-                                     "from eps_start to eps_end over eps_frames"),
+                                     "from eps_start to eps_end over the eps_frames after it"),
     "derived.ccs_values": Code("algorithms.gpi: Monte-Carlo returns of the GPI policy (gpi_front_episodes each)"),
     "derived.eval_gpi_indexing_note": Same("gpi_eval_conditioning", expect=lambda v, cfg: "authors"),
     "derived.train_action": Code("algorithms.gpi: pi(s, w) + clipped Gaussian noise"),

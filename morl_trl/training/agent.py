@@ -170,16 +170,23 @@ def captured_update(agent, gradient_step):
 
 
 def epsilon(cfg, frames: int) -> float:
-    """The ε of ε-greedy exploration after ``frames`` frames: linear from ``cfg.eps_start`` to
-    ``cfg.eps_end`` over ``cfg.eps_frames`` frames, then constant (the one ε schedule).
+    """The ε of ε-greedy exploration after ``frames`` frames: ``cfg.eps_start`` until the learning starts
+    (``cfg.init_random_frames``), then linear to ``cfg.eps_end`` over ``cfg.eps_frames`` frames, then constant (the
+    one ε schedule). The decay starts at learning_starts as the authors' and MB's ``linearly_decaying_value(...,
+    global_step, learning_starts, ...)`` (envelope.py, gpi_pd.py; SPEC §6 Envelope: "after that ε decays linearly.
+    On LavaGrid the decay spans 5M steps, so ε ends at 0.050019", i.e. 100 frames of warm-up late).
 
     Example:
         >>> from types import SimpleNamespace
-        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.5, eps_frames=100)
+        >>> cfg = SimpleNamespace(eps_start=1.0, eps_end=0.5, eps_frames=100, init_random_frames=0)
         >>> epsilon(cfg, 0), epsilon(cfg, 50), epsilon(cfg, 1_000)
         (1.0, 0.75, 0.5)
+        >>> lava = SimpleNamespace(eps_start=1.0, eps_end=0.05, eps_frames=5_000_000, init_random_frames=100)
+        >>> round(epsilon(lava, 5_000_000), 6)
+        0.050019
     """
-    frac = min(1.0, frames / max(1, cfg.eps_frames))
+    warm = int(getattr(cfg, "init_random_frames", 0) or 0)
+    frac = min(1.0, max(0, frames - warm) / max(1, cfg.eps_frames))
     return cfg.eps_start + frac * (cfg.eps_end - cfg.eps_start)
 
 
