@@ -492,6 +492,12 @@ def trivial_policies(env_id: str) -> dict[str, object]:
     import mo_gymnasium as mo_gym
     import torch
 
+    from morl_trl.envs.foreign import is_gym_id
+
+    if not is_gym_id(env_id):  # one of our domains' ids: the floors module's own definition
+        from morl_trl.reporting.floors import trivial_policies as domain_trivial_policies
+
+        return domain_trivial_policies(env_id)
     env = mo_gym.make(env_id)
     try:
         space = env.action_space
