@@ -55,12 +55,13 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
     # morl_baselines/multi_policy/morld/morld.py: MORLD.__init__ (pop 6, exchange every 40_000 steps,
     # gamma 0.995, no shared buffer, no weight adaptation) with its default policy
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (batch 128, learning_starts 1000,
-    # [256, 256], tau 0.005, autotuned temperature from 0.2)
+    # [256, 256], tau 0.005, critics' lr q_lr 1e-3; the temperature autotuned from log_alpha = 0, i.e. 1.0,
+    # with Adam at q_lr: its `alpha=0.2` is unused with autotune, mosac_continuous_action.py:144-150, 257-260)
     # (its round robin: one member on one env for exchange_every steps; frames_per_batch 50 divides them)
     **{algo: dict(**_EVAL, num_envs=1, frames_per_batch=50, updates_per_batch=0, update_frequency=1, gamma=0.995,
                   pop_size=6, exchange_every=40_000, batch_size=128, init_random_frames=1000, hidden=(256, 256),
-                  tau=0.005, alpha=0.2, learn_alpha=True, buffer_size=1_000_000, prioritized=False,
-                  weight_adaptation="none" if algo == "morld" else "psa", eval_exploration="random")
+                  tau=0.005, alpha=1.0, learn_alpha=True, q_lr=1e-3, alpha_lr=1e-3, buffer_size=1_000_000,
+                  prioritized=False, weight_adaptation="none" if algo == "morld" else "psa", eval_exploration="random")
        for algo in ("morld", "morld_psa")},
     # morl_baselines/multi_policy/pgmorl/pgmorl.py: PGMORL.__init__ (4 envs per member, 6 members,
     # 2048 steps per iteration, [64, 64], gamma 0.995)
@@ -73,13 +74,15 @@ FOREIGN_DEFAULTS: dict[str, dict[str, Any]] = {
                    # re-seeded one by one here, algorithms.pgmorl.PGMORLAgent.reseed_env)
                    pgmorl_reseed_each_iteration=False),
     # single_policy/ser/mosac_continuous_action.py: MOSAC.__init__ (one fixed weight in MB; here
-    # preference-conditioned)
+    # preference-conditioned; the temperature autotuned from 1.0 at q_lr 1e-3, as above)
     "mosac": dict(**_ONE_ENV, **_EVAL, gamma=0.99, tau=0.005, batch_size=128, init_random_frames=1000, hidden=(256, 256),
-                  alpha=0.2, learn_alpha=True, buffer_size=1_000_000, prioritized=False, eval_exploration="random"),
-    # single_policy/ser/mosac_discrete_action.py: MOSACDiscrete.__init__
+                  alpha=1.0, learn_alpha=True, q_lr=1e-3, alpha_lr=1e-3, buffer_size=1_000_000, prioritized=False,
+                  eval_exploration="random"),
+    # single_policy/ser/mosac_discrete_action.py: MOSACDiscrete.__init__ (the temperature autotuned from
+    # log_alpha = 0, i.e. 1.0: its `alpha=0.2` is unused with autotune, :143, 258-262)
     "mosac_discrete": dict(**_EVAL, num_envs=1, frames_per_batch=4, updates_per_batch=1, gamma=0.99, tau=None,
                            target_update_period=2000, batch_size=128, init_random_frames=20_000, hidden=(256, 256),
-                           alpha=0.2, learn_alpha=True, target_entropy_scale=0.89, buffer_size=1_000_000,
+                           alpha=1.0, learn_alpha=True, target_entropy_scale=0.89, buffer_size=1_000_000,
                            prioritized=False, eval_exploration="random"),
 }
 

@@ -71,3 +71,20 @@ def test_pgmorl_policy_of_a_run_is_rebuilt_with_its_env_layout():
                          frames_per_batch=8)
     agent = _build_agent(cfg, torch.device("cpu"))
     assert type(agent).__name__ == "PGMORLAgent"
+
+
+@pytest.mark.parametrize("algo", ["mosac", "morld", "morld_psa"])
+def test_mosacs_temperature_starts_at_mbs_autotune_start_with_its_critic_rate(algo):
+    # MB 1.3.0's MOSAC (mosac_continuous_action.py): log_alpha = 0 (alpha 1.0; its alpha=0.2 is unused with autotune),
+    # the temperature's Adam at q_lr, q_lr 1e-3, policy_lr 3e-4
+    from morl_trl.recipes import resolve_config
+
+    cfg = resolve_config(algo, "mo-hopper-v5")
+    assert (cfg.alpha, cfg.learn_alpha, cfg.q_lr, cfg.alpha_lr, cfg.lr) == (1.0, True, 1e-3, 1e-3, 3e-4)
+
+
+def test_discrete_mosacs_temperature_starts_at_mbs_autotune_start():
+    from morl_trl.recipes import resolve_config
+
+    cfg = resolve_config("mosac_discrete", "deep-sea-treasure-v0")
+    assert (cfg.alpha, cfg.learn_alpha) == (1.0, True)  # MOSACDiscrete: log_alpha = 0 (mosac_discrete_action.py:260)
