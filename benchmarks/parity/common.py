@@ -264,6 +264,17 @@ def reference_of(case: dict) -> str:
 # sides. Ours steps one env with one update per frame (num_envs=1, frames_per_batch=1, updates_per_batch=0: MB's
 # and the authors' loop, SPEC §6 "one env step per loop"; our DR default is 16 envs x 64-frame batches).
 _ONE_ENV = dict(num_envs=1, frames_per_batch=1, updates_per_batch=0)
+
+
+def _mb_paper_envelope(**per_domain) -> dict:
+    """MB's Envelope arguments for the record's settings shared by [envelope.lavagrid] and [envelope.lunarlander]
+    ([256]*4, batch 128, learning_starts 100, eps 1 -> 0.05, homotopy 0.95 never decayed, PER alpha 0.6, grad norm 1,
+    lr 3e-4, buffer 1M, hard target copies, one update a step), with the domain's ``per_domain`` on top."""
+    return dict(net_arch=[256, 256, 256, 256], batch_size=128, learning_starts=100, initial_epsilon=1.0,
+                final_epsilon=0.05, initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0,
+                learning_rate=3e-4, buffer_size=1_000_000, tau=1.0, gradient_updates=1, **per_domain)
+
+
 PAPER_CASES: dict[str, dict] = {
     # Envelope on MO-LavaGrid, the record's [envelope.lavagrid]: [256]*4, batch 128, 4 sampled weights ('gaussian',
     # MB's only sampler), target hard copy every 200 steps, learning_starts 100, eps 1 -> 0.05 over 5M steps (cut, below),
@@ -275,18 +286,15 @@ PAPER_CASES: dict[str, dict] = {
     # (SPEC §6, Envelope) that apply: w enters after the first hidden layer in the fork, at the input in MB (both
     # sides here use MB's, ours envelope_network="mb"); everything else of SPEC §6's Envelope list is the same in
     # MB 1.3.0 (gaussian weight per episode, batch repeated per sampled weight, homotopy loss, grad clip 1, PER
-    # priority from the first weight's rows with the running max, epsilon decaying after learning_starts; ours
-    # decays it from frame 0, training.agent.epsilon: a 100-frame offset, invisible at 5M, not at 1,000).
+    # priority from the first weight's rows with the running max, epsilon decaying after learning_starts: ours too
+    # since b4b441a; this case's ours runs, made before it, decayed it from frame 0, 100 frames earlier).
     # Budget: 1,000 frames (MB ~12 frames/s on this shared CPU, trial seed 900); the paper's own Envelope scores
     # 0.02 NHGR here after 5M frames (SPEC §3): no budget that fits makes this case informative.
     "envelope-lavagrid": dict(
         env="MOLavaGridDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.995, paper=True,
         metric="nhgr", history_len=0, eval_weights=16,
         ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=1_000),
-        mb=dict(net_arch=[256, 256, 256, 256], batch_size=128, num_sample_w=4, target_net_update_freq=200,
-                learning_starts=100, initial_epsilon=1.0, final_epsilon=0.05, epsilon_decay_steps=1_000,
-                initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0, learning_rate=3e-4,
-                buffer_size=1_000_000, tau=1.0, gradient_updates=1),
+        mb=_mb_paper_envelope(num_sample_w=4, target_net_update_freq=200, epsilon_decay_steps=1_000),
         mb_train=dict(),
     ),
     # Envelope on MO-LunarLander, the record's [envelope.lunarlander] (the README's main job's method): history 2
@@ -295,15 +303,12 @@ PAPER_CASES: dict[str, dict] = {
     # and, so that exploration ends inside the budget as it does in the record's run (1M of 3M), eps decays over
     # the first third of the budget on both sides (333 of 1,000 frames). Budget: 1,000 frames (MB ~4 frames/s on
     # this shared CPU; trial seed 900: NHGR 0.283 -> 0.473 at 500 -> 0.334 at 1,000). SPEC §6's Envelope
-    # differences: as for LavaGrid (w position: both sides MB's; ours' eps starts decaying 100 frames earlier).
+    # differences: as for LavaGrid (w position: both sides MB's; ours' runs predate b4b441a's eps decay from learning_starts).
     "envelope-lunarlander": dict(
         env="MOLunarLanderDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.99, paper=True,
         metric="nhgr", history_len=2, eval_weights=16,
         ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=333),
-        mb=dict(net_arch=[256, 256, 256, 256], batch_size=128, num_sample_w=8, target_net_update_freq=1000,
-                learning_starts=100, initial_epsilon=1.0, final_epsilon=0.05, epsilon_decay_steps=333,
-                initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0, learning_rate=3e-4,
-                buffer_size=1_000_000, tau=1.0, gradient_updates=1),
+        mb=_mb_paper_envelope(num_sample_w=8, target_net_update_freq=1000, epsilon_decay_steps=333),
         mb_train=dict(),
     ),
     # CAPQL on MO-Hopper, the record's [capql.hopper]: history 2 (obs 39), [256]*4, batch 256, alpha 0.2 fixed,
@@ -485,37 +490,12 @@ def evaluate_policy(policy, env_id: str, gamma: float, seed: int) -> dict[str, f
 
 
 # ---------------------------------------------------------------------- the floor of trivial policies
-def trivial_policies(env_id: str) -> dict[str, object]:
-    """The env's trivial policies, as ``morl_trl.reporting.floors`` defines them for our domains: ``"random"``
-    (uniform samples of the action space) and every constant action (discrete: each index, ``"action i"``;
-    continuous: the zero action, ``"zero"``), as ``name -> "random" | action tensor``."""
-    import mo_gymnasium as mo_gym
-    import torch
-
-    from morl_trl.envs.foreign import is_gym_id
-
-    if not is_gym_id(env_id):  # one of our domains' ids: the floors module's own definition
-        from morl_trl.reporting.floors import trivial_policies as domain_trivial_policies
-
-        return domain_trivial_policies(env_id)
-    env = mo_gym.make(env_id)
-    try:
-        space = env.action_space
-    finally:
-        env.close()
-    out: dict[str, object] = {"random": "random"}
-    if hasattr(space, "n"):
-        out.update({f"action {i}": torch.tensor(i, dtype=torch.long) for i in range(int(space.n))})
-    else:
-        out["zero"] = torch.zeros(int(np.prod(space.shape)), dtype=torch.float32)
-    return out
-
-
 def evaluate_floor(env_id: str, gamma: float, seed: int) -> dict[str, dict[str, float]]:
-    """Every trivial policy (:func:`trivial_policies`) through :func:`evaluate_policy`'s protocol at ``seed`` (the
-    evaluation seed a run of that seed uses): ``name -> metrics``. What a run must beat to have learned anything
-    a constant action does not do (``verdict.baseline``)."""
-    from morl_trl.reporting.floors import constant_policy
+    """Every trivial policy (``morl_trl.reporting.floors.trivial_policies``: the random policy and every constant
+    action, continuous actions the zero action; MO-Gymnasium ids as our domains') through :func:`evaluate_policy`'s
+    protocol at ``seed`` (the evaluation seed a run of that seed uses): ``name -> metrics``, what a run's finals
+    are read against (``verdict.above_floor``)."""
+    from morl_trl.reporting.floors import constant_policy, trivial_policies
 
     return {name: evaluate_policy("random" if isinstance(target, str) else constant_policy(target), env_id, gamma, seed)
             for name, target in trivial_policies(env_id).items()}

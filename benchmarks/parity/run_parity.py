@@ -390,7 +390,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             body += ["Not run yet.", ""]
             summary.append(f"| {row_name} | 0 / 0 | - | - | - | - | - | - | - | - | - |")
             continue
-        body += [f"Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
+        body += ["Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
                  + f" (target: {len(seeds)} per library)", ""]
         body += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
                  "|---|" + "---|" * len(runs)]
@@ -420,7 +420,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                      or [r for r in rs if r.get("train_fps")])
             if timed:
                 fps[lib] = sum(r["train_fps"] for r in timed) / len(timed)
-        body += [f"| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |"]
+        body += ["| training frames/s (mean) | " + " | ".join(f"{lib} {v:,.0f}" for lib, v in fps.items()) + " |"]
         cost = {lib: [r["train_seconds"] + r.get("eval_seconds", 0.0) for r in rs if r.get("train_seconds") is not None]
                 for lib, rs in sorted(runs.items())}
         if any(cost.values()):  # what a seed costs to run (the note's "what each run cost in time")
@@ -428,7 +428,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                 f"{lib} {sum(c) / len(c):,.0f} s [{min(c):,.0f}, {max(c):,.0f}]" if c else "-" for lib, c in cost.items())
                 + " |"]
         if fps_cpu:
-            body += [f"| training frames per CPU-second (mean) | "
+            body += ["| training frames per CPU-second (mean) | "
                      + " | ".join(f"{lib} {fps_cpu[lib]:,.0f}" if lib in fps_cpu else "-" for lib in sorted(runs)) + " |"]
         body += [""]
         body += q_check_lines(runs)
@@ -456,9 +456,9 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             n_used = min(len(judged["ours"]), len(judged[ref]))
             said += f" (seeds {used}" + (f"; < {len(seeds)} seeds" if n_used < len(seeds) else "") + ")"
         ref_learns = library_learning(judged[ref], metric_of_case) if ref in judged else "-"
-        vs_floor = " / ".join(library_floor(judged.get(lib, []), floors, metric_of_case) or "-" for lib in ("ours", ref))
-        short = [w.split(" the floor")[0] for w in (library_floor(judged.get(lib, []), floors, metric_of_case)
-                                                      for lib in ("ours", ref))]
+        floor_said = [library_floor(judged.get(lib, []), floors, metric_of_case) for lib in ("ours", ref)]
+        vs_floor = " / ".join(w or "-" for w in floor_said)
+        short = [w.split(" the floor")[0] for w in floor_said]
         ref_name = "MB" if ref == "mb" else ref
         per_method.setdefault(spec["algo"], []).append(
             (case, said + (f" [vs the floor: ours {short[0]}, {ref_name} {short[1]}]" if all(short) else "")))
@@ -578,7 +578,7 @@ def verdict_runs(runs: dict[str, list[dict]], seeds: list[int], ref: str = "mb")
 
 def floor_values(rs: list[dict], floors: dict[int, dict] | None, metric: str = "hypervolume") -> list[float] | None:
     """The trivial policies' best ``metric`` at each run's seed (the runs in seed order, as :func:`_values`), or
-    ``None`` where a seed's floor is not computed (then only frame 0 is the baseline)."""
+    ``None`` where a seed's floor is not computed (then no floor is read for that library)."""
     if not floors:
         return None
     out = []

@@ -1,8 +1,6 @@
 """The parity benchmark's MORL/D cases (issue 48): SB and SB+PSA map onto MB 1.3.0's MORLD with the same settings
 on both sides, and MB's MORL/D is evaluated right after each exchange (its archive's only update). No MB needed."""
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
@@ -10,15 +8,6 @@ import pytest
 PARITY = Path(__file__).resolve().parents[2] / "benchmarks" / "parity"
 MORLD_CASES = ["morld-hopper-2obj", "morld_psa-hopper-2obj", "morld-hopper-2obj-6k"]
 
-
-@pytest.fixture
-def mb_runner(monkeypatch):
-    monkeypatch.syspath_prepend(str(PARITY))
-    spec = importlib.util.spec_from_file_location("mb_runner", PARITY / "mb_runner.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("common", None)
 
 
 @pytest.mark.parametrize("name", MORLD_CASES)

@@ -2,8 +2,6 @@
 history, both libraries evaluated on the domain's suite and judged on NHGR beside the floor of trivial policies
 (no MORL-Baselines needed)."""
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +11,6 @@ import torch
 PARITY = Path(__file__).resolve().parents[2] / "benchmarks" / "parity"
 
 
-@pytest.fixture
-def parity(monkeypatch):
-    monkeypatch.syspath_prepend(str(PARITY))
-    spec = importlib.util.spec_from_file_location("run_parity", PARITY / "run_parity.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("common", None)
-
 
 @pytest.mark.parametrize("env_id, actions", [("MOLunarLanderDefault-v0", [2, 1, 3, 0, 2, 2]),
                                              ("MOHopperDefault-v5", [[0.5, -0.2, 1.0], [0.0, 0.3, -1.0], [1.0, 1.0, 1.0]])])
@@ -30,7 +19,6 @@ def test_mb_side_history_is_what_our_evaluator_shows_the_policy(parity, env_id, 
     policy compose_policy_env(make_env(id), history_len): the same observation at every step, discrete actions
     as their index, continuous ones as they are, s_0 and zero actions at the reset."""
     import gymnasium
-    from tensordict import TensorDict
     from torchrl.envs.utils import step_mdp
 
     import morl_trl.gym  # noqa: F401

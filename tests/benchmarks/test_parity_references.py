@@ -1,7 +1,6 @@
 """The parity cases of MOSAC (one fixed weight on both sides) and of the SAC baseline (reference: TorchRL's own
 SAC, ``torchrl_sac_runner.py``): how they are declared, ours' fixed preference, the report naming the reference."""
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -14,16 +13,6 @@ from tensordict import TensorDict
 
 PARITY = Path(__file__).resolve().parents[2] / "benchmarks" / "parity"
 
-
-@pytest.fixture
-def parity(monkeypatch):
-    monkeypatch.syspath_prepend(str(PARITY))
-    spec = importlib.util.spec_from_file_location("run_parity", PARITY / "run_parity.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("common", None)
-    sys.modules.pop("mb_runner", None)
 
 
 def test_mosac_case_gives_both_sides_one_weight_and_mbs_optimiser_values(parity):

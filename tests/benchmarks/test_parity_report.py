@@ -10,15 +10,6 @@ import pytest
 PARITY = Path(__file__).resolve().parents[2] / "benchmarks" / "parity"
 
 
-@pytest.fixture
-def parity(monkeypatch):
-    monkeypatch.syspath_prepend(str(PARITY))
-    spec = importlib.util.spec_from_file_location("run_parity", PARITY / "run_parity.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("common", None)
-
 
 def test_results_md_from_seed_files(parity, tmp_path):
     from common import result_path, write_result
@@ -101,7 +92,9 @@ def test_each_librarys_final_values_are_read_against_the_trivial_floor(parity, t
 
 
 def test_the_floor_of_deep_sea_treasures_constant_actions_is_its_first_treasure(parity):
-    from common import evaluate_floor, trivial_policies
+    from common import evaluate_floor
+
+    from morl_trl.reporting.floors import trivial_policies
 
     assert list(trivial_policies("deep-sea-treasure-v0")) == ["random", "action 0", "action 1", "action 2", "action 3"]
     floor = evaluate_floor("deep-sea-treasure-v0", 0.99, 100)
