@@ -42,9 +42,13 @@ MB_IMPORTS = ["morl_baselines", "wandb", "cvxpy", "cdd", "sortedcontainers", "fi
 # per-case findings written under the case's table (what learned, why the libraries differ)
 NOTES: dict[str, str] = {}
 METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_ratio", "HV / true front's HV"),
-           ("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"))
+           ("nhgr", "NHGR"), ("normalized_hypervolume", "normalized HV"),
+           ("sorl_return_max", "f_SORL return (best of the evaluation's episodes)"))
 #: how a case's metric is named in the summary and the plots (a paper-domain case's: the mean over its contexts)
-METRIC_NAMES = {"hypervolume": "hypervolume", "nhgr": "NHGR (mean over the paper's contexts)"}
+METRIC_NAMES = {"hypervolume": "hypervolume", "nhgr": "NHGR (mean over the paper's contexts)",
+                "sorl_return_max": "f_SORL return (the original scalar reward, best of the evaluation's 16 episodes)"}
+#: a case's metric in the summary's cells
+SHORT_NAMES = {"nhgr": "NHGR", "sorl_return_max": "f_SORL return"}
 
 
 # ---------------------------------------------------------------------- MB's venv
@@ -443,7 +447,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
         else:  # (a paper-domain case: its metric named, beside the floor of trivial policies)
             beside = f", floor {floor['mean']:.3f}" if floor else ""
-            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {metric_of_case.upper()}{beside}" for lib, (m, lo, hi) in ci.items()}
+            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {SHORT_NAMES.get(metric_of_case, metric_of_case)}{beside}" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds, ref)
         judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
         if spec.get("paper"):  # (the paper protocol's floor: one per case, the same at every seed)
