@@ -293,7 +293,9 @@ def _round_robin_counters(state, passes=2):
     assert m["frames_per_member"].tolist() == [20, 20, 20]
     # member 0: its turn's frames 11..19, then catch-ups at 2 exchanges; members 1 and 2: 20 + 2 catch-ups
     assert m["member_updates"].tolist() == [9 + 2 * passes, 20 + 2 * passes, 20 + 2 * passes]
-    assert m["eval_episodes"] == 3 * 3  # one episode per member at each exchange
+    # one episode per member before training (the untrained members archived: morld_archive_initial) and at
+    # each exchange
+    assert m["eval_episodes"] == 3 + 3 * 3
 
 
 def test_the_morld_recipe_counts_turns_updates_resets_and_exchanges_round_robin(tmp_path):
@@ -324,3 +326,46 @@ def test_the_morld_recipe_counts_updates_and_exchanges_concurrent(tmp_path):
 def test_the_morld_recipe_counts_turns_updates_resets_and_exchanges_on_hopper(tmp_path):
     _round_robin_counters(_trained(tmp_path, "morld", "MOHopperDR-v5", **dict(ROUND_ROBIN, eval_weights=3),
                                    eval_contexts=("MOHopperDefault-v5",)))
+
+
+def test_new_run_archives_the_untrained_members_before_frame_0(tmp_path, monkeypatch):
+    """The authors' and MB's MORL/D ``train()`` evaluate and archive the untrained population before the loop
+    (SPEC §6; MB 1.3.0 morld.py:537-543): once, with no weight adaptation and no exchange counted, before the
+    frame-0 evaluation; a resumed run keeps its archive; ``morld_archive_initial=false`` starts empty."""
+    from morl_trl.algorithms.morld.recipe import make_morld_training_env
+
+    def lava_agent(**kw):
+        cfg = resolve_config("morld_psa", "MOLavaGridDR-v0", quick=True, hidden=(8,), pop_size=3,
+                             **{"morld_eval_episodes": 1, **kw})
+        return make_morld_agent(cfg, make_morld_training_env(cfg, CPU), gamma=0.995, device=CPU)
+
+    torch.manual_seed(0)
+    agent = lava_agent()
+    weights = agent.loss.weights.clone()
+    members = agent.loss.actor_network_params.detach().clone()
+    torch.manual_seed(1)
+    expected = agent.evaluate_members()  # the archive evaluation the call runs, on the same draws
+    agent.eval_episodes = 0
+    torch.manual_seed(1)
+    agent._eval_env = None  # (rebuilt with the same seed)
+    assert agent.archive_initial_members()
+    kept = [p for p in range(3) if not any(bool((expected[q] >= expected[p]).all() and (expected[q] > expected[p]).any())
+                                           for q in range(3))]
+    torch.testing.assert_close(agent.archive.evaluations, expected[kept])
+    for person, p in zip(agent.archive.individuals, kept):  # the untrained member's weight and actor
+        torch.testing.assert_close(person["weight"], weights[p])
+        assert (person["actor"] == members.apply(lambda x: x[p])).all()
+    assert agent.exchanges == 0 and agent.eval_episodes == 3 and torch.equal(agent.loss.weights, weights)
+    assert not agent.archive_initial_members() and agent.eval_episodes == 3  # once: the archive is not empty
+    for off in (dict(morld_archive_initial=False), dict(morld_eval_episodes=0)):
+        other = lava_agent(**off)
+        assert not other.archive_initial_members() and len(other.archive) == 0 and other.eval_episodes == 0
+    # in the recipe: before the frame-0 evaluation, and not again on a resume
+    calls = []
+    real = MORLDAgent.archive_initial_members
+    monkeypatch.setattr(MORLDAgent, "archive_initial_members",
+                        lambda self: calls.append(len(self.archive)) or real(self))
+    state = _trained(tmp_path, "morld", "MOLavaGridDR-v0", **{**ROUND_ROBIN, "frames": 20}, **LAVA)
+    assert calls == [0] and state["agent"]["morld"]["eval_episodes"] == 3 + 3 and state["agent"]["morld"]["exchanges"] == 1
+    from morl_trl.recipes.config.train_config import upgrade_keys
+    assert upgrade_keys({}, "morld", "config.json", saved=True)["morld_archive_initial"] is False  # an older run

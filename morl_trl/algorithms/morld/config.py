@@ -63,6 +63,9 @@ class MORLDConfig:
     # the archive evaluation after every exchange: 5 stochastic episodes per member on a DR env of their own
     # (num_eval_episodes_for_front, morld.py:516)
     morld_eval_episodes: int = 5  # train.num_eval_episodes_for_front
+    # the untrained members evaluated and archived before training (SPEC §6 MORL/D: "The archive also holds the
+    # untrained initial members"; MB 1.3.0 morld.py:537-543, the __eval_all_policies call before the loop)
+    morld_archive_initial: bool = True
     # the authors' round robin: one member trains exchange_every frames on the env (reset at each turn), then
     # every other member gets update_passes = 10 updates (morld.py:75,421-431,559-567; mosac_*.py train())
     morld_schedule: str = "round_robin"  # derived.env_reset_at_each_exchange

@@ -488,11 +488,21 @@ class MORLDAgent(Agent):
         return torch.where(count > 0, total / count.clamp(min=1), torch.full_like(total, math.nan))
 
     @torch.no_grad()
-    def exchange(self) -> None:
-        """Evaluate the members (:meth:`evaluate_members`; ``morld_eval_episodes=0``: their training
-        episodes since the last exchange, :meth:`member_evaluations`), archive them (non-dominated
-        filter); with PSA, adapt the weights."""
-        evals = self.evaluate_members() if self.cfg.morld_eval_episodes else self.member_evaluations()
+    def archive_initial_members(self) -> bool:
+        """Before training: evaluate the untrained members (:meth:`evaluate_members`) and archive them, as the
+        authors' and MORL-Baselines' ``train()`` does before its loop (SPEC §6; MB 1.3.0 ``morld.py:537-543``):
+        no weight adaptation, no exchange counted. Only with ``cfg.morld_archive_initial``, separate evaluation
+        episodes (``morld_eval_episodes > 0``) and an empty archive (a resumed run keeps its own); returns
+        whether it archived."""
+        cfg = self.cfg
+        if not (cfg.morld_archive_initial and cfg.morld_eval_episodes) or len(self.archive):
+            return False
+        self._archive(self.evaluate_members())
+        return True
+
+    def _archive(self, evals: torch.Tensor) -> torch.Tensor:
+        """Add the members with finite ``evals [P, k]`` and their current weights and actors to the archive
+        (non-dominated filter); returns their weights ``[P, k]``."""
         evaluated = ~torch.isnan(evals).any(-1)
         weights = self.loss.weights.detach().cpu()
         if evaluated.any():
@@ -500,6 +510,15 @@ class MORLDAgent(Agent):
             people = [{"weight": weights[p].clone(), "actor": actor.apply(lambda x: x[p].clone())}
                       for p in evaluated.nonzero().flatten().tolist()]
             self.archive.add(evals[evaluated], people)
+        return weights
+
+    @torch.no_grad()
+    def exchange(self) -> None:
+        """Evaluate the members (:meth:`evaluate_members`; ``morld_eval_episodes=0``: their training
+        episodes since the last exchange, :meth:`member_evaluations`), archive them (non-dominated
+        filter); with PSA, adapt the weights."""
+        evals = self.evaluate_members() if self.cfg.morld_eval_episodes else self.member_evaluations()
+        weights = self._archive(evals)
         if self.cfg.weight_adaptation == "psa" and len(self.archive):
             new = psa_weights(weights.double(), evals, self.archive.evaluations, self.cfg.psa_delta)
             self.loss.set_weights(new.float())
@@ -830,6 +849,8 @@ def train_morld(run: Run) -> tuple[dict, MORLDAgent]:
     state = run.restore(buffer, map_location=device, env=env)
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)  # population, optimizers, archive, the turn and the counters
+    else:  # a new run: the untrained members archived first (morld_archive_initial; before frame 0's evaluation)
+        agent.archive_initial_members()
     collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames,
                                frames_to_go=frames_to_collect(cfg, run.frames))
 

@@ -243,6 +243,7 @@ KEYS: dict[str, Key] = {
     'morld_update_passes': Key('morld', 'int', "round robin: updates every other member gets after each exchange (the authors' update_passes: 10)", _int(0, 1_000_000)),
     'weight_adaptation': Key('morld', 'str', "'none' (MORL/D SB: fixed weights) or 'psa' (Pareto simulated annealing, MORL/D SB+PSA)", _choice(("none", "psa"))),
     'morld_eval_episodes': Key('morld', 'int', "episodes per member (sampled actions, a DR env of their own, not training frames) whose mean discounted return is the member's archive evaluation after every exchange (the authors' num_eval_episodes_for_front: 5); 0: the mean return of its training episodes since the last exchange", _int(0, 10_000)),
+    'morld_archive_initial': Key('morld', 'bool', "the untrained members are evaluated (morld_eval_episodes each) and archived before training, so that the archive (the evaluation's policies) holds them from frame 0 (the authors' and MORL-Baselines': SPEC §6); needs morld_eval_episodes > 0; false: the archive starts empty and takes the members at the first exchange", _bool),
     'psa_delta': Key('morld', 'float', 'PSA step: a weight is multiplied or divided by 1 + psa_delta', _float(0.0, 10.0, open_low=True)),
     'update_frequency': Key('optim', 'int', "frames (MORL/D: member frames) per gradient update when updates_per_batch is 0 (the authors' discrete SAC: 4)", _int(1), inert=1),
     'gpi_iteration_frames': Key('gpi', 'int', 'frames per weight-support iteration (timesteps_per_iter)', _int(1)),

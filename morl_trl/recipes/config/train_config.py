@@ -44,7 +44,8 @@ _V1_DEFAULTS = {'algo': 'envelope', 'env_id': 'MOLavaGridDR-v0', 'seed': 0, 'dev
 _ADDED_LATER = {"q_lr": None, "alpha_lr": None, "adam_eps": None, "update_frequency": 1, "policy_freq": 1, "alpha_loss_form": "log_alpha", "joint_update": True, "per_running_max": False, "gpi_dynamics_max_logvar": 0.5,
                 "gpi_dynamics_max_grad_norm": None, "pgmorl_reset_each_iteration": False,
                 "pgmorl_reseed_each_iteration": False,
-                "morld_eval_episodes": 0, "morld_schedule": "concurrent", "morld_update_passes": 10}
+                "morld_eval_episodes": 0, "morld_schedule": "concurrent", "morld_update_passes": 10,
+                "morld_archive_initial": False}
 
 
 def upgrade_keys(values: dict[str, Any], algo: str, source: str, *, saved: bool = False) -> dict[str, Any]:
