@@ -116,8 +116,8 @@ CASES: dict[str, dict] = {
     # makes the untrained members' short episodes non-dominated, so the archive keeps them, and the evaluation
     # acts with the first (oldest) archived snapshot of the nearest weight. On 2obj a longer episode dominates. MB's
     # archive holds the untrained members from its first __eval_all_policies (before training, as the authors');
-    # ours' starts empty (its first entries come from the first exchange): with the first snapshot of the nearest
-    # weight acting, MB's evaluation may act with an untrained snapshot where ours acts with a trained one.
+    # ours' started empty until d0bb3b8 (morld_archive_initial, now the default, archives them too): the ours runs
+    # of the three MORL/D cases were made again at that change (the earlier ones kept under superseded/).
     # What MB 1.3.0 lacks of the authors' fork (SPEC §6): the history wrapper and DR env (the paper's Hopper), the
     # random tie-break among archived snapshots of the nearest weight (both sides here take the first, as the
     # shared evaluation does), asymmetric / history_type (off in the authors' runs anyway).
