@@ -132,12 +132,16 @@ CASES: dict[str, dict] = {
     # shared frame 500 (each member one turn of 1,000 frames, learning from half of member 0's turn): the settings of
     # the seed-900 trial above (MB 23.2k -> 84.6k), added when the 3,000-frame case's first seeds (100, 101) showed
     # MB's gain small beside its seeds' spread (+12.7k and +3.1k on ~27k). SB only: there was no time for SB+PSA's.
-    "morld-hopper-2obj-6k": dict(
-        env="mo-hopper-2obj-v5", algo="morld", frames=6_000, eval_every=1_000, gamma=0.995,
+    # SB+PSA at the same 6,000 frames (the settings of the SB case above, PSA added as in morld_psa-hopper-2obj),
+    # added 2026-12-02 (fifth sitting) when SB+PSA's 3,000-frame case had no "both learn" left after the archive
+    # fix (d0bb3b8); its budget is SB's, not chosen on its own results.
+    **{f"{algo}-hopper-2obj-6k": dict(
+        env="mo-hopper-2obj-v5", algo=algo, frames=6_000, eval_every=1_000, gamma=0.995,
         ours=dict(exchange_every=1_000, init_random_frames=500, alpha=1.0, morld_eval_episodes=5),
-        mb=dict(exchange_every=1_000, shared_buffer=True, policy_args=dict(learning_starts=500)),
+        mb=dict(exchange_every=1_000, shared_buffer=True, policy_args=dict(learning_starts=500),
+                **({"weight_adaptation_method": "PSA"} if algo == "morld_psa" else {})),
         mb_train=dict(num_eval_episodes_for_front=5),
-    ),
+    ) for algo in ("morld", "morld_psa")},
     # GPI-PD (dynamics ensemble at MB's defaults, rollouts from frame 500: MB 5,000) with the GPI-LS
     # case's small Q networks
     "gpi_pd-dst": dict(
