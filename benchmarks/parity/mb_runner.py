@@ -166,8 +166,7 @@ def evaluate_after_archive_updates(agent, evaluate, eval_every: int, method: str
                                    first: int = 0) -> None:
     """Hooks ``evaluate(frames)`` on ``method`` of an MB agent (:data:`ARCHIVE_UPDATES`: the only place its Pareto
     archive changes): after the call that finds ``global_step`` at or past the next multiple of ``eval_every``,
-    the first being ``first`` (PGMORL: 0, its first call before training; MORL/D: ``eval_every``, its frame 0 is
-    evaluated before ``train()`` as every other method's)."""
+    the first being ``first`` (PGMORL and MORL/D: 0, their first call, before training)."""
     eval_all = getattr(agent, method)
     next_eval = [first]
 
@@ -321,8 +320,11 @@ def run(case_name: str, seed: int, out: Path) -> None:
         # and fills its archive (__eval_all_policies), the one place the archive changes: each evaluation comes
         # right after the exchange that reaches its frame count, as ours (whose exchange precedes its evaluation
         # in the same batch). eval_every should be a multiple of exchange_every (CASES' morld cases are).
-        evaluate_after_archive_updates(agent, evaluate, case["eval_every"], ARCHIVE_UPDATES["morld"],
-                                       first=case["eval_every"])
+        # Frame 0 too comes after that method's first call (inside train(), before any update: the untrained
+        # members archived), as ours' frame 0 follows its archive_initial_members (since d0bb3b8); before, MB's
+        # frame 0 was evaluated before train(), with an empty archive (every member acting), while ours acted with
+        # its archived (non-dominated) untrained members.
+        evaluate_after_archive_updates(agent, evaluate, case["eval_every"], ARCHIVE_UPDATES["morld"], first=0)
     if qlog is not None:  # MB's update: q_net(b_obs, w) is its one forward with gradients (targets: no_grad)
         forward = agent.q_net.forward
 
@@ -333,8 +335,8 @@ def run(case_name: str, seed: int, out: Path) -> None:
             return q
 
         agent.q_net.forward = logged_forward
-    if algo != "pgmorl":  # frame 0 as ours: the untrained agent, the same evaluator and weights as later
-        evaluate(0)  # (PGMORL's is hooked on its first __eval_all_agents, inside train(), before any update)
+    if algo not in ("pgmorl", "morld"):  # frame 0 as ours: the untrained agent, the same evaluator and weights
+        evaluate(0)  # (PGMORL's and MORL/D's: hooked on their archive's first update, inside train(), before any update)
     t, e0, c, ec0 = time.perf_counter(), eval_s[0], time.process_time(), eval_cpu[0]
     _call(agent.train, total_timesteps=case["frames"], eval_env=eval_env, ref_point=ref_point,
           num_eval_weights_for_front=EVAL_WEIGHTS, eval_freq=10 ** 9, eval_mo_freq=10 ** 9, checkpoints=False,

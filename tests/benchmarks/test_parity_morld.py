@@ -37,9 +37,9 @@ def test_morld_cases_give_both_sides_the_same_settings(mb_runner, name):
 
 def test_mb_morld_is_evaluated_right_after_each_exchange(mb_runner):
     """MB's MORLD changes its archive only in __eval_all_policies (once before training, then after every
-    exchange): the runner evaluates after the call that reaches the next multiple of eval_every, from eval_every on
-    (frame 0 is evaluated before train()), with the archive that call made, and returns what the call returns (the
-    members' evaluations, which PSA adapts the weights from)."""
+    exchange): the runner evaluates after the call that reaches the next multiple of eval_every, frame 0 after the
+    call before the loop (the untrained members archived, as ours' archive_initial_members), with the archive that
+    call made, and returns what the call returns (the members' evaluations, which PSA adapts the weights from)."""
 
     class FakeMORLD:
         def __init__(self):
@@ -51,12 +51,12 @@ def test_mb_morld_is_evaluated_right_after_each_exchange(mb_runner):
 
     agent, seen = FakeMORLD(), []
     mb_runner.evaluate_after_archive_updates(agent, lambda frames: seen.append((frames, list(agent.archive))), 2000,
-                                             mb_runner.ARCHIVE_UPDATES["morld"], first=2000)
+                                             mb_runner.ARCHIVE_UPDATES["morld"], first=0)
     returned = []
     for step in (0, 1000, 2000, 3000, 4000):  # train(): before the loop, then after each exchange of 1,000 frames
         agent.global_step = step
         returned.append(agent._MORLD__eval_all_policies())
-    assert seen == [(2000, [2000]), (4000, [4000])]
+    assert seen == [(0, [0]), (2000, [2000]), (4000, [4000])]
     assert returned[-1] == ["evals", 4000]
 
 
