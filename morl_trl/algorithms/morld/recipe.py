@@ -36,7 +36,8 @@ every parameter stacked ``[P, ...]``), trained on one of two schedules (``morld_
 After every exchange each member is evaluated as the authors': the mean discounted vector return
 of ``morld_eval_episodes`` (5) episodes with sampled actions on a DR env of its own
 (:meth:`MORLDAgent.evaluate_members`); ``0`` archives the mean return of its training episodes since
-the last exchange instead. The PSA rule, ``delta = 0.1``, the archive's distance threshold (0.01) and
+the last exchange instead. A new run first evaluates and archives the untrained members the same way
+(:meth:`MORLDAgent.archive_initial_members`, ``morld_archive_initial``). The PSA rule, ``delta = 0.1``, the archive's distance threshold (0.01) and
 the weights' L1 renormalisation are MORL-Baselines 1.3.0's.
 
 Example:
