@@ -24,6 +24,18 @@ MB_VERSION = "1.3.0"
 # 90 minutes of a 2-core CPU shared with five other jobs (each run got 15-30 % of a core) (benchmarks/parity/RESULTS.md says which cases learned).
 _SMALL_GPI = (dict(hidden=[64, 64], batch_size=32, gpi_gradient_updates=1),
               dict(net_arch=[64, 64], batch_size=32, gradient_updates=1))
+#: CAPQL on mo-hopper-v5, learning from frame 250 on both sides (capql-hopper at 1k, 5k and 10k frames)
+_CAPQL_HOPPER = dict(env="mo-hopper-v5", algo="capql", gamma=0.99, ours=dict(init_random_frames=250),
+                     mb=dict(learning_starts=250), mb_train=dict())
+#: the SAC baseline's task against TorchRL's SAC (sac-hopper-5k and -10k; the comment at sac-hopper-5k says why)
+_SAC_HOPPER = dict(
+    env="MOHopperDefault-v5", algo="sac", reference="torchrl_sac", gamma=0.99,
+    ours=dict(history_len=0, eval_contexts=["MOHopperDefault-v5"], num_envs=1, frames_per_batch=1, updates_per_batch=0,
+              hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4, q_lr=1e-3, alpha_lr=1e-3,
+              alpha=1.0, tau=0.005, joint_update=True, policy_freq=1, alpha_loss_form="log_alpha"),
+    ref=dict(hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4, q_lr=1e-3, alpha_lr=1e-3,
+             alpha=1.0, tau=0.005),
+    mb=dict(), mb_train=dict())
 CASES: dict[str, dict] = {
     # GPI-LS on Deep Sea Treasure: MB's GPILS with [64, 64], batch 32, one update per step
     "gpi_ls-dst": dict(
@@ -149,23 +161,14 @@ CASES: dict[str, dict] = {
         ours=dict(_SMALL_GPI[0], gpi_iteration_frames=500, gpi_dynamics_rollout_starts=500),
         mb=dict(_SMALL_GPI[1], dynamics_rollout_starts=500), mb_train=dict(timesteps_per_iter=500),
     ),
-    "capql-hopper": dict(
-        env="mo-hopper-v5", algo="capql", frames=1_000, eval_every=500, gamma=0.99,
-        ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
-    ),
+    "capql-hopper": dict(_CAPQL_HOPPER, frames=1_000, eval_every=500),
     # The same at five times the budget, so that the curve shows learning rather than one step off the
     # untrained policy (MB ~45 frames/s on a free core: ~2 min a seed; ours about 1.5x that)
-    "capql-hopper-5k": dict(
-        env="mo-hopper-v5", algo="capql", frames=5_000, eval_every=1_000, gamma=0.99,
-        ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
-    ),
+    "capql-hopper-5k": dict(_CAPQL_HOPPER, frames=5_000, eval_every=1_000),
     # The same at twice that budget: added 2026-12-02 (fifth sitting) after round 2's seeds (100-104) at 5,000
     # frames left MB's gain short of significance (p 0.062; it learned on seeds 0-4), as mosac-hopper-10k was
     # added after mosac-hopper-5k: the budget doubled once, not tuned further (said in NOTES.md).
-    "capql-hopper-10k": dict(
-        env="mo-hopper-v5", algo="capql", frames=10_000, eval_every=2_000, gamma=0.99,
-        ours=dict(init_random_frames=250), mb=dict(learning_starts=250), mb_train=dict(),
-    ),
+    "capql-hopper-10k": dict(_CAPQL_HOPPER, frames=10_000, eval_every=2_000),
     # MOSAC (continuous) for one fixed weight: MB 1.3.0's MOSAC (single_policy/ser/mosac_continuous_action.py) is a
     # single-policy learner whose actor and critics take no weight (its `weights` has no default), while our
     # `mosac` is preference-conditioned (trained on a Dirichlet w per episode). Both solve the same task here: MB's
@@ -204,31 +207,12 @@ CASES: dict[str, dict] = {
     # (ours: joint_update, policy_freq 1) with TorchRL's log_alpha temperature loss; ours' defaults follow the
     # authors' CleanRL-style update (policy_freq 2, each loss its own step, the alpha form), which this case does
     # not test.
-    "sac-hopper-5k": dict(
-        env="MOHopperDefault-v5", algo="sac", reference="torchrl_sac", frames=5_000, eval_every=1_000, gamma=0.99,
-        ours=dict(history_len=0, eval_contexts=["MOHopperDefault-v5"], num_envs=1, frames_per_batch=1,
-                  updates_per_batch=0, hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4,
-                  q_lr=1e-3, alpha_lr=1e-3, alpha=1.0, tau=0.005, joint_update=True, policy_freq=1,
-                  alpha_loss_form="log_alpha"),
-        ref=dict(hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4, q_lr=1e-3, alpha_lr=1e-3,
-                 alpha=1.0, tau=0.005),
-        mb=dict(), mb_train=dict(),
-    ),
+    "sac-hopper-5k": dict(_SAC_HOPPER, frames=5_000, eval_every=1_000),
     # The same SAC task judged on the f_SORL return (the paper's SAC metric, SPEC §3 eval/single_objective_return:
     # the best of the evaluation's 16 episodes of the original scalar reward), which the SAC baseline optimizes;
     # the hypervolume of a policy that ignores the preference says little. 10,000 frames (chosen before any run at
     # this budget, as mosac-hopper-10k's: 9,000 updates after the 1,000 random frames); settings as sac-hopper-5k.
-    "sac-hopper-10k": dict(
-        env="MOHopperDefault-v5", algo="sac", reference="torchrl_sac", frames=10_000, eval_every=2_000, gamma=0.99,
-        metric="sorl_return_max",
-        ours=dict(history_len=0, eval_contexts=["MOHopperDefault-v5"], num_envs=1, frames_per_batch=1,
-                  updates_per_batch=0, hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4,
-                  q_lr=1e-3, alpha_lr=1e-3, alpha=1.0, tau=0.005, joint_update=True, policy_freq=1,
-                  alpha_loss_form="log_alpha"),
-        ref=dict(hidden=[256, 256], batch_size=256, init_random_frames=1000, lr=3e-4, q_lr=1e-3, alpha_lr=1e-3,
-                 alpha=1.0, tau=0.005),
-        mb=dict(), mb_train=dict(),
-    ),
+    "sac-hopper-10k": dict(_SAC_HOPPER, frames=10_000, eval_every=2_000, metric="sorl_return_max"),
     # PGMORL: 2 warm-up iterations, then one task selection and 1 evolutionary iteration, each iteration
     # 32 steps x 4 envs x 6 members (MB: 80 and 20 iterations of 2048 steps). `frames` and `eval_every`
     # count env steps of all members, as MB 1.3.0's global_step does (PGMORL.__train_all_agents adds
@@ -305,13 +289,20 @@ def reference_of(case: dict) -> str:
 _ONE_ENV = dict(num_envs=1, frames_per_batch=1, updates_per_batch=0)
 
 
-def _mb_paper_envelope(**per_domain) -> dict:
-    """MB's Envelope arguments for the record's settings shared by [envelope.lavagrid] and [envelope.lunarlander]
-    ([256]*4, batch 128, learning_starts 100, eps 1 -> 0.05, homotopy 0.95 never decayed, PER alpha 0.6, grad norm 1,
-    lr 3e-4, buffer 1M, hard target copies, one update a step), with the domain's ``per_domain`` on top."""
-    return dict(net_arch=[256, 256, 256, 256], batch_size=128, learning_starts=100, initial_epsilon=1.0,
-                final_epsilon=0.05, initial_homotopy_lambda=0.95, per=True, per_alpha=0.6, max_grad_norm=1.0,
-                learning_rate=3e-4, buffer_size=1_000_000, tau=1.0, gradient_updates=1, **per_domain)
+def _paper_envelope(env: str, gamma: float, history_len: int, eps_frames: int, **mb_per_domain) -> dict:
+    """A paper-domain Envelope case at 1,000 frames (evaluated every 250 on 16 weights, NHGR): ours one env with
+    MB's weight input (``envelope_network="mb"``) and eps decaying over ``eps_frames``; MB with the record's
+    settings shared by [envelope.lavagrid] and [envelope.lunarlander] ([256]*4, batch 128, learning_starts 100,
+    eps 1 -> 0.05 over ``eps_frames``, homotopy 0.95 never decayed, PER alpha 0.6, grad norm 1, lr 3e-4,
+    buffer 1M, hard target copies, one update a step) and the domain's ``mb_per_domain`` on top."""
+    return dict(env=env, algo="envelope", frames=1_000, eval_every=250, gamma=gamma, paper=True, metric="nhgr",
+                history_len=history_len, eval_weights=16,
+                ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=eps_frames),
+                mb=dict(net_arch=[256, 256, 256, 256], batch_size=128, learning_starts=100, initial_epsilon=1.0,
+                        final_epsilon=0.05, epsilon_decay_steps=eps_frames, initial_homotopy_lambda=0.95, per=True,
+                        per_alpha=0.6, max_grad_norm=1.0, learning_rate=3e-4, buffer_size=1_000_000, tau=1.0,
+                        gradient_updates=1, **mb_per_domain),
+                mb_train=dict())
 
 
 PAPER_CASES: dict[str, dict] = {
@@ -329,13 +320,8 @@ PAPER_CASES: dict[str, dict] = {
     # since b4b441a; this case's ours runs, made before it, decayed it from frame 0, 100 frames earlier).
     # Budget: 1,000 frames (MB ~12 frames/s on this shared CPU, trial seed 900); the paper's own Envelope scores
     # 0.02 NHGR here after 5M frames (SPEC §3): no budget that fits makes this case informative.
-    "envelope-lavagrid": dict(
-        env="MOLavaGridDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.995, paper=True,
-        metric="nhgr", history_len=0, eval_weights=16,
-        ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=1_000),
-        mb=_mb_paper_envelope(num_sample_w=4, target_net_update_freq=200, epsilon_decay_steps=1_000),
-        mb_train=dict(),
-    ),
+    "envelope-lavagrid": _paper_envelope("MOLavaGridDR-v0", 0.995, 0, 1_000, num_sample_w=4,
+                                         target_net_update_freq=200),
     # Envelope on MO-LunarLander, the record's [envelope.lunarlander] (the README's main job's method): history 2
     # (obs 26), [256]*4, batch 128, 8 sampled weights, target every 1000, eps 1 -> 0.05 over 1M (cut with the
     # budget, below), homotopy 0.95, PER, gamma 0.99; 16 weights on the 8 LunarLander contexts. Cut: frames (3M)
@@ -343,13 +329,8 @@ PAPER_CASES: dict[str, dict] = {
     # the first third of the budget on both sides (333 of 1,000 frames). Budget: 1,000 frames (MB ~4 frames/s on
     # this shared CPU; trial seed 900: NHGR 0.283 -> 0.473 at 500 -> 0.334 at 1,000). SPEC §6's Envelope
     # differences: as for LavaGrid (w position: both sides MB's; ours' runs predate b4b441a's eps decay from learning_starts).
-    "envelope-lunarlander": dict(
-        env="MOLunarLanderDR-v0", algo="envelope", frames=1_000, eval_every=250, gamma=0.99, paper=True,
-        metric="nhgr", history_len=2, eval_weights=16,
-        ours=dict(_ONE_ENV, envelope_network="mb", eps_frames=333),
-        mb=_mb_paper_envelope(num_sample_w=8, target_net_update_freq=1000, epsilon_decay_steps=333),
-        mb_train=dict(),
-    ),
+    "envelope-lunarlander": _paper_envelope("MOLunarLanderDR-v0", 0.99, 2, 333, num_sample_w=8,
+                                            target_net_update_freq=1000),
     # CAPQL on MO-Hopper, the record's [capql.hopper]: history 2 (obs 39), [256]*4, batch 256, alpha 0.2 fixed,
     # tau 0.005, 2 Q-nets, learning_starts 1000, lr 3e-4, buffer 1M, gamma 0.99; 16 weights on the 6 Hopper
     # contexts. Cut: frames (3M): 2,000 updates after the record's 1,000 random frames (learning_starts stays: MB

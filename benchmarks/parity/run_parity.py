@@ -47,8 +47,6 @@ METRICS = (("hypervolume", "hypervolume"), ("eum", "EUM"), ("igd", "IGD"), ("hv_
 #: how a case's metric is named in the summary and the plots (a paper-domain case's: the mean over its contexts)
 METRIC_NAMES = {"hypervolume": "hypervolume", "nhgr": "NHGR (mean over the paper's contexts)",
                 "sorl_return_max": "f_SORL return (the original scalar reward, best of the evaluation's 16 episodes)"}
-#: a case's metric in the summary's cells
-SHORT_NAMES = {"nhgr": "NHGR", "sorl_return_max": "f_SORL return"}
 
 
 # ---------------------------------------------------------------------- MB's venv
@@ -447,7 +445,8 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
         else:  # (a paper-domain case: its metric named, beside the floor of trivial policies)
             beside = f", floor {floor['mean']:.3f}" if floor else ""
-            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {SHORT_NAMES.get(metric_of_case, metric_of_case)}{beside}" for lib, (m, lo, hi) in ci.items()}
+            metric_name = dict(METRICS).get(metric_of_case, metric_of_case).split(" (")[0]  # ("NHGR", "f_SORL return")
+            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {metric_name}{beside}" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds, ref)
         judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
         if spec.get("paper"):  # (the paper protocol's floor: one per case, the same at every seed)

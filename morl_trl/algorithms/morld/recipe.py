@@ -501,9 +501,9 @@ class MORLDAgent(Agent):
         self._archive(self.evaluate_members())
         return True
 
-    def _archive(self, evals: torch.Tensor) -> torch.Tensor:
+    def _archive(self, evals: torch.Tensor) -> None:
         """Add the members with finite ``evals [P, k]`` and their current weights and actors to the archive
-        (non-dominated filter); returns their weights ``[P, k]``."""
+        (non-dominated filter)."""
         evaluated = ~torch.isnan(evals).any(-1)
         weights = self.loss.weights.detach().cpu()
         if evaluated.any():
@@ -511,7 +511,6 @@ class MORLDAgent(Agent):
             people = [{"weight": weights[p].clone(), "actor": actor.apply(lambda x: x[p].clone())}
                       for p in evaluated.nonzero().flatten().tolist()]
             self.archive.add(evals[evaluated], people)
-        return weights
 
     @torch.no_grad()
     def exchange(self) -> None:
@@ -519,9 +518,9 @@ class MORLDAgent(Agent):
         episodes since the last exchange, :meth:`member_evaluations`), archive them (non-dominated
         filter); with PSA, adapt the weights."""
         evals = self.evaluate_members() if self.cfg.morld_eval_episodes else self.member_evaluations()
-        weights = self._archive(evals)
+        self._archive(evals)
         if self.cfg.weight_adaptation == "psa" and len(self.archive):
-            new = psa_weights(weights.double(), evals, self.archive.evaluations, self.cfg.psa_delta)
+            new = psa_weights(self.loss.weights.detach().cpu().double(), evals, self.archive.evaluations, self.cfg.psa_delta)
             self.loss.set_weights(new.float())
         self._return_sum.zero_()
         self._return_count.zero_()
