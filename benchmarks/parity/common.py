@@ -642,6 +642,35 @@ def result_path(out: Path, case: str, lib: str, seed: int) -> Path:
     return Path(out) / case / f"{lib}_s{seed}.json"
 
 
+#: a case's folders of runs that the tables do not use: ``earlier/`` (made at another commit than the page's
+#: ``--commit``, moved aside when that commit ran the seed again) and ``superseded/`` (made before a library fix
+#: that changed the method's trajectories). Each run there is listed under its case, never dropped.
+SET_ASIDE = ("earlier", "superseded")
+
+
+def made_at(record: dict, commit: str) -> bool:
+    """Whether a result ``record`` was made at ``commit`` (a full or abbreviated SHA, at least 7 hex digits) from a
+    clean checkout (a ``+dirty`` run was made by code no commit holds)."""
+    made = str(record.get("commit", ""))
+    if len(commit) < 7:
+        raise ValueError(f"commit {commit!r}: give at least 7 hex digits of a SHA")
+    return not made.endswith("+dirty") and len(made) >= 7 and (made.startswith(commit) or commit.startswith(made))
+
+
+def set_aside(path: Path) -> Path:
+    """Move the result file ``path`` into its case's ``earlier/`` folder, named by the commit that made it
+    (``ours_s100@2b330cb.json``); returns the new path. A run is set aside, never deleted."""
+    commit = str(json.loads(path.read_text()).get("commit", "unknown"))
+    tag = commit[:7] + ("+dirty" if commit.endswith("+dirty") else "")
+    dest = path.parent / "earlier" / f"{path.stem}@{tag}.json"
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    n = 1
+    while dest.exists():  # (the same seed set aside twice at one commit: keep both)
+        dest, n = path.parent / "earlier" / f"{path.stem}@{tag}.{n}.json", n + 1
+    os.replace(path, dest)
+    return dest
+
+
 def _own_output(path: str) -> bool:
     """Whether a repository path is what this benchmark writes itself (the page, its plots, its result files)."""
     return path == "benchmarks/parity/RESULTS.md" or (path.startswith("benchmarks/parity/") and (

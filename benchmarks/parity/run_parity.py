@@ -4,6 +4,7 @@ frame budget and evaluation; learning curves, final IQM with bootstrap CIs, fram
     python benchmarks/parity/run_parity.py                       # every runnable case, this round's seeds (100-104)
     python benchmarks/parity/run_parity.py --cases gpi_ls-dst --round 1 --libs ours,mb   # round 1's seeds, 0-4
     python benchmarks/parity/run_parity.py --report-only         # RESULTS.md + PNGs from what is done
+    python benchmarks/parity/run_parity.py --report-only --commit SHA   # ... from one commit's runs (others listed)
     python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only   # MB's venv only (the speed benchmarks' peer)
 
 MB runs in its own virtual environment (``--mb-venv``, default ``~/.cache/morl_trl/mb-1.3.0``),
@@ -32,8 +33,8 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folder is not the repository root)
 
 from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, REFERENCES, QEstimateLog,  # noqa: E402
-                    best_floor, case_eval_weights, case_floor, case_metric, context_means, paper_floor, reference_of,
-                    result_path, write_result)
+                    SET_ASIDE, best_floor, case_eval_weights, case_floor, case_metric, context_means, current_commit,
+                    made_at, paper_floor, reference_of, result_path, set_aside, write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, floor_words, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -270,12 +271,40 @@ def curve_from_rows(rows: list[dict]) -> list[dict]:
 
 
 # ---------------------------------------------------------------------- the report
-def _load(out: Path, case: str) -> dict[str, list[dict]]:
+def _load(out: Path, case: str, commit: str | None = None) -> tuple[dict[str, list[dict]], list[tuple[dict, str]]]:
+    """A case's runs for its tables, by library, and the runs they leave out with where each is: those under
+    ``earlier/`` and ``superseded/`` (:data:`common.SET_ASIDE`) and, with ``commit``, those made at another."""
     runs: dict[str, list[dict]] = {}
+    left_out: list[tuple[dict, str]] = []
     for path in sorted((out / case).glob("*.json")):
         data = json.loads(path.read_text())
-        runs.setdefault(data["lib"], []).append(data)
-    return runs
+        if commit is None or made_at(data, commit):
+            runs.setdefault(data["lib"], []).append(data)
+        else:
+            left_out.append((data, "another commit"))
+    for folder in SET_ASIDE:
+        for path in sorted((out / case / folder).glob("*.json")):
+            left_out.append((json.loads(path.read_text()), f"`{folder}/`"))
+    return runs, left_out
+
+
+def left_out_lines(left_out: list[tuple[dict, str]], metric: str) -> list[str]:
+    """The runs a case's tables do not use, one row each (none dropped from the page)."""
+    if not left_out:
+        return []
+    name = dict(METRICS).get(metric, metric).split(" (")[0]
+    lines = ["Runs not in these tables (set aside under `earlier/` when their seed was run again at the page's commit, "
+             "under `superseded/` when a library fix changed the method's trajectories, or made at another commit "
+             "than `--commit`'s):", "", f"| library | seed | commit | frame 0 {name} | final {name} | where |",
+             "|---|---|---|---|---|---|"]
+    for r, where in sorted(left_out, key=lambda x: (x[0].get("lib", ""), x[0].get("seed", 0), x[0].get("commit", ""))):
+        curve = r.get("curve") or [{}]
+        first = curve[0].get(metric) if curve[0].get("frames") == 0 else None  # (no frame-0 evaluation: "-")
+        last = curve[-1].get(metric)
+        made = str(r.get("commit", "not recorded"))
+        lines.append(f"| {r.get('lib', '?')} | {r.get('seed', '?')} | `{made[:7]}{'+dirty' if made.endswith('+dirty') else ''}` "
+                     f"| {'-' if first is None else f'{first:.4g}'} | {'-' if last is None else f'{last:.4g}'} | {where} |")
+    return lines + [""]
 
 
 def _iqm_ci(values: list[float]) -> tuple[float, float, float]:
@@ -323,7 +352,10 @@ def _num(value) -> str:
     return "-" if value is None else f"{value:,.0f}"
 
 
-def write_results(out: Path, seeds: list[int], command: str, compute_floors: bool = False) -> Path:
+def write_results(out: Path, seeds: list[int], command: str, compute_floors: bool = False,
+                  commit: str | None = None) -> Path:
+    """RESULTS.md and the plots from the result files under ``out``; with ``commit``, the tables and verdicts use only
+    the runs made at that commit (clean), and every other run is listed under its case."""
     import platform
 
     import torch
@@ -371,9 +403,11 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
     per_method: dict[str, list[tuple[str, str]]] = {}
     ref_learns_by_case: dict[str, str] = {}
     commits: dict[str, int] = {}
+    n_left_out = 0
     body = []
     for case in CASES:
-        runs = _load(out, case)
+        runs, left_out = _load(out, case, commit)
+        n_left_out += len(left_out)
         for rs in runs.values():
             for r in rs:
                 commits[r.get("commit", "not recorded")] = commits.get(r.get("commit", "not recorded"), 0) + 1
@@ -389,8 +423,18 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                  + f"; ours: `{spec['ours']}`, {theirs}", ""]
         done = {lib: sorted(r["seed"] for r in rs) for lib, rs in runs.items()}
         if not runs:
-            body += ["Not run yet.", ""]
-            summary.append(f"| {row_name} | 0 / 0 | - | - | - | - | - | - | - | - | - |")
+            body += ["Not run yet" + (f" at `{commit}`." if commit else "."), ""] + left_out_lines(left_out, case_metric(spec))
+            said = "-"
+            others = {}
+            for r, where in left_out:
+                if where == "another commit":
+                    others.setdefault(r["lib"], []).append(r)
+            if commit and "ours" in others and ref in others:  # (what the runs of other commits said, not a verdict)
+                judged, used = verdict_runs(others, seeds, ref)
+                said = (f"not run at `{commit}` (other commits' runs, seeds {used}: "
+                        f"{case_verdict(judged, case_metric(spec), ref=ref)})")
+                per_method.setdefault(spec["algo"], []).append((case, said))
+            summary.append(f"| {row_name} | 0 / 0 | - | - | {said} | - | - | - | - | - | - |")
             continue
         body += ["Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
                  + f" (target: {len(seeds)} per library)", ""]
@@ -436,6 +480,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         body += q_check_lines(runs)
         floor = paper_floor(case, out) if spec.get("paper") else None
         body += floor_lines(spec, runs, floor)
+        body += left_out_lines(left_out, metric_of_case)
         png = out.parent / f"{case}.png"
         _plot(case, runs, png, floor)
         body += [f"![{case}]({png.name})", ""]
@@ -484,9 +529,14 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         methods.append(f"| {algo} | {'; '.join(good) or 'none'} | {', '.join(ref) or 'none'} | "
                        + "; ".join(f"{c}: {v}" for c, v in cases) + " |")
     made = ", ".join(f"`{c}` ({n} files)" for c, n in sorted(commits.items(), key=lambda kv: (-kv[1], kv[0])))
-    lines += [f"Results made by: {made or 'none yet'}"
+    lines += [f"Results in the tables made by: {made or 'none yet'}"
               + (" -- **more than one commit: regenerate from one commit's runs before quoting**"
                  if len(commits) > 1 else ""), ""]
+    if commit:
+        lines += [f"Only the runs made at `{commit}` (from a clean checkout) are in the tables and verdicts "
+                  f"(`--commit`); the {n_left_out} other runs are listed under their cases.", ""]
+    elif n_left_out:
+        lines += [f"{n_left_out} runs set aside (`earlier/`, `superseded/`) are listed under their cases, not used.", ""]
     lines += methods + [""] + summary + [""] + body
     notes = out.parent / "NOTES.md"  # hand-written findings (kept across regenerations)
     if notes.exists():
@@ -675,6 +725,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--nice", type=int, default=15, help="niceness of each run (0: none)")
     p.add_argument("--no-report", action="store_true",
                    help="run only: no RESULTS.md or plots after each case (--report-only makes them later)")
+    p.add_argument("--commit", default=None, metavar="SHA",
+                   help="one commit's runs: the report's tables and verdicts use only the runs made at SHA (the others "
+                        "are listed under their cases); a run needs this checkout at SHA, clean, and runs again each "
+                        "asked-for seed whose file another commit made (that file set aside under earlier/)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.one:  # LIB CASE SEEDS OUT_DIR: several seeds in one process (the imports are paid once)
@@ -692,6 +746,11 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         raise SystemExit(f"unknown case(s) {unknown}; runnable: {list(CASES)}; not yet: {PENDING}")
     command = "python benchmarks/parity/run_parity.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if args.commit and not args.report_only:
+        here = current_commit()
+        if here.endswith("+dirty") or not made_at({"commit": here}, args.commit):
+            raise SystemExit(f"--commit {args.commit}: this checkout is at {here}; run from a clean checkout of that "
+                             f"commit (git worktree add DIR {args.commit}) with --out pointing at these results")
     if not args.report_only:
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
         # --libs names "ours" and "mb" (or "ref"): the case's reference, MB unless the case names another
@@ -708,6 +767,12 @@ def main(argv: list[str] | None = None) -> int:
             for case in cases:
                 procs = []
                 for lib in dict.fromkeys(reference_of(CASES[case]) if lib in ("mb", "ref") else lib for lib in libs):
+                    if args.commit:  # a seed another commit made runs again; its file is kept under earlier/
+                        for s in seeds_now:
+                            path = result_path(args.out, case, lib, s)
+                            if path.exists() and not made_at(json.loads(path.read_text()), args.commit):
+                                print(f"  {lib} {case} seed {s}: made at another commit, set aside as "
+                                      f"{set_aside(path).relative_to(args.out)}", flush=True)
                     todo = [s for s in seeds_now if not result_path(args.out, case, lib, s).exists()]
                     if not todo:
                         continue
@@ -723,10 +788,10 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"  {lib} {case} seeds {todo}: {'done' if rc == 0 else f'FAILED (exit {rc})'} "
                           f"in {time.perf_counter() - t:,.0f} s", flush=True)
                 if not args.no_report:
-                    write_results(args.out, seeds, command, compute_floors=not args.no_floors)
+                    write_results(args.out, seeds, command, compute_floors=not args.no_floors, commit=args.commit)
     if args.no_report and not args.report_only:
         return 0
-    print(write_results(args.out, seeds, command, compute_floors=not args.no_floors))
+    print(write_results(args.out, seeds, command, compute_floors=not args.no_floors, commit=args.commit))
     return 0
 
 

@@ -155,18 +155,19 @@ def run(case_name: str, seed: int, out: Path) -> None:
     collector.set_seed(seed)
 
     curve: list[dict] = []
-    eval_s = [0.0]
+    eval_s, eval_cpu = [0.0], [0.0]
 
     def policy(td):  # the evaluator's TensorDict: observation (and a preference SAC ignores) in, action out
         with set_exploration_type(ExplorationType.RANDOM), torch.no_grad():
             return td.set("action", actor(td.select("observation").clone())["action"])
 
     def evaluate(frames: int) -> None:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         with preserved_rng():
             m = evaluate_policy(policy, case["env"], case["gamma"], seed)
         curve.append(dict(frames=frames, **m))
         eval_s[0] += time.perf_counter() - t
+        eval_cpu[0] += time.process_time() - c
         print(f"[{LIB} {case_name} s{seed}] {frames} frames: {m}", flush=True)
 
     def update(batch):  # the sota script's update: one step of the summed losses, then the target step
@@ -179,6 +180,7 @@ def run(case_name: str, seed: int, out: Path) -> None:
 
     evaluate(0)
     t0, e0, frames, updates = time.perf_counter(), eval_s[0], 0, 0
+    c0, ec0 = time.process_time(), eval_cpu[0]
     for batch in collector:
         collector.update_policy_weights_()
         buffer.extend(batch.reshape(-1))
@@ -191,9 +193,11 @@ def run(case_name: str, seed: int, out: Path) -> None:
             evaluate(frames)
     collector.shutdown()
     train_s = time.perf_counter() - t0 - (eval_s[0] - e0)
+    train_cpu = time.process_time() - c0 - (eval_cpu[0] - ec0)  # (this process's CPU time: one torch thread)
     write_result(out, dict(case=case_name, lib=LIB, seed=seed, version=f"torchrl {torchrl.__version__} SACLoss",
                            curve=curve, frames=frames, updates=updates, train_seconds=train_s,
                            eval_seconds=eval_s[0], train_fps=frames / train_s if train_s > 0 else None,
+                           train_cpu_seconds=train_cpu, train_fps_cpu=frames / train_cpu if train_cpu > 0 else None,
                            eval_episodes=EVAL_EPISODES))
 
 

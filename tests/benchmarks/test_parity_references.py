@@ -97,4 +97,6 @@ def test_torchrl_sac_reference_smoke_run_writes_a_curve_from_frame0(tmp_path):
     data = json.loads((tmp_path / "sac-hopper-5k" / "torchrl_sac_s0.json").read_text())
     assert [p["frames"] for p in data["curve"]] == [0, 100, 200]
     assert data["lib"] == "torchrl_sac" and data["updates"] == 101 and data["train_fps"] > 0
+    # frames per CPU-second beside wall frames/s, as MB's and ours' runners (evaluations' CPU time left out)
+    assert data["train_fps_cpu"] == pytest.approx(200 / data["train_cpu_seconds"]) and data["train_cpu_seconds"] > 0
     assert all(p["hypervolume"] is not None for p in data["curve"])

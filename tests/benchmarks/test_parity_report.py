@@ -46,7 +46,7 @@ def test_summary_row_compares_cis_and_frames_per_second(parity, tmp_path):
             "| 0.50x |" in text)  # (no trivial floor computed: "-")
     assert ("| pcn | pcn-dst: both learn, ours better (seeds 0-2) | pcn-dst | pcn-dst: both learn, ours better "
             "(seeds 0-2) |") in text  # per method, with the cases where the reference learns
-    assert f"Results made by: `{current_commit()}` (6 files)\n" in text  # each file records its commit
+    assert f"Results in the tables made by: `{current_commit()}` (6 files)\n" in text  # each file records its commit
     assert "| gpi_ls-dst | 0 / 0 | - |" in text  # a case without results is listed, not dropped
 
 
@@ -245,7 +245,7 @@ def test_results_from_several_commits_are_flagged_and_a_run_without_frame0_is_sa
             write_result(result_path(out, "gpi_ls-dst", lib, seed),
                          dict(case="gpi_ls-dst", lib=lib, seed=seed, curve=curve, frames=100, commit=commit))
     text = parity.write_results(out, [0, 1], "cmd").read_text()
-    assert ("Results made by: `aaa` (2 files), `bbb` (2 files) -- **more than one commit: regenerate from one "
+    assert ("Results in the tables made by: `aaa` (2 files), `bbb` (2 files) -- **more than one commit: regenerate from one "
             "commit's runs before quoting**") in text
     assert "| gpi_ls-dst | 2 / 2 |" in text and "| no frame-0 evaluation (seeds 0-1) | no frame-0 evaluation |" in text
 
@@ -425,3 +425,57 @@ def test_the_sac_case_is_judged_on_the_f_sorl_return_both_loops_record(parity, t
     assert "| sac-hopper-10k (ref.: torchrl_sac) | 3 / 3 | 320.000 [" in text and "f_SORL return |" in text
     assert "sac-hopper-10k: both learn, ours better (seeds 0-2)" in text  # (on the f_SORL return; the HV is flat)
     assert "| final f_SORL return (best of the evaluation's episodes) | 320.000 [" in text
+
+
+def test_one_commits_page_uses_only_that_commits_runs_and_lists_every_other(parity, tmp_path):
+    """``--commit``: the tables and the verdict read the runs made at that commit (clean); a run made at another
+    commit, a ``+dirty`` one and those set aside under ``earlier/`` and ``superseded/`` are listed, not dropped."""
+    from common import result_path, set_aside, write_result
+
+    out = tmp_path / "results"
+    new, old = "1234567" + "0" * 33, "abcdef0" + "0" * 33
+    for lib in ("ours", "mb"):
+        for seed in range(3):
+            curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=50.0 + seed)]
+            write_result(result_path(out, "pcn-dst", lib, seed),
+                         dict(case="pcn-dst", lib=lib, seed=seed, curve=curve, frames=100, commit=old))
+            set_aside(result_path(out, "pcn-dst", lib, seed))  # (as a run at --commit does before running it again)
+            curve = [dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=(100.0 if lib == "ours" else 90.0) + seed)]
+            write_result(result_path(out, "pcn-dst", lib, seed),
+                         dict(case="pcn-dst", lib=lib, seed=seed, curve=curve, frames=100, commit=new))
+    write_result(result_path(out, "pcn-dst", "ours", 7), dict(case="pcn-dst", lib="ours", seed=7, frames=100,
+                                                              curve=[dict(frames=100, hypervolume=3.0)],
+                                                              commit=new + "+dirty"))
+    assert sorted(p.name for p in (out / "pcn-dst" / "earlier").iterdir()) == [
+        "mb_s0@abcdef0.json", "mb_s1@abcdef0.json", "mb_s2@abcdef0.json",
+        "ours_s0@abcdef0.json", "ours_s1@abcdef0.json", "ours_s2@abcdef0.json"]
+    text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567").read_text()
+    assert f"Results in the tables made by: `{new}` (6 files)\n" in text
+    assert "Only the runs made at `1234567` (from a clean checkout) are in the tables and verdicts (`--commit`); " \
+           "the 7 other runs are listed under their cases." in text
+    assert "Seeds done: mb [0, 1, 2], ours [0, 1, 2]" in text  # (not the dirty seed 7)
+    assert "| final hypervolume | 91.000 [90.000, 92.000] | 101.000 [100.000, 102.000] |" in text
+    assert "| ours | 1 | `abcdef0` | 0 | 51 | `earlier/` |" in text
+    assert "| ours | 7 | `1234567+dirty` | - | 3 | another commit |" in text
+    # without --commit: the top-level runs (the dirty one too) in the tables, the set-aside ones listed
+    text = parity.write_results(out, [0, 1, 2], "cmd").read_text()
+    assert "Seeds done: mb [0, 1, 2], ours [0, 1, 2, 7]" in text
+    assert "6 runs set aside (`earlier/`, `superseded/`) are listed under their cases, not used." in text
+    # a case with runs at other commits only: its row says what those said, and that they are not this commit's
+    for lib in ("ours", "mb"):
+        for seed in range(2):
+            write_result(result_path(out, "gpi_pd-dst", lib, seed), dict(
+                case="gpi_pd-dst", lib=lib, seed=seed, frames=100, commit=old,
+                curve=[dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=16.8)]))
+    text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567").read_text()
+    assert ("| gpi_pd-dst | 0 / 0 | - | - | not run at `1234567` (other commits' runs, seeds 0-1: both learn, at parity) "
+            "| - |") in text
+    with pytest.raises(ValueError, match="at least 7 hex digits"):
+        parity.write_results(out, [0, 1, 2], "cmd", commit="123")
+
+
+def test_a_run_at_a_commit_needs_a_clean_checkout_of_it(parity, tmp_path, monkeypatch):
+    monkeypatch.setattr(parity, "current_commit", lambda: "1234567" + "0" * 33 + "+dirty")
+    with pytest.raises(SystemExit, match=r"--commit 1234567: this checkout is at 12345670{33}\+dirty; run from a "
+                                         r"clean checkout of that commit \(git worktree add DIR 1234567\)"):
+        parity.main(["--commit", "1234567", "--cases", "pcn-dst", "--libs", "ours", "--out", str(tmp_path)])
