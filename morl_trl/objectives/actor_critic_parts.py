@@ -49,9 +49,11 @@ from morl_trl.objectives.fast_path import FunctionalNetwork, GaussianActorPlan
 __all__ = [
     "ALPHA_LOSS_FORMS",
     "ContinuousSoftActorCriticBase",
+    "LOG_PROB_FORMS",
     "SoftActorCriticBase",
     "check_alpha_loss_form",
     "draw",
+    "draw_clamped",
     "elementwise_min",
     "expected_log_prob",
     "expected_soft_actor_objective",
@@ -89,6 +91,39 @@ def draw(dist) -> tuple[Tensor, Tensor]:
     """A reparameterised action of ``dist`` and its log-probability (TorchRL's SAC draw)."""
     with set_exploration_type(ExplorationType.RANDOM):
         return compute_rsample_log_prob(dist)
+
+
+#: how a tanh-Gaussian action's log-probability is computed: ``"exact"`` (TorchRL's ``TanhNormal``: the exact
+#: Jacobian of the squashing) or ``"clamped"`` (the authors' CAPQL, :func:`draw_clamped`)
+LOG_PROB_FORMS = ("clamped", "exact")
+
+
+def draw_clamped(dist, eps: float = 1e-6, bound: float = 1000.0) -> tuple[Tensor, Tensor]:
+    """A reparameterised action of the tanh-Gaussian ``dist`` (TorchRL's ``TanhNormal``) and its log-probability as
+    the authors' CAPQL computes it: the Normal's log-density of the pre-squash draw ``x`` minus
+    ``sum log(scale (1 - tanh(x)^2) + eps)``, clamped to ``[-bound, bound]``; the action is
+    ``tanh(x) scale + bias`` (``hyperparameters.toml`` ``[capql.<domain>.network] log_prob``, their
+    ``capql.py:149-155``; MORL-Baselines 1.3.0 ``capql.py:147-154``, ``EPSILON = 1e-6``). The draw is TorchRL's (the
+    base Normal's ``rsample``: the same random numbers as :func:`draw`); where ``tanh`` saturates the ``eps`` bounds
+    the Jacobian's term at ``log(1/eps)`` per dimension, where the exact form keeps growing.
+
+    Example:
+        >>> from torchrl.modules import TanhNormal
+        >>> loc, scale = torch.tensor([[0.0, 12.0]]), torch.ones(1, 2)
+        >>> _ = torch.manual_seed(0)
+        >>> action, log_prob = draw_clamped(TanhNormal(loc, scale, low=-1.0, high=1.0))
+        >>> _ = torch.manual_seed(0)
+        >>> x = torch.distributions.Normal(loc, scale).rsample()
+        >>> mb = torch.distributions.Normal(loc, scale).log_prob(x).sum(-1) - torch.log(1 - torch.tanh(x) ** 2 + 1e-6).sum(-1)
+        >>> torch.equal(action, torch.tanh(x)), torch.allclose(log_prob, mb)
+        (True, True)
+    """
+    base = dist.base_dist
+    x = base.rsample()
+    y = torch.tanh(x)
+    half = (dist.high - dist.low) / 2
+    log_prob = base.log_prob(x) - torch.log(half * (1 - y.pow(2)) + eps).sum(-1)
+    return y * half + (dist.high + dist.low) / 2, log_prob.clamp(-bound, bound)
 
 
 def elementwise_min(q: Tensor, w: Tensor | None = None) -> Tensor:

@@ -7,8 +7,9 @@ from tensordict import TensorDictBase
 from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
 from torch import Tensor
 
-from morl_trl.objectives.actor_critic_parts import (ContinuousSoftActorCriticBase, draw, elementwise_min,
-                                                    soft_actor_objective, soft_next_value, vector_critic_loss)
+from morl_trl.objectives.actor_critic_parts import (LOG_PROB_FORMS, ContinuousSoftActorCriticBase, draw, draw_clamped,
+                                                    elementwise_min, soft_actor_objective, soft_next_value,
+                                                    vector_critic_loss)
 
 __all__ = ["CAPQLLoss"]
 
@@ -34,6 +35,11 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
     * Actor loss (:meth:`_actor_loss`): :math:`\alpha \log\pi(a|s,w) - w^\top \min_i Q_i(s, a, w)`,
       :math:`a \sim \pi(\cdot|s, w)`, with a fixed :math:`\alpha` (0.2 in the paper's runs).
 
+    :math:`\log\pi` is the authors' (``log_prob_form="clamped"``, :func:`~morl_trl.objectives.actor_critic_parts.draw_clamped`):
+    the pre-squash Normal's log-density minus :math:`\sum \log(s (1 - \tanh^2 x) + 10^{-6})`, clamped to
+    :math:`[-1000, 1000]`; ``"exact"``: TorchRL's ``TanhNormal`` (the exact Jacobian, unbounded where ``tanh``
+    saturates).
+
     The three parts are computed alone by :meth:`qvalue_loss` and :meth:`actor_loss` (the authors'
     critic step, then the actor step) and together by :meth:`forward`.
 
@@ -54,6 +60,8 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
         reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
         use_prioritized_weights (bool or "auto"): weight samples by ``"priority_weight"``.
         deactivate_vmap (bool): loop over the critics instead of ``vmap``. Defaults to ``False``.
+        log_prob_form (str): ``"clamped"`` (the authors', the default) or ``"exact"`` (TorchRL's ``TanhNormal``);
+            see above.
 
     Examples:
         >>> import torch
@@ -78,7 +86,9 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
                  alpha: float = 0.2, resample_preferences: bool = False, num_objectives: int | None = None,
                  num_qvalue_nets: int = 2, preference_distribution: str = "dirichlet", loss_function: str = "l2",
                  delay_qvalue: bool = True, reduction: str = "mean", use_prioritized_weights: str | bool = "auto",
-                 deactivate_vmap: bool = False) -> None:
+                 deactivate_vmap: bool = False, log_prob_form: str = "clamped") -> None:
+        if log_prob_form not in LOG_PROB_FORMS:
+            raise ValueError(f"log_prob_form={log_prob_form!r}; valid values are {LOG_PROB_FORMS}.")
         super().__init__(actor_network, qvalue_network, num_objectives=num_objectives, num_qvalue_nets=num_qvalue_nets,
                          preference=None, resample_preferences=resample_preferences,
                          preference_distribution=preference_distribution, loss_function=loss_function,
@@ -87,13 +97,15 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
                          deactivate_vmap=deactivate_vmap, alpha_loss_form="log_alpha")
         # the temperature is fixed: no target entropy is used (kept as the state's entry)
         self.register_buffer("target_entropy", torch.tensor(0.0, device=self.log_alpha.device))
+        self.log_prob_form = log_prob_form
+        self._draw = draw_clamped if log_prob_form == "clamped" else draw
 
     # ------------------------------------------------------------ value estimate
     @torch.no_grad()
     def _value_target(self, data: TensorDictBase, w: Tensor) -> Tensor:
         """``[B, k]``: ``r + gamma (1 - d) (min_i Q^-_i(s', a', w) - alpha log pi(a'|s', w))``, ``a' ~ pi(.|s', w)``."""
         next_data = data.get("next")
-        next_action, next_log_prob = draw(self._policy_dist(next_data, w))
+        next_action, next_log_prob = self._draw(self._policy_dist(next_data, w))
         q_next = self._critics(next_data, w, next_action, params="target")
         next_value = soft_next_value(elementwise_min(q_next), next_log_prob, self._alpha)
         return self.value_estimator.value_estimate(data, next_value=next_value)
@@ -108,6 +120,6 @@ class CAPQLLoss(ContinuousSoftActorCriticBase):
     # ------------------------------------------------------------ actor loss
     def _actor_loss(self, data: TensorDictBase, w: Tensor, dist=None) -> tuple[Tensor, Tensor]:
         """Per-sample actor loss and the sampled actions' log-probabilities (critics without gradient)."""
-        action, log_prob = draw(self._policy_dist(data, w) if dist is None else dist)
+        action, log_prob = self._draw(self._policy_dist(data, w) if dist is None else dist)
         q = self._critics(data, w, action, params="detached")
         return soft_actor_objective(log_prob, elementwise_min(q), w, self._alpha), log_prob

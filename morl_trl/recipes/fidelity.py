@@ -287,7 +287,7 @@ CAPQL = {
     "network.init": _ACTOR_CRITIC_INIT,
     "network.num_q_nets": Code("objectives.capql: two critics"),
     "network.optimizers": Same("lr", expect=lambda v, cfg: 3e-4),
-    "network.log_prob": Code("objectives.capql: tanh-Gaussian log-prob clamped to [-1000, 1000]"),
+    "network.log_prob": Same("capql_log_prob", expect=lambda v, cfg: "clamped"),
     "network.critic_target": Code("objectives.capql: per-objective min of the target critics minus alpha log pi"),
     "network.policy_loss": Code("objectives.capql: alpha log pi - w . min_k Q_k"),
     "derived.weight_sampling": Same("(preference_distribution, preference_resample)", expect=lambda v, cfg:

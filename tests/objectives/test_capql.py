@@ -35,6 +35,7 @@ def test_defaults_are_the_paper_settings():
     assert loss.resample_preferences is False
     assert "preference" in loss.in_keys
     assert loss.num_qvalue_nets == 2
+    assert loss.log_prob_form == "clamped"  # the authors' log pi (capql.py:149-155)
 
 
 @pytest.mark.parametrize("resample", [False, True])
@@ -45,7 +46,7 @@ def test_capql_is_mosac_with_elementwise_min_vector_loss_and_fixed_alpha(resampl
     and the parameters after three Adam steps with Polyak targets."""
     from morl_trl.objectives import MOSACLoss
 
-    capql = make_loss(resample_preferences=resample)
+    capql = make_loss(resample_preferences=resample, log_prob_form="exact")  # (MOSAC's: TorchRL's TanhNormal)
     torch.manual_seed(0)
     mosac = MOSACLoss(make_gaussian_actor(OBS, SPEC, K, num_cells=(32,)), make_vector_critic(OBS, ACT, K, num_cells=(32,)),
                       critic_min="elementwise", critic_loss="vector", fixed_alpha=True, alpha_init=0.2,
@@ -75,6 +76,46 @@ def test_capql_is_mosac_with_elementwise_min_vector_loss_and_fixed_alpha(resampl
         assert torch.equal(qc, qm) and torch.equal(pc, pm)
         assert all(torch.equal(oc[key], om[key]) for key in oc.keys())
     assert all(torch.equal(state_c[key], state_m[key]) for key in state_c)
+
+
+def _authors_log_prob(loc, scale, seed):
+    """The authors' CAPQL ``sample`` (capql.py:149-155; MORL-Baselines 1.3.0 capql.py:138-154), written out: the
+    pre-squash draw, its Normal log-density summed over dimensions, minus sum log(1 - tanh^2 + 1e-6) (action scale 1),
+    clamped to [-1000, 1000]."""
+    torch.manual_seed(seed)
+    normal = torch.distributions.Normal(loc, scale)
+    x = normal.rsample()
+    y = torch.tanh(x)
+    return y, (normal.log_prob(x).sum(1) - torch.log(1 * (1 - y.pow(2)) + 1e-6).sum(1)).clamp(-1e3, 1e3)
+
+
+@pytest.mark.parametrize("saturate", [False, True])
+def test_log_pi_is_the_authors_by_default_and_torchrls_tanh_normal_as_an_option(saturate):
+    """The actor loss's action and log pi are the authors' formula on the same draw; where tanh saturates
+    (|loc| ~ 40: 1 - tanh^2 underflows) the authors' log pi stays bounded (the 1e-6) and TorchRL's exact Jacobian
+    does not, and the two forms' actor losses part; unsaturated they agree to float error."""
+    data = random_batch(B, OBS, K, action_dim=ACT)
+    losses = {form: make_loss(log_prob_form=form) for form in ("clamped", "exact")}
+    if saturate:
+        for loss in losses.values():
+            for name, leaf in loss.actor_network_params.items(True, True):
+                if name[-1] == "bias":
+                    leaf.data.fill_(40.0)  # (the last layer's bias: every location ~40, the log-std clamped at 2)
+    dist, _ = losses["clamped"].actor_dist(data)
+    loc, scale = dist.base_dist.base_dist.loc.detach(), dist.base_dist.base_dist.scale.detach()
+    action, expected = _authors_log_prob(loc, scale, seed=7)
+    torch.manual_seed(7)
+    _, info = losses["clamped"].actor_loss(data)
+    torch.testing.assert_close(info["log_prob"], expected, rtol=1e-5, atol=1e-4)
+    torch.manual_seed(7)
+    _, exact = losses["exact"].actor_loss(data)
+    if saturate:
+        # the 1e-6 bounds the Jacobian term at 3 log(1e6) = 41.4; the exact one is ~2|x| - log 4 per dimension
+        assert (info["log_prob"] < 41.5).all() and (exact["log_prob"] > 60).all() and exact["log_prob"].max() > 500
+    else:
+        torch.testing.assert_close(exact["log_prob"], info["log_prob"], rtol=1e-4, atol=1e-3)
+    with pytest.raises(ValueError, match=r"log_prob_form='tanh'; valid values are \('clamped', 'exact'\)"):
+        make_loss(log_prob_form="tanh")
 
 
 def test_output_keys_finite_without_a_stored_preference():
@@ -158,7 +199,7 @@ def test_set_keys_renames():
 
 
 def test_k1_is_sac_with_a_fixed_temperature():
-    ours = make_loss(k=1, resample_preferences=False)
+    ours = make_loss(k=1, resample_preferences=False, log_prob_form="exact")
     theirs = SACLoss(ours.actor_network, ours.qvalue_network, loss_function="l2", alpha_init=0.2, fixed_alpha=True)
     theirs.make_value_estimator(ValueEstimators.TD0, gamma=0.9)
     theirs.qvalue_network_params.data.update_(ours.qvalue_network_params.data)

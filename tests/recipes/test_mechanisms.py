@@ -608,3 +608,22 @@ def test_morld_evaluates_each_member_on_5_separate_stochastic_episodes_per_excha
                              env, gamma=0.995, device=CPU)
     other.exchange()
     assert other.eval_episodes == 0 and len(other.archive) == 0
+
+
+def test_capql_recipe_scores_log_pi_as_the_authors_and_an_older_run_resumes_with_torchrls(single_thread):
+    """``capql_log_prob``: the recipe's loss uses the authors' log pi (1e-6 in the Jacobian's log, clamped to
+    [-1000, 1000]; hyperparameters.toml [capql.hopper.network] log_prob) by default; a config.json written before the
+    key existed resumes with TorchRL's exact TanhNormal, what its code computed."""
+    pytest.importorskip("mujoco")
+    from morl_trl.recipes import build_agent
+    from morl_trl.recipes.config.train_config import upgrade_keys
+
+    for form in ("clamped", "exact"):
+        kw = {} if form == "clamped" else dict(capql_log_prob="exact")
+        cfg = resolve_config("capql", "MOHopperDR-v5", hidden=(16,), num_envs=2, progress=False, **kw)
+        assert cfg.capql_log_prob == form
+        agent = build_agent(cfg, make_training_env(cfg, CPU), gamma=0.99, device=CPU)
+        assert agent.loss.log_prob_form == form
+    assert upgrade_keys({}, "capql", "config.json", saved=True)["capql_log_prob"] == "exact"
+    with pytest.raises(ValueError, match="capql_log_prob"):
+        resolve_config("capql", "MOHopperDR-v5", capql_log_prob="tanh")

@@ -44,6 +44,7 @@ class CAPQLConfig:
     alpha: float = 0.2  # init.alpha
     learn_alpha: bool = False  # init.alpha's note: fixed, no autotuning
     actor_scale: str = "clamped_log_std"  # network.policy
+    capql_log_prob: str = "clamped"  # network.log_prob (1e-6 in the Jacobian's log, clamped to [-1000, 1000])
     joint_update: bool = False  # ours (false: the authors' order, each loss computed alone)
     # preferences: a new weight every step from the 22.5-degree cone, stored with the transition and
     # reused by the loss

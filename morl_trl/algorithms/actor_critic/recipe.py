@@ -90,10 +90,11 @@ def make_capql_agent(cfg, env, *, gamma: float, device: torch.device) -> Agent:
     """CAPQL: per-objective min of the critics, fixed temperature. As the authors by default: the acting
     preference redrawn every step from the 22.5-degree cone and stored (``preference_distribution="cone"``,
     ``preference_resample="step"``), the loss on the stored preference (``loss_fresh_preferences``), the
-    actor's log-std clamped to [-20, 2] (``actor_scale``), collection with ``tanh(mean)``
+    actor's log-std clamped to [-20, 2] (``actor_scale``), the log-probability with ``1e-6`` in the squashing's
+    Jacobian and clamped to [-1000, 1000] (``capql_log_prob``), collection with ``tanh(mean)``
     (``capql_deterministic_collection``)."""
     _, actor, critic = _continuous(cfg, env, device)
-    loss = CAPQLLoss(actor, critic, alpha=cfg.alpha, **_loss_kwargs(cfg))
+    loss = CAPQLLoss(actor, critic, alpha=cfg.alpha, log_prob_form=cfg.capql_log_prob, **_loss_kwargs(cfg))
     orthogonal_critic_copies_(loss, critic)
     agent = _agent(cfg, loss, actor, gamma, device)
     if cfg.capql_deterministic_collection:

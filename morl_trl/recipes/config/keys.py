@@ -251,6 +251,7 @@ KEYS: dict[str, Key] = {
     'gpi_num_nets': Key('gpi', 'int', 'Q-networks in the ensemble', _int(1, 64)),
     'gpi_dropout': Key('gpi', 'float', "dropout rate of the Q-networks' hidden layers", _float(0.0, 0.99)),
     'gpi_layer_norm': Key('gpi', 'bool', "LayerNorm in the Q-networks' hidden layers", _bool),
+    'capql_log_prob': Key('actor_critic', 'str', "CAPQL's log pi of a tanh-Gaussian action: 'clamped' (the authors: the Normal's log-density minus sum log(scale (1 - tanh^2) + 1e-6), clamped to [-1000, 1000]; their capql.py:149-155) or 'exact' (TorchRL's TanhNormal: the exact Jacobian)", _choice(("clamped", "exact"))),
     'capql_deterministic_collection': Key('collector', 'bool', "CAPQL collects with the deterministic action tanh(mean) after init_random_frames (the authors' capql.py:454-459); false: sampled actions", _bool),
     'gpi_model_termination': Key('gpi', 'str', "GPI-PD's Hopper termination of imagined transitions: 'authors' (state[1:] < 100, their slip: no abs; what produced the paper's numbers) or 'corrected' (|state[1:]| < 100)", _choice(("authors", "corrected")), inert="authors"),
     'gpi_eval_conditioning': Key('gpi', 'str', "continuous GPI at evaluation: the critic's conditioning weight for support row i: 'authors' (their vectorised evaluator's w_floor((e*M+i)/E) for evaluation context e of E, which produced the paper's numbers) or 'support' (w_i, their single-env path)", _choice(("authors", "support"))),
