@@ -746,6 +746,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         raise SystemExit(f"unknown case(s) {unknown}; runnable: {list(CASES)}; not yet: {PENDING}")
     command = "python benchmarks/parity/run_parity.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if args.commit is not None and (len(args.commit) < 7 or any(c not in "0123456789abcdef" for c in args.commit)):
+        raise SystemExit(f"--commit {args.commit!r}: give at least 7 lowercase hex digits of a SHA (git rev-parse HEAD)")
     if args.commit and not args.report_only:
         here = current_commit()
         if here.endswith("+dirty") or not made_at({"commit": here}, args.commit):

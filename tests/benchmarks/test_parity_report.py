@@ -475,6 +475,8 @@ def test_one_commits_page_uses_only_that_commits_runs_and_lists_every_other(pari
 
 
 def test_a_run_at_a_commit_needs_a_clean_checkout_of_it(parity, tmp_path, monkeypatch):
+    with pytest.raises(SystemExit, match=r"--commit 'HEAD': give at least 7 lowercase hex digits of a SHA"):
+        parity.main(["--report-only", "--commit", "HEAD", "--out", str(tmp_path)])
     monkeypatch.setattr(parity, "current_commit", lambda: "1234567" + "0" * 33 + "+dirty")
     with pytest.raises(SystemExit, match=r"--commit 1234567: this checkout is at 12345670{33}\+dirty; run from a "
                                          r"clean checkout of that commit \(git worktree add DIR 1234567\)"):
