@@ -560,7 +560,12 @@ GPI = {
     "train.num_eval_episodes_for_front": Same("gpi_front_episodes"),
     "train_iteration.weight": Code("algorithms.gpi: the next corner weight"),
     "train_iteration.weight_support": Code("algorithms.gpi: CCS support + top-4 queued corners + w"),
-    "train_iteration.change_w_every_episode": Code("algorithms.gpi: a support weight per episode"),
+    "train_iteration.change_w_every_episode": Code(
+        "algorithms.gpi: a support weight per episode",
+        open="the first episode of an iteration is not the new corner weight w's: the authors reset the env when an "
+             "iteration begins and act with w until that episode ends, then draw each episode's weight from M (SPEC "
+             "§6; MB 1.3.0 gpi_pd.py:722,733,785-786); ours' sub-envs keep the episode in progress and draw every "
+             "new episode's weight from M from the iteration's start (found by issue 48's parity audit)"),
     "train_iteration.change_weight_every_episode": Code("algorithms.gpi: a support weight per episode"),
     "train_iteration.eval_freq": Same("eval_interval"),
     "train_iteration.reset_learning_starts": _ONE_CALL,

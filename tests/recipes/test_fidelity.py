@@ -16,7 +16,8 @@ SHARED_RECORD = ROOT.parent / "shared" / "reference" / "hyperparameters.toml"
 #: known differences not fixed yet (mechanisms: issue 27's w27m), as (algorithm, setting). Printed
 #: by the test; each must still differ on at least one domain (an entry that no longer differs is
 #: stale and must go, so nothing is hidden either way).
-KNOWN_OPEN: set = set()
+KNOWN_OPEN: set = {("gpi_ls", "train_iteration.change_w_every_episode"),  # (issue 48: the first episode of an
+                   ("gpi_pd", "train_iteration.change_w_every_episode")}  # iteration is w's, SPEC §6 GPI-LS/PD)
 
 
 def test_the_record_has_42_pairs_and_every_algorithm_resolves_on_each():
@@ -49,7 +50,8 @@ def test_every_setting_of_every_pair_is_mapped_and_explained():
 
 def test_gpi_ls_on_lunar_lander_has_no_unexplained_row():
     rows = fidelity.compare("gpi_ls", "MOLunarLanderDR-v0")
-    assert [r for r in rows if r.status.startswith(("differs", "unmapped"))] == []
+    assert [r.setting for r in rows if r.status.startswith(("differs", "unmapped"))] == [
+        "train_iteration.change_w_every_episode"]  # (the one known open difference: KNOWN_OPEN)
     by = {r.setting: r for r in rows}
     assert (by["init.gradient_updates"].our_key, by["init.gradient_updates"].ours) == ("gpi_gradient_updates", 1)
     assert (by["train.num_eval_episodes_for_front"].ours, by["init.learning_starts"].ours) == (3, 100)
