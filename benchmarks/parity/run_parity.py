@@ -284,7 +284,9 @@ def _load(out: Path, case: str, commit: str | None = None) -> tuple[dict[str, li
             left_out.append((data, "another commit"))
     for folder in SET_ASIDE:
         for path in sorted((out / case / folder).glob("*.json")):
-            left_out.append((json.loads(path.read_text()), f"`{folder}/`"))
+            data = json.loads(path.read_text())
+            data["_mtime"] = path.stat().st_mtime  # (which of a seed's set-aside runs is the latest)
+            left_out.append((data, f"`{folder}/`"))
     return runs, left_out
 
 
@@ -425,14 +427,21 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         if not runs:
             body += ["Not run yet" + (f" at `{commit}`." if commit else "."), ""] + left_out_lines(left_out, case_metric(spec))
             said = "-"
-            others = {}
-            for r, where in left_out:
-                if where == "another commit":
-                    others.setdefault(r["lib"], []).append(r)
-            if commit and "ours" in others and ref in others:  # (what the runs of other commits said, not a verdict)
-                judged, used = verdict_runs(others, seeds, ref)
-                said = (f"not run at `{commit}` (other commits' runs, seeds {used}: "
-                        f"{case_verdict(judged, case_metric(spec), ref=ref)})")
+            # what the runs of other commits said (not a verdict of this page): one run per (library, seed), the
+            # one left in the case's folder, else the latest set aside under earlier/ (superseded/ ones: not read)
+            latest: dict[tuple[str, int], dict] = {}
+            for r, where in sorted(left_out, key=lambda x: (x[1] == "another commit", x[0].get("_mtime", 0.0))):
+                if where != "`superseded/`":
+                    latest[(r["lib"], r["seed"])] = r
+            others: dict[str, list[dict]] = {}
+            for (lib, _), r in sorted(latest.items()):
+                others.setdefault(lib, []).append(r)
+            if commit:
+                said = f"not run at `{commit}`"
+                if "ours" in others and ref in others:
+                    judged, used = verdict_runs(others, seeds, ref)
+                    said += (f" (other commits' runs, seeds {used}: "
+                             f"{case_verdict(judged, case_metric(spec), ref=ref)})")
                 per_method.setdefault(spec["algo"], []).append((case, said))
             summary.append(f"| {row_name} | 0 / 0 | - | - | {said} | - | - | - | - | - | - |")
             continue

@@ -470,6 +470,15 @@ def test_one_commits_page_uses_only_that_commits_runs_and_lists_every_other(pari
     text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567").read_text()
     assert ("| gpi_pd-dst | 0 / 0 | - | - | not run at `1234567` (other commits' runs, seeds 0-1: both learn, at parity) "
             "| - |") in text
+    # a case whose runs were all set aside (run again at another commit later): read from earlier/, the latest
+    for lib in ("ours", "mb"):
+        for seed in range(2):
+            path = result_path(out, "pcn-fruit-tree", lib, seed)
+            write_result(path, dict(case="pcn-fruit-tree", lib=lib, seed=seed, frames=100, commit=old,
+                                    curve=[dict(frames=0, hypervolume=0.0), dict(frames=100, hypervolume=5.0)]))
+            set_aside(path)
+    text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567").read_text()
+    assert "pcn-fruit-tree: not run at `1234567` (other commits' runs, seeds 0-1: both learn, at parity)" in text
     with pytest.raises(ValueError, match="at least 7 hex digits"):
         parity.write_results(out, [0, 1, 2], "cmd", commit="123")
 
