@@ -657,11 +657,15 @@ def made_at(record: dict, commit: str) -> bool:
     return not made.endswith("+dirty") and len(made) >= 7 and (made.startswith(commit) or commit.startswith(made))
 
 
+def short_commit(commit: str) -> str:
+    """A recorded commit as a page shows it: 7 hex digits, ``+dirty`` kept (``2b330cb+dirty``)."""
+    return commit[:7] + ("+dirty" if commit.endswith("+dirty") else "")
+
+
 def set_aside(path: Path) -> Path:
     """Move the result file ``path`` into its case's ``earlier/`` folder, named by the commit that made it
     (``ours_s100@2b330cb.json``); returns the new path. A run is set aside, never deleted."""
-    commit = str(json.loads(path.read_text()).get("commit", "unknown"))
-    tag = commit[:7] + ("+dirty" if commit.endswith("+dirty") else "")
+    tag = short_commit(str(json.loads(path.read_text()).get("commit", "unknown")))
     dest = path.parent / "earlier" / f"{path.stem}@{tag}.json"
     dest.parent.mkdir(parents=True, exist_ok=True)
     n = 1

@@ -15,6 +15,10 @@ import json
 import sys
 from pathlib import Path
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import short_commit  # noqa: E402
+
 CASE = sys.argv[1] if len(sys.argv) > 1 else "gpi_ls-dst-30k"
 SEEDS = range(100, 110)  # (issue 48: seeds 100-109)
 d = Path(__file__).resolve().parent / "results" / CASE
@@ -31,7 +35,7 @@ for lib in ("ours", "mb"):
         for i in last:
             drop = max(drop, max(ratios[:i + 1]) - ratios[i])
             within = max(within, max(ratios[last[0]:i + 1]) - ratios[i])
-        res.setdefault(lib, []).append((s, ratios[-1], max(ratios), (drop, within), j["commit"][:7] + ("+dirty" if j["commit"].endswith("dirty") else ""), round(j["train_seconds"] / 60, 2)))
+        res.setdefault(lib, []).append((s, ratios[-1], max(ratios), (drop, within), short_commit(j["commit"]), round(j["train_seconds"] / 60, 2)))
 rng = np.random.default_rng(0)
 for lib, r in res.items():
     finals = np.array([x[1] for x in r])

@@ -34,7 +34,7 @@ sys.path.insert(1, str(ROOT))  # morl_trl from this checkout (the script's folde
 
 from common import (CASES, EVAL_EPISODES, EVAL_WEIGHTS, MB_VERSION, PENDING, REFERENCES, QEstimateLog,  # noqa: E402
                     SET_ASIDE, best_floor, case_eval_weights, case_floor, case_metric, context_means, current_commit,
-                    made_at, paper_floor, reference_of, result_path, set_aside, write_result)
+                    made_at, paper_floor, reference_of, result_path, set_aside, short_commit, write_result)
 from verdict import ALPHA, INFORMATIVE, MARGIN_OF_GAIN, floor_words, learning, round_seeds, verdict  # noqa: E402
 
 MB_DEPS = ["wandb", "cvxpy", "pycddlib==2.1.6", "sortedcontainers", "fire", "seaborn", "moviepy"]
@@ -290,11 +290,16 @@ def _load(out: Path, case: str, commit: str | None = None) -> tuple[dict[str, li
     return runs, left_out
 
 
+def _metric_name(metric: str) -> str:
+    """A metric's short name on the page (:data:`METRICS`' label without its explanation: "NHGR", "f_SORL return")."""
+    return dict(METRICS).get(metric, metric).split(" (")[0]
+
+
 def left_out_lines(left_out: list[tuple[dict, str]], metric: str) -> list[str]:
     """The runs a case's tables do not use, one row each (none dropped from the page)."""
     if not left_out:
         return []
-    name = dict(METRICS).get(metric, metric).split(" (")[0]
+    name = _metric_name(metric)
     lines = ["Runs not in these tables (set aside under `earlier/` when their seed was run again at the page's commit, "
              "under `superseded/` when a library fix changed the method's trajectories, or made at another commit "
              "than `--commit`'s):", "", f"| library | seed | commit | frame 0 {name} | final {name} | where |",
@@ -303,8 +308,7 @@ def left_out_lines(left_out: list[tuple[dict, str]], metric: str) -> list[str]:
         curve = r.get("curve") or [{}]
         first = curve[0].get(metric) if curve[0].get("frames") == 0 else None  # (no frame-0 evaluation: "-")
         last = curve[-1].get(metric)
-        made = str(r.get("commit", "not recorded"))
-        lines.append(f"| {r.get('lib', '?')} | {r.get('seed', '?')} | `{made[:7]}{'+dirty' if made.endswith('+dirty') else ''}` "
+        lines.append(f"| {r.get('lib', '?')} | {r.get('seed', '?')} | `{short_commit(str(r.get('commit', 'not recorded')))}` "
                      f"| {'-' if first is None else f'{first:.4g}'} | {'-' if last is None else f'{last:.4g}'} | {where} |")
     return lines + [""]
 
@@ -499,8 +503,7 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
             hv = {lib: f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for lib, (m, lo, hi) in ci.items()}
         else:  # (a paper-domain case: its metric named, beside the floor of trivial policies)
             beside = f", floor {floor['mean']:.3f}" if floor else ""
-            metric_name = dict(METRICS).get(metric_of_case, metric_of_case).split(" (")[0]  # ("NHGR", "f_SORL return")
-            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {metric_name}{beside}" for lib, (m, lo, hi) in ci.items()}
+            hv = {lib: f"{m:.3f} [{lo:.3f}, {hi:.3f}] {_metric_name(metric_of_case)}{beside}" for lib, (m, lo, hi) in ci.items()}
         judged, used = verdict_runs(runs, seeds, ref)
         judged_seeds = sorted({r["seed"] for rs in judged.values() for r in rs})
         if spec.get("paper"):  # (the paper protocol's floor: one per case, the same at every seed)
