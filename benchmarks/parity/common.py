@@ -50,6 +50,13 @@ CASES: dict[str, dict] = {
         env="deep-sea-treasure-v0", algo="gpi_ls", frames=30_000, eval_every=5_000, gamma=0.99,
         ours=dict(_SMALL_GPI[0]), mb=dict(_SMALL_GPI[1]), mb_train=dict(),
     ),
+    # The same with ours' GPI update under MB's reading of the update weight: the weight of the episode in
+    # progress (MB 1.3.0 gpi_pd.py:763,785-786) where the record and SPEC §6 say the iteration's w (ours'
+    # default): issue 48's audit found the two differ in iteration 1 (ours ~75 % of the rows on e_1, MB ~50 %)
+    "gpi_ls-dst-30k-episode-w": dict(
+        env="deep-sea-treasure-v0", algo="gpi_ls", frames=30_000, eval_every=5_000, gamma=0.99,
+        ours=dict(_SMALL_GPI[0], gpi_update_weight="episode"), mb=dict(_SMALL_GPI[1]), mb_train=dict(),
+    ),
     # Envelope on Deep Sea Treasure at MB's defaults ([256]*4, batch 256, 4 sampled weights, target copied
     # every 200 steps, homotopy 0, PER, eps 0.01) for 20,000 frames: issue 48's divergence check. Ours diverged
     # here on seed 11 (w.Q far above the largest discounted return, HV ratio 0.047); every run records its

@@ -359,9 +359,12 @@ def _num(value) -> str:
 
 
 def write_results(out: Path, seeds: list[int], command: str, compute_floors: bool = False,
-                  commit: str | None = None) -> Path:
+                  commit: str | None = None, case_commits: dict[str, str] | None = None) -> Path:
     """RESULTS.md and the plots from the result files under ``out``; with ``commit``, the tables and verdicts use only
-    the runs made at that commit (clean), and every other run is listed under its case."""
+    the runs made at that commit (clean), and every other run is listed under its case. ``case_commits``
+    (``{case: SHA}``, with ``commit``): those cases' tables use their own commit's runs instead, each case's still
+    from one commit (after a library change that touches some methods only, their cases run again at it)."""
+    case_commits = dict(case_commits or {})
     import platform
 
     import torch
@@ -411,7 +414,9 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
     commits: dict[str, int] = {}
     n_left_out = 0
     body = []
+    page_commit = commit
     for case in CASES:
+        commit = case_commits.get(case, page_commit)
         runs, left_out = _load(out, case, commit)
         n_left_out += len(left_out)
         for rs in runs.values():
@@ -540,13 +545,17 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
         ref = [c for c, _ in cases if ref_learns_by_case.get(c, "").startswith("learns")]
         methods.append(f"| {algo} | {'; '.join(good) or 'none'} | {', '.join(ref) or 'none'} | "
                        + "; ".join(f"{c}: {v}" for c, v in cases) + " |")
+    commit = page_commit
     made = ", ".join(f"`{c}` ({n} files)" for c, n in sorted(commits.items(), key=lambda kv: (-kv[1], kv[0])))
     lines += [f"Results in the tables made by: {made or 'none yet'}"
               + (" -- **more than one commit: regenerate from one commit's runs before quoting**"
-                 if len(commits) > 1 else ""), ""]
+                 if len(commits) > 1 and not case_commits else ""), ""]
     if commit:
+        own = "; ".join(f"`{c}` at `{sha}`" for c, sha in sorted(case_commits.items()))
         lines += [f"Only the runs made at `{commit}` (from a clean checkout) are in the tables and verdicts "
-                  f"(`--commit`); the {n_left_out} other runs are listed under their cases.", ""]
+                  f"(`--commit`)" + (f", but for the cases run again at a later commit, each from that commit's runs "
+                                     f"only (`--case-commit`): {own}" if own else "")
+                  + f"; the {n_left_out} other runs are listed under their cases.", ""]
     elif n_left_out:
         lines += [f"{n_left_out} runs set aside (`earlier/`, `superseded/`) are listed under their cases, not used.", ""]
     lines += methods + [""] + summary + [""] + body
@@ -741,6 +750,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="one commit's runs: the report's tables and verdicts use only the runs made at SHA (the others "
                         "are listed under their cases); a run needs this checkout at SHA, clean, and runs again each "
                         "asked-for seed whose file another commit made (that file set aside under earlier/)")
+    p.add_argument("--case-commit", action="append", default=[], metavar="CASE=SHA",
+                   help="with --commit and --report-only: CASE's tables use the runs made at SHA instead (repeatable; "
+                        "each case's runs still from one commit)")
     p.add_argument("--one", nargs=4, metavar=("LIB", "CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.one:  # LIB CASE SEEDS OUT_DIR: several seeds in one process (the imports are paid once)
@@ -760,6 +772,14 @@ def main(argv: list[str] | None = None) -> int:
     command = "python benchmarks/parity/run_parity.py " + " ".join(argv if argv is not None else sys.argv[1:])
     if args.commit is not None and (len(args.commit) < 7 or any(c not in "0123456789abcdef" for c in args.commit)):
         raise SystemExit(f"--commit {args.commit!r}: give at least 7 lowercase hex digits of a SHA (git rev-parse HEAD)")
+    case_commits = {}
+    for item in args.case_commit:
+        case, _, sha = item.partition("=")
+        if not (args.commit and args.report_only) or case not in CASES or len(sha) < 7 \
+                or any(c not in "0123456789abcdef" for c in sha):
+            raise SystemExit(f"--case-commit {item!r}: give CASE=SHA (a case of {list(CASES)}, 7+ lowercase hex "
+                             "digits), with --commit and --report-only")
+        case_commits[case] = sha
     if args.commit and not args.report_only:
         here = current_commit()
         if here.endswith("+dirty") or not made_at({"commit": here}, args.commit):
@@ -805,7 +825,8 @@ def main(argv: list[str] | None = None) -> int:
                     write_results(args.out, seeds, command, compute_floors=not args.no_floors, commit=args.commit)
     if args.no_report and not args.report_only:
         return 0
-    print(write_results(args.out, seeds, command, compute_floors=not args.no_floors, commit=args.commit))
+    print(write_results(args.out, seeds, command, compute_floors=not args.no_floors, commit=args.commit,
+                        case_commits=case_commits))
     return 0
 
 

@@ -270,7 +270,7 @@ class ContextualMOEnv(EnvBase):
         if idx.numel():
             self._reset_subenvs(idx, self._context[idx] if chosen is None else chosen)
             if chosen is not None:
-                # out of place: step outputs share self._context without copying it every step
+                # out of place: step outputs share a copy of self._context made once per change (_context_output)
                 context = self._context.clone()
                 context[idx] = chosen
                 self.__dict__["_context"] = context
@@ -400,12 +400,12 @@ class ContextualMOEnv(EnvBase):
         else:
             chosen = self._draw_contexts(idx)  # drawn and checked before any state changes
             self._reset_subenvs(idx, chosen)
-            new_context = self._context.clone()  # out of place: earlier outputs share the old one
+            new_context = self._context.clone()  # out of place (see _context_output)
             new_context[idx] = chosen
             self.__dict__["_context"] = new_context
         self._step_count.masked_fill_(mask, 0)
         out = self._observe()
-        out["context"] = self._context
+        out["context"] = self._context_output()
         return out
 
     def _lean_step_applies(self, tensordict: TensorDictBase) -> bool:
@@ -432,9 +432,20 @@ class ContextualMOEnv(EnvBase):
         not a plain tensor (then TorchRL's ``step_mdp`` handles it)."""
         return step_mdp_entries(self, tensordict, next_td)
 
+    def _context_output(self) -> torch.Tensor:
+        """The contexts ``[N, c]`` the outputs carry: a copy of ``_context`` made once per change of it (every
+        change replaces ``_context`` out of place), shared by the outputs until the next. The dynamics read
+        ``_context`` itself, so a consumer writing into an output in place (TorchRL's ``Collector.reset``
+        zeroes its carrier) cannot change the env: it once zeroed MO-LavaGrid's goals and reward weights."""
+        context = self._context
+        cached = self.__dict__.get("_context_out")
+        if cached is None or cached[0] is not context:
+            cached = self.__dict__["_context_out"] = (context, context.clone())
+        return cached[1]
+
     def _make_output(self, obs, reward, original, terminated, truncated) -> TensorDictBase:
         out = dict(obs)
-        out["context"] = self._context
+        out["context"] = self._context_output()
         n = self.num_envs
         if self.has_original_reward:
             out["original_reward"] = (

@@ -560,13 +560,10 @@ GPI = {
     "train.num_eval_episodes_for_front": Same("gpi_front_episodes"),
     "train_iteration.weight": Code("algorithms.gpi: the next corner weight"),
     "train_iteration.weight_support": Code("algorithms.gpi: CCS support + top-4 queued corners + w"),
-    "train_iteration.change_w_every_episode": Code(
-        "algorithms.gpi: a support weight per episode",
-        open="the first episode of an iteration is not the new corner weight w's: the authors reset the env when an "
-             "iteration begins and act with w until that episode ends, then draw each episode's weight from M (SPEC "
-             "§6; MB 1.3.0 gpi_pd.py:722,733,785-786); ours' sub-envs keep the episode in progress and draw every "
-             "new episode's weight from M from the iteration's start (found by issue 48's parity audit)"),
-    "train_iteration.change_weight_every_episode": Code("algorithms.gpi: a support weight per episode"),
+    # (true: the first episode of an iteration is w's, later ones draw from M: SPEC §6; ours "w", the recipe's reset
+    # at begin_iteration; false would act with w throughout, which no option of ours does)
+    "train_iteration.change_w_every_episode": Same("gpi_first_episode", expect=lambda v, cfg: "w" if v else "(none)"),
+    "train_iteration.change_weight_every_episode": Same("gpi_first_episode", expect=lambda v, cfg: "w" if v else "(none)"),
     "train_iteration.eval_freq": Same("eval_interval"),
     "train_iteration.reset_learning_starts": _ONE_CALL,
     "train_iteration.reset_num_timesteps": _ONE_CALL,
@@ -600,7 +597,11 @@ GPI = {
     "derived.eval_gpi_indexing_note": Same("gpi_eval_conditioning", expect=lambda v, cfg: "authors"),
     "derived.train_action": Code("algorithms.gpi: pi(s, w) + clipped Gaussian noise"),
     "derived.eval_action": Code("algorithms.gpi: greedy GPI over the support"),
-    "derived.rows_per_gradient_step": Code("algorithms.gpi: the batch doubled with support weights"),
+    # (the batch doubled, its first half under the iteration's w; gpi_update_weight="episode", MB's reading, differs)
+    "derived.rows_per_gradient_step": Same(
+        "2 * batch_size, first half under gpi_update_weight",
+        ours=lambda cfg: 2 * cfg.batch_size if cfg.gpi_update_weight == "iteration"
+        else f"{2 * cfg.batch_size}, the first half under the episode's weight"),
     "derived.gradient_steps_per_env_step": Same("gpi_gradient_updates"),
     "derived.iterations": Same("frames // gpi_iteration_frames", ours=lambda cfg: cfg.frames // cfg.gpi_iteration_frames),
 }

@@ -6,7 +6,7 @@ can snapshot it (:meth:`~morl_trl.envs.base.ContextualMOEnv.simulator_state`, op
 domain: MO-LavaGrid and the MuJoCo domains can, Box2D's MO-LunarLander and Mario cannot), and every transform's
 running state: its random generator, seed bookkeeping, and the attributes some transforms
 keep outside the TensorDict (``StateActionHistory``'s history, ``PreferenceConditioning``'s
-current preferences and cursor) plus any registered buffers; and the stream of the base env's
+current preferences, cursor and a next preference not yet given) plus any registered buffers; and the stream of the base env's
 context sampler (domain randomization draws inside the env).
 """
 
@@ -20,7 +20,7 @@ from torchrl.envs import TransformedEnv
 __all__ = ["env_state", "load_env_state", "load_context_sampler_state", "can_snapshot", "base_env_of", "transforms_of"]
 
 # attributes (outside buffers) in which morl_trl's transforms keep running state
-_ATTRS = ("_history", "_current", "_cursor", "_seed", "_env_seed_seen", "_checked_parent")
+_ATTRS = ("_history", "_current", "_cursor", "_seed", "_env_seed_seen", "_checked_parent", "_first", "_first_left")
 
 
 def base_env_of(env):

@@ -48,6 +48,10 @@ class PreferenceConditioning(SeededTransform):
     step, so each stored transition carries the preference its action was chosen with (the
     authors' CAPQL). ``"given"`` cannot be resampled.
 
+    :meth:`set_next_preference` gives every sub-env's *next* episode a chosen ``w`` once (in any
+    sampling mode), after which its episodes follow the mode again: GPI-LS's first episode of an
+    iteration, which acts with the iteration's new weight (SPEC §6).
+
     In the sampling modes a preference in the reset TensorDict is ignored (TorchRL's
     auto-resets carry the previous one there). Seeding follows
     :class:`~morl_trl.transforms._utils.SeededTransform`; the preference stream is independent
@@ -122,6 +126,8 @@ class PreferenceConditioning(SeededTransform):
         self.alpha = alpha_t
         self._cursor = 0
         self._current: torch.Tensor | None = None
+        self._first: torch.Tensor | None = None  # set_next_preference's w [k], until every sub-env has had it
+        self._first_left: torch.Tensor | None = None  # the sub-envs [*B] still to get it (None: all of them)
         self._init_seed(seed)
 
     # ------------------------------------------------------------------ sizes and specs
@@ -187,6 +193,33 @@ class PreferenceConditioning(SeededTransform):
             raise RuntimeError(f"sample() does not apply to mode {self.mode!r}")
         return self.weights[rows]
 
+    def set_next_preference(self, w) -> None:
+        """Every sub-env's next episode gets ``w`` (``[k]``, on the simplex; ``ValueError`` naming it
+        otherwise), once; each sub-env's later episodes follow the mode again, drawing nothing for the
+        episode that got ``w``. ``None`` withdraws a ``w`` not yet given. Not for ``mode="given"``, whose
+        preferences come in the reset TensorDict.
+
+        Example:
+            >>> from torchrl.envs import TransformedEnv
+            >>> from morl_trl.envs.toy import ToyContextEnv
+            >>> t = PreferenceConditioning(weights=[[1.0, 0.0], [0.5, 0.5]], mode="cycle")
+            >>> env = TransformedEnv(ToyContextEnv(num_envs=2), t)
+            >>> t.set_next_preference([0.0, 1.0])
+            >>> env.reset()["preference"].tolist(), env.reset()["preference"].tolist()
+            ([[0.0, 1.0], [0.0, 1.0]], [[1.0, 0.0], [0.5, 0.5]])
+        """
+        if w is None:
+            self._first = self._first_left = None
+            return
+        if self.mode == "given":
+            raise ValueError("mode='given' takes each preference from the reset TensorDict: pass it there")
+        w = torch.as_tensor(w, dtype=torch.float32)
+        if w.ndim != 1:
+            raise ValueError(f"set_next_preference takes one weight vector [{self.num_objectives}], "
+                             f"got shape {tuple(w.shape)}")
+        self._first = check_simplex(w.reshape(1, -1), self.num_objectives, name="next preference")[0].clone()
+        self._first_left = None
+
     def _given(self, tensordict: TensorDictBase | None, batch, device) -> torch.Tensor | None:
         """The preference in ``tensordict`` as ``[*batch, k]`` float32 (its width checked; its rows
         are checked on the simplex, for the sub-envs being reset only, in ``_reset_env_preprocess``)."""
@@ -235,6 +268,16 @@ class PreferenceConditioning(SeededTransform):
             new = current.clone() if given is None else torch.where(mask.unsqueeze(-1), given, current)
         else:
             new = current.clone()
+            if self._first is not None:  # (set_next_preference: these sub-envs' next episode is its w's)
+                left = self._first_left
+                left = mask.new_ones(mask.shape) if left is None else left.to(mask.device)
+                first = mask & left
+                new[first] = self._first.to(device)
+                mask = mask & ~first
+                left = left & ~first
+                self._first_left = left
+                if not bool(left.any()):
+                    self._first = self._first_left = None
             n = int(mask.sum())
             if n:
                 new[mask] = self.sample(n).to(device)

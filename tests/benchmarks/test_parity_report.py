@@ -470,6 +470,13 @@ def test_one_commits_page_uses_only_that_commits_runs_and_lists_every_other(pari
     text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567").read_text()
     assert ("| gpi_pd-dst | 0 / 0 | - | - | not run at `1234567` (other commits' runs, seeds 0-1: both learn, at parity) "
             "| - |") in text
+    # --case-commit: that case's tables read its own commit's runs (one commit per case, named at the top)
+    text = parity.write_results(out, [0, 1, 2], "cmd", commit="1234567", case_commits={"gpi_pd-dst": "abcdef0"}).read_text()
+    assert "| gpi_pd-dst | 2 / 2 | 16.80 [16.80, 16.80] | 16.80 [16.80, 16.80] | both learn, at parity (seeds 0-1; < 3 seeds) |" in text
+    assert ("(`--commit`), but for the cases run again at a later commit, each from that commit's runs only "
+            "(`--case-commit`): `gpi_pd-dst` at `abcdef0`; the 7 other runs") in text
+    with pytest.raises(SystemExit, match=r"--case-commit 'gpi_pd-dst=HEAD': give CASE=SHA"):
+        parity.main(["--report-only", "--commit", "1234567", "--case-commit", "gpi_pd-dst=HEAD", "--out", str(out)])
     # a case whose runs were all set aside (run again at another commit later): read from earlier/, the latest
     for lib in ("ours", "mb"):
         for seed in range(2):

@@ -243,3 +243,25 @@ def test_sampler_custom_draws_fixed_values_previous_and_state():
     assert torch.equal(a, _stream(3)(4))
     plain.set_state(state)
     assert torch.equal(plain.draw(4), a)
+
+
+def test_writing_into_an_output_in_place_does_not_change_the_env():
+    """TorchRL's ``Collector.reset()`` zeroes its carrier in place; the outputs used to share the env's own context
+    tensor, so a reset zeroed MO-LavaGrid's goals and reward weights (found when GPI-LS began resetting its
+    collector at each iteration) and the next draw failed on the zeroed goals."""
+    from torchrl.collectors import Collector
+
+    env, twin = make_env("MOLavaGridDR-v0", num_envs=2, seed=3), make_env("MOLavaGridDR-v0", num_envs=2, seed=3)
+    out, ref = env.reset(), twin.reset()
+    context = env.context.clone()
+    out["context"].zero_()
+    action = twin.full_action_spec.zero()["action"]
+    step = env.step(out.clone().set("action", action))
+    step["next", "context"].zero_()
+    assert torch.equal(env.context, context) and not torch.equal(context, torch.zeros_like(context))
+    ref = twin.step(ref.set("action", action))
+    assert torch.equal(step["next", "reward"], ref["next", "reward"])
+    collector = Collector(env, None, frames_per_batch=4, total_frames=8)
+    next(iter(collector))
+    collector.reset()  # (raised "index -12 is out of bounds" before)
+    assert (env.context != 0).any(dim=-1).all()

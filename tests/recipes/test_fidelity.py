@@ -16,8 +16,7 @@ SHARED_RECORD = ROOT.parent / "shared" / "reference" / "hyperparameters.toml"
 #: known differences not fixed yet (mechanisms: issue 27's w27m), as (algorithm, setting). Printed
 #: by the test; each must still differ on at least one domain (an entry that no longer differs is
 #: stale and must go, so nothing is hidden either way).
-KNOWN_OPEN: set = {("gpi_ls", "train_iteration.change_w_every_episode"),  # (issue 48: the first episode of an
-                   ("gpi_pd", "train_iteration.change_w_every_episode")}  # iteration is w's, SPEC §6 GPI-LS/PD)
+KNOWN_OPEN: set = set()  # (issue 48's one, the first episode of an iteration as w's, closed by gpi_first_episode="w")
 
 
 def test_the_record_has_42_pairs_and_every_algorithm_resolves_on_each():
@@ -50,9 +49,10 @@ def test_every_setting_of_every_pair_is_mapped_and_explained():
 
 def test_gpi_ls_on_lunar_lander_has_no_unexplained_row():
     rows = fidelity.compare("gpi_ls", "MOLunarLanderDR-v0")
-    assert [r.setting for r in rows if r.status.startswith(("differs", "unmapped"))] == [
-        "train_iteration.change_w_every_episode"]  # (the one known open difference: KNOWN_OPEN)
+    assert [r.setting for r in rows if r.status.startswith(("differs", "unmapped"))] == []
     by = {r.setting: r for r in rows}
+    assert (by["train_iteration.change_w_every_episode"].our_key, by["train_iteration.change_w_every_episode"].ours) \
+        == ("gpi_first_episode", "w")
     assert (by["init.gradient_updates"].our_key, by["init.gradient_updates"].ours) == ("gpi_gradient_updates", 1)
     assert (by["train.num_eval_episodes_for_front"].ours, by["init.learning_starts"].ours) == (3, 100)
     assert by["init.project_name"].status.startswith("not applicable: logging identity")
@@ -63,6 +63,12 @@ def test_a_changed_value_is_reported_as_a_difference():
     by = {r.setting: r for r in fidelity.compare("gpi_ls", "MOLunarLanderDR-v0", cfg)}
     assert by["init.gradient_updates"].status == "differs: ours 20, the authors' 1"
     assert by["init.learning_rate"].status == "differs: ours 0.001, the authors' 0.0003"
+    # MB's readings of GPI's episodes and update weight are options, reported as differences from the authors'
+    cfg = resolve_config("gpi_ls", "MOLunarLanderDR-v0", gpi_first_episode="support", gpi_update_weight="episode")
+    by = {r.setting: r for r in fidelity.compare("gpi_ls", "MOLunarLanderDR-v0", cfg)}
+    assert by["train_iteration.change_w_every_episode"].status == "differs: ours 'support', the authors' 'w'"
+    assert by["derived.rows_per_gradient_step"].status == \
+        "differs: ours \"256, the first half under the episode's weight\", the authors' 256"
 
 
 def test_every_setting_has_exactly_one_rule_home():

@@ -45,9 +45,56 @@ def test_first_iteration_trains_e1_with_the_other_extrema_in_the_support():
     _, env, agent = _agent("gpi_ls")
     np.testing.assert_array_equal(agent.weight, [1, 0])
     np.testing.assert_array_equal(agent.support, [[0, 1], [1, 0]])
-    prefs = env.reset()["preference"]  # the sub-envs draw their episode's weight from the support
-    assert all(any(torch.allclose(p, torch.tensor(m, dtype=torch.float32)) for m in agent.support) for p in prefs)
+    # every sub-env's first episode acts with w = e_1 (SPEC §6), later ones draw their weight from the support
+    assert env.reset()["preference"].tolist() == [[1.0, 0.0]] * 4
+    assert env.reset()["preference"].tolist() == [[0.0, 1.0], [1.0, 0.0], [1.0, 0.0], [1.0, 0.0]]
     torch.testing.assert_close(agent.loss.current_weight, torch.tensor([1.0, 0.0]))
+
+
+@pytest.mark.parametrize("first", ["w", "support"])
+def test_an_iteration_begins_with_every_sub_env_reset_acting_with_w_as_the_authors(first):
+    """SPEC §6 (the authors' and MB's train_iteration: env.reset(), then act with the new corner weight w until that
+    episode ends, then random.choice(M)); ``gpi_first_episode="support"``: the episodes in progress go on."""
+    from morl_trl.runs.env_state import base_env_of
+    from morl_trl.training.parts import make_collector
+
+    cfg, env, agent = _agent("gpi_ls", gpi_first_episode=first)
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    collector = make_collector(cfg, env, agent.explore_policy, torch.device("cpu"), return_same_td=True)
+    batches = iter(collector)
+    batch = next(batches)  # [4 sub-envs, 8 steps]: 32 frames
+    assert batch["preference"][:, 0].tolist() == ([[1.0, 0.0]] * 4 if first == "w" else
+                                                 [[0.0, 1.0], [1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    on_batch(agent, batch, buffer, 32)
+    on_batch(agent, next(batches), buffer, 64)  # the iteration ends; no episode has ended yet (16 steps each)
+    steps = base_env_of(env)._step_count
+    preference_before = collector._carrier["preference"].clone()
+    assert steps.tolist() == [16] * 4 and agent.begin_pending
+    agent.begin_pending_iteration(buffer, collector)
+    np.testing.assert_array_equal(agent.weight, [0, 1])
+    batch = next(batches)
+    if first == "w":  # new episodes, all acting with w = e_2
+        assert batch["preference"].tolist() == [[[0.0, 1.0]] * 8] * 4
+        assert batch["episode_return"][:, 0].abs().sum() == 0 and base_env_of(env)._step_count.tolist() == [8] * 4
+    else:  # the episodes in progress go on
+        assert torch.equal(batch["preference"][:, 0], preference_before)
+        assert base_env_of(env)._step_count.tolist() == [24] * 4
+
+
+@pytest.mark.parametrize("weight", ["iteration", "episode"])
+def test_the_update_weight_is_the_iterations_or_with_the_option_the_episodes_as_mb(weight):
+    """``gpi_update_weight``: the first half of each update's batch under the iteration's w (SPEC §6, the record), or
+    under the weight of sub-env 0's episode at the batch's last step (MB 1.3.0's ``update(tensor_w)``)."""
+    cfg, env, agent = _agent("gpi_ls", gpi_update_weight=weight, init_random_frames=0)
+    buffer = make_replay_buffer(cfg, torch.device("cpu"))
+    td = env.rollout(8, agent.explore_policy, break_when_any_done=False)
+    td["preference"][0, -1] = torch.tensor([0.0, 1.0])  # (sub-env 0's last step acted with e_2)
+    on_batch(agent, td, buffer, 32)
+    expected = [0.0, 1.0] if weight == "episode" else [1.0, 0.0]
+    assert agent.loss.current_weight.tolist() == expected
+    on_batch(agent, env.rollout(8, agent.explore_policy, break_when_any_done=False), buffer, 64)
+    agent.begin_pending_iteration(buffer)
+    assert agent.loss.current_weight.tolist() == [0.0, 1.0]  # the next iteration's w (its PER priorities under it)
 
 
 def test_iterations_grow_the_ccs_and_pick_the_next_weight():

@@ -221,3 +221,37 @@ def test_step_resampling_is_stored_in_rollouts_and_rejects_given():
     with pytest.raises(ValueError, match="resample must be one of"):
         PreferenceConditioning(2, resample="always")
     assert "resample='step'" in repr(env.transform)
+
+
+def test_a_next_preference_goes_once_to_each_sub_envs_next_episode_and_draws_nothing_for_it():
+    """GPI-LS's first episode of an iteration (SPEC §6): ``set_next_preference(w)`` gives ``w`` to each sub-env's
+    next episode, partial resets included, then the mode again; the episodes that got ``w`` draw nothing, so the
+    mode's stream goes on where it was."""
+    weights = [[1.0, 0.0], [0.0, 1.0], [0.25, 0.75]]
+    env = make(3, weights=weights, mode="random", seed=3)
+    plain = make(3, weights=weights, mode="random", seed=3)
+    td, ref = env.reset(), plain.reset()
+    assert torch.equal(td["preference"], ref["preference"])
+    env.transform.set_next_preference([0.5, 0.5])
+    td = env.reset(td.set("_reset", torch.tensor([[False], [True], [False]])))  # sub-env 1 first
+    assert td["preference"][1].tolist() == [0.5, 0.5]
+    assert torch.equal(td["preference"][[0, 2]], ref["preference"][[0, 2]])
+    td = env.reset()  # all three: 0 and 2 get w now, 1 draws the mode's first row
+    assert td["preference"][[0, 2]].tolist() == [[0.5, 0.5], [0.5, 0.5]]
+    assert td["preference"][1].tolist() == plain.transform.sample(1)[0].tolist()
+    assert env.transform._first is None  # (every sub-env had it)
+    assert torch.equal(env.reset()["preference"], plain.transform.sample(3))  # the mode's stream, in step
+    env.transform.set_next_preference([0.0, 1.0])
+    env.transform.set_next_preference(None)  # withdrawn before any reset
+    assert torch.equal(env.reset()["preference"], plain.transform.sample(3))
+
+
+def test_a_next_preference_off_the_simplex_or_in_given_mode_is_refused_naming_it():
+    env = make(2, seed=0)
+    with pytest.raises(ValueError, match=r"next preference row 0 = \[0.7, 0.7\] sums to 1.4"):
+        env.transform.set_next_preference([0.7, 0.7])
+    with pytest.raises(ValueError, match=r"one weight vector \[2\], got shape \(2, 2\)"):
+        env.transform.set_next_preference([[1.0, 0.0], [0.0, 1.0]])
+    assert env.transform._first is None  # nothing pending after a refusal
+    with pytest.raises(ValueError, match="mode='given' takes each preference from the reset TensorDict"):
+        make(2, mode="given").transform.set_next_preference([1.0, 0.0])

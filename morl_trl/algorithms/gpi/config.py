@@ -63,6 +63,8 @@ class GPILSConfig:
     gpi_dropout: float = 0.01  # init.drop_rate
     gpi_layer_norm: bool = True  # init.layer_norm
     gpi_eval_conditioning: str = "authors"  # derived.eval_gpi_indexing_note
+    gpi_first_episode: str = "w"  # train_iteration.change_w_every_episode (SPEC §6: the first episode of an iteration is w's)
+    gpi_update_weight: str = "iteration"  # derived.rows_per_gradient_step ("half with the iteration weight", SPEC §6)
     gpi_gradient_updates: int = 1  # init.gradient_updates (every script passes 1)
     gpi_min_priority: float = 0.01  # init.min_priority
     gpi_dynamics_rollout_starts: int = 5_000  # MB's dynamics_rollout_starts (GPI-LS: when gpi_gradient_updates starts)

@@ -17,10 +17,14 @@ named steps these call: :meth:`GPIAgent.sample_batch`, :meth:`GPIAgent.fit_model
 2. The next iteration's weight ``w``: the corner weights of the CCS, each prioritised by
    how much the GPI policy over the CCS's weight support improves on the CCS there (the
    first ``k`` iterations take the extrema). ``M`` = the CCS's weights + the 4 best corners + ``w``.
-3. Collection: each sub-env draws its episode's preference from ``M`` (the authors'
-   ``change_w_every_episode``); actions are epsilon-greedy around GPI over ``M`` and the
-   sub-env's ``w``. PER priorities are recomputed for the whole buffer under ``w``.
-4. Updates (:class:`~morl_trl.objectives.GPILoss`): 1 per frame, ``gpi_gradient_updates``
+3. Collection: when an iteration begins every sub-env is reset and its first episode acts with
+   ``w``; each later episode draws its preference from ``M`` (the authors'
+   ``change_w_every_episode``, SPEC §6; ``gpi_first_episode="support"``: no reset, every new
+   episode from ``M``); actions are epsilon-greedy around GPI over ``M`` and the sub-env's
+   preference. PER priorities are recomputed for the whole buffer under ``w``.
+4. Updates (:class:`~morl_trl.objectives.GPILoss`; the first half of each doubled batch under
+   ``w``, or with ``gpi_update_weight="episode"`` MORL-Baselines' reading, the weight of sub-env
+   0's episode at the batch's last step): 1 per frame, ``gpi_gradient_updates``
    per frame once ``frames >= gpi_dynamics_rollout_starts`` (the authors' gating, for GPI-LS
    too; every script of theirs passes ``gradient_updates 1``, so 1 per frame throughout);
    a hard target copy every ``target_update_period`` frames.
@@ -181,10 +185,14 @@ class GPIAgent(Agent):
         for v, w in zip(values, self.support):
             self.linear_support.add_solution(v, w)
 
-    def begin_iteration(self, buffer) -> None:
+    def begin_iteration(self, buffer, collector=None) -> None:
         """The next iteration: its weight ``w`` (the extrema first, then the corner weight of the CCS with the
         highest GPI priority), the support ``M`` (the CCS's weights + the 4 best corners + ``w``) set on the loss,
-        the policies and the sub-envs' preferences; the discrete PER priorities of ``buffer`` recomputed under ``w``."""
+        the policies and the sub-envs' preferences; the discrete PER priorities of ``buffer`` recomputed under ``w``.
+        With ``gpi_first_episode="w"`` (the authors') every sub-env's next episode acts with ``w``, and
+        ``collector`` (when given) is reset so that this episode starts now, as the authors' ``train_iteration``
+        resets its env (SPEC §6); without a collector (the first iteration, before the collector's own first
+        reset) each sub-env's next reset gives it ``w``."""
         ls = self.linear_support
         if ls.ccs:
             ccs_support = np.stack(ls.get_weight_support())
@@ -201,6 +209,10 @@ class GPIAgent(Agent):
         self._apply_weights()
         if buffer is not None and self.cfg.prioritized and len(buffer) and not self.continuous:  # (discrete only)
             self._reset_priorities(buffer)
+        if self.cfg.gpi_first_episode == "w" and self.preference_transform is not None:
+            self.preference_transform.set_next_preference(torch.as_tensor(self.weight, dtype=torch.float32))
+            if collector is not None:
+                collector.reset()  # (the episode in progress ends here, as the authors' env.reset() at train_iteration)
 
     @torch.no_grad()
     def _reset_priorities(self, buffer, chunk: int = 1000) -> None:
@@ -211,7 +223,7 @@ class GPIAgent(Agent):
             td = buffer.storage[index].to(self.device)
             buffer.update_priority(index, self.loss.priorities(td))
 
-    def begin_pending_iteration(self, buffer) -> None:
+    def begin_pending_iteration(self, buffer, collector=None) -> None:
         """The next iteration (:meth:`begin_iteration`) once the one that ended (``begin_pending``) has been
         evaluated: :func:`train_gpi` calls this after ``run.step``, so an evaluation due at an iteration's end
         acts by GPI over the support ``M`` that iteration trained on, as MORL-Baselines' ``GPIPD.train`` (its
@@ -220,9 +232,21 @@ class GPIAgent(Agent):
         trained on), deep-sea-treasure seed 11 read 0.663 at 20k frames where the trained ``M`` gave 0.844.
         Not after the run's last frame (MB begins no iteration after its last)."""
         if self.begin_pending and self.frames < self.cfg.frames:
-            self.begin_iteration(buffer)
+            self.begin_iteration(buffer, collector)
 
     # ------------------------------------------------------------------ learning
+    def use_episode_weight(self, batch: TensorDictBase) -> None:
+        """``gpi_update_weight="episode"`` (MORL-Baselines 1.3.0's reading: its ``update(tensor_w)`` with the
+        weight of the episode in progress, gpi_pd.py:763,785-786): the loss's ``w`` for the coming updates is the
+        preference sub-env 0 acted with at ``batch``'s last step; :meth:`begin_iteration` sets it back to the
+        iteration's ``w`` (the PER priorities it recomputes are under that ``w``, as in MB)."""
+        pref = batch.get("preference", None)
+        if pref is None:
+            raise ValueError("gpi_update_weight='episode' needs the collected preference (a PreferenceConditioning "
+                             "transform on the training env)")
+        w = pref.reshape(-1, batch.shape[-1], self.k)[0, -1]
+        self.loss.current_weight.copy_(w.to(self.loss.current_weight.device, torch.float32))
+
     def sample_batch(self, buffer):
         """``(batch, real part)``: ``gpi_real_ratio`` real transitions and model ones once the model buffer has some."""
         cfg = self.cfg
@@ -322,6 +346,8 @@ class GPIAgent(Agent):
         self.iteration, self.iteration_end = state["iteration"], state["iteration_end"]
         self.begin_pending = bool(state.get("begin_pending", False))
         self.evaluations, self.frames, self.continuous_updates = state["evaluations"], state["frames"], state.get("updates", 0)
+        if self.preference_transform is not None:  # (the env's state, restored with the run, says what is pending)
+            self.preference_transform.set_next_preference(None)
         if self.dynamics is not None and state.get("dynamics") is not None:
             self.dynamics.model.load_state_dict(state["dynamics"])
         self._apply_weights()
@@ -437,13 +463,14 @@ def train_gpi(run: Run) -> tuple[dict, GPIAgent]:
     # checkpoint when due; then the next w and M. A checkpoint is the state at the end of a batch.
     with run.session(spec, reference, evaluator=evaluator, snapshot=snapshot, buffer=buffer, collector=collector,
                      notes=start_notes(cfg, run, spec, reference)):
-        agent.begin_pending_iteration(buffer)  # (a resumed run: an iteration that ended at its checkpoint begins, RNG restored)
+        agent.begin_pending_iteration(buffer, collector)  # (a resumed run: an iteration that ended at its checkpoint begins, RNG restored)
         for batch in collector:  # (uniformly random actions for the first init_random_frames)
             frames = run.collected(batch)
             losses, updates = on_batch(agent, batch, buffer, frames)  # (a non-finite loss raises, counting those applied)
             collector.update_policy_weights_()
             run.step(losses, updates, epsilon=agent.epsilon)  # (an evaluation due now acts by GPI over this M)
-            agent.begin_pending_iteration(buffer)  # the next w (a corner weight), M, the discrete PER priorities under w
+            # the next w (a corner weight), M, the discrete PER priorities under w; the sub-envs reset to act with w
+            agent.begin_pending_iteration(buffer, collector)
     return run.summary, agent
 
 
@@ -495,6 +522,8 @@ def on_batch(agent: GPIAgent, batch: TensorDictBase, buffer, frames: int) -> tup
     agent.store(buffer, batch)  # the entries the loss reads
     losses, updates = None, 0
     if frames >= cfg.init_random_frames:
+        if cfg.gpi_update_weight == "episode":
+            agent.use_episode_weight(batch)
         if agent.dynamics is not None:
             agent._dyna(buffer, prev, frames)  # the model fit on the whole real buffer; imagined transitions
         gated = not agent.continuous and frames < cfg.gpi_dynamics_rollout_starts

@@ -45,7 +45,8 @@ _ADDED_LATER = {"q_lr": None, "alpha_lr": None, "adam_eps": None, "update_freque
                 "gpi_dynamics_max_grad_norm": None, "pgmorl_reset_each_iteration": False,
                 "pgmorl_reseed_each_iteration": False,
                 "morld_eval_episodes": 0, "morld_schedule": "concurrent", "morld_update_passes": 10,
-                "morld_archive_initial": False, "capql_log_prob": "exact"}
+                "morld_archive_initial": False, "capql_log_prob": "exact",
+                "gpi_first_episode": "support", "gpi_update_weight": "iteration"}
 
 
 def upgrade_keys(values: dict[str, Any], algo: str, source: str, *, saved: bool = False) -> dict[str, Any]:
