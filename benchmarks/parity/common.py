@@ -705,10 +705,27 @@ def current_commit() -> str:
     return (sha + ("+dirty" if dirty else "")) if sha else "unknown"
 
 
+def machine() -> str:
+    """The CPU that runs this process (``/proc/cpuinfo``'s model name, else ``platform.processor()``), with its
+    logical core count: float32 results differ by ~1e-7 between CPUs (AVX2 / AVX-512, AMD / Intel), which is enough
+    to set an RL run on another trajectory, so a rerun on another machine is a new sample, not a check."""
+    import platform
+
+    name = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                name = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{name or platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+
+
 def write_result(path: Path, data: dict) -> None:
     """Atomically: a crash never leaves a half-written result that a rerun would skip. The result records
-    the commit that made it (``commit``), unless it already says."""
-    data = {**data, "commit": data.get("commit") or current_commit()}
+    the commit that made it (``commit``) and the machine (:func:`machine`), unless it already says."""
+    data = {**data, "commit": data.get("commit") or current_commit(), "machine": data.get("machine") or machine()}
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as fh:

@@ -454,8 +454,9 @@ def write_results(out: Path, seeds: list[int], command: str, compute_floors: boo
                 per_method.setdefault(spec["algo"], []).append((case, said))
             summary.append(f"| {row_name} | 0 / 0 | - | - | {said} | - | - | - | - | - | - |")
             continue
+        machines = sorted({r.get("machine", "not recorded") for rs in runs.values() for r in rs})
         body += ["Seeds done: " + ", ".join(f"{lib} {s}" for lib, s in sorted(done.items()))
-                 + f" (target: {len(seeds)} per library)", ""]
+                 + f" (target: {len(seeds)} per library); machine: " + "; ".join(machines), ""]
         body += ["| metric | " + " | ".join(f"{lib} IQM [95% CI]" for lib in sorted(runs)) + " |",
                  "|---|" + "---|" * len(runs)]
         ci: dict[str, tuple[float, float, float]] = {}

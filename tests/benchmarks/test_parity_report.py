@@ -454,6 +454,8 @@ def test_one_commits_page_uses_only_that_commits_runs_and_lists_every_other(pari
     assert "Only the runs made at `1234567` (from a clean checkout) are in the tables and verdicts (`--commit`); " \
            "the 7 other runs are listed under their cases." in text
     assert "Seeds done: mb [0, 1, 2], ours [0, 1, 2]" in text  # (not the dirty seed 7)
+    from common import machine  # every result records the CPU that made it: another CPU is another trajectory
+    assert f"(target: 3 per library); machine: {machine()}\n" in text and machine().endswith(" cores")
     assert "| final hypervolume | 91.000 [90.000, 92.000] | 101.000 [100.000, 102.000] |" in text
     assert "| ours | 1 | `abcdef0` | 0 | 51 | `earlier/` |" in text
     assert "| ours | 7 | `1234567+dirty` | - | 3 | another commit |" in text
