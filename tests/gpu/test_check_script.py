@@ -3,6 +3,8 @@ on a GPU machine is not its first run."""
 
 from __future__ import annotations
 
+import pytest
+
 import os
 import subprocess
 from pathlib import Path
@@ -10,6 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow  # (~37 s on a 2-core Intel machine: run with -m slow before a GPU session)
 def test_the_gpu_check_runs_every_stage_on_the_cpu(tmp_path):
     env = {**os.environ, "OUT": str(tmp_path), "PYTHON": os.environ.get("PYTHON", "python")}
     done = subprocess.run(["bash", str(ROOT / "benchmarks/gpu/check.sh"), "--device", "cpu", "--tiny"], cwd=ROOT,

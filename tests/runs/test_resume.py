@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 import csv
 from pathlib import Path
 
@@ -33,6 +35,7 @@ def _last_eval_frames(run: Path) -> int:
     return max((int(r[0]) for r in rows[1:] if r and r[0].isdigit()), default=-1)
 
 
+@pytest.mark.slow  # (~36 s; SIGTERM and resume stay covered by tests/runs/test_signals.py)
 def test_kill_and_resume_gives_the_files_of_an_uninterrupted_run(tmp_path):
     # 4 sub-envs x 384 steps: training episodes end (truncation at 256) on both sides of the kill
     settings = dict(frames=1536, num_envs=4, checkpoint_interval=512, eval_interval=256)
