@@ -240,7 +240,8 @@ class GPIAgent(Agent):
         weight of the episode in progress, gpi_pd.py:763,785-786): the loss's ``w`` for the coming updates is the
         preference sub-env 0 acted with at ``batch``'s last step; :meth:`begin_iteration` sets it back to the
         iteration's ``w`` (the PER priorities it recomputes are under that ``w``, as in MB)."""
-        pref = batch.get("preference", None)
+        key = "preference" if self.preference_transform is None else self.preference_transform.preference_key
+        pref = batch.get(key, None)
         if pref is None:
             raise ValueError("gpi_update_weight='episode' needs the collected preference (a PreferenceConditioning "
                              "transform on the training env)")
