@@ -10,7 +10,13 @@ what it has to do, on the transition layout of Envelope on deep-sea-treasure:
 2. ``TensorDictReplayBuffer.sample`` against the sampler call + ``storage.get`` it wraps, and
    :class:`~morl_trl.data.lean.LeanTensorDictReplayBuffer`'s;
 3. a collector batch's ``clone()`` (``Collector.iterator`` clones every batch unless
-   ``return_same_td=True``), which with ``frames_per_batch=1`` is a copy per frame.
+   ``return_same_td=True``), which with ``frames_per_batch=1`` is a copy per frame;
+4. ``TensorDict.set`` of an entry a one-env step writes (a ``[1, 2]`` float) against the same write
+   without the value validation (``_set_str(..., validated=True)``) and a ``dict`` store: an env step
+   and its transforms write about nine such entries;
+5. TorchRL's ``EGreedyModule`` on a one-env batch against the tensor ops it performs (a uniform draw
+   against ε, ``spec.rand()``, ``torch.where``, one write);
+6. a ``TensorDictModule`` around a ``[64, 64]`` MLP against the MLP's own call on the same tensors.
 
     python benchmarks/torchrl_overheads.py
 """
@@ -58,10 +64,48 @@ def main() -> int:
     batch = TensorDict({**{f"k{i}": torch.zeros(1, 1, 2) for i in range(12)},
                         "next": TensorDict({f"k{i}": torch.zeros(1, 1, 2) for i in range(10)}, [1, 1])}, [1, 1])
     rows.append(("collector batch clone (22 entries, [1, 1])", _timed(batch.clone)))
+    rows += _per_step_rows()
     print(f"torch {torch.__version__}; us per call (process CPU time, 1 thread)")
     for name, us in rows:
         print(f"  {name:<48} {us:8.1f}")
     return 0
+
+
+def _per_step_rows() -> list[tuple[str, float]]:
+    """Rows 4-6: the per-call costs inside a one-env step (the env's writes, ε-greedy, a module call)."""
+    from tensordict.nn import TensorDictModule
+    from torchrl.data import Categorical
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+    from torchrl.modules import MLP, EGreedyModule
+
+    rows = []
+    td = TensorDict({"observation": torch.zeros(1, 2), "reward": torch.zeros(1, 2)}, [1])
+    value, plain = torch.ones(1, 2), {}
+    rows.append(("TensorDict.set ([1, 2] float, existing key)", _timed(lambda: td.set("reward", value))))
+    rows.append(("  the same write, validated=True", _timed(
+        lambda: td._set_str("reward", value, validated=True, inplace=False))))
+    rows.append(("  a dict store", _timed(lambda: plain.__setitem__("reward", value))))
+
+    spec = Categorical(4, shape=(1,))
+    egreedy = EGreedyModule(spec, eps_init=0.5)
+    td.set("action", torch.zeros(1, dtype=torch.long))
+    eps = egreedy.eps
+
+    def by_hand():  # what EGreedyModule.forward computes for this batch
+        cond = torch.rand(td.shape) < eps
+        td.set("action", torch.where(cond, spec.rand(), td.get("action")))
+
+    with set_exploration_type(ExplorationType.RANDOM):
+        rows.append(("EGreedyModule (one-env batch)", _timed(lambda: egreedy(td))))
+        rows.append(("  its tensor ops and one write", _timed(by_hand)))
+
+    mlp = MLP(in_features=4, out_features=8, num_cells=[64, 64])
+    module = TensorDictModule(lambda o, w: mlp(torch.cat([o, w], -1)), in_keys=["observation", "reward"],
+                              out_keys=["action_value"])
+    o, w = td.get("observation"), td.get("reward")
+    rows.append(("TensorDictModule([64, 64] MLP) call", _timed(lambda: module(td))))
+    rows.append(("  the MLP's own call", _timed(lambda: mlp(torch.cat([o, w], -1)))))
+    return rows
 
 
 if __name__ == "__main__":
