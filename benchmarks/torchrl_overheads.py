@@ -30,8 +30,12 @@ from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, RandomSampler, TensorDictReplayBuffer
 
 
-def _timed(fn, n: int = 3000) -> float:
-    for _ in range(100):
+CALLS = 3000  # per row (--calls)
+
+
+def _timed(fn, n: int | None = None) -> float:
+    n = CALLS if n is None else n
+    for _ in range(min(100, n)):
         fn()
     t = time.process_time()
     for _ in range(n):
@@ -47,7 +51,13 @@ def _transition() -> TensorDict:
                       device="cpu")
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    global CALLS
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--calls", type=int, default=CALLS, help="timed calls per row")
+    CALLS = p.parse_args(argv).calls
     torch.set_num_threads(1)
     from morl_trl.data.lean import LeanTensorDictReplayBuffer
 
