@@ -290,6 +290,9 @@ def run(case_name: str, seed: int, out: Path) -> None:
         else:
             from morl_baselines.multi_policy.gpi_pd.gpi_pd import GPILS, GPIPD
             cls = GPILS if algo == "gpi_ls" else GPIPD
+        if isinstance(kw.get("dynamics_train_freq"), int):  # (MB's GPIPD takes a callable of the step)
+            every = kw["dynamics_train_freq"]
+            kw["dynamics_train_freq"] = lambda timestep: every
     elif algo == "pcn":
         from morl_baselines.multi_policy.pcn.pcn import PCN as cls
         kw["scaling_factor"] = np.asarray(kw["scaling_factor"], dtype=np.float32)
