@@ -6,12 +6,14 @@ the final HV ratio, the commit, the machine and the training CPU time.
 
     python benchmarks/parity/q_check.py [CASE]
 
-Every seed found is listed (none dropped); a library's summary counts the seeds whose estimates exceed the bound.
+Every seed found is listed (none dropped); a library's summary counts the seeds whose estimates exceed the bound, and
+with at least two seeds a side, a two-sided Mann-Whitney U test compares the two libraries' largest estimates.
 """
 
 from __future__ import annotations
 
 import json
+import statistics
 import sys
 from pathlib import Path
 
@@ -61,6 +63,15 @@ def table(by_lib: dict[str, list[dict]]) -> str:
         lines.append(f"\n{lib}: {len(rs)} seeds ({', '.join(str(r['seed']) for r in rs)}); the largest estimate exceeds "
                      f"the bound on {n_exceed}, the largest batch mean on {n_mean}; max w.Q from "
                      f"{min(r['max_q'] for r in rs):.1f} to {max(r['max_q'] for r in rs):.1f}")
+    if len(by_lib.get("ours", [])) >= 2 and len(by_lib.get("mb", [])) >= 2:
+        from scipy import stats
+
+        for key, name in (("max_q", "max w.Q"), ("max_mean_q", "max batch mean")):
+            ours, mb = [r[key] for r in by_lib["ours"]], [r[key] for r in by_lib["mb"]]
+            p = stats.mannwhitneyu(ours, mb, alternative="two-sided").pvalue
+            lines.append(f"{name}: median ours {statistics.median(ours):.1f} (mean {statistics.fmean(ours):.1f}), "
+                         f"MB {statistics.median(mb):.1f} (mean {statistics.fmean(mb):.1f}); "
+                         f"Mann-Whitney U two-sided p {p:.2g}")
     return "\n".join(lines)
 
 

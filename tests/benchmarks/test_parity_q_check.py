@@ -39,6 +39,20 @@ def test_every_seed_with_a_q_check_is_listed_and_the_exceeding_ones_counted(tmp_
     assert ("ours: 2 seeds (100, 101); the largest estimate exceeds the bound on 1, the largest batch mean on 0; "
             "max w.Q from 22.0 to 40.0") in text
     assert "mb: 1 seeds (100); the largest estimate exceeds the bound on 1, the largest batch mean on 1" in text
+    assert "Mann-Whitney" not in text  # (one MB seed: no test)
+
+
+def test_two_seeds_a_side_compare_the_libraries_by_mann_whitney(tmp_path):
+    case = tmp_path / "envelope-dst-mb"
+    case.mkdir()
+    for s, q in ((100, 30.0), (101, 40.0), (102, 50.0)):
+        _run(case / f"ours_s{s}.json", s, q, q / 2)
+    for s, q in ((100, 60.0), (101, 70.0), (102, 80.0)):
+        _run(case / f"mb_s{s}.json", s, q, q / 2)
+    text = Q.table(Q.rows("envelope-dst-mb", tmp_path))
+    # every ours value below every MB value: U = 0, exact two-sided p = 2 / C(6, 3) = 0.1
+    assert "max w.Q: median ours 40.0 (mean 40.0), MB 70.0 (mean 70.0); Mann-Whitney U two-sided p 0.1" in text
+    assert "max batch mean: median ours 20.0 (mean 20.0), MB 35.0 (mean 35.0); Mann-Whitney U two-sided p 0.1" in text
 
 
 def test_a_case_without_runs_says_so(tmp_path, monkeypatch, capsys):
