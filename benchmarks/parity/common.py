@@ -322,6 +322,17 @@ def reference_of(case: dict) -> str:
 _ONE_ENV = dict(num_envs=1, frames_per_batch=1, updates_per_batch=0)
 
 
+#: CAPQL on the paper's MO-Hopper (capql-hopper-paper, capql-hopper-paper-10k: the comment at the first says where
+#: each setting comes from); a case adds its frames and evaluation interval
+_CAPQL_HOPPER_PAPER = dict(
+    env="MOHopperDR-v5", algo="capql", gamma=0.99, paper=True, metric="nhgr", history_len=2, eval_weights=16,
+    ours=dict(_ONE_ENV),
+    mb=dict(net_arch=[256, 256, 256, 256], batch_size=256, alpha=0.2, tau=0.005, num_q_nets=2,
+            learning_starts=1000, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
+    mb_train=dict(),
+)
+
+
 def _paper_envelope(env: str, gamma: float, history_len: int, eps_frames: int, **mb_per_domain) -> dict:
     """A paper-domain Envelope case at 1,000 frames (evaluated every 250 on 16 weights, NHGR): ours one env with
     MB's weight input (``envelope_network="mb"``) and eps decaying over ``eps_frames``; MB with the record's
@@ -370,25 +381,11 @@ PAPER_CASES: dict[str, dict] = {
     # samples a batch without replacement, so it must be at least the batch, 256). SPEC §6's CAPQL list is the
     # same in MB 1.3.0 (a cone weight per step stored with the transition, deterministic tanh(mean) collection after learning_starts and at evaluation, per-objective
     # min of the target nets minus alpha log pi, one critic + one actor step per env step, no target actor).
-    "capql-hopper-paper": dict(
-        env="MOHopperDR-v5", algo="capql", frames=3_000, eval_every=750, gamma=0.99, paper=True,
-        metric="nhgr", history_len=2, eval_weights=16,
-        ours=dict(_ONE_ENV),
-        mb=dict(net_arch=[256, 256, 256, 256], batch_size=256, alpha=0.2, tau=0.005, num_q_nets=2,
-                learning_starts=1000, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
-        mb_train=dict(),
-    ),
+    "capql-hopper-paper": dict(_CAPQL_HOPPER_PAPER, frames=3_000, eval_every=750),
     # The same at 10,000 frames (9,000 updates), evaluated every 2,000: at 3,000 MB did not learn (gain 0.011, p 0.38;
     # NOTES.md, 2026-12-02), and 10,000 is the budget at which MB's CAPQL learns on MO-Gymnasium's hopper
     # (capql-hopper-10k). Chosen before any run of it, from that case, not tuned on its seeds.
-    "capql-hopper-paper-10k": dict(
-        env="MOHopperDR-v5", algo="capql", frames=10_000, eval_every=2_000, gamma=0.99, paper=True,
-        metric="nhgr", history_len=2, eval_weights=16,
-        ours=dict(_ONE_ENV),
-        mb=dict(net_arch=[256, 256, 256, 256], batch_size=256, alpha=0.2, tau=0.005, num_q_nets=2,
-                learning_starts=1000, learning_rate=3e-4, buffer_size=1_000_000, gradient_updates=1),
-        mb_train=dict(),
-    ),
+    "capql-hopper-paper-10k": dict(_CAPQL_HOPPER_PAPER, frames=10_000, eval_every=2_000),
 }
 if os.environ.get("PARITY_SMOKE"):
     for _c in PAPER_CASES.values():

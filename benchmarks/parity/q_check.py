@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import short_commit  # noqa: E402
+from common import result_path, short_commit  # noqa: E402
 
 SEEDS = range(100, 110)  # (issue 48: seeds 100-109)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -31,7 +31,7 @@ def rows(case: str, results: Path | None = None, seeds=SEEDS) -> dict[str, list[
     out: dict[str, list[dict]] = {}
     for lib in ("ours", "mb"):
         for s in seeds:
-            f = results / case / f"{lib}_s{s}.json"
+            f = result_path(results, case, lib, s)
             if not f.exists():
                 continue
             j = json.loads(f.read_text())
