@@ -35,8 +35,8 @@ from pathlib import Path
 
 # one paper domain per algorithm (the domains the paper ran each on: ../shared/reference/SPEC.md)
 PAIRS = ("envelope:MOLunarLanderDR-v0", "capql:MOHopperDR-v5", "gpi_ls:MOLunarLanderDR-v0",
-         "gpi_pd:MOLunarLanderDR-v0", "pcn:MOLunarLanderDR-v0", "morld:MOHopperDR-v5", "pgmorl:MOHopperDR-v5",
-         "sac:MOHopperDR-v5")
+         "gpi_pd:MOLunarLanderDR-v0", "pcn:MOLunarLanderDR-v0", "morld:MOHopperDR-v5", "morld_psa:MOHopperDR-v5",
+         "pgmorl:MOHopperDR-v5", "sac:MOHopperDR-v5")
 # What differs from the paper's settings, only so that a round takes seconds, not minutes (the
 # same for both checkouts): PGMORL collects 6 members x 4 envs x 2048 steps = 49,152 frames per
 # iteration at the paper's settings (minutes per iteration on one core), timed here on 24 x 256-step

@@ -37,3 +37,11 @@ def test_driver_prints_a_row_per_pair_for_two_checkouts(capsys, monkeypatch):
     # rounds alternate the checkouts; --as-before configures only 'after' as before
     assert [c[0] for c in calls] == ["old", "new", "new", "old"]
     assert calls[1][2] == {"pcn_er_episodes": 16, "hidden": [64, 64]} and calls[0][2] == {"pcn_er_episodes": 16}
+
+
+def test_default_pairs_cover_every_method_of_the_authors_record_once():
+    from morl_trl.recipes.fidelity import METHODS
+
+    algos = [pair.split(":")[0] for pair in _module().PAIRS]
+    assert sorted(algos) == sorted(set(METHODS.values()))
+    assert len(algos) == 9
