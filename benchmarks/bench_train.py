@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 import warnings
@@ -270,20 +271,40 @@ def one_env_main(args) -> int:
         peer_label = f"MORL-Baselines' own train() loop ({python})"
     print(f"torch {torch.__version__}, {torch.get_num_threads()} thread(s), {args.clock} clock; one env, "
           f"{args.one_env_frames} frames per case; peer: {peer_label}")
+    seeds = args.one_env_seeds
+    if len(seeds) > 1:
+        print(f"seeds {' '.join(map(str, seeds))}: a row per seed, then the case's medians (f/s of each library, "
+              f"and the median of the per-seed ratios)")
     print(f"{'case':<20} {'env':<30} {'ours f/s':>9} {'MB f/s':>9} {'ours/MB':>8}")
     for case in args.one_env:
-        r = ours_one_env(case, args.one_env_frames)
-        if python is None:
-            peer, ratio = "none", "-"
+        rows = []  # (ours f/s, MB f/s or None, ratio or None, peer text, ratio text)
+        for seed in seeds:
+            r = ours_one_env(case, args.one_env_frames, seed=seed)
+            m_fps = rate = None
+            if python is None:
+                peer, ratio = "none", "-"
+            else:
+                try:
+                    m_fps = mb_one_env(case, args.one_env_frames, python, seed=seed, clock=args.clock)["fps"]
+                    rate = r["fps"] / m_fps
+                    peer, ratio = f"{m_fps:.1f}", f"{rate:.2f}x"
+                except RuntimeError as err:
+                    peer, ratio = "failed", str(err)[:80]
+            rows.append((r["fps"], m_fps, rate, peer, ratio))
+            label = case if len(seeds) == 1 else f"{case} s{seed}"
+            print(f"{label:<20} {r['env']:<30} {r['fps']:>9.1f} {peer:>9} {ratio:>8}", flush=True)
+        fps = statistics.median(row[0] for row in rows)
+        if len(seeds) == 1:
+            peer, ratio = rows[0][3], rows[0][4]
         else:
-            try:
-                m = mb_one_env(case, args.one_env_frames, python, clock=args.clock)
-                peer, ratio = f"{m['fps']:.1f}", f"{r['fps'] / m['fps']:.2f}x"
-            except RuntimeError as err:
-                peer, ratio = "failed", str(err)[:80]
-        print(f"{case:<20} {r['env']:<30} {r['fps']:>9.1f} {peer:>9} {ratio:>8}", flush=True)
-        _table(args.table, "train-one-env", case, "cpu", "eager", "frames/s", f"{r['fps']:.1f}",
-               "" if python is None else peer, "" if python is None else ratio, r["env"])
+            mb_fps = [row[1] for row in rows if row[1] is not None]
+            rates = [row[2] for row in rows if row[2] is not None]
+            peer = f"{statistics.median(mb_fps):.1f}" if mb_fps else "none" if python is None else "failed"
+            ratio = f"{statistics.median(rates):.2f}x" if rates else "-"
+            print(f"{case + ' median':<20} {r['env']:<30} {fps:>9.1f} {peer:>9} {ratio:>8}", flush=True)
+        _table(args.table, "train-one-env", case, "cpu", "eager", "frames/s", f"{fps:.1f}",
+               "" if python is None else peer, "" if python is None else ratio,
+               r["env"] if len(seeds) == 1 else f"{r['env']}; median over seeds {' '.join(map(str, seeds))}")
     return 0
 
 
@@ -320,6 +341,10 @@ def main(argv=None) -> int:
     p.add_argument("--one-env", nargs="*", default=None, metavar="CASE",
                    help=f"ours vs MB end to end on parity cases (default: {' '.join(ONE_ENV_CASES)}) instead of the pairs")
     p.add_argument("--one-env-frames", type=int, default=2_000, help="frames per --one-env case")
+    p.add_argument("--one-env-seeds", type=int, nargs="+", default=[0],
+                   help="seeds per --one-env case (default: 0); with several, a row per seed and the medians: a case "
+                        "whose work per frame depends on the data (GPI-PD's dynamics fits stop early) reads differently "
+                        "from seed to seed")
     p.add_argument("--mb-python", default=None, help="MORL-Baselines' python for --one-env (default: the first of "
                                                      + ", ".join(map(str, MB_PYTHONS)) + " that exists)")
     args = p.parse_args(argv)

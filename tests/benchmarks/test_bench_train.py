@@ -58,3 +58,36 @@ def test_the_default_one_env_cases_cover_every_method():
 
     algos = [CASES[c]["algo"] for c in bt.ONE_ENV_CASES]
     assert sorted(algos) == ["capql", "envelope", "gpi_ls", "gpi_pd", "morld", "pcn", "pgmorl"]
+
+
+def test_one_env_seeds_print_a_row_per_seed_and_the_medians(capsys, tmp_path, monkeypatch):
+    bt = _module()
+    import sys
+
+    ours = {0: 60.0, 1: 40.0, 2: 70.0}
+    mb = {0: 100.0, 1: 90.0, 2: 40.0}
+    seen = []
+
+    def fake_ours(case, frames, seed=0):
+        seen.append(("ours", seed))
+        return {"fps": ours[seed], "env": "deep-sea-treasure-v0", "frames": frames, "algo": "gpi_pd"}
+
+    def fake_mb(case, frames, python, seed=0, clock="wall"):
+        seen.append(("mb", seed))
+        return {"fps": mb[seed], "frames": frames}
+
+    monkeypatch.setattr(bt, "ours_one_env", fake_ours)
+    monkeypatch.setattr(bt, "mb_one_env", fake_mb)
+    table = tmp_path / "table.tsv"
+    assert bt.main(["--one-env", "gpi_pd-dst", "--one-env-seeds", "0", "1", "2", "--mb-python", sys.executable,
+                    "--table", str(table)]) == 0
+    out = [line.split() for line in capsys.readouterr().out.splitlines()]
+    rows = {tuple(r[:2]): r[3:] for r in out if r and r[0] == "gpi_pd-dst"}
+    assert rows[("gpi_pd-dst", "s0")] == ["60.0", "100.0", "0.60x"]
+    assert rows[("gpi_pd-dst", "s1")] == ["40.0", "90.0", "0.44x"]
+    assert rows[("gpi_pd-dst", "s2")] == ["70.0", "40.0", "1.75x"]
+    # medians: ours 60, MB 90, and the median of the per-seed ratios (0.44, 0.60, 1.75), not 60 / 90 = 0.67
+    assert rows[("gpi_pd-dst", "median")] == ["60.0", "90.0", "0.60x"]
+    assert seen == [("ours", 0), ("mb", 0), ("ours", 1), ("mb", 1), ("ours", 2), ("mb", 2)]
+    fields = table.read_text().rstrip("\n").split("\t")
+    assert fields[5:] == ["60.0", "90.0", "0.60x", "deep-sea-treasure-v0; median over seeds 0 1 2"]
