@@ -67,6 +67,10 @@ CASES = {
     "gpi_ls_one_env": ("gpi_ls", "deep-sea-treasure-v0", dict(**_ONE, frames=400, eval_interval=400,
                                                            gpi_iteration_frames=200)),
     "capql_one_env": ("capql", "mo-mountaincarcontinuous-v0", dict(**_ONE, frames=300, eval_interval=300)),
+    # PCN on one MO-Gymnasium env (its own loop: a command per episode; the lean env step with the command transform)
+    "pcn_one_env": ("pcn", "fruit-tree-v0", dict(num_envs=1, eval_contexts=None, eval_episodes=1, eval_weights=6,
+                                                 frames=600, eval_interval=600, pcn_er_episodes=5, pcn_step_episodes=2,
+                                                 pcn_model_updates=3, batch_size=16, pcn_scaling_factor=[0.1] * 7)),
     # round robin: 3 members, turns of 64 frames (2 catch-up passes at each exchange)
     "morld": ("morld", "MOHopperDR-v5", dict(**{**_OFF, "updates_per_batch": 0}, **_HOP, num_envs=1, pop_size=3,
                                              exchange_every=64, frames=224, eval_interval=96)),

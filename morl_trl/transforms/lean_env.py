@@ -37,6 +37,7 @@ from morl_trl._torchrl_compat import (complete_done, env_reset, env_step, new_te
                                       tensordict_entries, transform_reset, transform_reset_preprocess, transform_step)
 from morl_trl.envs import ContextualMOEnv
 from morl_trl.envs.step_mdp import merge_reset, spec_cached, step_mdp_entries
+from morl_trl.transforms.command import DesiredReturnConditioning
 from morl_trl.transforms.history import StateActionHistory
 from morl_trl.transforms.preference import PreferenceConditioning
 from morl_trl.transforms.returns import DiscountedVectorReturn
@@ -44,7 +45,7 @@ from morl_trl.transforms.returns import DiscountedVectorReturn
 __all__ = ["LeanTransformedEnv", "LEAN_TRANSFORMS"]
 
 #: the transforms the short path runs (exact types: a subclass may add an inverse or a hook)
-LEAN_TRANSFORMS = (PreferenceConditioning, DiscountedVectorReturn, StateActionHistory)
+LEAN_TRANSFORMS = (PreferenceConditioning, DiscountedVectorReturn, StateActionHistory, DesiredReturnConditioning)
 
 
 def _done_shapes(env) -> list | None:

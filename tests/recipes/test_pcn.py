@@ -145,6 +145,29 @@ def test_agent_assembles_episodes_across_batches_then_warms_up_and_runs_rounds()
     assert sorted(other._pending) == [1] and other._pending[1]["reward"].shape[0] == 10  # 4 + 6 steps so far
 
 
+def test_episodes_spanning_batches_survive_a_collector_that_reuses_the_batch():
+    """The collector writes every batch into the same TensorDict (return_same_td): an episode still running at
+    the end of a batch must keep its own copy of the steps so far, not a view the next batch overwrites."""
+    batches = [_batch([[], []]), _batch([[1], [3]])]
+    for i, b in enumerate(batches):  # distinct observations per batch, step and sub-env
+        b["observation"] += torch.arange(2 * 6, dtype=torch.float32).reshape(2, 6, 1) + 100 * i
+    _, _, fresh = _agent()
+    for i, b in enumerate(batches):
+        fresh.store_episodes(b.clone(), 12 * (i + 1))
+    _, _, reused = _agent()
+    buffer = batches[0].clone()
+    for i, b in enumerate(batches):
+        buffer.update_(b)  # (in place, as the collector's own buffer)
+        reused.store_episodes(buffer, 12 * (i + 1))
+    assert sorted(reused.replay.episode_lengths.tolist()) == sorted(fresh.replay.episode_lengths.tolist()) == [8, 10]
+    for key in ("observation", "return_to_go"):
+        a, b = reused.replay._steps[key][: reused.replay._size], fresh.replay._steps[key][: fresh.replay._size]
+        assert torch.equal(a, b)
+    first = fresh.replay._steps["observation"][: fresh.replay._size, 0]
+    assert first[:6].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]  # sub-env 0's first batch, then its second
+    assert first[6:8].tolist() == [100.0, 101.0]
+
+
 def test_eval_policy_acts_on_the_command_of_the_nearest_weight():
     cfg, env, agent = _agent(eval_weights=3)
     for ret, length in HAND_MADE:

@@ -21,6 +21,7 @@ from morl_trl.transforms import (
     StateActionHistory,
     compose_training_env,
 )
+from morl_trl.transforms.command import DesiredReturnConditioning
 from tests.mocks import ToyContextEnv
 from tests._tensordicts import assert_same_tensordict
 
@@ -30,13 +31,16 @@ def _transforms(history: int = 0, extra=()):
     return [*out, PreferenceConditioning(2, mode="gaussian", seed=7), *extra, DiscountedVectorReturn(0.9)]
 
 
-def _run_both(make_base, steps: int, monkeypatch, *, history: int = 0, extra=lambda: ()) -> tuple[int, int, int]:
-    """(sub-env episodes ended, full resets, TorchRL calls of the lean env's step and in-step reset) over ``steps`` steps."""
+def _run_both(make_base, steps: int, monkeypatch, *, history: int = 0, extra=lambda: (),
+              transforms=None) -> tuple[int, int, int]:
+    """(sub-env episodes ended, full resets, TorchRL calls of the lean env's step and in-step reset) over ``steps`` steps
+    (``transforms``: a callable giving the stack, instead of the preference and the returns around ``extra``)."""
+    transforms = transforms or (lambda: _transforms(history, extra()))
     lean = LeanTransformedEnv(make_base())
-    for t in _transforms(history, extra()):
+    for t in transforms():
         lean.append_transform(t)
     generic = TransformedEnv(make_base())
-    for t in _transforms(history, extra()):
+    for t in transforms():
         generic.append_transform(t)
     generic_calls = []
     original = TransformedEnv._step_and_maybe_reset
@@ -88,6 +92,29 @@ def test_partial_resets_and_history_match_torchrl(monkeypatch):
     ended, full, torchrl_calls = _run_both(lambda: ToyContextEnv(num_envs=3, seed=0), 60, monkeypatch, history=2)
     assert torchrl_calls == 0
     assert ended >= 20 and ended > 3 * full  # (mostly partial resets: some sub-envs reset, others not)
+
+
+def _command(k: int = 2) -> DesiredReturnConditioning:
+    t = DesiredReturnConditioning(k, max_return=[5.0] * k)
+    t.set_command(torch.arange(1.0, k + 1.0), 4.0)
+    return t
+
+
+def test_pcns_command_takes_the_short_path_with_torchrls_results(monkeypatch):
+    """PCN's stack (the return-and-horizon command, updated every step, taken afresh at each partial reset)."""
+    ended, full, torchrl_calls = _run_both(lambda: ToyContextEnv(num_envs=3, seed=2), 60, monkeypatch,
+                                           extra=lambda: (_command(),))
+    assert torchrl_calls == 0
+    assert ended >= 20 and ended > 3 * full
+
+
+def test_pcns_one_env_stack_on_fruit_tree_takes_the_short_path_with_torchrls_results(monkeypatch):
+    pytest.importorskip("mo_gymnasium")
+    # (as make_pcn_training_env: the command, then the undiscounted returns)
+    ended, full, torchrl_calls = _run_both(lambda: make_env("fruit-tree-v0", num_envs=1, seed=0), 60, monkeypatch,
+                                           transforms=lambda: [_command(6), DiscountedVectorReturn(1.0)])
+    assert torchrl_calls == 0
+    assert ended == full == 10  # (fruit-tree's episodes: 6 steps, depth 6)
 
 
 def test_another_transform_takes_torchrls_path_with_the_same_results(monkeypatch):

@@ -220,8 +220,10 @@ class PCNAgent(Agent):
         their returns-to-go (an episode may span batches: its first steps wait in the agent until it ends).
         Returns how many episodes were added."""
         b = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
-        obs, act = b.get("observation").cpu(), b.get("action").cpu()
-        rew, done = b.get(("next", "reward")).cpu(), b.get(("next", "done")).reshape(b.shape).cpu()
+        # (copies: the replay and the unfinished episodes keep slices of these, and the collector writes the next
+        # batch into the same memory, return_same_td)
+        obs, act = b.get("observation").to("cpu", copy=True), b.get("action").to("cpu", copy=True)
+        rew, done = b.get(("next", "reward")).to("cpu", copy=True), b.get(("next", "done")).reshape(b.shape).cpu()
         added = 0
         for i in range(b.shape[0]):
             start = 0
@@ -373,7 +375,8 @@ def train_pcn(run: Run) -> tuple[dict, PCNAgent]:
     state = run.restore(None, map_location=device, env=env)
     if state is not None:
         load_agent_state(agent, state, run.resume_from, cfg.algo)
-    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames)
+    # (return_same_td: each batch's episodes are copied out and logged before the next one is collected)
+    collector = make_collector(cfg, env, agent.explore_policy, device, frames_done=run.frames, return_same_td=True)
 
     snapshot = checkpoint_snapshot(agent, env, collector, device)  # (what a checkpoint holds)
 
