@@ -237,26 +237,30 @@ def mb_python(choice: str | None) -> Path | None:
     return next((p for p in MB_PYTHONS if p.exists()), None)
 
 
-def mb_one_env(case: str, frames: int, python: Path, seed: int = 0, clock: str = "wall") -> dict:
+def mb_one_env(case: str, frames: int, python: Path, seed: int = 0, clock: str = "wall", prelude: str = "") -> dict:
     """MB's class of the parity case through its own ``train()`` (``mb_runner.run``), in MB's python;
     ``clock="cpu"``: its process's CPU time instead of wall time (``mb_runner``'s ``time.perf_counter``
-    read as ``time.process_time``)."""
+    read as ``time.process_time``). ``prelude``: Python run in MB's process before the run (e.g. wrappers
+    that count MB's calls); a dict it leaves in ``EXTRA`` comes back, as it is after the run, under ``"extra"``."""
     import json
     import subprocess
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        code = ("import time; time.perf_counter = time.process_time; " if clock == "cpu" else "")
+        code = ("import time; time.perf_counter = time.process_time\n" if clock == "cpu" else "")
+        code += f"EXTRA = {{}}\n{prelude}\n"
         code += (f"import sys; sys.path.insert(0, {str(PARITY)!r}); import common; "
                 f"common.CASES[{case!r}].update(frames={frames}, eval_every={frames}); import mb_runner; "
-                f"from pathlib import Path; mb_runner.run({case!r}, {seed}, Path({tmp!r}) / 'mb.json')")
+                f"from pathlib import Path; mb_runner.run({case!r}, {seed}, Path({tmp!r}) / 'mb.json'); "
+                f"import json; Path({tmp!r}, 'extra.json').write_text(json.dumps(EXTRA))")
         env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
         # (in the temporary folder: MB's PCN saves weights/PCN_model.pt in the working directory)
         done = subprocess.run([str(python), "-c", code], env=env, capture_output=True, text=True, cwd=tmp)
         if done.returncode != 0:
             raise RuntimeError(f"MB's run failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
         result = json.loads((Path(tmp) / "mb.json").read_text())
-    return {"fps": result["train_fps"], "frames": result["frames"]}
+        extra = json.loads((Path(tmp) / "extra.json").read_text())
+    return {"fps": result["train_fps"], "frames": result["frames"], "extra": extra}
 
 
 def one_env_main(args) -> int:

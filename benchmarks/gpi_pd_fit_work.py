@@ -14,60 +14,46 @@ then the ratios ours / MB of frames/s, of frames/s outside the fits, and of the 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PARITY = ROOT / "benchmarks" / "parity"
 
-# MB's side, run in its python: the parity runner's own train() with the ensemble's fit timed and its minibatch
-# steps (_compute_loss calls inside fit) counted; writes {"fps", "fits", "steps", "fit_s"} to argv[1].
-_MB_CODE = """
-import json, sys, time
-time.perf_counter = time.process_time  # mb_runner's training clock read as process CPU time
-sys.path.insert(0, {parity!r})
-import common
-common.CASES[{case!r}].update(frames={frames}, eval_every={frames})
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import bench_train  # noqa: E402  (the one-env runs of both libraries)
+
+# MB's side: bench_train.mb_one_env's run of the case with this prelude, which times MB's ensemble fits and counts
+# their minibatch steps (_compute_loss calls inside fit) in EXTRA (returned under "extra")
+_MB_PRELUDE = """
+import time
 from morl_baselines.common.model_based import probabilistic_ensemble as pe
-work = {{"fits": 0, "steps": 0, "fit_s": 0.0, "inside": False}}
-loss, fit = pe.ProbabilisticEnsemble._compute_loss, pe.ProbabilisticEnsemble.fit
-def counted_loss(self, x, y):
-    work["steps"] += work["inside"]
-    return loss(self, x, y)
-def timed_fit(self, *a, **k):
-    work["fits"] += 1
-    work["inside"], start = True, time.process_time()
+EXTRA.update(fits=0, steps=0, fit_s=0.0)
+_inside = [False]
+_loss, _fit = pe.ProbabilisticEnsemble._compute_loss, pe.ProbabilisticEnsemble.fit
+def _counted_loss(self, x, y):
+    EXTRA["steps"] += _inside[0]
+    return _loss(self, x, y)
+def _timed_fit(self, *a, **k):
+    EXTRA["fits"] += 1
+    _inside[0], start = True, time.process_time()
     try:
-        return fit(self, *a, **k)
+        return _fit(self, *a, **k)
     finally:
-        work["inside"] = False
-        work["fit_s"] += time.process_time() - start
-pe.ProbabilisticEnsemble._compute_loss, pe.ProbabilisticEnsemble.fit = counted_loss, timed_fit
-import mb_runner
-from pathlib import Path
-out = Path(sys.argv[1])
-mb_runner.run({case!r}, {seed}, out.with_suffix(".run.json"))
-fps = json.loads(out.with_suffix(".run.json").read_text())["train_fps"]
-out.write_text(json.dumps({{"fps": fps, "fits": work["fits"], "steps": work["steps"], "fit_s": work["fit_s"]}}))
+        _inside[0] = False
+        EXTRA["fit_s"] += time.process_time() - start
+pe.ProbabilisticEnsemble._compute_loss, pe.ProbabilisticEnsemble.fit = _counted_loss, _timed_fit
 """
 
 
 def ours(case: str, frames: int, seed: int) -> dict:
     """Our recipe's run of the case (``bench_train.ours_one_env``) with ``fit_dynamics`` timed and its steps counted."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    import bench_train
-
     import morl_trl.algorithms.gpi.recipe as recipe
     import morl_trl.objectives.dynamics as dynamics
 
-    bench_train.CLOCK = time.process_time
     work = {"fits": 0, "steps": 0, "fit_s": 0.0}
-    fit, nll = recipe.fit_dynamics, dynamics.DynamicsLoss.nll
+    fit, nll, clock = recipe.fit_dynamics, dynamics.DynamicsLoss.nll, bench_train.CLOCK
+    bench_train.CLOCK = time.process_time
     inside = [False]
 
     def counted_nll(self, x, y):
@@ -87,20 +73,14 @@ def ours(case: str, frames: int, seed: int) -> dict:
     try:
         fps = bench_train.ours_one_env(case, frames, seed=seed)["fps"]
     finally:
-        recipe.fit_dynamics, dynamics.DynamicsLoss.nll = fit, nll
+        recipe.fit_dynamics, dynamics.DynamicsLoss.nll, bench_train.CLOCK = fit, nll, clock
     return {"fps": fps, **work}
 
 
 def mb(case: str, frames: int, seed: int, python: str) -> dict:
-    """MB's run of the case in its own python (``mb_runner.run``), the ensemble's fits timed and counted."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "work.json"
-        code = _MB_CODE.format(parity=str(PARITY), case=case, frames=frames, seed=seed)
-        env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-        done = subprocess.run([python, "-c", code, str(out)], env=env, capture_output=True, text=True, cwd=tmp)
-        if done.returncode != 0:
-            raise RuntimeError(f"MB's run failed: {done.stderr.strip()[-500:]}")
-        return json.loads(out.read_text())
+    """MB's run of the case in its own python (``bench_train.mb_one_env``), the ensemble's fits timed and counted."""
+    r = bench_train.mb_one_env(case, frames, Path(python), seed=seed, clock="cpu", prelude=_MB_PRELUDE)
+    return {"fps": r["fps"], **r["extra"]}
 
 
 def outside_fits(r: dict, frames: int) -> float:
@@ -124,12 +104,10 @@ def main(argv=None) -> int:
     import torch
 
     torch.set_num_threads(1)
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    import bench_train
-
     python = bench_train.mb_python(args.mb_python)
     if python is None:
-        raise SystemExit("no MORL-Baselines python: python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv --mb-venv-only")
+        raise SystemExit("no MORL-Baselines python: python benchmarks/parity/run_parity.py --mb-venv /tmp/mbvenv "
+                         "--mb-venv-only")
     print(f"{args.case}, {args.frames} frames, process CPU time, 1 thread; MB: {python}")
     print(f"{'seed':>4} {'lib':<5} {'f/s':>8} {'fits':>5} {'steps':>7} {'fit s':>8} {'ms/step':>8} {'f/s outside':>12}")
     for seed in args.seeds:

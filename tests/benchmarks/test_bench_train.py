@@ -91,3 +91,29 @@ def test_one_env_seeds_print_a_row_per_seed_and_the_medians(capsys, tmp_path, mo
     assert seen == [("ours", 0), ("mb", 0), ("ours", 1), ("mb", 1), ("ours", 2), ("mb", 2)]
     fields = table.read_text().rstrip("\n").split("\t")
     assert fields[5:] == ["60.0", "90.0", "0.60x", "deep-sea-treasure-v0; median over seeds 0 1 2"]
+
+
+def test_mb_one_env_runs_a_prelude_before_mbs_run_and_returns_its_extra(tmp_path, monkeypatch):
+    """The code MB's python gets: the prelude first, then the parity runner, then EXTRA written beside its result
+    (a stand-in for MB's process runs the code's last step with the runner replaced)."""
+    bt = _module()
+    import json
+    import subprocess
+
+    seen = {}
+
+    def fake_run(cmd, env, capture_output, text, cwd):
+        code = cmd[2]
+        seen["code"] = code
+        compile(code, "<mb>", "exec")
+        assert code.index("EXTRA = {}") < code.index("EXTRA['n'] = 3") < code.index("import mb_runner")
+        (Path(cwd) / "mb.json").write_text(json.dumps({"train_fps": 50.0, "frames": 100}))
+        (Path(cwd) / "extra.json").write_text(json.dumps({"n": 3}))
+        return subprocess.CompletedProcess(cmd, 0, "", "")
+
+    from pathlib import Path
+
+    monkeypatch.setattr(subprocess, "run", fake_run)
+    r = bt.mb_one_env("gpi_pd-dst", 100, Path("python"), seed=2, clock="cpu", prelude="EXTRA['n'] = 3")
+    assert r == {"fps": 50.0, "frames": 100, "extra": {"n": 3}}
+    assert "time.perf_counter = time.process_time" in seen["code"] and "'gpi_pd-dst', 2," in seen["code"]

@@ -220,10 +220,8 @@ class PCNAgent(Agent):
         their returns-to-go (an episode may span batches: its first steps wait in the agent until it ends).
         Returns how many episodes were added."""
         b = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
-        # (copies: the replay and the unfinished episodes keep slices of these, and the collector writes the next
-        # batch into the same memory, return_same_td)
-        obs, act = b.get("observation").to("cpu", copy=True), b.get("action").to("cpu", copy=True)
-        rew, done = b.get(("next", "reward")).to("cpu", copy=True), b.get(("next", "done")).reshape(b.shape).cpu()
+        obs, act = b.get("observation").cpu(), b.get("action").cpu()
+        rew, done = b.get(("next", "reward")).cpu(), b.get(("next", "done")).reshape(b.shape).cpu()
         added = 0
         for i in range(b.shape[0]):
             start = 0
@@ -236,7 +234,9 @@ class PCNAgent(Agent):
                     piece = {k: torch.cat([prev[k], v]) for k, v in piece.items()}
                 if end is None:
                     if piece["reward"].shape[0]:
-                        self._pending[i] = piece
+                        # (kept past this batch: slices of it are copied, since the collector writes the next batch
+                        # into the same memory, return_same_td; the replay copies what it adds)
+                        self._pending[i] = piece if prev is not None else {k: v.clone() for k, v in piece.items()}
                 else:
                     self.replay.add(piece["observation"], piece["action"], piece["reward"], step=frames)
                     added += 1
